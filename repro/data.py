@@ -1,0 +1,264 @@
+"""The data layer: every real dataset repro uses, known by public URL and sha256.
+
+The registry (``repro/data_registry.csv``) lists each file by its path relative
+to the data folder, the sha256 of its *uncompressed* content and the public URL
+that serves that content.  The data folder is ``$REPRO_DATA_DIR`` (tests and CI
+point it at the staged copy in ``../shared/data``), else pooch's per-user cache.
+
+A file may sit in the data folder as itself or gzip-compressed beside it
+(``name.gz``, as the staged copy stores it); either way its content is checked
+against the registry's sha256 before use.  A missing file is downloaded with
+:func:`pooch.retrieve` (which writes to a temporary file and moves it into place
+only when the hash matches), unless downloads are off (``REPRO_OFFLINE=1``) or
+the file has no public original.  A file that fails its check is never
+overwritten: it is reported, and the user decides.
+"""
+
+from __future__ import annotations
+
+import csv
+import gzip
+import hashlib
+import io
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+
+from repro.errors import DataError
+
+__all__ = [
+    "DataFile",
+    "DATASETS",
+    "registry",
+    "data_dir",
+    "locate",
+    "fetch",
+    "open_file",
+    "status",
+    "require",
+    "missing_reason",
+]
+
+#: What each dataset is and where its licence and provenance live.
+DATASETS: dict[str, str] = {
+    "ict": "ICT Face Model (ICT-FaceKit, MIT): neutral + 57 expression shapes, 26,719 vertices",
+    "cmu-bvh": "CMU mocap, subject 135 karate + walks of others, as BVH (converted from cmu-asfamc)",
+    "cmu-asfamc": "CMU mocap originals (ASF skeletons, AMC motions) the BVH files were converted from",
+    "bandai": "Bandai Namco Research Motiondataset (CC BY-NC 4.0): five clips, another skeleton",
+}
+
+_FOLDER = {
+    "ict": "faces/ict",
+    "cmu-bvh": "mocap/cmu",
+    "cmu-asfamc": "mocap/cmu/source",
+    "bandai": "mocap/bandai",
+}
+
+
+@dataclass(frozen=True)
+class DataFile:
+    """One registered file: where it lives, its content hash and its public URL."""
+
+    dataset: str
+    path: str  #: relative to the data folder, uncompressed name
+    sha256: str  #: of the uncompressed content (what ``url`` serves)
+    url: str  #: public original, or "" when there is none
+
+    @property
+    def how_to_get(self) -> str:
+        """One sentence telling a user how to obtain this file."""
+        if self.url:
+            return (
+                f"run `repro data fetch {self.dataset}` (downloads {self.url}), or set "
+                f"REPRO_DATA_DIR to a folder holding {self.path} (or {self.path}.gz)"
+            )
+        return (
+            f"{self.path} has no public original (it was converted from "
+            f"{'cmu-asfamc' if self.dataset == 'cmu-bvh' else 'another dataset'}); set "
+            f"REPRO_DATA_DIR to a folder holding the staged copy (see {_FOLDER[self.dataset]}/PROVENANCE.md)"
+        )
+
+
+@lru_cache(maxsize=1)
+def registry() -> dict[str, DataFile]:
+    """All registered files, keyed by relative path."""
+    text = resources.files("repro").joinpath("data_registry.csv").read_text()
+    rows = csv.DictReader(io.StringIO(text))
+    return {r["path"]: DataFile(r["dataset"], r["path"], r["sha256"], r["url"]) for r in rows}
+
+
+def files(dataset: str) -> list[DataFile]:
+    """The registered files of one dataset."""
+    if dataset not in DATASETS:
+        raise DataError(f"unknown dataset {dataset!r}; known: {sorted(DATASETS)}")
+    return [f for f in registry().values() if f.dataset == dataset]
+
+
+def data_dir() -> Path:
+    """The data folder: ``$REPRO_DATA_DIR`` or pooch's per-user cache for repro."""
+    env = os.environ.get("REPRO_DATA_DIR")
+    if env:
+        return Path(env).expanduser().resolve()
+    import pooch
+
+    return Path(pooch.os_cache("repro"))
+
+
+def _offline() -> bool:
+    return os.environ.get("REPRO_OFFLINE", "").strip().lower() not in ("", "0", "false", "no")
+
+
+def _entry(path: str) -> DataFile:
+    try:
+        return registry()[path]
+    except KeyError:
+        raise DataError(f"{path!r} is not a registered data file") from None
+
+
+def locate(path: str, root: Path | None = None) -> Path | None:
+    """The file on disk for registered ``path`` (itself or ``path.gz``), or None."""
+    root = data_dir() if root is None else Path(root)
+    for candidate in (root / path, root / (path + ".gz")):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def _open_raw(p: Path):
+    return gzip.open(p, "rb") if p.suffix == ".gz" else open(p, "rb")
+
+
+@lru_cache(maxsize=512)
+def _content_sha256(p: str, size: int, mtime_ns: int) -> str:
+    # keyed on (path, size, mtime) so a file is hashed once per process unless it changes
+    h = hashlib.sha256()
+    try:
+        with _open_raw(Path(p)) as fh:
+            for chunk in iter(lambda: fh.read(1 << 20), b""):
+                h.update(chunk)
+    except (OSError, EOFError, gzip.BadGzipFile) as exc:
+        raise DataError(f"{p} cannot be read: {exc}") from exc
+    return h.hexdigest()
+
+
+def content_sha256(p: Path) -> str:
+    """sha256 of a file's content, decompressing ``.gz`` files."""
+    st = Path(p).stat()
+    return _content_sha256(str(p), st.st_size, st.st_mtime_ns)
+
+
+def _verified(entry: DataFile, p: Path) -> Path:
+    got = content_sha256(p)
+    if got != entry.sha256:
+        raise DataError(
+            f"{p} fails its sha256 check (expected {entry.sha256}, got {got}). "
+            f"It was left untouched; delete it to download a fresh copy, or restore it."
+        )
+    return p
+
+
+def fetch(path: str, *, download: bool | None = None, progressbar: bool = False) -> Path:
+    """Path of the verified local copy of registered file ``path``.
+
+    Looks in :func:`data_dir` for ``path`` or ``path.gz`` and checks its
+    content hash.  When absent it downloads the public original with pooch
+    (unless ``download`` is False or ``REPRO_OFFLINE`` is set); pooch writes to
+    a temporary file and moves it into place only after the hash matched.
+
+    Raises
+    ------
+    DataError
+        The file is missing and cannot be downloaded (the message says how to
+        get it), the download failed, or a file's hash does not match.
+    """
+    entry = _entry(path)
+    root = data_dir()
+    found = locate(path, root)
+    if found is not None:
+        return _verified(entry, found)
+    if download is None:
+        download = not _offline()
+    if not download or not entry.url:
+        why = "downloads are off (REPRO_OFFLINE)" if entry.url and not download else "it is not there"
+        raise DataError(f"{path} is missing from {root} and {why}: {entry.how_to_get}")
+    return _download(entry, entry.url, root, progressbar=progressbar)
+
+
+def _download(entry: DataFile, url: str, root: Path, *, progressbar: bool = False) -> Path:
+    import pooch
+
+    target = root / entry.path
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        got = pooch.retrieve(
+            url,
+            known_hash=f"sha256:{entry.sha256}",
+            fname=target.name,
+            path=target.parent,
+            progressbar=progressbar,
+        )
+    except ValueError as exc:  # pooch's hash mismatch
+        raise DataError(f"download of {entry.path} from {url} was rejected: {exc}") from exc
+    except Exception as exc:  # network, HTTP status, permissions
+        raise DataError(f"download of {entry.path} from {url} failed: {exc}") from exc
+    return Path(got)
+
+
+def open_file(path: str):
+    """A binary file object with the verified content of ``path`` (gzip undone)."""
+    return _open_raw(fetch(path))
+
+
+def status(dataset: str) -> dict:
+    """Presence and verification of a dataset's files (for ``repro data list``)."""
+    entries = files(dataset)
+    present = verified = 0
+    problems: list[str] = []
+    for e in entries:
+        p = locate(e.path)
+        if p is None:
+            continue
+        present += 1
+        try:
+            _verified(e, p)
+            verified += 1
+        except DataError as exc:
+            problems.append(str(exc))
+    return {
+        "dataset": dataset,
+        "files": len(entries),
+        "present": present,
+        "verified": verified,
+        "downloadable": all(e.url for e in entries),
+        "problems": problems,
+    }
+
+
+def missing_reason(dataset: str) -> str | None:
+    """None when every file of ``dataset`` is present, else why not and how to get it.
+
+    Only presence is checked here (cheap); :func:`fetch` verifies hashes on use.
+    """
+    missing = [e for e in files(dataset) if locate(e.path) is None]
+    if not missing:
+        return None
+    return (
+        f"dataset {dataset!r} is not in {data_dir()} ({len(missing)} of {len(files(dataset))} "
+        f"files missing, e.g. {missing[0].path}); {missing[0].how_to_get}"
+    )
+
+
+def require(dataset: str, *, download: bool | None = None, progressbar: bool = False) -> Path:
+    """Fetch (verify or download) every file of ``dataset``; its folder in :func:`data_dir`."""
+    entries = files(dataset)
+    it: Iterator[DataFile] = iter(entries)
+    if progressbar:
+        from tqdm.auto import tqdm
+
+        it = tqdm(entries, desc=f"data {dataset}", unit="file")
+    for e in it:
+        fetch(e.path, download=download)
+    return data_dir() / _FOLDER[dataset]
