@@ -1,9 +1,67 @@
 """Lewis, Mooser, Deng, Neumann, "Reducing Blendshape Interference by Selected
 Motion Attenuation" (I3D 2005).
 
-- :mod:`~repro.blendshapes.model`: the delta model ``f = f0 + D w`` (Section 3).
+- :mod:`~repro.blendshapes.model`: the delta model ``f = f0 + D w`` and the
+  whole-face form (Section 3).
+- :mod:`~repro.blendshapes.procedural`: the embedded 2,016-vertex face.
+- :mod:`~repro.blendshapes.ict`: the real ICT Face Model (staged data).
+- :mod:`~repro.blendshapes.attenuation`: Eq. (3), ``attenuate`` and the cached
+  ``Attenuator`` (Sections 4-5).
+- :mod:`~repro.blendshapes.alternatives`: zeroed rows and orthogonal locking,
+  the approaches Section 3 rejects.
+- :mod:`~repro.blendshapes.metrics`: selected motion, unselected fidelity,
+  surface smoothness.
 """
 
+from repro.blendshapes.alternatives import edit_orthogonal, edit_zeroed, orthogonal_lock, zero_rows
+from repro.blendshapes.attenuation import (
+    Attenuator,
+    attenuate,
+    check_selection,
+    default_alpha,
+    select_axis,
+    select_pairs,
+    select_vertices,
+)
 from repro.blendshapes.model import AXES, BlendshapeModel
+from repro.errors import ModelError
 
-__all__ = ["AXES", "BlendshapeModel"]
+__all__ = [
+    "AXES",
+    "BlendshapeModel",
+    "MODELS",
+    "load_model",
+    "attenuate",
+    "Attenuator",
+    "default_alpha",
+    "check_selection",
+    "select_vertices",
+    "select_pairs",
+    "select_axis",
+    "zero_rows",
+    "edit_zeroed",
+    "orthogonal_lock",
+    "edit_orthogonal",
+]
+
+#: Models :func:`load_model` knows, with the dataset each needs (None = embedded).
+MODELS = {"procedural": None, "ict": "ict"}
+
+
+def load_model(name: str = "procedural", **kw) -> BlendshapeModel:
+    """A blendshape model by name.
+
+    ``"procedural"``: the embedded 2,016-vertex face, always available
+    (keyword ``n_vertices`` for a scaled-up one).  ``"ict"``: the ICT Face Model
+    from the data folder (keywords of :func:`repro.blendshapes.ict.load_ict`);
+    raises :class:`~repro.errors.DataError` saying how to get it when absent.
+    """
+    if name == "procedural":
+        from repro.blendshapes.procedural import procedural_model
+
+        return procedural_model(**kw)
+    if name == "ict":
+        from repro.blendshapes.ict import load_ict
+
+        return load_ict(**kw)
+    raise ModelError(f"unknown model {name!r}; known: {sorted(MODELS)}")

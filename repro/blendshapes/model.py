@@ -264,6 +264,24 @@ class BlendshapeModel:
         e.sort(axis=1)
         return np.unique(e, axis=0)
 
+    @cached_property
+    def laplacian(self):
+        """Uniform graph Laplacian ``L = I - A_norm`` (n x n, scipy CSR) of the mesh edges.
+
+        ``(L @ x)[i] = x[i] - mean of x over the neighbours of i``; isolated
+        vertices get a zero row.  Used by the smoothness metric.
+        """
+        import scipy.sparse as sp
+
+        n = self.n_vertices
+        e = self.edges
+        A = sp.coo_matrix(
+            (np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])), shape=(n, n)
+        ).tocsr()
+        deg = np.asarray(A.sum(axis=1)).ravel()
+        inv = np.divide(1.0, deg, out=np.zeros(n), where=deg > 0)
+        return (sp.diags((deg > 0).astype(float)) - sp.diags(inv) @ A).tocsr()
+
     def restrict(self, vertices, *, name: str | None = None) -> "BlendshapeModel":
         """The model on a subset of its vertices (e.g. the ICT face area).
 

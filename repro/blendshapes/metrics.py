@@ -1,0 +1,133 @@
+"""Measurements for Lewis et al. 2005: how still the selection stays, how much
+of the intended motion the rest keeps, and how smooth the surface remains.
+
+Displacements are flat (3n,) vectors in the xyz packing of ``D`` (row
+``3*v + axis``) or (n, 3) arrays; both are accepted.  Selections are rows of
+``D`` as built by :func:`repro.blendshapes.select_vertices`.
+
+- :func:`selected_motion`: ``||S (d - d_ref)||``, the quantity Eq. (2)'s first
+  term penalises (Figs. 3-5: "the selected vertices maintain their positions").
+- :func:`unselected_fidelity`: ``1 - ||Sbar (d - d_int)|| / ||Sbar (d_int - d_ref)||``,
+  1 when the unselected coordinates move exactly as the sliders intend, 0 when
+  their error is as large as the intended motion (Fig. 5e: "not moving
+  unselected vertices either").
+- :func:`roughness`: the largest uniform-Laplacian magnitude of the
+  displacement field, ``max_i ||d_i - mean_{j~i} d_j||``; a frozen vertex whose
+  neighbour keeps moving (Section 3's argument against zeroing rows) shows up
+  as a spike.  :func:`edge_strain` gives the per-edge relative length change.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from repro.blendshapes.attenuation import check_selection
+from repro.blendshapes.model import BlendshapeModel
+from repro.errors import ModelError
+
+__all__ = [
+    "per_vertex_motion",
+    "selected_motion",
+    "unselected_error",
+    "unselected_fidelity",
+    "laplacian_magnitude",
+    "roughness",
+    "edge_strain",
+]
+
+
+def _flat(d, name: str = "displacement") -> np.ndarray:
+    d = np.asarray(d, dtype=np.float64)
+    if d.ndim == 2 and d.shape[1] == 3:
+        d = d.reshape(-1)
+    if d.ndim != 1 or d.size % 3:
+        raise ModelError(f"{name} must be a flat 3n vector or an (n, 3) array, got shape {d.shape}")
+    if not np.isfinite(d).all():
+        raise ModelError(f"{name} has NaN/inf values")
+    return d
+
+
+def _pair(d, d_ref, name="reference"):
+    d = _flat(d)
+    if d_ref is None:
+        return d, np.zeros_like(d)
+    r = _flat(d_ref, name)
+    if r.shape != d.shape:
+        raise ModelError(f"{name} has {r.size} coordinates, displacement has {d.size}")
+    return d, r
+
+
+def per_vertex_motion(d, d_ref=None) -> np.ndarray:
+    """Euclidean motion of every vertex, ``||d_v - d_ref_v||`` (n,), e.g. for heat maps."""
+    d, r = _pair(d, d_ref)
+    return np.linalg.norm((d - r).reshape(-1, 3), axis=1)
+
+
+def selected_motion(d, selected, d_ref=None) -> float:
+    """``||S (d - d_ref)||``: how far the selected coordinates moved from ``d_ref`` (default: neutral)."""
+    d, r = _pair(d, d_ref)
+    sel = check_selection(selected, d.size)
+    return float(np.linalg.norm(d[sel] - r[sel]))
+
+
+def _unselected(n: int, selected) -> np.ndarray:
+    mask = np.ones(n, dtype=bool)
+    mask[check_selection(selected, n)] = False
+    return mask
+
+
+def unselected_error(d, d_intended, selected) -> float:
+    """``||Sbar (d - d_intended)||``: how far the unselected coordinates are from where the sliders meant them."""
+    d, t = _pair(d, d_intended, "intended displacement")
+    m = _unselected(d.size, selected)
+    return float(np.linalg.norm(d[m] - t[m]))
+
+
+def unselected_fidelity(d, d_intended, selected, d_ref=None) -> float:
+    """``1 - ||Sbar (d - d_int)|| / ||Sbar (d_int - d_ref)||`` (1 = exactly as intended).
+
+    ``d_ref`` is the displacement before the moves (default: neutral).  NaN
+    when the sliders intend no motion of the unselected coordinates.
+    """
+    d, t = _pair(d, d_intended, "intended displacement")
+    _, r = _pair(d, d_ref)
+    m = _unselected(d.size, selected)
+    intended = np.linalg.norm(t[m] - r[m])
+    if intended == 0:
+        return float("nan")
+    return float(1.0 - np.linalg.norm(d[m] - t[m]) / intended)
+
+
+def _model(model) -> BlendshapeModel:
+    if not isinstance(model, BlendshapeModel):
+        raise ModelError(f"expected a BlendshapeModel, got {type(model).__name__}")
+    if not len(model.faces):
+        raise ModelError(f"model {model.name!r} has no faces: smoothness needs mesh connectivity")
+    return model
+
+
+def laplacian_magnitude(model: BlendshapeModel, d) -> np.ndarray:
+    """Per-vertex ``||d_i - mean_{j~i} d_j||`` (n,): the uniform-Laplacian roughness of a displacement."""
+    model = _model(model)
+    d = _flat(d)
+    if d.size != 3 * model.n_vertices:
+        raise ModelError(f"displacement has {d.size // 3} vertices, model has {model.n_vertices}")
+    return np.linalg.norm(model.laplacian @ d.reshape(-1, 3), axis=1)
+
+
+def roughness(model: BlendshapeModel, d) -> float:
+    """Largest :func:`laplacian_magnitude` over the mesh (model units)."""
+    return float(laplacian_magnitude(model, d).max())
+
+
+def edge_strain(model: BlendshapeModel, d) -> np.ndarray:
+    """Per-edge relative length change ``| ||e + de|| - ||e|| | / ||e||`` for displacement ``d``."""
+    model = _model(model)
+    d = _flat(d).reshape(-1, 3)
+    if d.shape[0] != model.n_vertices:
+        raise ModelError(f"displacement has {d.shape[0]} vertices, model has {model.n_vertices}")
+    e = model.edges
+    rest = model.f0[e[:, 1]] - model.f0[e[:, 0]]
+    moved = rest + d[e[:, 1]] - d[e[:, 0]]
+    L0 = np.linalg.norm(rest, axis=1)
+    return np.abs(np.linalg.norm(moved, axis=1) - L0) / np.where(L0 > 0, L0, 1.0)
