@@ -1,0 +1,699 @@
+"""The real ICT Face Model as a delta blendshape model (Lewis et al. 2005, Section 3).
+
+The ICT Face Model (ICT-FaceKit, USC Institute for Creative Technologies,
+Vision and Graphics Lab, https://github.com/ICT-VGL/ICT-FaceKit, commit
+``da5f95a6``) is a public, production-style face rig: a neutral mesh
+``generic_neutral_mesh.obj`` (26,719 vertices, 26,384 quads and triangles) and
+57 expression shapes (ARKit-style names such as ``browDown_L``, stored as full
+meshes with the neutral's vertex order and polygons).  :func:`load_ict` turns it
+into a :class:`~repro.blendshapes.model.BlendshapeModel` with
+``D = [S_k - f0]``, the delta form of Section 3 of the paper, in centimetres
+(+y up, the face looks toward +z, +x is the subject's own left, so ``_L``
+shapes move the +x side).
+
+Licence: MIT, "Copyright (c) 2020 USC Institute for Creative Technologies"; the
+``LICENSE`` file travels with the staged data (``faces/ict/LICENSE`` in the data
+folder).  Provenance (source commit, per-file sha256, the sub-mesh vertex
+ranges, reference displacement statistics and the mapping of the paper's
+sliders to ICT shapes) is in ``faces/ict/PROVENANCE.md`` beside the data.
+
+Reading
+-------
+:func:`read_obj` reads the ``v`` and ``f`` lines of an OBJ directly and keeps
+vertex identity.  General mesh loaders (e.g. ``trimesh.load``) split vertices
+along UV seams and material groups (26,719 becomes 27,081 or more), which would
+break the vertex correspondence between the neutral and the expression shapes
+that a blendshape model relies on.
+
+Caching
+-------
+Parsing the 58 OBJs (about 150 MB of text) takes a few seconds, so the
+assembled arrays are cached in an ``.npz`` file in ``$REPRO_CACHE_DIR`` (else
+``pooch.os_cache("repro") / "derived"``), named after the registry sha256s of
+the files used; the data folder itself is never written to.  The model is also
+kept in memory per process (see :func:`load_ict`).
+"""
+
+from __future__ import annotations
+
+import gzip
+import hashlib
+import json
+import os
+import re
+import uuid
+import zipfile
+from collections.abc import Sequence
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from repro import data
+from repro.blendshapes.model import BlendshapeModel
+from repro.errors import DataError, ModelError
+
+__all__ = [
+    "read_obj",
+    "load_ict",
+    "ict_regions",
+    "cache_dir",
+    "ICT_SHAPES",
+    "ICT_SLIDERS",
+    "ICT_NEUTRAL",
+    "ICT_N_VERTICES",
+    "ICT_N_TRIANGLES",
+    "FACE_AREA",
+    "SUBMESHES",
+]
+
+#: Name (file stem) of the neutral mesh.
+ICT_NEUTRAL = "generic_neutral_mesh"
+
+#: The 57 expression shapes, in upstream order: the 53 ``"expressions"`` of
+#: ``vertex_indices.json`` in their order, then the four further shape files of
+#: the same folder that list omits (``cheekRaiser_L/R``, ``PupilDilate_L/R``).
+ICT_SHAPES: tuple[str, ...] = (
+    "browDown_L", "browDown_R", "browInnerUp_L", "browInnerUp_R",
+    "browOuterUp_L", "browOuterUp_R", "cheekPuff_L", "cheekPuff_R",
+    "cheekSquint_L", "cheekSquint_R", "eyeBlink_L", "eyeBlink_R",
+    "eyeLookDown_L", "eyeLookDown_R", "eyeLookIn_L", "eyeLookIn_R",
+    "eyeLookOut_L", "eyeLookOut_R", "eyeLookUp_L", "eyeLookUp_R",
+    "eyeSquint_L", "eyeSquint_R", "eyeWide_L", "eyeWide_R",
+    "jawForward", "jawLeft", "jawOpen", "jawRight", "mouthClose",
+    "mouthDimple_L", "mouthDimple_R", "mouthFrown_L", "mouthFrown_R",
+    "mouthFunnel", "mouthLeft", "mouthLowerDown_L", "mouthLowerDown_R",
+    "mouthPress_L", "mouthPress_R", "mouthPucker", "mouthRight",
+    "mouthRollLower", "mouthRollUpper", "mouthShrugLower", "mouthShrugUpper",
+    "mouthSmile_L", "mouthSmile_R", "mouthStretch_L", "mouthStretch_R",
+    "mouthUpperUp_L", "mouthUpperUp_R", "noseSneer_L", "noseSneer_R",
+    "cheekRaiser_L", "cheekRaiser_R", "PupilDilate_L", "PupilDilate_R",
+)  # fmt: skip
+
+#: Vertex count of the neutral and of every shape.
+ICT_N_VERTICES = 26719
+
+#: Triangles of the full mesh after fan triangulation (25,836 quads + 548 triangles).
+ICT_N_TRIANGLES = 52220
+
+#: Sub-mesh vertex ranges from the upstream README, 0-based and *inclusive*.
+SUBMESHES: dict[str, tuple[int, int]] = {
+    "face": (0, 9408),
+    "head_and_neck": (9409, 11247),
+    "mouth_socket": (11248, 13293),
+    "eye_sockets": (13294, 14061),
+    "gums_and_tongue": (14062, 17038),
+    "teeth": (17039, 21450),
+    "eyeballs": (21451, 24590),
+    "lacrimal_fluid_eye_blend_occlusion": (24591, 25350),
+    "eyelashes": (25351, 26718),
+}
+
+#: The face area, vertices 0..9408 (9,409 vertices), as a ``range``.
+FACE_AREA = range(SUBMESHES["face"][0], SUBMESHES["face"][1] + 1)
+
+#: The paper's sliders (Lewis et al. 2005, Figs. 3-5) as combinations of ICT
+#: shapes; see the mapping table in ``faces/ict/PROVENANCE.md``.
+ICT_SLIDERS: dict[str, dict[str, float]] = {
+    "Furrow": {"browDown_L": 1.0, "browDown_R": 1.0},  # brow lowerer, FACS AU4
+    "SmirkLeft": {"mouthSmile_L": 1.0},  # lip-corner pull, AU12, subject's left
+    "SmirkRight": {"mouthSmile_R": 1.0},
+    "Wince": {"eyeSquint_L": 1.0, "eyeSquint_R": 1.0},  # lid tightener, AU7
+    "SneerLeft": {"noseSneer_L": 1.0},  # nose wrinkler, AU9
+    "SneerRight": {"noseSneer_R": 1.0},
+}
+
+_FOLDER = "faces/ict"
+_CACHE_FORMAT = 1  # bump when the cached arrays or their meaning change
+
+
+# ---------------------------------------------------------------------- OBJ
+def _err(source: str, line: int, what: str) -> ModelError:
+    return ModelError(f"{source}, line {line}: {what}")
+
+
+def read_obj(stream_or_path) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and triangles of a Wavefront OBJ, keeping vertex identity.
+
+    Only ``v`` and ``f`` statements are used; ``vt``, ``vn``, ``usemtl``,
+    ``mtllib``, ``g``, ``o``, ``s``, comments and any other statement are
+    ignored.  A face token ``v/vt/vn`` (or ``v//vn``, ``v/vt``) contributes its
+    first index only, so vertices are never split along UV seams or material
+    boundaries -- the property a blendshape model needs, since vertex ``i`` of
+    every expression must be vertex ``i`` of the neutral (Lewis et al. 2005,
+    Section 3).
+
+    Parameters
+    ----------
+    stream_or_path : path-like or file object
+        A file name (``.gz`` files are decompressed) or an open binary (or
+        text) stream.
+
+    Returns
+    -------
+    vertices : (n, 3) float64 array
+        The ``v`` lines in file order (a fourth ``w`` or trailing vertex colours
+        are ignored).
+    faces : (F, 3) int64 array
+        0-based triangles.  OBJ indices are 1-based; negative indices count back
+        from the last vertex defined before the face; polygons with ``k > 3``
+        corners are fan-triangulated from their first corner into ``k - 2``
+        triangles ``(c0, c_j, c_{j+1})``, in file order.
+
+    Raises
+    ------
+    ModelError
+        The file has no vertices, a vertex with fewer than 3 (or non-numeric,
+        NaN or infinite) coordinates, a face with fewer than 3 corners, a face
+        index that is not an integer, is 0 or is out of range, or a line
+        continuation (``\\``); the message names the source and the 1-based line
+        number.
+
+    Notes
+    -----
+    Parsing is vectorised: lines are selected by their first token and all
+    numbers of a kind are converted by one :func:`numpy.array` call; a
+    line-by-line pass runs only to locate an error.  About 0.05-0.1 s for a
+    2.5 MB ICT mesh.
+    """
+    if hasattr(stream_or_path, "read"):
+        source = str(getattr(stream_or_path, "name", "<stream>"))
+        try:
+            raw = stream_or_path.read()
+        except (OSError, EOFError) as exc:  # e.g. a damaged gzip stream
+            raise DataError(f"{source} cannot be read: {exc}") from exc
+    else:
+        p = Path(stream_or_path)
+        source = str(p)
+        try:
+            opener = gzip.open if p.suffix == ".gz" else open
+            with opener(p, "rb") as fh:
+                raw = fh.read()
+        except (OSError, EOFError) as exc:
+            raise DataError(f"{p} cannot be read: {exc}") from exc
+    if isinstance(raw, str):
+        raw = raw.encode("utf-8")
+    return _parse_obj(bytes(raw), source)
+
+
+def _parse_obj(raw: bytes, source: str) -> tuple[np.ndarray, np.ndarray]:
+    if b"\r" in raw:
+        raw = raw.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    if b"\t" in raw:
+        raw = raw.replace(b"\t", b" ")
+    lines = raw.split(b"\n")
+    vi: list[int] = []
+    fi: list[int] = []
+    for i, line in enumerate(lines):
+        if line[:1] == b" ":
+            line = lines[i] = line.lstrip()
+        head = line[:2]
+        if head == b"v " or line == b"v":
+            vi.append(i)
+        elif head == b"f " or line == b"f":
+            fi.append(i)
+        else:
+            continue
+        if line.rstrip()[-1:] == b"\\":
+            raise _err(source, i + 1, "line continuations ('\\') are not supported")
+    if not vi:
+        raise ModelError(f"{source}: no vertices ('v' lines)")
+    vertices = _parse_vertices(lines, vi, source)
+    faces = _parse_faces(lines, vi, fi, len(vertices), source)
+    return vertices, faces
+
+
+def _parse_vertices(lines: list[bytes], vi: list[int], source: str) -> np.ndarray:
+    bodies = [lines[i][1:] for i in vi]
+    counts = np.fromiter((len(b.split()) for b in bodies), dtype=np.int64, count=len(bodies))
+    V = None
+    if (counts == 3).all():
+        try:
+            V = np.array(b" ".join(bodies).split(), dtype=np.float64).reshape(-1, 3)
+        except ValueError:
+            V = None  # locate the bad line below
+    if V is None:
+        V = np.empty((len(vi), 3))
+        for row, (i, body) in enumerate(zip(vi, bodies)):
+            parts = body.split()
+            if len(parts) not in (3, 4, 6, 7):
+                raise _err(
+                    source, i + 1,
+                    f"a vertex needs 3 coordinates (x y z [w] [r g b]), got {len(parts)}",
+                )
+            for axis, tok in enumerate(parts[:3]):
+                try:
+                    V[row, axis] = float(tok)
+                except ValueError:
+                    raise _err(
+                        source, i + 1, f"coordinate {'xyz'[axis]} {tok.decode(errors='replace')!r} is not a number"
+                    ) from None
+            for tok in parts[3:]:
+                try:
+                    float(tok)
+                except ValueError:
+                    raise _err(source, i + 1, f"field {tok.decode(errors='replace')!r} is not a number") from None
+    bad = ~np.isfinite(V)
+    if bad.any():
+        row, axis = np.argwhere(bad)[0]
+        raise _err(source, vi[row] + 1, f"coordinate {'xyz'[axis]} is {V[row, axis]} (NaN/inf)")
+    return V
+
+
+_SLASH_TAIL = re.compile(rb"/\S*")
+
+
+def _parse_faces(lines: list[bytes], vi: list[int], fi: list[int], nv: int, source: str) -> np.ndarray:
+    if not fi:
+        return np.zeros((0, 3), dtype=np.int64)
+    bodies = [lines[i][1:] for i in fi]
+    counts = np.fromiter((len(b.split()) for b in bodies), dtype=np.int64, count=len(bodies))
+    short = np.flatnonzero(counts < 3)
+    if short.size:
+        k = short[0]
+        raise _err(source, fi[k] + 1, f"a face needs at least 3 vertices, got {counts[k]}")
+    idx = None
+    try:
+        idx = np.array(_SLASH_TAIL.sub(b"", b" ".join(bodies)).split(), dtype=np.int64)
+    except (ValueError, OverflowError):
+        pass
+    if idx is None or idx.size != counts.sum():
+        for i, body in zip(fi, bodies):
+            for tok in body.split():
+                first = tok.split(b"/", 1)[0]
+                try:
+                    int(first)
+                except ValueError:
+                    raise _err(
+                        source, i + 1, f"face index {tok.decode(errors='replace')!r} is not an integer"
+                    ) from None
+        raise ModelError(f"{source}: cannot parse the face lines")  # pragma: no cover
+    # vertices defined before each face line, for negative (relative) indices
+    before = np.repeat(np.searchsorted(np.asarray(vi), np.asarray(fi)), counts)
+    resolved = np.where(idx > 0, idx - 1, before + idx)
+    bad = (idx == 0) | (resolved < 0) | (resolved >= nv)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        poly = int(np.searchsorted(np.cumsum(counts), k, side="right"))
+        raise _err(
+            source, fi[poly] + 1,
+            f"face index {idx[k]} is out of range (vertices are 1..{nv}, "
+            f"or -1..-{before[k]} counting back from this line)",
+        )
+    starts = np.cumsum(counts) - counts
+    ntri = counts - 2
+    poly = np.repeat(np.arange(counts.size), ntri)
+    j = np.arange(ntri.sum()) - np.repeat(np.cumsum(ntri) - ntri, ntri) + 1
+    first = starts[poly]
+    return np.stack(
+        [resolved[first], resolved[first + j], resolved[first + j + 1]], axis=1
+    ).astype(np.int64)
+
+
+# ------------------------------------------------------------------ regions
+#: Multi-PIE 68-point landmark numbers (0-based) used by the region rules.  In
+#: ``vertex_indices.json`` they are listed in the subject's frame: 17-21 the
+#: subject's right brow (x < 0), 22-26 the left brow, 27-30 the nose bridge,
+#: 31-35 the nose base, 36-41 the right eye, 42-47 the left eye (42 inner
+#: corner, 45 outer corner, 46-47 lower lid), 48-59 the outer lip contour (48
+#: right corner, 54 left corner), 60-67 the inner lip contour.
+_LM = {
+    "brow": list(range(17, 27)),
+    "nose": list(range(27, 36)),
+    "right_eye": [36, 37, 38, 39, 40, 41, 36],
+    "left_eye": [42, 43, 44, 45, 46, 47, 42],
+    "mouth_outer": [48, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 59, 48],
+    "mouth_inner": [60, 61, 62, 63, 64, 65, 66, 67, 60],
+}
+
+#: Radii (cm) of the broad landmark-band regions, see :func:`ict_regions`.
+_BAND_RADIUS = {"brow": 1.0, "left_eye": 0.8, "right_eye": 0.8, "mouth": 0.8, "nose": 0.8}
+
+#: How far (cm, along -y) below the left lower-lid midpoint the
+#: ``under_left_eye`` selection is centred, and how many vertices it has.
+_UNDER_EYE_DROP = 1.0
+_UNDER_EYE_COUNT = 6
+
+
+def _distance_to_polyline(points: np.ndarray, chain: np.ndarray) -> np.ndarray:
+    """Euclidean distance of each point to the polyline through ``chain`` (k, 3)."""
+    a, b = chain[:-1], chain[1:]
+    ab = b - a
+    t = np.einsum("pkc,kc->pk", points[:, None, :] - a[None], ab) / np.einsum("kc,kc->k", ab, ab)
+    t = np.clip(t, 0.0, 1.0)
+    closest = a[None] + t[..., None] * ab[None]
+    return np.linalg.norm(points[:, None, :] - closest, axis=2).min(axis=1)
+
+
+def ict_regions(f0: np.ndarray, landmarks: Sequence[int]) -> dict[str, np.ndarray]:
+    """Named vertex sets of the ICT face, from the neutral and its landmarks.
+
+    Every rule uses only the neutral positions ``f0`` (cm; +y up, +z forward,
+    +x the subject's left) restricted to the face area (vertices 0..9408) and
+    the Multi-PIE 68 landmark vertices ``landmarks`` (``idx_to_landmark_verts``
+    of ``vertex_indices.json``; landmark numbers below are 0-based), so the
+    regions do not depend on which shapes are loaded.  Vertex ids are the same
+    in the full and in the face-only model (the face area is vertices
+    0..9408).  Ties in distance are broken by the lower vertex id.
+
+    Selections of the paper's figures (Lewis et al. 2005, Section 5):
+
+    ``brow_middle`` (Fig. 3a: "two vertices whose motion is to be attenuated",
+    at "the middle of the brow" that keeps moving down in Fig. 2c)
+        The two vertices, one each side of the midline (x < 0 and x > 0),
+        nearest to the midpoint of the inner brow ends, landmarks 21 and 22 --
+        i.e. the glabella between the eyebrows.  On the ICT model these are
+        vertices 2051 and 4247 (x = -/+0.30, y = 5.99), which ``Furrow``
+        (``browDown_L + browDown_R``) moves 0.146 cm down and 0.05 cm inward.
+        Note that ICT's ``browDown`` moves most (0.65 cm) at the middle of each
+        eyebrow, not between them; those points are ``brow_centers``.
+    ``brow_centers``
+        The middle landmark of each eyebrow, landmarks 19 and 24 (vertices
+        1914 and 4114), where ``Furrow`` moves about 0.65 cm.
+    ``mouth_corners`` (Fig. 4a: "the corners of the mouth")
+        The outer lip-corner landmarks 48 (the subject's right, x < 0) and 54
+        (left, x > 0), in that order: vertices 5708 and 6213.
+    ``under_left_eye`` (Fig. 5a: "Six vertices ... selected below the eye")
+        The six vertices nearest to the point 1 cm below (-y) the midpoint of
+        the subject's left lower-lid landmarks 46 and 47; on the upper cheek,
+        where ``Wince`` (``eyeSquint``) and ``SneerLeft`` (``noseSneer_L``) both
+        move the skin by about 0.35-0.5 cm.
+
+    Broad regions (bands around landmark contours; 3D distance to the
+    polyline through the landmarks, face area only):
+
+    ``brow``: within 1.0 cm of the chain 17-18-...-26 (both brows and the
+    glabella between them).  ``left_eye`` / ``right_eye``: within 0.8 cm of
+    the closed eye contour 42-...-47 / 36-...-41 (lids and lid margins).
+    ``mouth``: within 0.8 cm of the closed outer (48-59) or inner (60-67) lip
+    contour.  ``nose``: within 0.8 cm, in the x-y (frontal) projection, of the
+    convex hull of the nose landmarks 27-35 (bridge and base), which takes in
+    the nostril wings.  The model is left-right symmetric, so ``left_eye`` and
+    ``right_eye`` are mirror images.
+
+    Parameters
+    ----------
+    f0 : (n, 3) array
+        Neutral vertex positions with ``n >= 9409``.
+    landmarks : sequence of 68 int
+        Vertex ids of the Multi-PIE 68 landmarks.
+
+    Returns
+    -------
+    dict of str to int64 array
+        Sorted vertex ids, except ``mouth_corners`` and ``brow_centers`` and
+        ``brow_middle`` (ordered right side first, then left).
+    """
+    f0 = np.asarray(f0, dtype=np.float64)
+    lm = np.asarray(landmarks, dtype=np.int64)
+    n_face = len(FACE_AREA)
+    if f0.ndim != 2 or f0.shape[1] != 3 or f0.shape[0] < n_face:
+        raise ModelError(f"ict_regions needs the ICT neutral (n >= {n_face}, 3), got {f0.shape}")
+    if lm.shape != (68,) or lm.min() < 0 or lm.max() >= n_face:
+        raise ModelError(f"expected 68 landmark vertex ids in the face area, got {lm.shape}")
+    face = f0[:n_face]
+    ids = np.arange(n_face)
+    P = face[lm]
+
+    def nearest(point, k=1, mask=None):
+        d = np.linalg.norm(face - point, axis=1)
+        cand = ids if mask is None else ids[mask]
+        order = np.lexsort((cand, d[cand]))  # distance, then id
+        return cand[order[:k]]
+
+    regions: dict[str, np.ndarray] = {}
+    mid = 0.5 * (P[21] + P[22])
+    regions["brow_middle"] = np.concatenate(
+        [nearest(mid, mask=face[:, 0] < 0), nearest(mid, mask=face[:, 0] > 0)]
+    )
+    regions["brow_centers"] = lm[[19, 24]]
+    regions["mouth_corners"] = lm[[48, 54]]
+    under = 0.5 * (P[46] + P[47]) - np.array([0.0, _UNDER_EYE_DROP, 0.0])
+    regions["under_left_eye"] = np.sort(nearest(under, k=_UNDER_EYE_COUNT))
+
+    def band(chains, radius):
+        d = np.min([_distance_to_polyline(face, P[c]) for c in chains], axis=0)
+        return np.flatnonzero(d <= radius)
+
+    regions["brow"] = band([_LM["brow"]], _BAND_RADIUS["brow"])
+    regions["left_eye"] = band([_LM["left_eye"]], _BAND_RADIUS["left_eye"])
+    regions["right_eye"] = band([_LM["right_eye"]], _BAND_RADIUS["right_eye"])
+    regions["mouth"] = band([_LM["mouth_outer"], _LM["mouth_inner"]], _BAND_RADIUS["mouth"])
+    # nose: xy-distance to the convex hull of landmarks 27-35 (inside counts as 0)
+    from scipy.spatial import ConvexHull, Delaunay
+
+    hull_pts = P[27:36, :2]
+    hull = ConvexHull(hull_pts)
+    ring = np.column_stack([hull_pts[np.r_[hull.vertices, hull.vertices[0]]], np.zeros(len(hull.vertices) + 1)])
+    flat = np.column_stack([face[:, :2], np.zeros(n_face)])
+    d_nose = _distance_to_polyline(flat, ring)
+    d_nose[Delaunay(hull_pts).find_simplex(face[:, :2]) >= 0] = 0.0
+    regions["nose"] = np.flatnonzero(d_nose <= _BAND_RADIUS["nose"])
+    return regions
+
+
+# ------------------------------------------------------------------ loading
+def cache_dir() -> Path:
+    """Folder for derived caches: ``$REPRO_CACHE_DIR``, else ``pooch.os_cache("repro") / "derived"``."""
+    env = os.environ.get("REPRO_CACHE_DIR")
+    if env:
+        return Path(env).expanduser().resolve()
+    import pooch
+
+    return Path(pooch.os_cache("repro")) / "derived"
+
+
+def _relpath(stem: str) -> str:
+    return f"{_FOLDER}/{stem}.obj"
+
+
+def _cache_key(shapes: tuple[str, ...]) -> str:
+    """Cache file name from the registry sha256s of every file the arrays come from."""
+    reg = data.registry()
+    used = [_relpath(ICT_NEUTRAL), f"{_FOLDER}/vertex_indices.json"] + [_relpath(s) for s in shapes]
+    h = hashlib.sha256(f"repro.blendshapes.ict cache format {_CACHE_FORMAT}\n".encode())
+    for rel in used:
+        try:
+            h.update(f"{rel} {reg[rel].sha256}\n".encode())
+        except KeyError:
+            raise DataError(f"{rel!r} is not a registered data file") from None
+    return f"ict-{h.hexdigest()[:24]}.npz"
+
+
+def _read_shape(stem: str) -> tuple[np.ndarray, np.ndarray]:
+    return read_obj(data.fetch(_relpath(stem)))  # fetch verifies the sha256
+
+
+def _read_landmarks() -> np.ndarray:
+    rel = f"{_FOLDER}/vertex_indices.json"
+    try:
+        with data.open_file(rel) as fh:
+            lm = json.load(fh)["idx_to_landmark_verts"]
+    except (KeyError, TypeError, ValueError) as exc:
+        raise DataError(f"{rel} has no usable 'idx_to_landmark_verts' list: {exc}") from exc
+    lm = np.asarray(lm, dtype=np.int64)
+    if lm.shape != (68,):
+        raise DataError(f"{rel}: expected 68 landmark vertices, got shape {lm.shape}")
+    return lm
+
+
+def _build_arrays(shapes: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """Parse the neutral and ``shapes``; check them; deltas ``D = S_k - f0``."""
+    f0, faces = _read_shape(ICT_NEUTRAL)
+    if f0.shape[0] != ICT_N_VERTICES:
+        raise ModelError(
+            f"{ICT_NEUTRAL}.obj has {f0.shape[0]} vertices, expected {ICT_N_VERTICES}"
+        )
+    D = np.empty((3 * f0.shape[0], len(shapes)))
+    for k, stem in enumerate(shapes):
+        S, F = _read_shape(stem)
+        if S.shape != f0.shape:
+            raise ModelError(
+                f"shape {stem}.obj has {S.shape[0]} vertices, the neutral has {f0.shape[0]}"
+            )
+        if not np.array_equal(F, faces):
+            diff = np.flatnonzero((F != faces).any(axis=1)) if F.shape == faces.shape else []
+            where = f"first differing triangle {diff[0]}" if len(diff) else f"{len(F)} vs {len(faces)} triangles"
+            raise ModelError(f"shape {stem}.obj has another face list than the neutral ({where})")
+        D[:, k] = (S - f0).ravel()
+    return {
+        "f0": f0,
+        "D": D,
+        "faces": faces,
+        "names": np.array(shapes, dtype=str),
+        "landmarks": _read_landmarks(),
+        "format": np.array(_CACHE_FORMAT),
+    }
+
+
+def _load_cache(path: Path, shapes: tuple[str, ...]) -> dict[str, np.ndarray] | None:
+    """The cached arrays, or None when the file is absent, unreadable or inconsistent."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in ("f0", "D", "faces", "names", "landmarks", "format")}
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        return None
+    n = ICT_N_VERTICES
+    ok = (
+        int(arrays["format"]) == _CACHE_FORMAT
+        and tuple(arrays["names"].tolist()) == shapes
+        and arrays["f0"].shape == (n, 3)
+        and arrays["D"].shape == (3 * n, len(shapes))
+        and arrays["f0"].dtype == np.float64
+        and arrays["D"].dtype == np.float64
+        and arrays["faces"].shape == (ICT_N_TRIANGLES, 3)
+        and np.issubdtype(arrays["faces"].dtype, np.integer)
+        and arrays["landmarks"].shape == (68,)
+    )
+    return arrays if ok else None
+
+
+def _save_cache(path: Path, arrays: dict[str, np.ndarray]) -> bool:
+    """Write ``arrays`` atomically (temporary file + ``os.replace``); False if not writable."""
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        # a unique name in the same folder (so os.replace is atomic), created with
+        # open(..., "xb") so the file gets the usual umask permissions
+        tmp = path.with_name(f".{path.stem}-{os.getpid()}-{uuid.uuid4().hex[:8]}.tmp")
+        with open(tmp, "xb") as fh:
+            np.savez(fh, **arrays)
+        os.replace(tmp, path)
+        return True
+    except OSError:
+        if tmp is not None:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+        return False
+
+
+def _arrays(shapes: tuple[str, ...], use_cache: bool) -> dict[str, np.ndarray]:
+    if not use_cache:
+        return _build_arrays(shapes)
+    path = cache_dir() / _cache_key(shapes)
+    arrays = _load_cache(path, shapes)
+    if arrays is None:
+        arrays = _build_arrays(shapes)
+        _save_cache(path, arrays)
+    return arrays
+
+
+def _normalise_shapes(shapes) -> tuple[str, ...]:
+    if shapes is None:
+        return ICT_SHAPES
+    if isinstance(shapes, str):
+        shapes = (shapes,)
+    shapes = tuple(str(s) for s in shapes)
+    if not shapes:
+        raise ModelError("load_ict(shapes=...) needs at least one shape")
+    unknown = [s for s in shapes if s not in ICT_SHAPES]
+    if unknown:
+        raise ModelError(f"unknown ICT shapes {unknown}; the 57 shapes are {list(ICT_SHAPES)}")
+    if len(set(shapes)) != len(shapes):
+        raise ModelError(f"shapes listed twice: {sorted({s for s in shapes if shapes.count(s) > 1})}")
+    return shapes
+
+
+def _make_model(arrays: dict[str, np.ndarray], face_only: bool) -> BlendshapeModel:
+    names = tuple(arrays["names"].tolist())
+    sliders = {k: v for k, v in ICT_SLIDERS.items() if all(s in names for s in v)}
+    model = BlendshapeModel(
+        f0=arrays["f0"],
+        D=arrays["D"],
+        names=names,
+        faces=arrays["faces"],
+        name="ict",
+        units="cm",
+        sliders=sliders,
+        regions=ict_regions(arrays["f0"], arrays["landmarks"]),
+    )
+    return model.restrict(np.arange(len(FACE_AREA))) if face_only else model
+
+
+@lru_cache(maxsize=2)
+def _load_full(shapes: tuple[str, ...], data_root: str, cache_root: str) -> BlendshapeModel:
+    # data_root and cache_root only key the memo: another folder is another model
+    return _make_model(_arrays(shapes, use_cache=True), face_only=False)
+
+
+@lru_cache(maxsize=2)
+def _load_memo(face_only: bool, shapes: tuple[str, ...], data_root: str, cache_root: str) -> BlendshapeModel:
+    full = _load_full(shapes, data_root, cache_root)
+    return full.restrict(np.arange(len(FACE_AREA))) if face_only else full
+
+
+def _cache_clear() -> None:
+    _load_memo.cache_clear()
+    _load_full.cache_clear()
+
+
+def load_ict(
+    *, face_only: bool = True, shapes: Sequence[str] | None = None, cache: bool = True
+) -> BlendshapeModel:
+    """The ICT Face Model as a delta blendshape model ``f = f0 + D w`` (Section 3).
+
+    Reads the neutral ``generic_neutral_mesh`` and the expression shapes from
+    the data folder (:func:`repro.data.fetch`, which checks each file's sha256),
+    verifies that every shape has the neutral's 26,719 vertices and exactly its
+    face list, and forms ``D = [S_k - f0]`` (xyz packing, row ``3*v + axis``).
+
+    Parameters
+    ----------
+    face_only : bool, default True
+        Keep only the face area, vertices 0..9408 (9,409 vertices, the
+        upstream README's "face" sub-mesh; 18,461 of the 52,220 triangles lie
+        wholly inside it).  The expressions also move the mouth socket, gums,
+        teeth, eyeballs, eye occlusion and eyelashes, which the paper's figures
+        (Figs. 2-5, skin only) do not show and which would otherwise dominate
+        coordinate counts such as the default ``alpha`` of Section 5 (the ratio
+        of unselected to selected coordinates).  ``False`` gives all 26,719
+        vertices.  Vertex ids of the face area are the same in both.
+    shapes : sequence of str, optional
+        Which expression shapes to load, in this order; default all 57 in the
+        order of :data:`ICT_SHAPES` (the upstream ``expressions`` list of
+        ``vertex_indices.json``, then ``cheekRaiser_L/R``, ``PupilDilate_L/R``).
+    cache : bool, default True
+        Use (and fill) the on-disk ``.npz`` cache in :func:`cache_dir` and the
+        in-process memo.  ``False`` re-parses the OBJs and touches no cache.
+
+    Returns
+    -------
+    BlendshapeModel
+        ``name="ict"``, ``units="cm"``; shape names as the file stems; the
+        paper's sliders of :data:`ICT_SLIDERS` (those whose shapes are loaded):
+        ``Furrow``, ``SmirkLeft``, ``SmirkRight``, ``Wince``, ``SneerLeft``,
+        ``SneerRight``; the regions of :func:`ict_regions` (``brow_middle``,
+        ``brow_centers``, ``mouth_corners``, ``under_left_eye``, ``brow``,
+        ``left_eye``, ``right_eye``, ``mouth``, ``nose``).
+
+    Raises
+    ------
+    DataError
+        A file is missing (the message says how to get it) or fails its sha256.
+    ModelError
+        An unknown or repeated shape name, a malformed OBJ, or a shape whose
+        vertex count or face list differs from the neutral.
+
+    Notes
+    -----
+    The on-disk cache file is named after the registry sha256s of the neutral,
+    ``vertex_indices.json`` and the requested shapes, so changed data never
+    reuses stale arrays; it is written atomically and a damaged or
+    inconsistent cache file is ignored and rebuilt.  When the cache folder is
+    not writable the model is simply rebuilt each time.  A warm load skips the
+    data files altogether.  Measured on the shared 2-core build machine (all
+    57 shapes, face only): about 4 s cold (sha256 check and parse of 58 OBJs,
+    about 0.06 s each), about 0.07 s from the 38 MB ``.npz`` cache (plus about
+    0.3 s of imports in a new process), and nothing from the in-process memo
+    (models are immutable, so the same object is returned).
+    """
+    names = _normalise_shapes(shapes)
+    if not cache:
+        return _make_model(_arrays(names, use_cache=False), bool(face_only))
+    return _load_memo(bool(face_only), names, str(data.data_dir()), str(cache_dir()))
+
+
+#: Forget the in-process memo of :func:`load_ict` (the on-disk cache stays).
+load_ict.cache_clear = _cache_clear  # type: ignore[attr-defined]

@@ -1,0 +1,134 @@
+"""The ``repro`` command (also ``python -m repro``).
+
+    repro list                      every registered figure/measurement, one line each
+    repro run NAME [NAME ...]       write NAME.png and NAME.csv into figures/
+    repro all                       run every registered figure
+    repro bench attenuation         print speed ratios, write figures/bench_attenuation.csv
+    repro data list                 each dataset: present? verified?
+    repro data fetch NAME           download (and verify) a dataset into the data folder
+
+Exit status: 0 on success, 2 for an unknown name or bad usage, 1 when a run
+fails with one of repro's own errors (the message says why).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from repro.errors import ReproError, UnknownFigureError
+
+DEFAULT_OUT = "figures"
+BENCHES = ("attenuation",)
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="repro", description="Regenerate the figures and measurements of the two papers.")
+    sub = p.add_subparsers(dest="command", required=True)
+    sub.add_parser("list", help="list every registered figure or measurement")
+    for name, helptext in [("run", "run the named figures"), ("all", "run every figure")]:
+        sp = sub.add_parser(name, help=helptext)
+        if name == "run":
+            sp.add_argument("names", nargs="+", metavar="NAME")
+        sp.add_argument("--out", default=DEFAULT_OUT, help="output folder (default: figures)")
+        sp.add_argument("--quick", action="store_true", help="reduced sweeps (as CI runs them)")
+    b = sub.add_parser("bench", help="benchmarks printing ratios against an in-process baseline")
+    b.add_argument("which", choices=BENCHES)
+    b.add_argument("--quick", action="store_true")
+    b.add_argument("--out", default=DEFAULT_OUT)
+    d = sub.add_parser("data", help="the datasets: list, fetch")
+    dsub = d.add_subparsers(dest="data_command", required=True)
+    dsub.add_parser("list", help="each dataset, whether present and verified")
+    f = dsub.add_parser("fetch", help="download and verify datasets")
+    f.add_argument("datasets", nargs="+", metavar="NAME")
+    return p
+
+
+def _run(names, out: str, quick: bool) -> int:
+    from tqdm.auto import tqdm
+
+    from repro.experiments import registry, run
+
+    reg = registry()
+    unknown = [n for n in names if n not in reg]
+    if unknown:
+        print(f"repro: unknown figure {', '.join(map(repr, unknown))}; known: {', '.join(reg)}", file=sys.stderr)
+        return 2
+    failed = []
+    for name in tqdm(names, desc="figures", unit="fig", delay=1.0):
+        try:
+            for path in run(name, out, quick=quick):
+                tqdm.write(f"wrote {path}")
+        except ReproError as exc:
+            tqdm.write(f"repro: {name} failed: {exc}", file=sys.stderr)
+            failed.append(name)
+    if failed:
+        print(f"repro: {len(failed)} of {len(names)} failed: {', '.join(failed)}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _data(args) -> int:
+    from repro import data
+
+    if args.data_command == "list":
+        print(f"data folder: {data.data_dir()}")
+        for name, what in data.DATASETS.items():
+            s = data.status(name)
+            state = (
+                "verified" if s["verified"] == s["files"]
+                else "CORRUPT" if s["problems"]
+                else "missing" if s["present"] == 0
+                else "incomplete"
+            )
+            print(f"{name:11s} {state:10s} {s['verified']:3d}/{s['files']:<3d} files  {what}")
+            for problem in s["problems"][:3]:
+                print(f"    {problem}")
+        return 0
+    bad = [n for n in args.datasets if n not in data.DATASETS]
+    if bad:
+        print(f"repro: unknown dataset {', '.join(map(repr, bad))}; known: {', '.join(data.DATASETS)}", file=sys.stderr)
+        return 2
+    for name in args.datasets:
+        folder = data.require(name, download=True, progressbar=True)
+        print(f"{name}: verified in {folder}")
+    return 0
+
+
+def main(argv=None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        if args.command == "list":
+            from repro.experiments import registry
+
+            for exp in registry().values():
+                print(f"{exp.name:28s} [{exp.paper}] {exp.caption}")
+            return 0
+        if args.command == "run":
+            return _run(args.names, args.out, args.quick)
+        if args.command == "all":
+            from repro.experiments import registry
+
+            return _run(list(registry()), args.out, args.quick)
+        if args.command == "bench":
+            from repro.bench import bench_attenuation, format_attenuation
+            from repro.io import write_csv
+
+            table = bench_attenuation(quick=args.quick)
+            print(format_attenuation(table))
+            print(f"wrote {write_csv(Path(args.out) / 'bench_attenuation.csv', table)}")
+            return 0
+        if args.command == "data":
+            return _data(args)
+    except UnknownFigureError as exc:
+        print(f"repro: {exc}", file=sys.stderr)
+        return 2
+    except ReproError as exc:
+        print(f"repro: {exc}", file=sys.stderr)
+        return 1
+    return 2  # pragma: no cover - argparse enforces the commands
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

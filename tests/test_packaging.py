@@ -1,0 +1,65 @@
+"""The project's own files: environment.yml agrees with pyproject.toml, README and CI agree."""
+
+import re
+import tomllib
+
+import yaml
+
+from tests.conftest import REPO
+
+CONDA_TO_PIP = {"matplotlib-base": "matplotlib"}
+
+
+def _name(req: str) -> str:
+    return re.split(r"[<>=!~;\[ ]", req.strip(), maxsplit=1)[0].lower()
+
+
+def test_environment_yml_lists_the_same_packages_as_pyproject():
+    project = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
+    wanted = {_name(r) for r in project["dependencies"]} | {
+        _name(r) for r in project["optional-dependencies"]["dev"]
+    }
+    env = yaml.safe_load((REPO / "environment.yml").read_text())
+    assert set(env) == {"name", "channels", "dependencies"}
+    assert "conda-forge" in env["channels"]
+    assert "python=3.11" in env["dependencies"]
+    names = set()
+    for dep in env["dependencies"]:
+        if isinstance(dep, dict):  # the pip: sub-list
+            names |= {_name(d) for d in dep["pip"] if not d.startswith("-e")}
+        else:
+            n = _name(dep.split("=")[0] if "=" in dep and "<" not in dep and ">" not in dep else dep)
+            names.add(CONDA_TO_PIP.get(n, n))
+    names -= {"python", "pip"}
+    assert names == wanted, (names - wanted, wanted - names)
+
+
+def _readme_commands():
+    text = (REPO / "README.md").read_text()
+    block = re.search(r"## Two commands.*?```bash\n(.*?)```", text, re.S).group(1)
+    return [ln.strip() for ln in block.splitlines() if ln.strip() and not ln.startswith("#")]
+
+
+def test_readme_has_exactly_two_commands_and_ci_runs_the_test_one():
+    commands = _readme_commands()
+    assert len(commands) == 2
+    install_and_run, test = commands
+    assert "scripts/setup.sh" in install_and_run and "repro all" in install_and_run
+    assert "pytest" in (REPO / test.split()[-1]).read_text()
+    ci = (REPO / ".ci/run").read_text()
+    assert test in ci, "CI must run the README's test command"
+
+
+def test_pytest_runs_nbval_over_notebooks():
+    ini = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["pytest"]["ini_options"]
+    assert "notebooks" in ini["testpaths"] and "--nbval " in ini["addopts"] + " "
+    assert "--nbval-cell-timeout" in ini["addopts"]
+
+
+def test_readme_library_example_runs():
+    """The README's Python example is real code that runs on the embedded face."""
+    text = (REPO / "README.md").read_text()
+    code = re.search(r"```python\n(.*?)```", text, re.S).group(1)
+    ns: dict = {}
+    exec(compile(code, "README.md", "exec"), ns)
+    assert ns["vertices"].shape == (ns["face"].n_vertices, 3)
