@@ -1,0 +1,37 @@
+"""Motion capture for Pronost et al., "Interactive Animation of Virtual Characters:
+Application to Virtual Kung-fu Fighting" (about 2008).
+
+The paper's motion database (Section 3.2) holds motion-capture clips "stored in the BVH
+standard format"; this package reads and writes them.
+
+- :mod:`~repro.motion.motion`: the :class:`Motion` type (skeleton, local rotations as
+  quaternions, position channels) and vectorised forward kinematics; units
+  (:data:`CMU_UNIT_M`, :data:`BANDAI_UNIT_M`).
+- :mod:`~repro.motion.bvh`: :func:`read_bvh`, :func:`write_bvh` (atomic, never
+  overwrites an existing file unless ``overwrite=True``).
+- :mod:`~repro.motion.asfamc`: the Acclaim ASF/AMC originals of the CMU database,
+  :func:`read_asf`, :func:`read_amc`, :func:`read_asf_amc`, converted with the same
+  convention as the staged CMU BVH files.
+
+Every malformed file raises :class:`BVHError` (a :class:`repro.errors.ReproError` and a
+:class:`ValueError`) naming the line or field.
+"""
+
+from repro.errors import BVHError
+from repro.motion.asfamc import AsfBone, AsfSkeleton, read_amc, read_asf, read_asf_amc
+from repro.motion.bvh import read_bvh, write_bvh
+from repro.motion.motion import BANDAI_UNIT_M, CMU_UNIT_M, Motion
+
+__all__ = [
+    "Motion",
+    "read_bvh",
+    "write_bvh",
+    "read_asf",
+    "read_amc",
+    "read_asf_amc",
+    "AsfSkeleton",
+    "AsfBone",
+    "BVHError",
+    "CMU_UNIT_M",
+    "BANDAI_UNIT_M",
+]

@@ -1,0 +1,634 @@
+"""Reading Acclaim ASF/AMC motion capture (the originals of the CMU database).
+
+The Acclaim format (Acclaim Entertainment; described in M. Meredith and S. Maddock,
+"Motion Capture File Formats Explained", University of Sheffield, 2001, and used by the
+CMU Graphics Lab Motion Capture Database, http://mocap.cs.cmu.edu) splits a take into an
+ASF skeleton (bones with a global ``direction``, a ``length``, a local frame ``axis`` and
+the ``dof`` the motion drives) and an AMC motion (per frame, one line of dof values per
+bone).  The CMU BVH files used for the database of Pronost et al. (Section 3.2) were
+converted from these originals, so reading both and comparing the forward kinematics is
+an end-to-end check of both readers.
+
+Conversion to a :class:`~repro.motion.Motion` (the convention of
+``mocap/cmu/PROVENANCE.md``, with which the staged BVH files were made):
+
+* one joint per ASF bone, placed at the bone's start, plus the root; joints in
+  depth-first order of the ``:hierarchy`` section (children in listed order);
+* joint ``OFFSET`` = parent bone's ``direction x length`` (zero below the root; the
+  root's offset is the ASF root ``position``); leaf bones get an End Site at their own
+  ``direction x length``;
+* bone axis ``C`` from ``axis ax ay az XYZ``: the rotations are applied in the listed
+  order about fixed axes, ``C = Rz(az) Ry(ay) Rx(ax)``; motion ``M`` from the AMC values
+  likewise in the order of the bone's ``dof`` list (``dof rx ry rz`` gives
+  ``M = Rz Ry Rx``, missing dofs are 0);
+* local joint rotation ``C M C^-1`` (for the root, ``C`` from the root ``orientation``
+  and ``axis``, ``M`` from the ``R*`` entries of the root ``order``), written as
+  ``Zrotation Yrotation Xrotation`` channels; the root also gets position channels
+  for the ``T*`` entries of its ``order``, holding the AMC root translation untouched.
+
+Lengths stay in ASF units (CMU: ``:units length 0.45``, one unit = 1/0.45 inch, see
+:data:`~repro.motion.CMU_UNIT_M`).  Malformed files raise
+:class:`repro.errors.BVHError` naming the line.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from repro.errors import BVHError
+from repro.motion.bvh import _read_bytes
+from repro.motion.motion import Motion, euler_to_quat, quat_multiply
+
+__all__ = ["AsfBone", "AsfSkeleton", "read_asf", "read_amc", "read_asf_amc", "CMU_FRAME_TIME"]
+
+#: CMU captures at 120 Hz; AMC files carry no frame rate.
+CMU_FRAME_TIME: float = 1.0 / 120.0
+
+_ROTATION_DOFS = ("rx", "ry", "rz")
+_ROOT_DOFS = ("TX", "TY", "TZ", "RX", "RY", "RZ")
+
+
+@dataclass(frozen=True, eq=False)
+class AsfBone:
+    """One ``:bonedata`` entry of an ASF file.
+
+    Attributes
+    ----------
+    name : str
+    id : int or None
+    direction : (3,) array
+        Direction of the bone in world coordinates at rest.
+    length : float
+        Bone length, ASF units.
+    axis : (3,) array
+        Angles of the bone's local frame, in degrees (radians if ``:units angle rad``).
+    axis_order : str
+        Order of the ``axis`` rotations, e.g. ``"XYZ"`` (applied X first).
+    dofs : tuple of str
+        Rotational degrees of freedom driven by the AMC file, in order (``"rx"`` ...).
+    limits : tuple of (float, float)
+        Joint limits per dof (informational).
+    line : int
+        Line of the bone's ``begin``.
+    """
+
+    name: str
+    id: int | None
+    direction: np.ndarray
+    length: float
+    axis: np.ndarray
+    axis_order: str
+    dofs: tuple[str, ...]
+    limits: tuple[tuple[float, float], ...]
+    line: int
+
+    @property
+    def vector(self) -> np.ndarray:
+        """``direction * length``: the bone in world coordinates at rest."""
+        return self.direction * self.length
+
+
+@dataclass(frozen=True, eq=False)
+class AsfSkeleton:
+    """An Acclaim ASF skeleton.
+
+    Attributes
+    ----------
+    name : str
+        The ``:name`` field ("" if absent).
+    length_unit : float
+        The ``:units length`` factor (CMU: 0.45, meaning lengths are inches x 0.45).
+    angle_unit : str
+        ``"deg"`` or ``"rad"`` (``:units angle``).
+    root_order : tuple of str
+        Order of the root's values on each AMC ``root`` line (``("TX", ..., "RZ")``).
+    root_axis : str
+        Order of the root rotations (``"XYZ"``).
+    root_position, root_orientation : (3,) arrays
+        Rest translation and orientation of the root.
+    bones : dict of str to AsfBone
+        The bones, in file order.
+    children : dict of str to list of str
+        The ``:hierarchy`` section: children of ``"root"`` and of each bone.
+    """
+
+    name: str
+    length_unit: float
+    angle_unit: str
+    root_order: tuple[str, ...]
+    root_axis: str
+    root_position: np.ndarray
+    root_orientation: np.ndarray
+    bones: dict[str, AsfBone]
+    children: dict[str, list[str]]
+
+    @property
+    def joint_names(self) -> list[str]:
+        """``"root"`` then the bones in depth-first order (the Motion's joint order)."""
+        order, stack = [], ["root"]
+        while stack:
+            b = stack.pop()
+            order.append(b)
+            stack.extend(reversed(self.children.get(b, [])))
+        return order
+
+    @property
+    def parents(self) -> np.ndarray:
+        """Parent index of each joint of :attr:`joint_names` (-1 for the root)."""
+        names = self.joint_names
+        index = {n: i for i, n in enumerate(names)}
+        par = np.full(len(names), -1, dtype=np.intp)
+        for p, kids in self.children.items():
+            for k in kids:
+                par[index[k]] = index[p]
+        return par
+
+    def _angles_to_quat(self, order: str, angles) -> np.ndarray:
+        return euler_to_quat(order.lower(), angles, degrees=self.angle_unit == "deg")
+
+    def axis_quaternions(self) -> np.ndarray:
+        """(J, 4) quaternions of the local frames ``C`` (root: its ``orientation``)."""
+        out = []
+        for name in self.joint_names:
+            if name == "root":
+                out.append(self._angles_to_quat(self.root_axis, self.root_orientation))
+            else:
+                b = self.bones[name]
+                out.append(self._angles_to_quat(b.axis_order, b.axis))
+        return np.array(out)
+
+    def offsets(self) -> np.ndarray:
+        """(J, 3) BVH offsets: the parent bone's ``direction x length`` (root: ``position``)."""
+        names = self.joint_names
+        par = self.parents
+        out = np.zeros((len(names), 3))
+        out[0] = self.root_position
+        for j in range(1, len(names)):
+            p = names[par[j]]
+            out[j] = 0.0 if p == "root" else self.bones[p].vector
+        return out
+
+
+def _lines(src) -> tuple[list[tuple[int, list[str]]], str | None]:
+    data, name = _read_bytes(src)
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise BVHError(f"line {line}: not valid UTF-8 text") from None
+    out = []
+    for i, ln in enumerate(text.split("\n")):
+        tok = ln.split("#", 1)[0].split()
+        if tok:
+            out.append((i + 1, tok))
+    return out, name
+
+
+def _floats(tok: list[str], n: int, where: str, what: str) -> np.ndarray:
+    if len(tok) != n:
+        raise BVHError(f"{where}: {what} needs {n} numbers, got {len(tok)}")
+    out = []
+    for t in tok:
+        try:
+            v = float(t)
+        except ValueError:
+            raise BVHError(f"{where}: {what} value {t!r} is not a number") from None
+        if not math.isfinite(v) or "_" in t:
+            raise BVHError(f"{where}: {what} value {t!r} is not a finite number")
+        out.append(v)
+    return np.array(out)
+
+
+def _axis_order(tok: str, where: str) -> str:
+    order = tok.upper()
+    if sorted(order) != ["X", "Y", "Z"]:
+        raise BVHError(f"{where}: axis order {tok!r} is not a permutation of XYZ")
+    return order
+
+
+def _parse_limits(tok: list[str], where: str) -> tuple[float, float]:
+    s = " ".join(tok).replace("(", " ").replace(")", " ").split()
+    if len(s) != 2:
+        raise BVHError(f"{where}: a limit needs '(min max)', got {' '.join(tok)!r}")
+    try:
+        lo, hi = float(s[0]), float(s[1])
+    except ValueError:
+        raise BVHError(f"{where}: limit {' '.join(tok)!r} is not numeric") from None
+    if math.isnan(lo) or math.isnan(hi):
+        raise BVHError(f"{where}: limit {' '.join(tok)!r} is NaN")
+    return lo, hi
+
+
+def read_asf(src) -> AsfSkeleton:
+    """Read an Acclaim ASF skeleton.
+
+    Parameters
+    ----------
+    src : str, os.PathLike or file object
+        A path (``.gz`` is decompressed) or a binary/text stream, e.g.
+        ``repro.data.open_file("mocap/cmu/source/135.asf")``.
+
+    Returns
+    -------
+    AsfSkeleton
+
+    Raises
+    ------
+    repro.errors.BVHError
+        If the file is malformed (missing ``:root``/``:hierarchy``, a bone without
+        ``name``, ``direction``, ``length`` or ``axis``, unsupported translation or
+        length dofs, non-numeric or non-finite values, duplicate or unknown bone names,
+        bones not connected to the root, a bone with two parents, an unterminated
+        ``begin`` block); the message names the line.
+    """
+    lines, _ = _lines(src)
+    if not lines:
+        raise BVHError("line 1: empty ASF file")
+    section = None
+    name = ""
+    units: dict[str, str] = {}
+    root: dict[str, object] = {}
+    bones: dict[str, AsfBone] = {}
+    children: dict[str, list[str]] = {}
+    child_line: dict[str, int] = {}
+    bone: dict | None = None  # bone being read
+    in_hier = False
+    seen_sections: set[str] = set()
+    section_line: dict[str, int] = {}
+    units_line: dict[str, int] = {}
+    last = lines[-1][0]
+
+    def finish_bone(lineno: int) -> None:
+        for key in ("name", "direction", "length", "axis"):
+            if key not in bone:
+                raise BVHError(f"line {lineno}: bone starting at line {bone['line']} has no {key!r}")
+        if len(bone["limits"]) not in (0, len(bone["dofs"])):
+            raise BVHError(
+                f"line {lineno}: bone {bone['name']!r} has {len(bone['dofs'])} dofs but "
+                f"{len(bone['limits'])} limits"
+            )
+        if bone["name"] in bones:
+            raise BVHError(f"line {bone['line']}: duplicate bone name {bone['name']!r}")
+        bones[bone["name"]] = AsfBone(
+            name=bone["name"],
+            id=bone.get("id"),
+            direction=bone["direction"],
+            length=bone["length"],
+            axis=bone["axis"],
+            axis_order=bone["axis_order"],
+            dofs=tuple(bone["dofs"]),
+            limits=tuple(bone["limits"]),
+            line=bone["line"],
+        )
+
+    last_key = None
+    for lineno, tok in lines:
+        where = f"line {lineno}"
+        head = tok[0]
+        if head.startswith(":"):
+            if bone is not None:
+                raise BVHError(f"{where}: section {head} inside the bone block begun at line {bone['line']}")
+            if in_hier:
+                raise BVHError(f"{where}: section {head} inside the :hierarchy block (missing 'end')")
+            section = head.lower()
+            if section in seen_sections and section in (":root", ":bonedata", ":hierarchy", ":units"):
+                raise BVHError(f"{where}: second {head} section")
+            seen_sections.add(section)
+            section_line[section] = lineno
+            if section == ":name":
+                name = " ".join(tok[1:])
+            continue
+        if section == ":units":
+            if len(tok) != 2:
+                raise BVHError(f"{where}: expected '<unit> <value>' in :units, got {' '.join(tok)!r}")
+            units[tok[0].lower()] = tok[1]
+            units_line[tok[0].lower()] = lineno
+        elif section == ":root":
+            key = head.lower()
+            if key == "order":
+                order = tuple(t.upper() for t in tok[1:])
+                bad = [t for t in order if t not in _ROOT_DOFS]
+                if bad or len(set(order)) != len(order):
+                    raise BVHError(f"{where}: bad root order {' '.join(tok[1:])!r} (use TX TY TZ RX RY RZ, each once)")
+                root["order"] = order
+            elif key == "axis":
+                if len(tok) != 2:
+                    raise BVHError(f"{where}: root axis needs one order like XYZ")
+                root["axis"] = _axis_order(tok[1], where)
+            elif key in ("position", "orientation"):
+                root[key] = _floats(tok[1:], 3, where, f"root {key}")
+            else:
+                raise BVHError(f"{where}: unknown :root field {head!r}")
+        elif section == ":bonedata":
+            key = head.lower()
+            if bone is None:
+                if tok != ["begin"]:
+                    raise BVHError(f"{where}: expected 'begin' in :bonedata, got {' '.join(tok)!r}")
+                bone = {"line": lineno, "dofs": [], "limits": []}
+                last_key = None
+                continue
+            if key == "end" and len(tok) == 1:
+                finish_bone(lineno)
+                bone = None
+                continue
+            if key == "begin":
+                raise BVHError(f"{where}: 'begin' inside the bone block begun at line {bone['line']} (missing 'end')")
+            if key == "id":
+                if len(tok) != 2 or not tok[1].lstrip("+-").isdigit():
+                    raise BVHError(f"{where}: bone id must be an integer")
+                bone["id"] = int(tok[1])
+            elif key == "name":
+                if len(tok) != 2:
+                    raise BVHError(f"{where}: bone name must be one word")
+                if tok[1].lower() == "root":
+                    raise BVHError(f"{where}: a bone may not be called 'root'")
+                bone["name"] = tok[1]
+            elif key == "direction":
+                bone["direction"] = _floats(tok[1:], 3, where, "direction")
+            elif key == "length":
+                v = _floats(tok[1:], 1, where, "length")[0]
+                if v < 0:
+                    raise BVHError(f"{where}: negative bone length {v}")
+                bone["length"] = float(v)
+            elif key == "axis":
+                if len(tok) != 5:
+                    raise BVHError(f"{where}: axis needs 3 angles and an order, e.g. 'axis 0 0 20 XYZ'")
+                bone["axis"] = _floats(tok[1:4], 3, where, "axis")
+                bone["axis_order"] = _axis_order(tok[4], where)
+            elif key == "dof":
+                dofs = [t.lower() for t in tok[1:]]
+                bad = [d for d in dofs if d not in _ROTATION_DOFS]
+                if bad:
+                    raise BVHError(f"{where}: unsupported dof {bad} (only rx ry rz are supported)")
+                if len(set(dofs)) != len(dofs):
+                    raise BVHError(f"{where}: repeated dof in {dofs}")
+                bone["dofs"] = dofs
+            elif key == "limits":
+                bone["limits"].append(_parse_limits(tok[1:], where))
+            elif head.startswith("(") and last_key == "limits":
+                bone["limits"].append(_parse_limits(tok, where))
+                continue
+            elif key in ("bodymass", "cofmass"):
+                pass
+            else:
+                raise BVHError(f"{where}: unknown bone field {head!r}")
+            last_key = key
+        elif section == ":hierarchy":
+            if not in_hier:
+                if tok != ["begin"]:
+                    raise BVHError(f"{where}: expected 'begin' in :hierarchy, got {' '.join(tok)!r}")
+                in_hier = True
+                continue
+            if tok == ["end"]:
+                in_hier = False
+                section = ":hierarchy-done"
+                continue
+            parent = head
+            if parent != "root" and parent not in bones:
+                raise BVHError(f"{where}: unknown parent bone {parent!r} in :hierarchy")
+            if len(tok) < 2:
+                raise BVHError(f"{where}: hierarchy line lists no children of {parent!r}")
+            for child in tok[1:]:
+                if child not in bones:
+                    raise BVHError(f"{where}: unknown bone {child!r} in :hierarchy")
+                if child in child_line:
+                    raise BVHError(f"{where}: bone {child!r} already has a parent (line {child_line[child]})")
+                child_line[child] = lineno
+                children.setdefault(parent, []).append(child)
+        elif section == ":hierarchy-done":
+            raise BVHError(f"{where}: unexpected {' '.join(tok)!r} after the :hierarchy 'end'")
+        elif section is None:
+            raise BVHError(f"{where}: unexpected {' '.join(tok)!r} before the first section")
+        # other sections (:version, :documentation, :skin ...) are free text: ignored
+
+    if bone is not None:
+        raise BVHError(f"line {last + 1}: end of file inside the bone block begun at line {bone['line']} (truncated?)")
+    if in_hier:
+        raise BVHError(f"line {last + 1}: end of file inside :hierarchy (missing 'end'; truncated?)")
+    for sec in (":root", ":bonedata", ":hierarchy"):
+        if sec not in seen_sections:
+            raise BVHError(f"line {last + 1}: missing {sec} section (truncated?)")
+    if section != ":hierarchy-done":
+        raise BVHError(f"line {last + 1}: :hierarchy section not terminated (truncated?)")
+    if "order" not in root or "axis" not in root:
+        raise BVHError(f"line {section_line[':root']}: the :root section needs 'order' and 'axis'")
+    angle = units.get("angle", "deg").lower()
+    if angle not in ("deg", "rad"):
+        raise BVHError(f"line {units_line['angle']}: :units angle must be deg or rad, got {angle!r}")
+    try:
+        length_unit = float(units.get("length", "1"))
+    except ValueError:
+        length_unit = float("nan")
+    if not math.isfinite(length_unit) or length_unit <= 0:
+        raise BVHError(f"line {units_line['length']}: :units length must be a number > 0, got {units['length']!r}")
+    loose = [b for b in bones if b not in child_line]
+    if loose:
+        raise BVHError(
+            f"line {bones[loose[0]].line}: bones not connected to the root in :hierarchy "
+            f"(line {section_line[':hierarchy']}): {loose}"
+        )
+    skel = AsfSkeleton(
+        name=name,
+        length_unit=length_unit,
+        angle_unit=angle,
+        root_order=tuple(root["order"]),
+        root_axis=str(root["axis"]),
+        root_position=np.asarray(root.get("position", np.zeros(3)), dtype=float),
+        root_orientation=np.asarray(root.get("orientation", np.zeros(3)), dtype=float),
+        bones=bones,
+        children=children,
+    )
+    reach = skel.joint_names
+    if len(reach) != len(bones) + 1:
+        missing = sorted(set(bones) - set(reach))
+        raise BVHError(
+            f"line {section_line[':hierarchy']}: bones not reachable from the root "
+            f"(a cycle in :hierarchy?): {missing}"
+        )
+    return skel
+
+
+def _amc_values(src, skel: AsfSkeleton) -> tuple[dict[str, np.ndarray], bool | None, str | None]:
+    """Per bone (and "root"), the (F, n_dofs) AMC values; whether angles are degrees; the source name."""
+    lines, source = _lines(src)
+    ndof = {"root": len(skel.root_order)}
+    ndof.update({b: len(bone.dofs) for b, bone in skel.bones.items()})
+    required = {b for b, n in ndof.items() if n > 0} | {"root"}
+    rows: dict[str, list[list[str]]] = {b: [] for b in ndof}
+    rows_line: dict[str, list[int]] = {b: [] for b in ndof}
+    degrees: bool | None = None
+    frame_no: int | None = None
+    frame_line = 0
+    n_frames = 0
+    seen: set[str] = set()
+    last = lines[-1][0] if lines else 0
+
+    def close_frame(lineno: int) -> None:
+        missing = required - seen
+        if missing:
+            raise BVHError(
+                f"line {lineno}: frame {frame_no} (line {frame_line}) lacks values for "
+                f"{sorted(missing)} (truncated file?)"
+            )
+
+    for lineno, tok in lines:
+        head = tok[0]
+        if head.startswith(":"):
+            if frame_no is not None:
+                raise BVHError(f"line {lineno}: header line {head!r} after the first frame")
+            if head.upper() == ":DEGREES":
+                degrees = True
+            elif head.upper() == ":RADIANS":
+                degrees = False
+            continue
+        if len(tok) == 1 and head.isdigit():
+            k = int(head)
+            if frame_no is not None:
+                close_frame(lineno)
+                if k != frame_no + 1:
+                    raise BVHError(f"line {lineno}: frame number {k} follows frame {frame_no}")
+            frame_no, frame_line = k, lineno
+            n_frames += 1
+            seen = set()
+            continue
+        if frame_no is None:
+            raise BVHError(f"line {lineno}: {head!r} before the first frame number")
+        if head not in ndof:
+            raise BVHError(f"line {lineno}: unknown bone {head!r} (frame {frame_no})")
+        if head in seen:
+            raise BVHError(f"line {lineno}: bone {head!r} appears twice in frame {frame_no}")
+        if len(tok) - 1 != ndof[head]:
+            raise BVHError(
+                f"line {lineno}: bone {head!r} has {len(tok) - 1} values, expected {ndof[head]} (frame {frame_no})"
+            )
+        seen.add(head)
+        if ndof[head]:
+            rows[head].append(tok[1:])
+            rows_line[head].append(lineno)
+    if frame_no is None:
+        raise BVHError(f"line {last + 1}: AMC file has no frames")
+    close_frame(last + 1)
+
+    out = {}
+    for b, r in rows.items():
+        if not ndof[b]:
+            out[b] = np.zeros((n_frames, 0))
+            continue
+        if len(r) != n_frames:  # pragma: no cover - guaranteed by close_frame
+            raise BVHError(f"bone {b!r} has {len(r)} frames of values, expected {n_frames}")
+        try:
+            v = np.array(r, dtype=float)
+            bad_row = None if np.all(np.isfinite(v)) else int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
+        except ValueError:
+            v, bad_row = None, None
+            for i, row in enumerate(r):
+                try:
+                    [float(x) for x in row]
+                except ValueError:
+                    bad_row = i
+                    break
+        if bad_row is None and "_" in "".join(map("".join, r)):  # float() accepts "1_0"; AMC does not
+            bad_row = next(i for i, row in enumerate(r) if "_" in "".join(row))
+        if bad_row is not None:
+            raise BVHError(
+                f"line {rows_line[b][bad_row]}: bone {b!r} has a value that is not a finite number: "
+                f"{' '.join(r[bad_row])[:80]!r}"
+            )
+        out[b] = v
+    return out, degrees, source
+
+
+def read_amc(src, skeleton: AsfSkeleton, *, frame_time: float = CMU_FRAME_TIME, unit_m: float | None = None) -> Motion:
+    """Read an Acclaim AMC motion for ``skeleton`` into a :class:`~repro.motion.Motion`.
+
+    Parameters
+    ----------
+    src : str, os.PathLike or file object
+        A path (``.gz`` is decompressed) or a binary/text stream.
+    skeleton : AsfSkeleton
+        From :func:`read_asf`.
+    frame_time : float, default 1/120
+        Seconds per frame (AMC files do not store it; CMU captured at 120 Hz).
+    unit_m : float, optional
+        Metres per ASF unit, stored on the motion (CMU: :data:`~repro.motion.CMU_UNIT_M`).
+
+    Returns
+    -------
+    Motion
+        Same joints, offsets, channels and End Sites as the CMU BVH conversion
+        (module docstring); its :meth:`~Motion.global_positions` match those of the
+        staged BVH of the same take.
+
+    Raises
+    ------
+    repro.errors.BVHError
+        If the file is malformed (unknown bone, wrong number of values on a line,
+        non-numeric or non-finite values, a bone twice in a frame, a frame lacking a
+        bone that has dofs — e.g. a truncated last frame —, non-consecutive frame
+        numbers, no frames); the message names the line.  A file cut exactly between
+        two frames cannot be told from a shorter take.
+    """
+    values, degrees, source = _amc_values(src, skeleton)
+    if degrees is None:
+        degrees = skeleton.angle_unit == "deg"
+    names = skeleton.joint_names
+    J = len(names)
+    F = values["root"].shape[0]
+    axis_q = skeleton.axis_quaternions()  # C, (J, 4)
+    axis_inv = axis_q * np.array([-1.0, -1.0, -1.0, 1.0])
+    rotations = np.zeros((F, J, 4))
+    rotations[..., 3] = 1.0
+    offsets = skeleton.offsets()
+    positions = np.broadcast_to(offsets, (F, J, 3)).copy()
+    channels: list[tuple[str, ...]] = []
+    for j, name in enumerate(names):
+        rot_channels = ("Zrotation", "Yrotation", "Xrotation")
+        if name == "root":
+            order = skeleton.root_order
+            v = values["root"]
+            pos_ch = []
+            for k, d in enumerate(order):
+                if d.startswith("T"):
+                    axis = "XYZ".index(d[1])
+                    positions[:, 0, axis] = v[:, k]
+                    pos_ch.append(f"{d[1]}position")
+            rk = [k for k, d in enumerate(order) if d.startswith("R")]
+            seq = "".join(order[k][1].lower() for k in rk)
+            ang = v[:, rk]
+            channels.append(tuple(pos_ch) + rot_channels)
+        else:
+            bone = skeleton.bones[name]
+            seq = "".join(d[1] for d in bone.dofs)
+            ang = values[name]
+            channels.append(rot_channels)
+        if not seq:
+            continue  # no motion: C I C^-1 = I
+        m = euler_to_quat(seq, ang, degrees=degrees)  # extrinsic, in dof order
+        rotations[:, j] = quat_multiply(quat_multiply(axis_q[j], m), axis_inv[j])
+    ends = [(j, skeleton.bones[n].vector) for j, n in enumerate(names) if n != "root" and not skeleton.children.get(n)]
+    return Motion(
+        joint_names=names,
+        parents=skeleton.parents,
+        offsets=offsets,
+        channels=channels,
+        frame_time=frame_time,
+        rotations=rotations,
+        positions=positions,
+        end_site_parents=np.array([j for j, _ in ends], dtype=np.intp),
+        end_site_offsets=np.array([o for _, o in ends], dtype=float).reshape(-1, 3),
+        unit_m=unit_m,
+        source=source,
+    )
+
+
+def read_asf_amc(asf, amc, *, frame_time: float = CMU_FRAME_TIME, unit_m: float | None = None) -> Motion:
+    """Read an ASF skeleton and an AMC motion into a :class:`~repro.motion.Motion`.
+
+    ``read_asf_amc(asf, amc)`` is ``read_amc(amc, read_asf(asf))``; both arguments take
+    paths (``.gz`` decompressed) or streams such as
+    ``repro.data.open_file("mocap/cmu/source/135_04.amc")``.  See :func:`read_amc`.
+    """
+    return read_amc(amc, read_asf(asf), frame_time=frame_time, unit_m=unit_m)

@@ -1,0 +1,495 @@
+"""The :class:`Motion` type: a skeleton, its per-frame local pose, and forward kinematics.
+
+A :class:`Motion` is what the motion-capture readers produce (:func:`repro.motion.read_bvh`,
+:func:`repro.motion.read_asf_amc`) and what :func:`repro.motion.write_bvh` writes.  Its
+layout follows the BVH format (Biovision Hierarchy; see M. Meredith and S. Maddock,
+"Motion Capture File Formats Explained", University of Sheffield, 2001): joints in the
+file's depth-first order, each with a rest ``OFFSET`` from its parent, a list of
+``CHANNELS`` and, per frame, the values of those channels.  BVH is the format of the
+motion database of Pronost et al., "Interactive Animation of Virtual Characters:
+Application to Virtual Kung-fu Fighting" (Section 3.2.1: "motion capture data stored in
+the BVH standard format"); this module is the first brick of that database.
+
+Instead of the raw channel table, a motion keeps a structured pose:
+
+* ``rotations`` — (F, J, 4) local joint rotations as unit quaternions, scalar-last
+  ``(x, y, z, w)`` (the convention of :class:`scipy.spatial.transform.Rotation`);
+  identity for joints without rotation channels;
+* ``positions`` — (F, J, 3) values of the position channels, for the components flagged
+  in :attr:`Motion.position_mask`; other entries are ignored (the readers fill them with
+  the offset).
+
+Forward kinematics (the BVH convention): with ``t_j`` the local translation of joint
+``j`` (its OFFSET, except that position channels *replace* the corresponding
+components — the convention of the Bandai Namco files, where every joint has
+position channels equal to its offset, and of the independent reader ``bvhio``) and
+``q_j`` its local rotation,
+
+    ``G_j = G_parent(j) * T(t_j) * R(q_j)``,
+
+so a joint's world position is ``p_parent + R_parent t_j`` and its world rotation
+``R_parent R(q_j)``.  The computation is vectorised over frames; the only Python loop
+runs over the depth levels of the tree.
+
+Lengths are in the file's units (CMU: 1/0.45 inch, :data:`CMU_UNIT_M` metres; Bandai
+Namco: centimetres, :data:`BANDAI_UNIT_M`); :meth:`Motion.scaled` and
+:meth:`Motion.to_metres` convert.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from repro.errors import BVHError
+
+__all__ = [
+    "Motion",
+    "CMU_UNIT_M",
+    "BANDAI_UNIT_M",
+    "POSITION_CHANNELS",
+    "ROTATION_CHANNELS",
+    "quat_multiply",
+    "quat_rotate",
+    "euler_to_quat",
+]
+
+#: Metres per CMU length unit.  CMU ASF files declare ``:units length 0.45``: lengths
+#: are in inches multiplied by 0.45, so one unit is 1/0.45 inch = 0.0254/0.45 m
+#: (about 0.056444 m; see ``mocap/cmu/PROVENANCE.md``).
+CMU_UNIT_M: float = 0.0254 / 0.45
+
+#: Metres per Bandai Namco length unit (centimetres; ``mocap/bandai/PROVENANCE.md``).
+BANDAI_UNIT_M: float = 0.01
+
+#: The BVH position channel names, in axis order x, y, z.
+POSITION_CHANNELS: tuple[str, str, str] = ("Xposition", "Yposition", "Zposition")
+#: The BVH rotation channel names, in axis order x, y, z.
+ROTATION_CHANNELS: tuple[str, str, str] = ("Xrotation", "Yrotation", "Zrotation")
+
+_AXIS = {"X": 0, "Y": 1, "Z": 2}
+
+
+def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product ``a * b`` of scalar-last quaternions, broadcast over leading axes.
+
+    Parameters
+    ----------
+    a, b : (..., 4) array
+        Quaternions ``(x, y, z, w)``.
+
+    Returns
+    -------
+    (..., 4) array
+        The quaternion of the rotation "first ``b``, then ``a``" (matrix ``R(a) R(b)``).
+    """
+    ax, ay, az, aw = np.moveaxis(a, -1, 0)
+    bx, by, bz, bw = np.moveaxis(b, -1, 0)
+    return np.stack(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ],
+        axis=-1,
+    )
+
+
+def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors ``v`` by unit quaternions ``q`` (scalar-last), broadcast.
+
+    Parameters
+    ----------
+    q : (..., 4) array
+        Unit quaternions ``(x, y, z, w)``.
+    v : (..., 3) array
+        Vectors.
+
+    Returns
+    -------
+    (..., 3) array
+        ``R(q) v``.
+    """
+    u = q[..., :3]
+    w = q[..., 3:4]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def euler_to_quat(seq: str, angles, degrees: bool = True) -> np.ndarray:
+    """Quaternions of Euler-angle rotations, with scipy's ``from_euler`` conventions.
+
+    Same result as ``scipy.spatial.transform.Rotation.from_euler(seq, angles,
+    degrees).as_quat()`` (checked in the tests), computed with plain numpy products of
+    single-axis quaternions: in this scipy version ``from_euler`` costs about 1 us per
+    rotation, i.e. most of the time of reading a CMU clip.
+
+    Parameters
+    ----------
+    seq : str
+        1 to 3 axis letters, all uppercase (intrinsic: ``"ZXY"`` is ``Rz Rx Ry``, the
+        BVH convention for channels listed Z, X, Y) or all lowercase (extrinsic:
+        ``"xyz"`` is ``Rz Ry Rx``, the Acclaim ASF convention for ``axis ... XYZ``).
+    angles : (..., len(seq)) array
+        Angles, one column per letter of ``seq``.
+    degrees : bool, default True
+        Whether ``angles`` are in degrees (else radians).
+
+    Returns
+    -------
+    (..., 4) array
+        Unit quaternions ``(x, y, z, w)``.
+    """
+    if not seq or len(seq) > 3 or not (seq.isupper() or seq.islower()) or set(seq.upper()) - set("XYZ"):
+        raise ValueError(f"Euler sequence must be 1-3 letters of XYZ, all upper or all lower case; got {seq!r}")
+    angles = np.asarray(angles, dtype=float)
+    if angles.shape[-1:] != (len(seq),):
+        raise ValueError(f"angles must end with an axis of length {len(seq)}, got shape {angles.shape}")
+    half = (np.radians(angles) if degrees else angles) * 0.5
+    s, c = np.sin(half), np.cos(half)
+    q = None
+    for k, letter in enumerate(seq):
+        qk = np.zeros(angles.shape[:-1] + (4,))
+        qk[..., _AXIS[letter.upper()]] = s[..., k]
+        qk[..., 3] = c[..., k]
+        if q is None:
+            q = qk
+        elif seq.isupper():  # intrinsic: R = R1 R2 R3
+            q = quat_multiply(q, qk)
+        else:  # extrinsic: R = R3 R2 R1
+            q = quat_multiply(qk, q)
+    return q
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, copy=True)
+    a.flags.writeable = False
+    return a
+
+
+def _channel_layout(channels: Sequence[Sequence[str]]) -> tuple[np.ndarray, list[str]]:
+    """Position mask (J, 3) and per-joint rotation axis sequence ("ZYX", "" ...)."""
+    mask = np.zeros((len(channels), 3), dtype=bool)
+    seqs: list[str] = []
+    for j, chans in enumerate(channels):
+        seq = ""
+        for c in chans:
+            if c in POSITION_CHANNELS:
+                mask[j, POSITION_CHANNELS.index(c)] = True
+            elif c in ROTATION_CHANNELS:
+                seq += c[0]
+            else:
+                raise BVHError(f"joint {j}: unknown channel name {c!r}")
+        seqs.append(seq)
+    return mask, seqs
+
+
+@dataclass(frozen=True, eq=False)
+class Motion:
+    """A skeleton and its animation, in the layout of a BVH file.
+
+    Instances are immutable (arrays are read-only copies); derive new motions with
+    :meth:`scaled`, :meth:`to_metres` or :func:`dataclasses.replace`.
+
+    Parameters
+    ----------
+    joint_names : sequence of str
+        J unique joint names (End Sites excluded), parents before children
+        (the readers give the file's depth-first order).
+    parents : (J,) int array
+        Parent index of each joint, ``-1`` for the root (exactly one root, index 0);
+        ``parents[j] < j``.
+    offsets : (J, 3) array
+        Rest offset of each joint from its parent (BVH ``OFFSET``), file units.
+    channels : sequence of sequence of str
+        Per joint, the BVH channel names in file order (``"Xposition"`` ...
+        ``"Zrotation"``), each at most once.  The order of the rotation channels is
+        the Euler order: ``("Zrotation", "Xrotation", "Yrotation")`` means
+        ``R = Rz Rx Ry`` (intrinsic ZXY).
+    frame_time : float
+        Seconds per frame, > 0.
+    rotations : (F, J, 4) array
+        Local joint rotations, unit quaternions ``(x, y, z, w)``; normalised on
+        construction.  A joint without rotation channels should keep the identity
+        (:func:`~repro.motion.write_bvh` refuses a rotation its channels cannot express).
+    positions : (F, J, 3) array
+        Position-channel values; only the entries where :attr:`position_mask` is true
+        are used, others are ignored.
+    end_site_parents : (E,) int array, optional
+        Joint index carrying each End Site.
+    end_site_offsets : (E, 3) array, optional
+        Offset of each End Site from its joint.
+    unit_m : float or None, optional
+        Metres per length unit of the data when known (e.g. :data:`CMU_UNIT_M`),
+        used by :meth:`to_metres`.
+    source : str or None, optional
+        Where the motion was read from (informational; :func:`write_bvh` refuses to
+        overwrite existing files unless asked).
+
+    Raises
+    ------
+    repro.errors.BVHError
+        When the arrays are inconsistent (shapes, non-finite values, zero quaternions,
+        a bad parent array, duplicate names, unknown channels).
+    """
+
+    joint_names: list[str]
+    parents: np.ndarray
+    offsets: np.ndarray
+    channels: list[tuple[str, ...]]
+    frame_time: float
+    rotations: np.ndarray
+    positions: np.ndarray
+    end_site_parents: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, int))
+    end_site_offsets: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
+    unit_m: float | None = None
+    source: str | None = None
+
+    def __post_init__(self) -> None:
+        names = [str(n) for n in self.joint_names]
+        J = len(names)
+        if J == 0:
+            raise BVHError("a motion needs at least one joint")
+        if len(set(names)) != J:
+            dup = sorted({n for n in names if names.count(n) > 1})
+            raise BVHError(f"duplicate joint names: {dup}")
+        parents = np.asarray(self.parents)
+        if parents.shape != (J,) or not np.issubdtype(parents.dtype, np.integer):
+            raise BVHError(f"parents must be a ({J},) int array, got shape {parents.shape} dtype {parents.dtype}")
+        parents = parents.astype(np.intp)
+        if parents[0] != -1 or np.any(parents[1:] < 0) or np.any(parents[1:] >= np.arange(1, J)):
+            raise BVHError("parents must be -1 for joint 0 (the only root) and parents[j] < j for the others")
+        offsets = np.asarray(self.offsets, dtype=float)
+        if offsets.shape != (J, 3) or not np.all(np.isfinite(offsets)):
+            raise BVHError(f"offsets must be a finite ({J}, 3) array, got shape {offsets.shape}")
+        channels = [tuple(str(c) for c in ch) for ch in self.channels]
+        if len(channels) != J:
+            raise BVHError(f"channels must list {J} joints, got {len(channels)}")
+        for name, ch in zip(names, channels):
+            if len(set(ch)) != len(ch):
+                raise BVHError(f"joint {name!r}: repeated channel in {list(ch)}")
+        _channel_layout(channels)
+        ft = float(self.frame_time)
+        if not np.isfinite(ft) or ft <= 0:
+            raise BVHError(f"frame_time must be finite and > 0, got {self.frame_time!r}")
+        rot = np.asarray(self.rotations, dtype=float)
+        if rot.ndim != 3 or rot.shape[1:] != (J, 4):
+            raise BVHError(f"rotations must be (F, {J}, 4), got shape {rot.shape}")
+        F = rot.shape[0]
+        if not np.all(np.isfinite(rot)):
+            raise BVHError("rotations contain NaN or inf")
+        norm = np.linalg.norm(rot, axis=-1, keepdims=True)
+        if np.any(norm < 1e-12):
+            raise BVHError("rotations contain a zero quaternion")
+        rot = rot / norm
+        pos = np.asarray(self.positions, dtype=float)
+        if pos.shape != (F, J, 3):
+            raise BVHError(f"positions must be ({F}, {J}, 3), got shape {pos.shape}")
+        if not np.all(np.isfinite(pos)):
+            raise BVHError("positions contain NaN or inf")
+        esp = np.asarray(self.end_site_parents)
+        eso = np.asarray(self.end_site_offsets, dtype=float)
+        if esp.size == 0:
+            esp = np.zeros(0, dtype=np.intp)
+        if esp.ndim != 1 or not np.issubdtype(esp.dtype, np.integer) or np.any((esp < 0) | (esp >= J)):
+            raise BVHError(f"end_site_parents must be joint indices in [0, {J})")
+        if eso.shape != (esp.size, 3) or not np.all(np.isfinite(eso)):
+            raise BVHError(f"end_site_offsets must be a finite ({esp.size}, 3) array, got {eso.shape}")
+        if self.unit_m is not None and not (np.isfinite(self.unit_m) and self.unit_m > 0):
+            raise BVHError(f"unit_m must be > 0, got {self.unit_m!r}")
+        set_ = object.__setattr__
+        set_(self, "joint_names", names)
+        set_(self, "parents", _readonly(parents))
+        set_(self, "offsets", _readonly(offsets))
+        set_(self, "channels", channels)
+        set_(self, "frame_time", ft)
+        set_(self, "rotations", _readonly(rot))
+        set_(self, "positions", _readonly(pos))
+        set_(self, "end_site_parents", _readonly(esp.astype(np.intp)))
+        set_(self, "end_site_offsets", _readonly(eso))
+        set_(self, "unit_m", None if self.unit_m is None else float(self.unit_m))
+
+    # ------------------------------------------------------------------ basics
+    @property
+    def n_frames(self) -> int:
+        """Number of frames F."""
+        return int(self.rotations.shape[0])
+
+    @property
+    def n_joints(self) -> int:
+        """Number of joints J (End Sites excluded)."""
+        return len(self.joint_names)
+
+    @property
+    def fps(self) -> float:
+        """Frames per second, ``1 / frame_time``."""
+        return 1.0 / self.frame_time
+
+    @property
+    def duration(self) -> float:
+        """Length of the clip in seconds, ``n_frames * frame_time``."""
+        return self.n_frames * self.frame_time
+
+    @property
+    def n_channels(self) -> int:
+        """Total number of BVH channels per frame."""
+        return sum(len(c) for c in self.channels)
+
+    @property
+    def end_sites(self) -> list[tuple[int, np.ndarray]]:
+        """End Sites as ``(parent joint index, offset (3,))`` pairs, in file order."""
+        return [(int(p), o) for p, o in zip(self.end_site_parents, self.end_site_offsets)]
+
+    def joint_index(self, name: str) -> int:
+        """Index of joint ``name`` in :attr:`joint_names`.
+
+        Raises
+        ------
+        KeyError
+            If there is no such joint (the message lists the known names).
+        """
+        try:
+            return self.joint_names.index(name)
+        except ValueError:
+            raise KeyError(f"no joint {name!r}; joints: {self.joint_names}") from None
+
+    @cached_property
+    def _layout(self) -> tuple[np.ndarray, list[str]]:
+        return _channel_layout(self.channels)
+
+    @property
+    def position_mask(self) -> np.ndarray:
+        """(J, 3) bool: which local-translation components come from position channels."""
+        return self._layout[0]
+
+    @property
+    def rotation_orders(self) -> list[str]:
+        """Per joint, the Euler order of its rotation channels, e.g. ``"ZYX"`` (``""`` if none).
+
+        Uppercase letters mean *intrinsic* rotations in scipy's convention:
+        ``Rotation.from_euler("ZYX", [z, y, x])`` is ``Rz Ry Rx``, the BVH convention.
+        """
+        return self._layout[1]
+
+    @cached_property
+    def _depth_levels(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        depth = np.zeros(self.n_joints, dtype=np.intp)
+        for j in range(1, self.n_joints):
+            depth[j] = depth[self.parents[j]] + 1
+        levels = []
+        for d in range(1, int(depth.max()) + 1):
+            idx = np.flatnonzero(depth == d)
+            levels.append((idx, self.parents[idx]))
+        return levels
+
+    # ---------------------------------------------------------- kinematics
+    def local_translations(self) -> np.ndarray:
+        """(F, J, 3) local translation of every joint: offsets, with position channels replacing components."""
+        return np.where(self.position_mask[None], self.positions, self.offsets[None])
+
+    @property
+    def root_positions(self) -> np.ndarray:
+        """(F, 3) world position of the root joint (its local translation)."""
+        return self.local_translations()[:, 0]
+
+    def global_transforms(self) -> tuple[np.ndarray, np.ndarray]:
+        """World rotations and positions of every joint, every frame (forward kinematics).
+
+        Returns
+        -------
+        rotations : (F, J, 4) array
+            World rotation of each joint's frame, unit quaternions ``(x, y, z, w)``
+            (``scipy.spatial.transform.Rotation.from_quat(r.reshape(-1, 4))`` converts).
+        positions : (F, J, 3) array
+            World position of each joint, file units, in :attr:`joint_names` order.
+        """
+        q = self.rotations
+        gq = np.empty_like(q)
+        gp = self.local_translations()  # fresh array, filled level by level in place
+        gq[:, 0] = q[:, 0]
+        for idx, par in self._depth_levels:
+            pq = gq[:, par]
+            gp[:, idx] = gp[:, par] + quat_rotate(pq, gp[:, idx])
+            gq[:, idx] = quat_multiply(pq, q[:, idx])
+        return gq, gp
+
+    def global_positions(self) -> np.ndarray:
+        """(F, J, 3) world positions of the joints, file units, in :attr:`joint_names` order."""
+        return self.global_transforms()[1]
+
+    def end_site_positions(self) -> np.ndarray:
+        """(F, E, 3) world positions of the End Sites, in :attr:`end_sites` order."""
+        gq, gp = self.global_transforms()
+        par = self.end_site_parents
+        return gp[:, par] + quat_rotate(gq[:, par], self.end_site_offsets[None])
+
+    def channel_values(self) -> np.ndarray:
+        """(F, C) BVH channel table: position values and Euler angles in degrees.
+
+        Angles are recovered from :attr:`rotations` in each joint's declared order with
+        :meth:`scipy.spatial.transform.Rotation.as_euler`, so they lie in scipy's
+        principal ranges and may differ from the angles of the file read (by multiples
+        of 360 degrees, or by the equivalent triple at gimbal lock) while describing the
+        same rotation.
+
+        Raises
+        ------
+        repro.errors.BVHError
+            If a joint with fewer than three rotation channels has a rotation those
+            axes cannot express.
+        """
+        from repro.motion.bvh import _channel_table
+
+        return _channel_table(self)
+
+    # ---------------------------------------------------------------- units
+    def scaled(self, factor: float, unit_m: float | None = None) -> Motion:
+        """A copy with every length (offsets, positions, End Sites) multiplied by ``factor``.
+
+        Parameters
+        ----------
+        factor : float
+            Finite, > 0.
+        unit_m : float, optional
+            Metres per unit of the result; by default ``self.unit_m / factor`` when
+            ``self.unit_m`` is known, else None.
+        """
+        factor = float(factor)
+        if not np.isfinite(factor) or factor <= 0:
+            raise BVHError(f"scale factor must be finite and > 0, got {factor!r}")
+        if unit_m is None and self.unit_m is not None:
+            unit_m = self.unit_m / factor
+        return dataclasses.replace(
+            self,
+            offsets=self.offsets * factor,
+            positions=self.positions * factor,
+            end_site_offsets=self.end_site_offsets * factor,
+            unit_m=unit_m,
+        )
+
+    def to_metres(self, unit_m: float | None = None) -> Motion:
+        """A copy in metres: lengths multiplied by ``unit_m`` (default :attr:`unit_m`).
+
+        Raises
+        ------
+        repro.errors.BVHError
+            If neither ``unit_m`` nor :attr:`unit_m` is known.
+        """
+        unit_m = self.unit_m if unit_m is None else unit_m
+        if unit_m is None:
+            raise BVHError(
+                "the length unit of this motion is unknown; pass unit_m "
+                "(e.g. repro.motion.CMU_UNIT_M or BANDAI_UNIT_M)"
+            )
+        return self.scaled(unit_m, unit_m=1.0)
+
+    def __repr__(self) -> str:
+        return (
+            f"Motion({self.n_joints} joints, {self.n_frames} frames at {self.fps:.4g} fps, "
+            f"{self.n_channels} channels, source={self.source!r})"
+        )
