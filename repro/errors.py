@@ -18,6 +18,8 @@ __all__ = [
     "SelectionError",
     "AttenuationError",
     "BVHError",
+    "MotionError",
+    "RetrievalError",
     "UnknownFigureError",
     "RenderUnavailableError",
 ]
@@ -45,6 +47,14 @@ class AttenuationError(ReproError, ValueError):
 
 class BVHError(ReproError, ValueError):
     """A BVH (or ASF/AMC) file is malformed; the message names the line or field."""
+
+
+class MotionError(ReproError, ValueError):
+    """A motion, skeleton or character is unusable (missing role, zero-length bone, NaN target ...)."""
+
+
+class RetrievalError(ReproError, ValueError):
+    """A motion-database query cannot be answered (empty database, unknown semantics ...)."""
 
 
 class UnknownFigureError(ReproError, KeyError):
