@@ -15,11 +15,16 @@ from repro.experiments.registry import Result, experiment
     paper="lewis2005",
 )
 def attenuation_speed(quick: bool = False) -> Result:
-    import matplotlib.pyplot as plt
-
     from repro.bench import bench_attenuation
 
     table = bench_attenuation(quick=quick)
+    return Result(table=table, draw=lambda: draw(table))
+
+
+def draw(table):
+    """Bars of median time per call, baseline beside method, ratio annotated."""
+    import matplotlib.pyplot as plt
+
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), layout="constrained")
     for ax, (what, sub) in zip(axes, table.groupby("measurement", sort=False)):
         labels = [f"{r.model}\n{r.n_vertices:,} v, {r.n_shapes} shapes" for r in sub.itertuples()]
@@ -34,4 +39,4 @@ def attenuation_speed(quick: bool = False) -> Result:
         ax.set_title(what)
         ax.legend(fontsize=7, loc="lower right")
     fig.suptitle(f"Attenuation speed — {table['machine'].iloc[0]}", fontsize=8)
-    return Result(table=table, figure=fig)
+    return fig

@@ -2,8 +2,10 @@
 
 An experiment is a pure function of its inputs (and a seed) registered with
 :func:`experiment`; it returns a :class:`Result` holding its numbers as a pandas
-DataFrame and, optionally, a matplotlib figure.  :func:`run` writes
-``NAME.csv`` and ``NAME.png`` into the output folder atomically.
+DataFrame and a small function that draws them.  :func:`run` writes
+``NAME.csv`` first and then ``NAME.png``, both atomically, so the numbers exist
+even where drawing fails (e.g. no OpenGL for a 3D panel: the figure then fails
+with :class:`~repro.errors.RenderUnavailableError`, the CSV stays).
 """
 
 from __future__ import annotations
@@ -20,10 +22,10 @@ __all__ = ["Experiment", "Result", "experiment", "registry", "get", "run"]
 
 @dataclass
 class Result:
-    """What an experiment returns: its numbers, and a figure drawn from them."""
+    """What an experiment returns: its numbers, and how to draw them."""
 
     table: "object"  # pandas.DataFrame
-    figure: "object | None" = None  # matplotlib.figure.Figure
+    draw: "Callable[[], object] | None" = None  # () -> matplotlib Figure
     extra_tables: dict = field(default_factory=dict)  # suffix -> DataFrame, written NAME-suffix.csv
 
 
@@ -77,9 +79,12 @@ def run(name: str, outdir="figures", *, quick: bool = False) -> list[Path]:
     written = [write_csv(out / f"{name}.csv", result.table)]
     for suffix, table in result.extra_tables.items():
         written.append(write_csv(out / f"{name}-{suffix}.csv", table))
-    if result.figure is not None:
+    if result.draw is not None:
         import matplotlib.pyplot as plt
 
-        written.append(save_figure(out / f"{name}.png", result.figure))
-        plt.close(result.figure)
+        figure = result.draw()
+        try:
+            written.append(save_figure(out / f"{name}.png", figure))
+        finally:
+            plt.close(figure)
     return written
