@@ -298,7 +298,8 @@ def test_left_shapes_move_the_plus_x_side(full):
 
 @pytest.mark.data("ict")
 def test_sliders_resolve(face):
-    assert set(face.sliders) == {"Furrow", "SmirkLeft", "SmirkRight", "Wince", "SneerLeft", "SneerRight"}
+    assert set(face.sliders) == {"Furrow", "SmirkLeft", "SmirkRight", "Wince", "SneerLeft", "SneerRight",
+                                 "JawOpen", "MouthStretch", "Smile", "Blink", "BrowUp"}
     w = face.weights(Furrow=1)
     assert w[face.shape_index("browDown_L")] == 1.0 and w[face.shape_index("browDown_R")] == 1.0
     assert np.count_nonzero(w) == 2

@@ -121,6 +121,12 @@ ICT_SLIDERS: dict[str, dict[str, float]] = {
     "Wince": {"eyeSquint_L": 1.0, "eyeSquint_R": 1.0},  # lid tightener, AU7
     "SneerLeft": {"noseSneer_L": 1.0},  # nose wrinkler, AU9
     "SneerRight": {"noseSneer_R": 1.0},
+    # names the procedural face also has, so the paper's scenarios run on either model
+    "JawOpen": {"jawOpen": 1.0},
+    "MouthStretch": {"mouthStretch_L": 1.0, "mouthStretch_R": 1.0},
+    "Smile": {"mouthSmile_L": 1.0, "mouthSmile_R": 1.0},
+    "Blink": {"eyeBlink_L": 1.0, "eyeBlink_R": 1.0},
+    "BrowUp": {"browInnerUp_L": 1.0, "browInnerUp_R": 1.0, "browOuterUp_L": 1.0, "browOuterUp_R": 1.0},
 }
 
 _FOLDER = "faces/ict"

@@ -1,0 +1,307 @@
+"""The paper's editing scenarios and the numbers each figure reports about them.
+
+Lewis et al. 2005 illustrate interference and its attenuation with a handful of
+slider sessions.  Each :class:`Scenario` is one of them, written with the
+paper's slider names so it runs on any model that has those names as shapes or
+named combinations (the procedural face and the ICT model both do):
+
+- ``eyelid_then_brow`` (Fig. 1): the eyelids are partially closed, then the
+  brows are raised, and the eyelid moves as a side effect.
+- ``furrow_then_mouth`` (Figs. 2-3): ``Furrow`` = 0.4 positions the middle of
+  the brow; further moves, mostly of the mouth, keep moving it.  Two brow
+  vertices are selected (Fig. 3a).
+- ``smirk_corners_y`` (Fig. 4): only the y coordinates of the two mouth
+  corners are selected; ``SmirkLeft`` and ``SmirkRight`` go to 0.7.
+- ``wince_sneer_under_eye`` (Fig. 5): six vertices below the eye are
+  selected; ``Wince``, ``SneerLeft``, ``SneerRight`` go to 0.7.
+
+The workflow is Section 5's: the animator reaches ``w_base``, selects, moves
+the sliders to ``w_target``; with attenuation on the change ``w_target -
+w_base`` is replaced by ``w2`` of Eq. (3).  :func:`evaluate` measures one such
+session; :func:`compare_methods` puts attenuation beside the two alternatives
+Section 3 rejects; :func:`alpha_sweep` and :func:`axis_table` give the numbers
+of Fig. 5 and Fig. 4.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from repro.blendshapes import metrics
+from repro.blendshapes.alternatives import edit_orthogonal, edit_zeroed
+from repro.blendshapes.attenuation import Attenuator, select_vertices
+from repro.blendshapes.model import AXES, BlendshapeModel
+from repro.errors import ModelError
+
+__all__ = [
+    "Scenario",
+    "SCENARIOS",
+    "scenario",
+    "evaluate",
+    "compare_methods",
+    "alpha_sweep",
+    "axis_table",
+    "interference",
+]
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One editing session of the paper: a pose to keep, a selection, further slider moves."""
+
+    key: str
+    figure: str
+    description: str
+    region: str  #: preset vertex region of the model (``model.regions``) to select
+    moves: Mapping[str, float]  #: further slider values, added on top of ``base``
+    base: Mapping[str, float] = field(default_factory=dict)  #: sliders set before the selection
+    axes: str = "xyz"  #: which coordinates of the region's vertices are selected
+    #: when > 0, select only this many vertices of the region: those the base pose moved most
+    #: (the animator tags what the first move positioned)
+    top_moved: int = 0
+
+    def vertices(self, model: BlendshapeModel) -> np.ndarray:
+        """Vertex ids this scenario selects on ``model``."""
+        if self.region not in model.regions:
+            raise ModelError(
+                f"scenario {self.key!r} needs region {self.region!r}, which model {model.name!r} "
+                f"does not define; its regions are {sorted(model.regions)}"
+            )
+        verts = np.asarray(model.regions[self.region])
+        if self.top_moved:
+            moved = np.linalg.norm(model.displacement(model.weights(self.base))[verts], axis=1)
+            order = np.lexsort((verts, -moved))  # most moved first; ties by vertex id
+            verts = np.sort(verts[order[: self.top_moved]])
+        return verts
+
+    def selection(self, model: BlendshapeModel) -> np.ndarray:
+        """Rows of ``D`` this scenario selects on ``model``."""
+        return select_vertices(self.vertices(model), self.axes, model.n_vertices)
+
+    def weights(self, model: BlendshapeModel) -> tuple[np.ndarray, np.ndarray]:
+        """``(w_base, w_target)``: the pose kept, and the sliders after the further moves."""
+        w_base = model.weights(self.base)
+        return w_base, w_base + model.weights(self.moves)
+
+    def lockable_shapes(self, model: BlendshapeModel) -> np.ndarray:
+        """Shapes an animator would lock for orthogonal locking: those that made the base pose."""
+        return np.flatnonzero(model.weights(self.base))
+
+
+SCENARIOS: dict[str, Scenario] = {
+    s.key: s
+    for s in [
+        Scenario(
+            "eyelid_then_brow", "Fig. 1",
+            "eyelids half closed (Blink 0.5), then the brows raised (BrowUp 0.8): the eyelid moves too",
+            region="left_eye", top_moved=6, base={"Blink": 0.5}, moves={"BrowUp": 0.8},
+        ),
+        Scenario(
+            "furrow_then_mouth", "Figs. 2-3",
+            "Furrow 0.4 positions the brow; mouth moves (JawOpen 0.4, SmirkLeft/Right 0.4, "
+            "MouthStretch 0.3) follow; the two brow-middle vertices are selected",
+            region="brow_middle", base={"Furrow": 0.4},
+            moves={"JawOpen": 0.4, "SmirkLeft": 0.4, "SmirkRight": 0.4, "MouthStretch": 0.3},
+        ),
+        Scenario(
+            "smirk_corners_y", "Fig. 4",
+            "the y coordinates of the two mouth corners are selected; SmirkLeft and SmirkRight go to 0.7",
+            region="mouth_corners", axes="y", moves={"SmirkLeft": 0.7, "SmirkRight": 0.7},
+        ),
+        Scenario(
+            "wince_sneer_under_eye", "Fig. 5",
+            "six vertices below the left eye are selected; Wince, SneerLeft, SneerRight go to 0.7",
+            region="under_left_eye", moves={"Wince": 0.7, "SneerLeft": 0.7, "SneerRight": 0.7},
+        ),
+    ]
+}
+
+
+def scenario(key: str) -> Scenario:
+    """The scenario named ``key`` (see :data:`SCENARIOS`)."""
+    try:
+        return SCENARIOS[key]
+    except KeyError:
+        raise ModelError(f"unknown scenario {key!r}; known: {sorted(SCENARIOS)}") from None
+
+
+def _attenuator(model: BlendshapeModel, att: Attenuator | None) -> Attenuator:
+    if att is None:
+        return Attenuator(model)
+    if att.model is not model:
+        raise ModelError("the Attenuator given was built for another model")
+    return att
+
+
+def _measure(model, d, d_base, d_target, sel) -> dict:
+    selected_vertices = np.unique(sel // 3)
+    motion = metrics.per_vertex_motion(d, d_base)[selected_vertices]
+    return {
+        "selected_motion": metrics.selected_motion(d, sel, d_base),
+        "selected_max_vertex_motion": float(motion.max()),
+        "unselected_fidelity": metrics.unselected_fidelity(d, d_target, sel, d_base),
+        "unselected_error": metrics.unselected_error(d, d_target, sel),
+        "roughness": metrics.roughness(model, d) if len(model.faces) else float("nan"),
+    }
+
+
+def evaluate(model: BlendshapeModel, sc: Scenario | str, alpha=None, *, attenuator: Attenuator | None = None) -> dict:
+    """Numbers of one session with and without attenuation (Figs. 3-5).
+
+    Returns a flat dict: the selection size, the ``alpha`` used (Section 5's
+    default when None), and for ``none`` (no attenuation) and ``attenuated``:
+    ``selected_motion`` (``||S (d - d_base)||`` since the selection),
+    ``selected_max_vertex_motion``, ``unselected_fidelity`` (1 = the rest moves
+    as the sliders intend), ``unselected_error`` and ``roughness`` (largest
+    Laplacian magnitude of the displacement).  ``reduction`` is attenuated
+    over unattenuated selected motion.
+    """
+    sc = scenario(sc) if isinstance(sc, str) else sc
+    att = _attenuator(model, attenuator)
+    sel = sc.selection(model)
+    w_base, w_target = sc.weights(model)
+    a = att.default_alpha(sel) if alpha is None else float(alpha)
+    w2 = att.edit(w_base, w_target, sel, a)
+    d_base, d_target, d_att = att.displacement(w_base), att.displacement(w_target), att.displacement(w2)
+    out = {
+        "model": model.name,
+        "scenario": sc.key,
+        "figure": sc.figure,
+        "n_selected_vertices": int(np.unique(sel // 3).size),
+        "n_selected_coordinates": int(sel.size),
+        "alpha": a,
+        "default_alpha": att.default_alpha(sel),
+    }
+    none = _measure(model, d_target, d_base, d_target, sel)
+    attd = _measure(model, d_att, d_base, d_target, sel)
+    out.update({f"none_{k}": v for k, v in none.items()})
+    out.update({f"attenuated_{k}": v for k, v in attd.items()})
+    out["reduction"] = (
+        attd["selected_motion"] / none["selected_motion"] if none["selected_motion"] > 0 else float("nan")
+    )
+    return out
+
+
+def compare_methods(model: BlendshapeModel, sc: Scenario | str, alpha=None, *, attenuator: Attenuator | None = None) -> list[dict]:
+    """Attenuation beside Section 3's rejected alternatives, on one session.
+
+    Methods: ``none`` (the sliders as moved), ``attenuation`` (Eq. 3),
+    ``zeroed_rows`` (the selected rows of D set to zero) and
+    ``orthogonal_lock`` (the shapes that made the base pose locked, the others
+    projected orthogonal to them; not applicable when the base pose is empty).
+    Each row has the metrics of :func:`evaluate` for that method.
+    """
+    sc = scenario(sc) if isinstance(sc, str) else sc
+    att = _attenuator(model, attenuator)
+    sel = sc.selection(model)
+    w_base, w_target = sc.weights(model)
+    d_base, d_target = att.displacement(w_base), att.displacement(w_target)
+    a = att.default_alpha(sel) if alpha is None else float(alpha)
+    candidates = {
+        "none": d_target,
+        "attenuation": att.displacement(att.edit(w_base, w_target, sel, a)),
+        "zeroed_rows": edit_zeroed(model.D, w_base, w_target, sel),
+    }
+    locked = sc.lockable_shapes(model)
+    rows = []
+    for method, d in candidates.items():
+        rows.append({"model": model.name, "scenario": sc.key, "method": method, "applicable": True,
+                     **_measure(model, d, d_base, d_target, sel)})
+    if locked.size and locked.size < model.n_shapes:
+        d = edit_orthogonal(model.D, w_base, w_target, locked)
+        rows.append({"model": model.name, "scenario": sc.key, "method": "orthogonal_lock", "applicable": True,
+                     **_measure(model, d, d_base, d_target, sel)})
+    else:
+        rows.append({"model": model.name, "scenario": sc.key, "method": "orthogonal_lock", "applicable": False,
+                     **{k: float("nan") for k in _measure(model, d_target, d_base, d_target, sel)}})
+    return rows
+
+
+def alpha_sweep(model: BlendshapeModel, sc: Scenario | str, alphas: Iterable[float], *, attenuator: Attenuator | None = None) -> list[dict]:
+    """Selected motion and unselected fidelity for each alpha (Section 5, Fig. 5).
+
+    Also ``w_change_vs_w1`` = ``||w2 - w1|| / ||w1||`` and
+    ``selected_motion_fraction`` (= :func:`evaluate`'s ``reduction``), the two
+    quantities whose limits Section 5 discusses: alpha -> 0 gives w2 -> w1,
+    alpha -> infinity gives S w2 -> 0.
+    """
+    sc = scenario(sc) if isinstance(sc, str) else sc
+    att = _attenuator(model, attenuator)
+    sel = sc.selection(model)
+    w_base, w_target = sc.weights(model)
+    w1 = w_target - w_base
+    d_base, d_target = att.displacement(w_base), att.displacement(w_target)
+    none = metrics.selected_motion(d_target, sel, d_base)
+    rows = []
+    for a in alphas:
+        w2 = att.attenuate(w1, sel, a)
+        d = d_base + att.displacement(w2)
+        m = _measure(model, d, d_base, d_target, sel)
+        rows.append({
+            "model": model.name, "scenario": sc.key, "alpha": float(a),
+            "default_alpha": att.default_alpha(sel),
+            "selected_motion": m["selected_motion"],
+            "selected_motion_fraction": m["selected_motion"] / none if none > 0 else float("nan"),
+            "unselected_fidelity": m["unselected_fidelity"],
+            "unselected_error": m["unselected_error"],
+            "w_change_vs_w1": float(np.linalg.norm(w2 - w1) / np.linalg.norm(w1)),
+        })
+    return rows
+
+
+def axis_table(model: BlendshapeModel, sc: Scenario | str, alpha=None, *, attenuator: Attenuator | None = None) -> list[dict]:
+    """x/y/z displacement of each selected vertex with and without attenuation (Fig. 4)."""
+    sc = scenario(sc) if isinstance(sc, str) else sc
+    att = _attenuator(model, attenuator)
+    sel = sc.selection(model)
+    w_base, w_target = sc.weights(model)
+    a = att.default_alpha(sel) if alpha is None else float(alpha)
+    d_base = att.displacement(w_base).reshape(-1, 3)
+    poses = {
+        "none": att.displacement(w_target).reshape(-1, 3),
+        "attenuated": att.displacement(att.edit(w_base, w_target, sel, a)).reshape(-1, 3),
+    }
+    selected_axes = {AXES[r % 3] for r in sel}
+    rows = []
+    for v in np.unique(sel // 3):
+        for method, d in poses.items():
+            delta = d[v] - d_base[v]
+            rows.append({"model": model.name, "scenario": sc.key, "vertex": int(v), "method": method,
+                         "alpha": a if method == "attenuated" else float("nan"),
+                         "dx": delta[0], "dy": delta[1], "dz": delta[2],
+                         "selected_axes": "".join(sorted(selected_axes))})
+    return rows
+
+
+def interference(model: BlendshapeModel, sc: Scenario | str) -> dict:
+    """How far the further moves drag the region the first move positioned (Figs. 1-2).
+
+    ``drift`` is the per-vertex motion (n,) caused by the further moves alone;
+    the returned numbers compare the drift of the selected vertices with the
+    motion the first move gave them.
+    """
+    sc = scenario(sc) if isinstance(sc, str) else sc
+    sel = sc.selection(model)
+    verts = np.unique(sel // 3)
+    w_base, w_target = sc.weights(model)
+    d_base = (model.D @ w_base).reshape(-1, 3)
+    d_target = (model.D @ w_target).reshape(-1, 3)
+    drift = np.linalg.norm(d_target - d_base, axis=1)
+    first = np.linalg.norm(d_base, axis=1)
+    first_move = float(first[verts].mean())
+    return {
+        "model": model.name,
+        "scenario": sc.key,
+        "figure": sc.figure,
+        "units": model.units,
+        "first_move_selected": first_move,
+        "drift_selected_mean": float(drift[verts].mean()),
+        "drift_selected_max": float(drift[verts].max()),
+        "drift_selected_dy": float((d_target - d_base)[verts, 1].mean()),
+        "drift_relative": float(drift[verts].mean() / first_move) if first_move > 0 else float("nan"),
+        "drift": drift,
+    }
+
