@@ -109,3 +109,15 @@ def test_metrics_bad_input(model):
     no_faces = BlendshapeModel(f0=np.zeros((3, 3)), D=np.zeros((9, 1)), names=["a"], faces=np.zeros((0, 3), int))
     with pytest.raises(ModelError, match="no faces"):
         metrics.roughness(no_faces, np.zeros(9))
+
+
+def test_roughness_near_looks_only_at_the_selection_and_its_ring(model):
+    v = 5 * 16 + 7
+    sel = select_vertices([v])
+    zeroed = edit_zeroed(model.D, np.zeros(model.n_shapes), np.full(model.n_shapes, 0.7), sel)
+    near = metrics.roughness_near(model, zeroed, [v])
+    assert near == pytest.approx(metrics.roughness(model, zeroed))  # the spike is at the frozen vertex
+    far = metrics.roughness_near(model, zeroed, [0])  # a corner, far from it
+    assert far < 0.5 * near
+    with pytest.raises(ModelError, match="ids"):
+        metrics.roughness_near(model, zeroed, [10_000])

@@ -14,7 +14,8 @@ Displacements are flat (3n,) vectors in the xyz packing of ``D`` (row
 - :func:`roughness`: the largest uniform-Laplacian magnitude of the
   displacement field, ``max_i ||d_i - mean_{j~i} d_j||``; a frozen vertex whose
   neighbour keeps moving (Section 3's argument against zeroing rows) shows up
-  as a spike.  :func:`edge_strain` gives the per-edge relative length change.
+  as a spike.  :func:`roughness_near` looks only at a selection and its
+  neighbours, where that tear happens.  :func:`edge_strain` gives the per-edge relative length change.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ __all__ = [
     "unselected_fidelity",
     "laplacian_magnitude",
     "roughness",
+    "roughness_near",
     "edge_strain",
 ]
 
@@ -118,6 +120,22 @@ def laplacian_magnitude(model: BlendshapeModel, d) -> np.ndarray:
 def roughness(model: BlendshapeModel, d) -> float:
     """Largest :func:`laplacian_magnitude` over the mesh (model units)."""
     return float(laplacian_magnitude(model, d).max())
+
+
+def roughness_near(model: BlendshapeModel, d, vertices) -> float:
+    """Largest :func:`laplacian_magnitude` over ``vertices`` and their mesh neighbours.
+
+    Where a selection is frozen (zeroed rows of D) while a shape still moves
+    its neighbours, the tear shows here, whatever happens elsewhere on the face.
+    """
+    model = _model(model)
+    v = np.unique(np.asarray(vertices, dtype=np.int64))
+    if v.size == 0 or v.min() < 0 or v.max() >= model.n_vertices:
+        raise ModelError(f"vertices must be ids in 0..{model.n_vertices - 1}")
+    e = model.edges
+    inside = np.isin(e, v)
+    ring = np.union1d(v, e[inside.any(axis=1)].ravel())
+    return float(laplacian_magnitude(model, d)[ring].max())
 
 
 def edge_strain(model: BlendshapeModel, d) -> np.ndarray:

@@ -145,6 +145,11 @@ def _measure(model, d, d_base, d_target, sel) -> dict:
         "unselected_fidelity": metrics.unselected_fidelity(d, d_target, sel, d_base),
         "unselected_error": metrics.unselected_error(d, d_target, sel),
         "roughness": metrics.roughness(model, d) if len(model.faces) else float("nan"),
+        # the tear Section 3 predicts for zeroed rows: roughness of the motion since the
+        # selection, at the selected vertices and their neighbours
+        "roughness_at_selection": (
+            metrics.roughness_near(model, d - d_base, selected_vertices) if len(model.faces) else float("nan")
+        ),
     }
 
 
@@ -155,8 +160,10 @@ def evaluate(model: BlendshapeModel, sc: Scenario | str, alpha=None, *, attenuat
     default when None), and for ``none`` (no attenuation) and ``attenuated``:
     ``selected_motion`` (``||S (d - d_base)||`` since the selection),
     ``selected_max_vertex_motion``, ``unselected_fidelity`` (1 = the rest moves
-    as the sliders intend), ``unselected_error`` and ``roughness`` (largest
-    Laplacian magnitude of the displacement).  ``reduction`` is attenuated
+    as the sliders intend), ``unselected_error``, ``roughness`` (largest
+    Laplacian magnitude of the displacement) and ``roughness_at_selection``
+    (the same, of the motion since the selection, at the selected vertices and
+    their neighbours).  ``reduction`` is attenuated
     over unattenuated selected motion.
     """
     sc = scenario(sc) if isinstance(sc, str) else sc

@@ -1,0 +1,53 @@
+"""Lewis et al. 2005, Figs. 1-2: blendshape interference.
+
+Fig. 2: "b) The effect of moving the fourth slider, Furrow, to a value of 0.4.
+c) Further slider moves, mostly affecting the mouth, but the middle of the brow
+has continued to move downward as well, below the desired position."  Fig. 1:
+the eyelid moves when the brows are raised.  Measured: how far the further
+moves drag the vertices the first move positioned (:func:`repro.blendshapes.scenarios.interference`).
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from repro.blendshapes import scenarios as S
+from repro.experiments import _lewis
+from repro.experiments.registry import Result, experiment
+
+SCENARIOS = ("furrow_then_mouth", "eyelid_then_brow")
+
+
+@experiment("fig2_interference", "Figs. 1-2: further slider moves drag a region an earlier move positioned", paper="lewis2005")
+def fig2_interference(quick: bool = False) -> Result:
+    models = _lewis.models()
+    rows = []
+    for model in models:
+        for key in SCENARIOS:
+            r = S.interference(model, key)
+            r.pop("drift")
+            rows.append(r)
+    table = pd.DataFrame(rows)
+    return Result(table=table, draw=lambda: draw(models))
+
+
+def draw(models):
+    from repro.render import face_images, panel_figure
+
+    images, titles, values = [], [], []
+    for model in models:
+        for key in SCENARIOS:
+            sc = S.scenario(key)
+            w_base, w_target = sc.weights(model)
+            d_base, d_target = model.D @ w_base, model.D @ w_target
+            first, drift = _lewis.motion(d_base), _lewis.motion(d_target, d_base)
+            values += [first, drift]
+            images += face_images(
+                model, [_lewis.zeros(model), d_base, d_target], [0 * first, first, drift],
+                selected=sc.vertices(model), clim=(0.0, 0.5),
+            )
+            base = ", ".join(f"{k} {v}" for k, v in sc.base.items())
+            titles += [f"{model.name}: neutral", f"{sc.figure} first move: {base}",
+                       f"further moves; colour = drift since\n(selected drift {drift[sc.vertices(model)].mean():.3g})"]
+    return panel_figure(images, titles, clim=(0.0, 0.5), label=_lewis.MOTION_LABEL, ncols=3,
+                        suptitle="Interference: cyan = vertices the first move positioned")

@@ -1,0 +1,70 @@
+"""Lewis et al. 2005, Section 3: the two approaches the paper rejects, measured against attenuation.
+
+Zeroing the selected rows of D freezes the selection exactly but "allows facial
+poses that depart from the designed subspace": the frozen vertex is torn from
+its neighbours (``roughness_at_selection``: the largest uniform-Laplacian
+magnitude of the motion since the selection, over the selected vertices and
+their neighbours).  Orthogonal locking of the shapes that made the base pose
+"does not sufficiently constrain the movement of particular vertices"
+(selected motion).  Attenuation at the default alpha for comparison.
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from repro.blendshapes import scenarios as S
+from repro.experiments import _lewis
+from repro.experiments.registry import Result, experiment
+
+
+@experiment("rejected_alternatives", "Section 3: zeroed rows of D and orthogonal locking vs attenuation (motion, fidelity, smoothness)", paper="lewis2005")
+def rejected_alternatives(quick: bool = False) -> Result:
+    pairs = _lewis.attenuators()
+    table = pd.DataFrame([r for m, att in pairs for key in S.SCENARIOS
+                          for r in S.compare_methods(m, key, attenuator=att)])
+    return Result(table=table, draw=lambda: draw(pairs, table))
+
+
+def draw(pairs, table):
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from repro.blendshapes.alternatives import edit_zeroed
+    from repro.blendshapes.metrics import laplacian_magnitude
+    from repro.render import face_images
+
+    methods = ["none", "attenuation", "zeroed_rows", "orthogonal_lock"]
+    metrics = [("selected_motion", "selected motion since selection"), ("unselected_fidelity", "unselected fidelity"),
+               ("roughness_at_selection", "roughness at the selection (max |L (d - d_base)|)")]
+    fig = plt.figure(figsize=(14, 4.2 * len(pairs) + 3.4), layout="constrained")
+    sub = fig.subfigures(2, 1, height_ratios=[4.2 * len(pairs), 3.4])
+    axes = sub[0].subplots(len(pairs), 3, squeeze=False)
+    for row, (model, _) in zip(axes, pairs):
+        t = table[table.model == model.name]
+        keys = list(dict.fromkeys(t.scenario))
+        for ax, (col, label) in zip(row, metrics):
+            for j, method in enumerate(methods):
+                vals = [t[(t.scenario == k) & (t.method == method)][col].iloc[0] for k in keys]
+                ax.bar(np.arange(len(keys)) + 0.2 * (j - 1.5), vals, 0.2, label=method)
+            ax.set_xticks(range(len(keys)), [k.replace("_", "\n") for k in keys], fontsize=6)
+            ax.set_title(f"{model.name}: {label}", fontsize=8)
+        row[0].legend(fontsize=6)
+    # where zeroing tears: Laplacian magnitude of the motion, procedural face, Fig. 5 session
+    model, att = pairs[0]
+    sc = S.scenario("wince_sneer_under_eye")
+    sel = sc.selection(model)
+    w_base, w_target = sc.weights(model)
+    ds = [att.displacement(w_target), att.displacement(att.edit(w_base, w_target, sel)),
+          edit_zeroed(model.D, w_base, w_target, sel)]
+    d_base = att.displacement(w_base)
+    lap = [laplacian_magnitude(model, d - d_base) for d in ds]
+    hi = max(float(x.max()) for x in lap)
+    imgs = face_images(model, ds, lap, selected=sc.vertices(model), clim=(0, hi), cmap="viridis")
+    bottom = sub[1].subplots(1, 3)
+    for ax, img, title, l in zip(bottom, imgs, ["no attenuation", "attenuation", "zeroed rows"], lap):
+        ax.imshow(img)
+        ax.axis("off")
+        ax.set_title(f"{model.name} {sc.figure}, {title}: max |L d| = {l.max():.3g}", fontsize=8)
+    sub[1].suptitle("Laplacian magnitude of the displacement (bright = surface torn)", fontsize=8)
+    return fig
