@@ -6,6 +6,9 @@
 - ``@pytest.mark.data("ict")`` skips a test with the data layer's own reason when
   that dataset is really absent; with ``REPRO_REQUIRE_DATA=1`` (CI) absence is an
   error instead, so CI cannot go green by skipping.
+- A notebook declares what it needs in its metadata, ``"repro": {"needs_data":
+  ["ict"], "needs_render": true}``, and gets the same markers (its stored
+  outputs were made with that data, so without it nbval could only fail).
 - ``@pytest.mark.render`` (and every notebook that uses pyvista) is probed once
   in a subprocess (VTK segfaults without an OpenGL, which would take pytest
   down); skipped with the reason, or an error with ``REPRO_REQUIRE_RENDER=1``.
@@ -38,8 +41,26 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "data(name): needs staged dataset NAME")
 
 
+def _notebook_needs(path: Path) -> dict:
+    """A notebook's ``metadata.repro`` block: ``{"needs_data": [...], "needs_render": bool}``."""
+    import json
+
+    try:
+        return json.loads(path.read_text()).get("metadata", {}).get("repro", {})
+    except (OSError, ValueError):
+        return {}
+
+
 def pytest_collection_modifyitems(config, items):
     from repro import data
+
+    for item in items:
+        if item.path.suffix == ".ipynb":
+            needs = _notebook_needs(item.path)
+            if needs.get("needs_data"):
+                item.add_marker(pytest.mark.data(*needs["needs_data"]))
+            if needs.get("needs_render") or "pyvista" in item.path.read_text():
+                item.add_marker(pytest.mark.render)
 
     require_data = os.environ.get("REPRO_REQUIRE_DATA") == "1"
     for item in items:
@@ -52,9 +73,6 @@ def pytest_collection_modifyitems(config, items):
                     raise pytest.UsageError(f"REPRO_REQUIRE_DATA=1 but {reason}")
                 item.add_marker(pytest.mark.skip(reason=reason))
 
-    for item in items:
-        if item.path.suffix == ".ipynb" and "pyvista" in item.path.read_text():
-            item.add_marker(pytest.mark.render)
     if any(i.get_closest_marker("render") for i in items):
         from repro.render import render_unavailable_reason
 
