@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-__all__ = ["bench_attenuation", "machine"]
+__all__ = ["bench_attenuation", "bench_attenuation_scaling", "machine"]
 
 
 def machine() -> str:
@@ -32,7 +32,8 @@ def machine() -> str:
 
 
 def _median_time(fn, args_list) -> float:
-    """Median seconds per call of ``fn(*args)`` over ``args_list``."""
+    """Median seconds per call of ``fn(*args)`` over ``args_list`` (after one untimed warm-up call)."""
+    fn(*args_list[0])
     times = []
     for args in args_list:
         t0 = time.perf_counter()
@@ -118,3 +119,66 @@ def format_attenuation(table) -> str:
             f"ratio {r.ratio:,.2f} ({r.ratio_meaning}; goal {r.goal}: {verdict})"
         )
     return "\n".join(lines)
+
+
+def _time_case(D, n_vertices, rng, reps_direct, reps_fast):
+    """(direct new-selection, cached new-selection, cached slider move, bare D @ w) median seconds."""
+    from repro.blendshapes import Attenuator, attenuate, select_vertices
+
+    m = D.shape[1]
+    att = Attenuator(D, cache_size=4)
+    w1 = rng.uniform(0, 0.7, size=m)
+    sels = [select_vertices(rng.choice(n_vertices, 6, replace=False)) for _ in range(reps_direct + reps_fast)]
+    direct = _median_time(lambda s: attenuate(D, w1, s), [(s,) for s in sels[:reps_direct]])
+    fast = _median_time(lambda s: att.attenuate(w1, s), [(s,) for s in sels[reps_direct:]])
+    att.matrix(sels[0])
+    D @ w1  # warm-up
+    bare, moved = [], []
+    for _ in range(reps_fast):
+        w = rng.uniform(0, 0.7, size=m)
+        t0 = time.perf_counter()
+        D @ w
+        t1 = time.perf_counter()
+        D @ att.attenuate(w, sels[0])
+        t2 = time.perf_counter()
+        bare.append(t1 - t0)
+        moved.append(t2 - t1)
+    return direct, fast, float(np.median(moved)), float(np.median(bare))
+
+
+def bench_attenuation_scaling(*, quick: bool = False, seed: int = 0, progress: bool = True):
+    """Cost of a selection change and of a slider move versus model size and number of shapes.
+
+    Vertices: procedural faces of increasing size (all their shapes).  Shapes:
+    the first k columns of the largest available model (the ICT face with all
+    26,719 vertices when its data is present, else a 26,712-vertex procedural
+    face).  Every row times the direct formula and the cached Attenuator in
+    the same process.
+    """
+    import pandas as pd
+    from tqdm.auto import tqdm
+
+    from repro import data
+    from repro.blendshapes import load_model
+
+    rng = np.random.default_rng(seed)
+    sizes = (2016, 10_000, 26_712) if quick else (2016, 5_000, 10_000, 26_712, 50_000)
+    big = load_model("ict", face_only=False) if data.missing_reason("ict") is None else load_model("procedural", n_vertices=26_712)
+    shape_counts = sorted({k for k in ((8, 16, 32) if quick else (4, 8, 16, 32, 48)) if k < big.n_shapes} | {big.n_shapes})
+    cases = [("vertices", load_model("procedural", n_vertices=n)) for n in sizes]
+    reps_direct, reps_fast = (3, 30) if quick else (5, 200)
+    rows = []
+    for sweep, model in tqdm(cases, desc="scaling: vertices", delay=1.0, disable=not progress):
+        rows.append((sweep, model.name, model.n_vertices, model.D))
+    for k in shape_counts:
+        rows.append(("shapes", big.name, big.n_vertices, np.ascontiguousarray(big.D[:, :k])))
+    out = []
+    for sweep, name, n, D in tqdm(rows, desc="bench attenuation scaling", delay=1.0, disable=not progress):
+        direct, fast, move, bare = _time_case(np.ascontiguousarray(D), n, rng, reps_direct, reps_fast)
+        out.append(dict(sweep=sweep, model=name, n_vertices=n, n_shapes=D.shape[1],
+                        selection_direct_us=direct * 1e6, selection_attenuator_us=fast * 1e6,
+                        slider_move_us=move * 1e6, bare_matvec_us=bare * 1e6,
+                        selection_speedup=direct / fast, slider_move_over_matvec=move / bare))
+    table = pd.DataFrame(out)
+    table["machine"] = machine()
+    return table

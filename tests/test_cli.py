@@ -37,7 +37,10 @@ def test_run_writes_png_and_csv(tmp_path, capsys):
     assert (table["ratio"] > 0).all() and (table["n_vertices"] >= 2016).all()
     png = (tmp_path / "attenuation_speed.png").read_bytes()
     assert png.startswith(b"\x89PNG")
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["attenuation_speed.csv", "attenuation_speed.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "attenuation_speed-scaling.csv", "attenuation_speed.csv", "attenuation_speed.png"]
+    scaling = pd.read_csv(tmp_path / "attenuation_speed-scaling.csv")
+    assert set(scaling.sweep) == {"vertices", "shapes"} and (scaling.selection_speedup > 0).all()
 
 
 def test_data_list(capsys):

@@ -63,3 +63,11 @@ def test_readme_library_example_runs():
     ns: dict = {}
     exec(compile(code, "README.md", "exec"), ns)
     assert ns["vertices"].shape == (ns["face"].n_vertices, 3)
+
+
+def test_readme_lists_every_registered_figure():
+    from repro.experiments import registry
+
+    text = (REPO / "README.md").read_text()
+    missing = [name for name in registry() if f"`{name}`" not in text]
+    assert not missing, f"README.md does not list {missing}"

@@ -11,21 +11,23 @@ from repro.experiments.registry import Result, experiment
 
 @experiment(
     "attenuation_speed",
-    "Eq. 3 cost: new selection (direct vs Gram-cached Attenuator) and slider move vs bare D@w",
+    "Section 5 speed: new selection (direct vs cached Attenuator), slider move vs bare D@w, vs vertices and shapes",
     paper="lewis2005",
 )
 def attenuation_speed(quick: bool = False) -> Result:
-    from repro.bench import bench_attenuation
+    from repro.bench import bench_attenuation, bench_attenuation_scaling
 
     table = bench_attenuation(quick=quick)
-    return Result(table=table, draw=lambda: draw(table))
+    scaling = bench_attenuation_scaling(quick=quick)
+    return Result(table=table, draw=lambda: draw(table, scaling), extra_tables={"scaling": scaling})
 
 
-def draw(table):
-    """Bars of median time per call, baseline beside method, ratio annotated."""
+def draw(table, scaling):
+    """Top: median time per call, baseline beside method.  Bottom: cost versus vertices and shapes."""
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), layout="constrained")
+    fig, all_axes = plt.subplots(2, 2, figsize=(11, 7.6), layout="constrained")
+    axes = all_axes[0]
     for ax, (what, sub) in zip(axes, table.groupby("measurement", sort=False)):
         labels = [f"{r.model}\n{r.n_vertices:,} v, {r.n_shapes} shapes" for r in sub.itertuples()]
         x = range(len(sub))
@@ -38,5 +40,18 @@ def draw(table):
         ax.set_ylabel("median time per call (µs)")
         ax.set_title(what)
         ax.legend(fontsize=7, loc="lower right")
+    for ax, (sweep, xcol, xlabel) in zip(all_axes[1], [("vertices", "n_vertices", "vertices (procedural faces)"),
+                                                        ("shapes", "n_shapes", "shapes (columns of the largest model)")]):
+        s = scaling[scaling.sweep == sweep]
+        for col, label in [("selection_direct_us", "new selection: direct Eq. 3"),
+                           ("selection_attenuator_us", "new selection: Attenuator"),
+                           ("slider_move_us", "slider move: M w1, D w2"), ("bare_matvec_us", "bare D @ w")]:
+            ax.plot(s[xcol], s[col], "o-", label=label)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel("median time (µs)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
     fig.suptitle(f"Attenuation speed — {table['machine'].iloc[0]}", fontsize=8)
     return fig
