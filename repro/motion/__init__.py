@@ -35,3 +35,39 @@ __all__ = [
     "CMU_UNIT_M",
     "BANDAI_UNIT_M",
 ]
+
+# Skeletons, roles, sizes (Eq. 1) and the morphology-independent representation of
+# Kulpa et al. 2005 used for retargeting (Section 3.4.1).
+from repro.motion.skeleton import (  # noqa: E402
+    ROLES,
+    Skeleton,
+    find_roles,
+    rescale_constraint,
+    scale_skeleton,
+    skeleton_of,
+)
+from repro.motion.morphology import (  # noqa: E402
+    MorphologyIndependentMotion,
+    decode,
+    encode,
+    foot_contacts,
+    foot_metrics,
+    naive_retarget,
+    retarget,
+)
+
+__all__ += [
+    "ROLES",
+    "Skeleton",
+    "find_roles",
+    "rescale_constraint",
+    "scale_skeleton",
+    "skeleton_of",
+    "MorphologyIndependentMotion",
+    "encode",
+    "decode",
+    "retarget",
+    "naive_retarget",
+    "foot_contacts",
+    "foot_metrics",
+]

@@ -1,0 +1,332 @@
+"""Roles, sizes and characters of other morphologies (repro.motion.skeleton).
+
+Pronost et al., Section 3.3 (Eq. 1: ``c_r = c * size_a / size_c``) and Section 3.4.1
+(limb lengths for the morphology-independent representation).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from repro import data
+from repro.errors import MotionError
+from repro.motion import BANDAI_UNIT_M, CMU_UNIT_M, read_bvh
+from repro.motion.skeleton import (
+    REQUIRED_ROLES,
+    ROLES,
+    Skeleton,
+    find_roles,
+    rescale_constraint,
+    scale_skeleton,
+    skeleton_of,
+)
+
+CMU_NAMES = (
+    "root lhipjoint lfemur ltibia lfoot ltoes rhipjoint rfemur rtibia rfoot rtoes lowerback upperback "
+    "thorax lowerneck upperneck head lclavicle lhumerus lradius lwrist lhand lfingers lthumb rclavicle "
+    "rhumerus rradius rwrist rhand rfingers rthumb"
+).split()
+CMU_PARENTS = [-1, 0, 1, 2, 3, 4, 0, 6, 7, 8, 9, 0, 11, 12, 13, 14, 15, 13, 17, 18, 19, 20, 21, 20, 13, 24, 25, 26, 27, 28, 27]
+BANDAI_NAMES = (
+    "joint_Root Hips Spine Chest Neck Head Shoulder_L UpperArm_L LowerArm_L Hand_L Shoulder_R UpperArm_R "
+    "LowerArm_R Hand_R UpperLeg_L LowerLeg_L Foot_L Toes_L UpperLeg_R LowerLeg_R Foot_R Toes_R"
+).split()
+BANDAI_PARENTS = [-1, 0, 1, 2, 3, 4, 3, 6, 7, 8, 3, 10, 11, 12, 1, 14, 15, 16, 1, 18, 19, 20]
+
+# Mixamo / cgspeed style (the synthetic kung-fu database's naming), T-pose, metres, Y up,
+# facing +Z, the character's left on +X.
+MIXAMO = [
+    # name, parent, offset
+    ("Hips", None, (0.0, 0.98, 0.0)),
+    ("Spine", "Hips", (0.0, 0.10, 0.0)),
+    ("Spine1", "Spine", (0.0, 0.15, 0.0)),
+    ("Neck", "Spine1", (0.0, 0.20, 0.0)),
+    ("Head", "Neck", (0.0, 0.10, 0.0)),
+    ("LeftShoulder", "Spine1", (0.05, 0.15, 0.0)),
+    ("LeftArm", "LeftShoulder", (0.12, 0.0, 0.0)),
+    ("LeftForeArm", "LeftArm", (0.28, 0.0, 0.0)),
+    ("LeftHand", "LeftForeArm", (0.25, 0.0, 0.0)),
+    ("RightShoulder", "Spine1", (-0.05, 0.15, 0.0)),
+    ("RightArm", "RightShoulder", (-0.12, 0.0, 0.0)),
+    ("RightForeArm", "RightArm", (-0.28, 0.0, 0.0)),
+    ("RightHand", "RightForeArm", (-0.25, 0.0, 0.0)),
+    ("LeftUpLeg", "Hips", (0.09, -0.05, 0.0)),
+    ("LeftLeg", "LeftUpLeg", (0.0, -0.45, 0.0)),
+    ("LeftFoot", "LeftLeg", (0.0, -0.42, 0.0)),
+    ("LeftToeBase", "LeftFoot", (0.0, -0.06, 0.14)),
+    ("RightUpLeg", "Hips", (-0.09, -0.05, 0.0)),
+    ("RightLeg", "RightUpLeg", (0.0, -0.45, 0.0)),
+    ("RightFoot", "RightLeg", (0.0, -0.42, 0.0)),
+    ("RightToeBase", "RightFoot", (0.0, -0.06, 0.14)),
+]
+MIXAMO_NAMES = [n for n, _, _ in MIXAMO]
+MIXAMO_PARENTS = [-1 if p is None else MIXAMO_NAMES.index(p) for _, p, _ in MIXAMO]
+
+
+def mixamo_skeleton(**kw) -> Skeleton:
+    rot = ("Zrotation", "Xrotation", "Yrotation")
+    channels = [("Xposition", "Yposition", "Zposition") + rot] + [rot] * (len(MIXAMO) - 1)
+    head = MIXAMO_NAMES.index("Head")
+    toes = [MIXAMO_NAMES.index("LeftToeBase"), MIXAMO_NAMES.index("RightToeBase")]
+    args = dict(
+        joint_names=MIXAMO_NAMES,
+        parents=np.array(MIXAMO_PARENTS),
+        offsets=np.array([o for _, _, o in MIXAMO]),
+        channels=channels,
+        end_site_parents=np.array([head] + toes),
+        end_site_offsets=np.array([[0, 0.18, 0], [0, 0, 0.06], [0, 0, 0.06]]),
+        unit_m=1.0,
+    )
+    args.update(kw)
+    return Skeleton(**args)
+
+
+# ------------------------------------------------------------------ find_roles
+CMU_EXPECTED = {
+    "pelvis": "root", "spine": "lowerback", "chest": "thorax", "neck": "lowerneck", "head": "head",
+    "left_clavicle": "lclavicle", "left_shoulder": "lhumerus", "left_elbow": "lradius",
+    "left_wrist": "lwrist", "left_hand": "lhand", "left_hip": "lfemur", "left_knee": "ltibia",
+    "left_ankle": "lfoot", "left_toe": "ltoes", "left_fist": "lhand", "left_foot": "ltoes",
+    "right_clavicle": "rclavicle", "right_shoulder": "rhumerus", "right_elbow": "rradius",
+    "right_wrist": "rwrist", "right_hand": "rhand", "right_hip": "rfemur", "right_knee": "rtibia",
+    "right_ankle": "rfoot", "right_toe": "rtoes", "right_fist": "rhand", "right_foot": "rtoes",
+}  # fmt: skip
+BANDAI_EXPECTED = {
+    "pelvis": "Hips", "spine": "Spine", "chest": "Chest", "neck": "Neck", "head": "Head",
+    "left_clavicle": "Shoulder_L", "left_shoulder": "UpperArm_L", "left_elbow": "LowerArm_L",
+    "left_wrist": "Hand_L", "left_hip": "UpperLeg_L", "left_knee": "LowerLeg_L", "left_ankle": "Foot_L",
+    "left_toe": "Toes_L", "left_fist": "Hand_L", "left_foot": "Toes_L",
+    "right_clavicle": "Shoulder_R", "right_shoulder": "UpperArm_R", "right_elbow": "LowerArm_R",
+    "right_wrist": "Hand_R", "right_hip": "UpperLeg_R", "right_knee": "LowerLeg_R", "right_ankle": "Foot_R",
+    "right_toe": "Toes_R", "right_fist": "Hand_R", "right_foot": "Toes_R",
+}  # fmt: skip
+MIXAMO_EXPECTED = {
+    "pelvis": "Hips", "spine": "Spine", "chest": "Spine1", "neck": "Neck", "head": "Head",
+    "left_clavicle": "LeftShoulder", "left_shoulder": "LeftArm", "left_elbow": "LeftForeArm",
+    "left_wrist": "LeftHand", "left_hip": "LeftUpLeg", "left_knee": "LeftLeg", "left_ankle": "LeftFoot",
+    "left_toe": "LeftToeBase", "left_fist": "LeftHand", "left_foot": "LeftToeBase",
+    "right_clavicle": "RightShoulder", "right_shoulder": "RightArm", "right_elbow": "RightForeArm",
+    "right_wrist": "RightHand", "right_hip": "RightUpLeg", "right_knee": "RightLeg", "right_ankle": "RightFoot",
+    "right_toe": "RightToeBase", "right_fist": "RightHand", "right_foot": "RightToeBase",
+}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "names, parents, expected",
+    [
+        (CMU_NAMES, CMU_PARENTS, CMU_EXPECTED),
+        (BANDAI_NAMES, BANDAI_PARENTS, BANDAI_EXPECTED),
+        (MIXAMO_NAMES, MIXAMO_PARENTS, MIXAMO_EXPECTED),
+    ],
+    ids=["cmu", "bandai", "mixamo"],
+)
+def test_find_roles_three_conventions(names, parents, expected):
+    # with the tree (trunk from the tree) and from the names alone: same table
+    assert find_roles(names, parents) == expected
+    assert find_roles(names) == expected
+    assert set(expected) <= set(ROLES)
+
+
+def test_find_roles_namespace_case_and_separators():
+    names = ["mixamorig:" + n for n in MIXAMO_NAMES]
+    roles = find_roles(names, MIXAMO_PARENTS)
+    assert roles["left_elbow"] == "mixamorig:LeftForeArm" and roles["pelvis"] == "mixamorig:Hips"
+    # upper-case CMU names, "Left_"/"_R" spellings
+    upper = [n.upper() for n in CMU_NAMES]
+    assert find_roles(upper, CMU_PARENTS)["right_knee"] == "RTIBIA"
+    alt = [n.replace("Left", "Left_").replace("Right", "R_") for n in MIXAMO_NAMES]
+    roles = find_roles(alt, MIXAMO_PARENTS)
+    assert roles["left_knee"] == "Left_Leg" and roles["right_ankle"] == "R_Foot"
+
+
+def test_find_roles_missing_role_is_named():
+    names = [n for n in MIXAMO_NAMES if n not in ("LeftLeg", "LeftFoot", "LeftToeBase")]
+    with pytest.raises(MotionError, match="left_knee") as e:
+        find_roles(names)
+    assert "left_ankle" in str(e.value) and "overrides" in str(e.value)
+
+
+def test_find_roles_overrides():
+    names = list(MIXAMO_NAMES)
+    i = names.index("LeftForeArm")
+    names[i] = "L_elbow_jnt_custom"
+    with pytest.raises(MotionError, match="left_elbow"):
+        find_roles(names, MIXAMO_PARENTS)
+    roles = find_roles(names, MIXAMO_PARENTS, overrides={"left_elbow": "L_elbow_jnt_custom"})
+    assert roles["left_elbow"] == "L_elbow_jnt_custom"
+    with pytest.raises(MotionError, match="no such joint"):
+        find_roles(names, MIXAMO_PARENTS, overrides={"left_elbow": "nope"})
+    with pytest.raises(MotionError, match="unknown role"):
+        find_roles(names, MIXAMO_PARENTS, overrides={"left_pinky": "Hips"})
+
+
+def test_find_roles_rejects_broken_limb_chain():
+    # knee not the child of the hip: two-bone IK impossible
+    parents = list(MIXAMO_PARENTS)
+    parents[MIXAMO_NAMES.index("LeftLeg")] = MIXAMO_NAMES.index("Hips")
+    with pytest.raises(MotionError, match="parent-child chain"):
+        find_roles(MIXAMO_NAMES, parents)
+
+
+# ------------------------------------------------------------------- sizes
+def test_mixamo_sizes_by_hand():
+    sk = mixamo_skeleton()
+    L = sk.limb_lengths
+    assert L["left_upper_arm"] == pytest.approx(0.28) and L["left_forearm"] == pytest.approx(0.25)
+    assert L["right_arm"] == pytest.approx(0.53) and L["left_thigh"] == pytest.approx(0.45)
+    assert L["left_leg"] == pytest.approx(0.87) and L["left_foot"] == pytest.approx(np.hypot(0.06, 0.14))
+    assert sk.leg_length == pytest.approx(0.87) and sk.arm_length == pytest.approx(0.53)
+    assert sk.ankle_height == pytest.approx(0.06)  # toe joint 6 cm below the ankle
+    assert sk.hip_drop == pytest.approx(0.05)
+    assert sk.trunk_length == pytest.approx(0.10 + 0.15 + 0.20 + 0.10)
+    assert sk.head_top == pytest.approx(0.18)
+    assert sk.hip_height == pytest.approx(0.06 + 0.87 + 0.05)
+    # straightened stature = rest-pose extent of this upright rig: head top 1.71 above the toe joint
+    assert sk.height == pytest.approx(0.06 + 0.87 + 0.05 + 0.55 + 0.18)
+    rest = sk.rest_positions()
+    top = rest[sk.index("head"), 1] + 0.18
+    assert sk.height == pytest.approx(top - rest[sk.index("left_toe"), 1])
+    assert sk.size == pytest.approx(sk.height)  # unit_m = 1
+    assert sk.bone_length("LeftForeArm") == pytest.approx(0.28)
+
+
+def test_size_needs_units():
+    sk = mixamo_skeleton(unit_m=None)
+    assert sk.height == pytest.approx(1.71)
+    with pytest.raises(MotionError, match="unit"):
+        sk.size
+    with pytest.raises(MotionError, match="unit"):
+        scale_skeleton(sk, height=1.8)
+    assert scale_skeleton(sk, scale=2.0).height == pytest.approx(3.42)
+
+
+def test_rescale_constraint_eq1():
+    c = np.array([1.0, 1.2, 0.5])
+    # a target 1 m in front of a 2 m character is 0.8 m in front of a 1.6 m actor
+    np.testing.assert_allclose(rescale_constraint(c, 1.6, 2.0), c * 0.8)
+    with pytest.raises(MotionError):
+        rescale_constraint(c, 1.6, 0.0)
+    with pytest.raises(MotionError):
+        rescale_constraint([np.nan, 0, 0], 1.6, 2.0)
+
+
+# ------------------------------------------------------------ scale_skeleton
+@given(
+    height=st.floats(1.2, 2.2),
+    arm=st.floats(0.75, 1.25),
+    leg=st.floats(0.75, 1.25),
+    trunk=st.floats(0.8, 1.2),
+)
+def test_scale_skeleton_height_and_proportions(height, arm, leg, trunk):
+    sk = mixamo_skeleton()
+    t = scale_skeleton(sk, height=height, arm_scale=arm, leg_scale=leg, trunk_scale=trunk)
+    assert t.joint_names == sk.joint_names and np.array_equal(t.parents, sk.parents)
+    assert t.roles == sk.roles and t.channels == sk.channels
+    assert t.size == pytest.approx(height, rel=1e-12)
+    # every bone keeps its direction
+    bl0, bl1 = sk.bone_lengths, t.bone_lengths
+    nz = bl0 > 0
+    np.testing.assert_allclose(t.offsets[nz] / bl1[nz, None], sk.offsets[nz] / bl0[nz, None], atol=1e-12)
+    # proportions relative to the untouched bones (e.g. the hand-to-foot bones, pelvis width)
+    k = t.bone_length("left_toe") / sk.bone_length("left_toe")  # the uniform factor
+    assert t.limb_lengths["left_arm"] == pytest.approx(k * arm * sk.limb_lengths["left_arm"])
+    assert t.limb_lengths["right_leg"] == pytest.approx(k * leg * sk.limb_lengths["right_leg"])
+    assert t.trunk_length == pytest.approx(k * trunk * sk.trunk_length)
+    assert t.head_top == pytest.approx(k * trunk * sk.head_top)
+
+
+def test_scale_skeleton_from_motion_and_bone_scales():
+    sk = mixamo_skeleton()
+    m = sk.rest_motion(n_frames=2)
+    t = scale_skeleton(m, bone_scales={"LeftForeArm": 1.5})
+    assert isinstance(t, Skeleton)
+    assert t.limb_lengths["left_upper_arm"] == pytest.approx(1.5 * 0.28)
+    assert t.limb_lengths["left_forearm"] == pytest.approx(0.25)
+    assert t.limb_lengths["right_upper_arm"] == pytest.approx(0.28)
+
+
+@pytest.mark.parametrize(
+    "kw, msg",
+    [
+        (dict(height=float("nan")), "height"),
+        (dict(height=-1.0), "height"),
+        (dict(arm_scale=0.0), "arm_scale"),
+        (dict(leg_scale=float("inf")), "leg_scale"),
+        (dict(height=1.8, scale=1.1), "not both"),
+        (dict(bone_scales={"nope": 1.1}), "no joint"),
+    ],
+)
+def test_scale_skeleton_errors(kw, msg):
+    with pytest.raises(MotionError, match=msg):
+        scale_skeleton(mixamo_skeleton(), **kw)
+
+
+def test_zero_length_limb_bone_is_refused():
+    off = np.array([o for _, _, o in MIXAMO])
+    off[MIXAMO_NAMES.index("LeftHand")] = 0.0  # zero forearm
+    with pytest.raises(MotionError, match="zero-length"):
+        mixamo_skeleton(offsets=off)
+    off = np.array([o for _, _, o in MIXAMO])
+    off[MIXAMO_NAMES.index("RightLeg")] = 0.0  # zero thigh
+    with pytest.raises(MotionError, match="RightLeg"):
+        mixamo_skeleton(offsets=off)
+    # a scaled skeleton cannot make it zero either (factors are > 0), but bone_scales=0 is refused
+    with pytest.raises(MotionError):
+        scale_skeleton(mixamo_skeleton(), bone_scales={"LeftLeg": 0.0})
+
+
+def test_nan_offsets_and_bad_tree_are_refused():
+    off = np.array([o for _, _, o in MIXAMO])
+    off[3, 1] = np.nan
+    with pytest.raises(MotionError, match="NaN"):
+        mixamo_skeleton(offsets=off)
+    with pytest.raises(MotionError):
+        mixamo_skeleton(parents=np.array([-1] + MIXAMO_PARENTS[1:-1] + [30]))
+    with pytest.raises(MotionError):
+        skeleton_of("not a skeleton")
+
+
+def test_rest_motion_roundtrips_through_skeleton():
+    sk = mixamo_skeleton()
+    m = sk.rest_motion(3)
+    assert m.n_frames == 3
+    np.testing.assert_allclose(m.global_positions()[1], sk.rest_positions())
+    sk2 = Skeleton.from_motion(m)
+    assert sk2.roles == sk.roles and sk2.height == pytest.approx(sk.height)
+
+
+# --------------------------------------------------------------- real data
+@pytest.mark.data("cmu-bvh")
+def test_cmu_135_sizes():
+    m = read_bvh(data.fetch("mocap/cmu/135_04.bvh"), unit_m=CMU_UNIT_M)
+    sk = Skeleton.from_motion(m)
+    assert sk.roles == CMU_EXPECTED
+    # mocap/cmu/PROVENANCE.md: subject 135 leg (femur+tibia) 0.830 m, arm (humerus+radius) 0.485 m
+    assert sk.to_metres(sk.limb_lengths["left_leg"]) == pytest.approx(0.830, abs=1e-3)
+    assert sk.to_metres(sk.limb_lengths["left_arm"]) == pytest.approx(0.485, abs=1e-3)
+    # rest-pose head-top-to-toe height is 28.15 units (1.589 m); the straightened stature is
+    # longer (legs abducted ~20 degrees in the CMU rest pose) but within 5 %
+    assert 28.15 < sk.height < 1.05 * 28.15
+    assert 1.58 < sk.size < 1.67
+    assert sk.head_top > 0 and sk.ankle_height > 0
+
+
+@pytest.mark.data("bandai")
+def test_bandai_sizes():
+    m = read_bvh(data.fetch("mocap/bandai/dataset-1_kick_normal_001.bvh"), unit_m=BANDAI_UNIT_M)
+    sk = Skeleton.from_motion(m)
+    assert sk.roles == BANDAI_EXPECTED
+    # mocap/bandai/PROVENANCE.md: leg (UpperLeg->Foot) 0.80 m, arm (UpperArm->Hand) 0.47 m
+    assert sk.to_metres(sk.leg_length) == pytest.approx(0.80, abs=0.01)
+    assert sk.to_metres(sk.arm_length) == pytest.approx(0.47, abs=0.01)
+    # the rest pose is a straight line along +X: no head top, ankle height not measurable
+    assert sk.head_top == 0.0 and sk.ankle_height == 0.0
+    # stature up to the head joint; the Head joint stands 1.34-1.41 m above the lowest joint
+    assert 1.25 < sk.size < 1.45
+
+
+def test_required_roles_are_roles():
+    assert set(REQUIRED_ROLES) <= set(ROLES)
