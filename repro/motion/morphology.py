@@ -94,7 +94,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from repro.errors import MotionError
-from repro.motion.motion import POSITION_CHANNELS, Motion
+from repro.motion.motion import POSITION_CHANNELS, Motion, quat_multiply
 from repro.motion.skeleton import LIMBS, Skeleton, skeleton_of
 
 __all__ = [
@@ -118,7 +118,7 @@ UP_AXIS: int = 1
 
 
 # ----------------------------------------------------------- quaternion helpers
-# Component-wise versions of np.cross / quat_rotate / quat_multiply: same results, but
+# Component-wise versions of np.cross / quat_rotate: same results, but
 # without np.cross's axis juggling, which dominates the cost of short (online) clips.
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
@@ -133,19 +133,7 @@ def _qrot(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     return v + q[..., 3:4] * t + _cross(u, t)
 
 
-def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product ``a * b`` (as :func:`quat_multiply`)."""
-    ax, ay, az, aw = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
-    bx, by, bz, bw = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
-    return np.stack(
-        [
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz,
-        ],
-        axis=-1,
-    )
+_qmul = quat_multiply  # Hamilton product a * b (one implementation, in repro.motion.motion)
 
 
 def _qinv(q: np.ndarray) -> np.ndarray:
