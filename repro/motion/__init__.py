@@ -71,3 +71,22 @@ __all__ += [
     "foot_contacts",
     "foot_metrics",
 ]
+
+# Synthetic kung-fu database (no downloaded data needed): repro.motion.synthetic
+from repro.motion.synthetic import (  # noqa: E402
+    SyntheticDatabase,
+    hit_point_trajectory,
+    read_manifest,
+    synthetic_clip,
+    synthetic_database,
+    synthetic_skeleton,
+)
+
+__all__ += [
+    "synthetic_clip",
+    "synthetic_database",
+    "synthetic_skeleton",
+    "read_manifest",
+    "hit_point_trajectory",
+    "SyntheticDatabase",
+]
