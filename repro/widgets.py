@@ -1,0 +1,794 @@
+"""Interactive panels (ipywidgets) for the papers reproduced in :mod:`repro`.
+
+Lewis et al. 2005, Section 5: "In addition to the usual slider interface, there
+would be controls to invoke motion attenuation, select vertices, and adjust the
+value of alpha.  Until motion attenuation is turned off, weights would be
+automatically transformed as the sliders move."  :class:`BlendshapePanel` is
+that interface:
+
+- one ``FloatSlider`` (0..1, step 0.01) per blendshape slider (the paper's
+  ``Furrow``, ``SmirkLeft/Right``, ``Wince``, ``SneerLeft/Right``, plus
+  ``JawOpen``, ``Blink``, ``BrowUp``, ``MouthStretch`` by default);
+- a selection: a ``Dropdown`` of the model's preset regions and x/y/z
+  ``Checkbox`` es (``select_vertices(region, axes)``), and a "select now"
+  button;
+- alpha on a log slider (``FloatLogSlider``, 1e-3..1e6) with a "default"
+  checkbox that keeps it at Section 5's default for the current selection
+  (``#unselected / #selected`` coordinates);
+- an attenuation ``ToggleButton``;
+- a live view (matplotlib by default, or one persistent off-screen pyvista
+  plotter) coloured by per-vertex motion since the selection, the selected
+  vertices in cyan;
+- a line of numbers in stable, parseable text (:data:`NUMBERS_FORMAT`), e.g.
+  ``selected motion: 0.0837041 | unselected fidelity: 0.546925 | alpha: 335 | attenuation: on``.
+
+The select-now workflow
+-----------------------
+Switching attenuation on (or pressing "select now") takes the current slider
+weights as ``w_base``, the pose to keep.  While attenuation is on, the face
+shows ``Attenuator.edit(w_base, w_sliders, selected, alpha)`` =
+``w_base + M (w_sliders - w_base)`` with ``M = (P + alpha Q)^-1 P`` (Eq. 3);
+changing the region, axes or alpha re-solves from the same ``w_base``.
+Switching attenuation off makes the sliders act directly again (the face
+shows ``w_sliders``); ``w_base`` stays as the reference of the numbers, so
+toggling shows the same session with and without attenuation.
+
+The numbers are those of :func:`repro.blendshapes.scenarios.evaluate`:
+``selected motion`` = ``||S (D w - D w_base)||`` and ``unselected fidelity``
+= ``1 - ||Sbar (D w - D w_sliders)|| / ||Sbar (D w_sliders - D w_base)||``
+(``nan`` while the sliders have not moved since the selection).
+
+Every solve goes through one :class:`~repro.blendshapes.Attenuator` built with
+the panel (``D^T D`` once; ``M`` cached per selection and alpha), so a slider
+move costs an m x m mat-vec and ``D @ w``.  Bad input typed into the panel
+(``alpha <= 0`` or NaN, no axis ticked, a NaN slider value) is shown as an
+error in the panel; no widget callback raises.
+"""
+
+from __future__ import annotations
+
+import html
+import io
+import math
+import re
+import time
+from collections.abc import Iterable, Mapping
+from contextlib import contextmanager
+
+import ipywidgets as widgets
+import numpy as np
+
+from repro.blendshapes import Attenuator, load_model, metrics, select_vertices
+from repro.blendshapes.model import AXES, BlendshapeModel
+from repro.errors import AttenuationError, ModelError, SelectionError
+
+__all__ = [
+    "BlendshapePanel",
+    "blendshape_panel",
+    "PAPER_SLIDERS",
+    "NUMBERS_FORMAT",
+    "parse_numbers",
+]
+
+#: The sliders the paper names (Figs. 2-5), and those its scenarios need.
+PAPER_SLIDERS = (
+    "Furrow", "SmirkLeft", "SmirkRight", "Wince", "SneerLeft", "SneerRight",
+    "JawOpen", "Blink", "BrowUp", "MouthStretch",
+)
+
+#: The text of the panel's numbers line (plain text; :func:`parse_numbers` reads it back).
+NUMBERS_FORMAT = (
+    "selected motion: {selected_motion:.6g} | unselected fidelity: {unselected_fidelity:.6g} "
+    "| alpha: {alpha:.6g} | attenuation: {attenuation}"
+)
+
+#: Exponents (base 10) of the alpha slider's range.
+ALPHA_EXPONENTS = (-3.0, 6.0)
+
+VIEWS = ("matplotlib", "pyvista", "auto", "none")
+
+_NUMBER_FIELDS = {
+    "selected motion": "selected_motion",
+    "unselected fidelity": "unselected_fidelity",
+    "alpha": "alpha",
+    "attenuation": "attenuation",
+}
+
+
+def parse_numbers(text: str) -> dict:
+    """The panel's numbers line (:data:`NUMBERS_FORMAT`) as a dict of floats (and ``attenuation``).
+
+    ``parse_numbers("selected motion: 0.0837 | unselected fidelity: 0.547 | alpha: 335 | attenuation: on")``
+    gives ``{"selected_motion": 0.0837, "unselected_fidelity": 0.547, "alpha": 335.0, "attenuation": "on"}``.
+    Raises ``ValueError`` for anything else (e.g. an ``error: ...`` line).
+    """
+    out = {}
+    for part in text.strip().split(" | "):
+        m = re.fullmatch(r"([a-z ]+): (\S+)", part.strip())
+        if not m or m.group(1) not in _NUMBER_FIELDS:
+            raise ValueError(f"not a numbers line of the panel: {text!r}")
+        key = _NUMBER_FIELDS[m.group(1)]
+        out[key] = m.group(2) if key == "attenuation" else float(m.group(2))
+    if set(out) != set(_NUMBER_FIELDS.values()):
+        raise ValueError(f"not a numbers line of the panel: {text!r}")
+    return out
+
+
+# ----------------------------------------------------------------------- views
+class _MatplotlibView:
+    """Front view (x, y) of the posed face: flat-shaded triangles coloured by motion, drawn with Agg.
+
+    One figure per panel, updated in place (vertices and colours of one
+    PolyCollection, offsets of one scatter) and written to PNG; deterministic.
+    """
+
+    def __init__(self, model: BlendshapeModel, clim, cmap: str, size):
+        import matplotlib as mpl
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.cm import ScalarMappable
+        from matplotlib.collections import PolyCollection
+        from matplotlib.figure import Figure
+
+        self.model = model
+        self.cmap = mpl.colormaps[cmap]
+        self.norm = mpl.colors.Normalize(*clim)
+        # painter's order: far triangles (small z, the face looks toward +z) first
+        depth = model.f0[model.faces].mean(axis=1)[:, 2]
+        self.faces = model.faces[np.argsort(depth, kind="stable")]
+        light = np.array([0.3, 0.4, 1.0])
+        self.light = light / np.linalg.norm(light)
+        w, h = size
+        dpi = 100
+        self.fig = Figure(figsize=(w / dpi, h / dpi), dpi=dpi)
+        FigureCanvasAgg(self.fig)
+        self.ax = self.fig.add_axes((0.0, 0.13, 1.0, 0.87))
+        self.ax.set_aspect("equal")
+        self.ax.axis("off")
+        lo, hi = model.f0.min(axis=0), model.f0.max(axis=0)
+        pad = 0.06 * (hi - lo)
+        self.ax.set_xlim(lo[0] - pad[0], hi[0] + pad[0])
+        self.ax.set_ylim(lo[1] - pad[1], hi[1] + pad[1])
+        self.poly = PolyCollection(np.zeros((len(self.faces), 3, 2)), antialiaseds=False, linewidths=0.3)
+        self.ax.add_collection(self.poly)
+        self.markers = self.ax.scatter([], [], s=22, c="cyan", edgecolors="k", linewidths=0.6, zorder=3)
+        cax = self.fig.add_axes((0.15, 0.045, 0.7, 0.022))
+        cb = self.fig.colorbar(ScalarMappable(self.norm, self.cmap), cax=cax, orientation="horizontal")
+        cb.ax.tick_params(labelsize=7)
+        cb.ax.xaxis.set_label_position("top")
+        cb.set_label(f"motion since the selection ({model.units}); cyan: selected", fontsize=7)
+
+    def render(self, points: np.ndarray, motion: np.ndarray, selected_vertices) -> bytes:
+        T = points[self.faces]
+        # smooth (vertex-normal) Lambert shading, averaged over each triangle
+        fn = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
+        idx = self.faces.ravel()
+        vn = np.column_stack([np.bincount(idx, np.repeat(fn[:, k], 3), minlength=len(points)) for k in range(3)])
+        vn /= np.linalg.norm(vn, axis=1, keepdims=True) + 1e-300
+        shade = (0.35 + 0.65 * np.abs(vn @ self.light))[self.faces].mean(axis=1)
+        colours = self.cmap(self.norm(motion[self.faces].mean(axis=1)))
+        colours[:, :3] *= shade[:, None]
+        self.poly.set_verts(T[:, :, :2])
+        self.poly.set_facecolors(colours)
+        self.poly.set_edgecolors(colours)
+        sel = np.asarray(selected_vertices if selected_vertices is not None else [], dtype=np.int64)
+        self.markers.set_offsets(points[sel, :2] if sel.size else np.zeros((0, 2)))
+        buf = io.BytesIO()
+        self.fig.savefig(buf, format="png")
+        return buf.getvalue()
+
+    def close(self) -> None:
+        self.fig.clear()
+
+
+class _PyvistaView:
+    """The same view through ONE persistent off-screen pyvista plotter (points and scalars updated in place)."""
+
+    def __init__(self, model: BlendshapeModel, clim, cmap: str, size):
+        from repro.render import require_render
+
+        require_render()
+        import pyvista as pv
+
+        pv.vtk_verbosity("error")
+        self.pv = pv
+        self.model = model
+        faces = np.column_stack([np.full(len(model.faces), 3), model.faces]).ravel()
+        self.mesh = pv.PolyData(model.f0.copy(), faces)
+        self.mesh.point_data["motion"] = np.zeros(model.n_vertices)
+        self.markers = pv.PolyData(model.f0[:1].copy())
+        self.pl = pv.Plotter(off_screen=True, window_size=list(size))
+        self.pl.set_background("white")
+        self.pl.add_mesh(self.mesh, scalars="motion", cmap=cmap, clim=list(clim), smooth_shading=True,
+                         specular=0.2, scalar_bar_args={"title": f"motion since the selection ({model.units})",
+                                                        "title_font_size": 12, "label_font_size": 10,
+                                                        "color": "black", "n_labels": 3, "fmt": "%.2g"})
+        self.marker_actor = self.pl.add_mesh(self.markers, color="cyan", point_size=9.0,
+                                             render_points_as_spheres=True)
+        self.pl.view_xy()
+        self.pl.camera.zoom(1.1)
+
+    def render(self, points: np.ndarray, motion: np.ndarray, selected_vertices) -> bytes:
+        from PIL import Image
+
+        self.mesh.points = points
+        self.mesh.point_data["motion"] = motion
+        sel = np.asarray(selected_vertices if selected_vertices is not None else [], dtype=np.int64)
+        self.marker_actor.SetVisibility(bool(sel.size))
+        if sel.size:
+            self.markers.copy_from(self.pv.PolyData(points[sel].copy()), deep=True)
+        self.pl.render()  # pyvista only renders a screenshot once otherwise
+        img = self.pl.screenshot(return_img=True)
+        buf = io.BytesIO()
+        Image.fromarray(np.ascontiguousarray(img)).save(buf, format="png")
+        return buf.getvalue()
+
+    def close(self) -> None:
+        self.pl.close()
+
+
+# ----------------------------------------------------------------------- panel
+class BlendshapePanel:
+    """Sliders, selection, alpha and attenuation for a blendshape model (Lewis et al. 2005, Section 5).
+
+    Parameters
+    ----------
+    model : "procedural", "ict" or BlendshapeModel
+    sliders : sequence of str, "all", or None
+        Slider names (shapes or named combinations of the model).  None: the
+        paper's sliders (:data:`PAPER_SLIDERS`) the model has; "all": every
+        name the model accepts.
+    view : "matplotlib" (default), "pyvista", "auto" or "none"
+        "auto" uses pyvista when off-screen rendering works here
+        (:func:`repro.render.render_unavailable_reason`), else matplotlib.
+    region : str, optional
+        Preset region selected at start (default: the model's first region).
+    axes : str
+        Axes of the region's vertices selected at start ("xyz", "y", ...).
+    alpha : float, optional
+        Starting alpha; None (default) follows Section 5's default for the selection.
+    attenuation : bool
+        Start with attenuation on (``w_base`` = the starting sliders).
+    values : mapping of slider name to value, optional
+        Starting slider values (set before attenuation is switched on).
+    clim : (lo, hi)
+        Colour range of the view (motion since the selection, model units).
+    continuous_update : bool
+        Update while a blendshape slider is dragged (True), or on release.
+        The alpha slider always updates on release (each new alpha is a new
+        solve, and a continuously updating ``FloatLogSlider`` would send back
+        its step-snapped value as soon as the browser draws it).
+    alpha_on_top : bool
+        Put the alpha slider and the numbers line above the sliders.
+
+    Attributes
+    ----------
+    widget : ipywidgets.VBox
+        The panel; displaying the :class:`BlendshapePanel` displays it.
+    sliders : dict of str to FloatSlider
+    region, axis_boxes, select_button, alpha_slider, default_alpha, attenuation, view_image, numbers_html, status_html
+        The individual widgets.
+    attenuator : Attenuator
+        The one cached solver of the panel.
+    last_update_seconds : dict
+        Wall time of the last update: ``"numbers"`` (weights, Eq. 3 and the
+        metrics) and ``"view"`` (drawing).
+    """
+
+    def __init__(
+        self,
+        model="procedural",
+        sliders=None,
+        view: str = "matplotlib",
+        *,
+        region: str | None = None,
+        axes: str = "xyz",
+        alpha: float | None = None,
+        attenuation: bool = False,
+        values: Mapping[str, float] | None = None,
+        clim=(0.0, 1.0),
+        cmap: str = "YlOrRd",
+        image_size=(360, 420),
+        continuous_update: bool = True,
+        alpha_on_top: bool = False,
+    ):
+        if isinstance(model, str):
+            model = load_model(model)
+        if not isinstance(model, BlendshapeModel):
+            raise ModelError(f"model must be a model name or a BlendshapeModel, got {type(model).__name__}")
+        if view not in VIEWS:
+            raise ValueError(f"view must be one of {VIEWS}, got {view!r}")
+        if not model.regions:
+            raise ModelError(f"model {model.name!r} has no preset regions to select from")
+        self.model = model
+        self.attenuator = Attenuator(model)
+        self.slider_names = self._slider_names(model, sliders)
+        # weights = C @ slider values: one column per slider (named combinations resolved once)
+        self._C = np.column_stack([model.weights({s: 1.0}) for s in self.slider_names])
+        self._regions = dict(model.regions)
+        self._batch_depth = 0
+        self._pending = False
+        self._internal = False  # set while the panel itself moves a widget
+        self.error: str | None = None
+        self._numbers: dict = {}
+        self._numbers_text = ""
+        self.last_update_seconds = {"numbers": float("nan"), "view": float("nan")}
+
+        first = region if region is not None else next(iter(self._regions))
+        if first not in self._regions:
+            raise ModelError(f"unknown region {first!r} of model {model.name!r}; known: {list(self._regions)}")
+        axes = self._axes_arg(axes)
+
+        # view
+        if view == "auto":
+            from repro.render import render_unavailable_reason
+
+            view = "pyvista" if render_unavailable_reason() is None else "matplotlib"
+        self.view_kind = view
+        self._view = None
+        if view == "matplotlib":
+            self._view = _MatplotlibView(model, clim, cmap, image_size)
+        elif view == "pyvista":
+            self._view = _PyvistaView(model, clim, cmap, image_size)
+
+        # widgets
+        style = {"description_width": "110px"}
+        self.sliders = {
+            name: widgets.FloatSlider(value=0.0, min=0.0, max=1.0, step=0.01, description=name,
+                                      continuous_update=continuous_update, readout_format=".2f", style=style,
+                                      layout=widgets.Layout(width="340px"))
+            for name in self.slider_names
+        }
+        self.region = widgets.Dropdown(options=list(self._regions), value=first, description="region",
+                                       layout=widgets.Layout(width="260px"), style={"description_width": "50px"})
+        self.axis_boxes = {a: widgets.Checkbox(value=a in axes, description=a, indent=False,
+                                               layout=widgets.Layout(width="44px"))
+                           for a in AXES}
+        self.select_button = widgets.Button(description="select now", icon="crosshairs",
+                                            tooltip="make the current slider pose the pose to keep (w_base)")
+        self.alpha_slider = widgets.FloatLogSlider(value=1.0, base=10, min=ALPHA_EXPONENTS[0], max=ALPHA_EXPONENTS[1],
+                                                   step=0.01, description="alpha", readout_format=".4g",
+                                                   # on release only: with continuous updates the browser's
+                                                   # slider sends back its step-snapped value as soon as it is
+                                                   # drawn (335 -> 10**2.53 = 338.8), moving alpha by itself
+                                                   continuous_update=False,
+                                                   layout=widgets.Layout(width="560px"),
+                                                   style={"description_width": "50px"})
+        self.alpha_slider.add_class("repro-alpha")
+        self.default_alpha = widgets.Checkbox(value=alpha is None, description="default alpha (Section 5)",
+                                              indent=False)
+        self.attenuation = widgets.ToggleButton(value=False, description="attenuation", icon="anchor",
+                                                tooltip="attenuate the motion of the selected coordinates (Eq. 3)")
+        self.attenuation.add_class("repro-attenuation")
+        self.reset_button = widgets.Button(description="reset", tooltip="all sliders to 0, attenuation off")
+        self.view_image = widgets.Image(format="png", layout=widgets.Layout(
+            width=f"{image_size[0]}px", height=f"{image_size[1]}px",
+            display="none" if self._view is None else None))
+        self.numbers_html = widgets.HTML()
+        self.numbers_html.add_class("repro-numbers")
+        self.status_html = widgets.HTML()
+        self.status_html.add_class("repro-status")
+
+        # state
+        self._alpha = 1.0
+        self._sel = None
+        self._sel_vertices = None
+        self._sel_error: str | None = None
+        self._w_base = np.zeros(model.n_shapes)
+        self._d_base = np.zeros(3 * model.n_vertices)
+        self._weights = np.zeros(model.n_shapes)
+
+        for name, s in self.sliders.items():
+            s.observe(self._guarded(self._on_slider), names="value")
+        self.region.observe(self._guarded(self._on_selection), names="value")
+        for box in self.axis_boxes.values():
+            box.observe(self._guarded(self._on_selection), names="value")
+        self.select_button.on_click(self._guarded(lambda _b: self.select_now()))
+        self.reset_button.on_click(self._guarded(lambda _b: self.reset()))
+        self.alpha_slider.observe(self._guarded(self._on_alpha), names="value")
+        self.default_alpha.observe(self._guarded(self._on_default), names="value")
+        self.attenuation.observe(self._guarded(self._on_attenuation), names="value")
+
+        header = widgets.HTML(
+            f"<b>{html.escape(model.name)}</b>: {model.n_vertices:,} vertices, {model.n_shapes} shapes "
+            f"({html.escape(model.units)})")
+        left = widgets.VBox([header, *self.sliders.values()])
+        right = widgets.VBox([self.view_image])
+        alpha_row = widgets.HBox([self.alpha_slider, self.default_alpha])
+        rows = [
+            widgets.HBox([left, right]),
+            widgets.HBox([self.region, *self.axis_boxes.values(), self.select_button]),
+            alpha_row,
+            widgets.HBox([self.attenuation, self.reset_button]),
+            self.numbers_html,
+            self.status_html,
+        ]
+        if alpha_on_top:  # alpha and its numbers first (the Fig. 5 notebook)
+            rows = [alpha_row, self.numbers_html] + [r for r in rows if r not in (alpha_row, self.numbers_html)]
+        self.widget = widgets.VBox(rows)
+        self.widget.add_class("repro-blendshape-panel")
+
+        with self._batch():
+            self._refresh_selection()
+            if alpha is not None:
+                self.set_alpha(alpha)
+            if values:
+                self.set_sliders(values)
+            if attenuation:
+                self.set_attenuation(True)
+            self._request_update()
+
+    # ------------------------------------------------------------- helpers
+    @staticmethod
+    def _slider_names(model: BlendshapeModel, sliders) -> tuple[str, ...]:
+        if sliders is None:
+            names = tuple(s for s in PAPER_SLIDERS if s in model.slider_names)
+            return names or model.names
+        if isinstance(sliders, str):
+            if sliders != "all":
+                raise ModelError(f"sliders must be a list of names, None or 'all', got {sliders!r}")
+            return model.slider_names
+        names = tuple(str(s) for s in sliders)
+        unknown = [s for s in names if s not in model.slider_names]
+        if unknown:
+            raise ModelError(f"unknown sliders {unknown} for model {model.name!r}; known: {list(model.slider_names)}")
+        if not names or len(set(names)) != len(names):
+            raise ModelError(f"sliders must be distinct names, at least one, got {list(names)}")
+        return names
+
+    @staticmethod
+    def _axes_arg(axes) -> str:
+        if isinstance(axes, str):
+            axes = list(axes)
+        axes = [str(a).strip().lower() for a in axes]
+        bad = [a for a in axes if a not in AXES]
+        if bad:
+            raise SelectionError(f"unknown axes {bad}; expected some of 'x', 'y', 'z'")
+        return "".join(a for a in AXES if a in axes)
+
+    def _guarded(self, func):
+        """A widget callback that shows an error in the panel instead of raising."""
+
+        def callback(*args):
+            try:
+                func(*args)
+            except Exception as exc:  # noqa: BLE001 - a callback must not raise into the kernel's log
+                self._show_error(exc)
+
+        return callback
+
+    @contextmanager
+    def _batch(self):
+        """Defer updates until the outermost batch ends (one update for several widget changes)."""
+        self._batch_depth += 1
+        try:
+            yield
+        finally:
+            self._batch_depth -= 1
+            if self._batch_depth == 0 and self._pending:
+                self._pending = False
+                self._update()
+
+    def _request_update(self) -> None:
+        if self._batch_depth:
+            self._pending = True
+        else:
+            self._update()
+
+    def _set_widget(self, widget, value) -> None:
+        """Move a widget without its callback treating it as a user action."""
+        old = self._internal
+        self._internal = True
+        try:
+            widget.value = value
+        finally:
+            self._internal = old
+
+    # ------------------------------------------------------------ callbacks
+    def _on_slider(self, change) -> None:
+        self._request_update()
+
+    def _on_selection(self, change) -> None:
+        self._refresh_selection()
+        self._request_update()
+
+    def _on_alpha(self, change) -> None:
+        if self._internal:
+            return
+        a = change["new"]
+        if self._valid_alpha(a) and math.isclose(float(a), self._alpha, rel_tol=1e-9):
+            return  # the value we set, echoed back (rounded) by the browser: keep the exact alpha
+        if not self._valid_alpha(a):
+            self._set_widget(self.alpha_slider, self._alpha)
+            raise AttenuationError(f"alpha must be a finite number > 0 (Eq. 2), got {a!r}; kept alpha = {self._alpha:.6g}")
+        self._alpha = float(a)
+        if self.default_alpha.value:
+            self._set_widget(self.default_alpha, False)
+        self._request_update()
+
+    def _on_default(self, change) -> None:
+        if self._internal:
+            return
+        if change["new"]:
+            self._apply_default_alpha()
+        self._request_update()
+
+    def _on_attenuation(self, change) -> None:
+        if self._internal:
+            return
+        if change["new"]:
+            self._take_base()
+        self._request_update()
+
+    # ------------------------------------------------------------- selection
+    def _refresh_selection(self) -> None:
+        """Rows of D for the chosen region and axes (or the reason there are none)."""
+        axes = "".join(a for a in AXES if self.axis_boxes[a].value)
+        self._sel = self._sel_vertices = None
+        self._sel_error = None
+        if not axes:
+            self._sel_error = "no axis selected: tick at least one of x, y, z"
+            return
+        try:
+            verts = np.asarray(self._regions[self.region.value], dtype=np.int64)
+            sel = select_vertices(verts, axes, self.model.n_vertices)
+            self.attenuator.default_alpha(sel)  # refuses a selection of every coordinate
+        except (SelectionError, AttenuationError, ModelError) as exc:
+            self._sel_error = str(exc)
+            return
+        self._sel, self._sel_vertices = sel, np.unique(verts)
+        if self.default_alpha.value:
+            self._apply_default_alpha()
+
+    def _apply_default_alpha(self) -> None:
+        if self._sel is None:
+            return
+        a = self.attenuator.default_alpha(self._sel)
+        self._ensure_alpha_range(a)
+        self._alpha = a
+        self._set_widget(self.alpha_slider, a)
+
+    def _ensure_alpha_range(self, a: float) -> None:
+        e = math.log10(a)
+        lo, hi = self.alpha_slider.min, self.alpha_slider.max
+        if e < lo or e > hi:
+            self.alpha_slider.min = min(lo, math.floor(e))
+            self.alpha_slider.max = max(hi, math.ceil(e))
+
+    @staticmethod
+    def _valid_alpha(a) -> bool:
+        try:
+            a = float(a)
+        except (TypeError, ValueError):
+            return False
+        return math.isfinite(a) and a > 0
+
+    def _take_base(self) -> None:
+        self._w_base = self._C @ self.slider_values_array()
+        self._d_base = self.attenuator.displacement(self._w_base)
+
+    # ---------------------------------------------------------------- update
+    def slider_values_array(self) -> np.ndarray:
+        """Current slider values, in :attr:`slider_names` order."""
+        return np.array([self.sliders[s].value for s in self.slider_names], dtype=np.float64)
+
+    def _compute(self):
+        s = self.slider_values_array()
+        if not np.isfinite(s).all():
+            bad = [n for n, v in zip(self.slider_names, s) if not np.isfinite(v)]
+            raise ModelError(f"slider values must be finite numbers; sliders {bad} are not")
+        w_target = self._C @ s
+        on = bool(self.attenuation.value)
+        if self._sel is None:
+            return w_target, None, self._sel_error
+        w = self.attenuator.edit(self._w_base, w_target, self._sel, self._alpha) if on else w_target
+        d = self.attenuator.displacement(w)
+        d_target = self.attenuator.displacement(w_target) if on else d
+        numbers = {
+            "selected_motion": metrics.selected_motion(d, self._sel, self._d_base),
+            "unselected_fidelity": _nan_quiet(metrics.unselected_fidelity, d, d_target, self._sel, self._d_base),
+            "alpha": float(self._alpha),
+            "attenuation": "on" if on else "off",
+        }
+        return w, (d, numbers), None
+
+    def _update(self) -> None:
+        t0 = time.perf_counter()
+        try:
+            w, result, sel_error = self._compute()
+        except Exception as exc:  # noqa: BLE001
+            self._show_error(exc)
+            return
+        self._weights = w
+        if result is None:
+            d = self.attenuator.displacement(w)
+            self.error = sel_error
+            self._numbers = {}
+            self._numbers_text = f"error: {sel_error}"
+        else:
+            d, numbers = result
+            self.error = None
+            self._numbers = numbers
+            self._numbers_text = NUMBERS_FORMAT.format(**numbers)
+        t1 = time.perf_counter()
+        self.last_update_seconds["numbers"] = t1 - t0
+        self.numbers_html.value = f"<code>{html.escape(self._numbers_text)}</code>"
+        self.status_html.value = self._status()
+        if self._view is not None:
+            motion = np.linalg.norm((d - self._d_base).reshape(-1, 3), axis=1)
+            points = self.model.f0 + d.reshape(-1, 3)
+            self.view_image.value = self._view.render(points, motion, self._sel_vertices)
+        self.last_update_seconds["view"] = time.perf_counter() - t1
+
+    def _status(self) -> str:
+        if self.error:
+            return f'<span style="color:#b00020">error: {html.escape(self.error)}</span>'
+        nv, nc = len(self._sel_vertices), len(self._sel)
+        base = "neutral" if not np.any(self._w_base) else ", ".join(
+            f"{n} {v:g}" for n, v in zip(self.model.names, self._w_base) if v)
+        return html.escape(
+            f"selection: {self.region.value} ({self.selected_axes}), {nv} vertices, {nc} coordinates; "
+            f"default alpha {self.attenuator.default_alpha(self._sel):.6g}; w_base: {base}")
+
+    def _show_error(self, exc: BaseException) -> None:
+        msg = str(exc) if isinstance(exc, ValueError) else f"{type(exc).__name__}: {exc}"
+        self.error = msg
+        self._numbers = {}
+        self._numbers_text = f"error: {msg}"
+        self.numbers_html.value = f"<code>{html.escape(self._numbers_text)}</code>"
+        self.status_html.value = f'<span style="color:#b00020">error: {html.escape(msg)}</span>'
+
+    # ------------------------------------------------------------ public API
+    @property
+    def numbers(self) -> dict:
+        """The displayed numbers at full precision: ``selected_motion``, ``unselected_fidelity``, ``alpha``, ``attenuation`` ({} on error)."""
+        return dict(self._numbers)
+
+    @property
+    def numbers_text(self) -> str:
+        """The numbers line as displayed (:data:`NUMBERS_FORMAT`), or ``"error: ..."``."""
+        return self._numbers_text
+
+    @property
+    def alpha(self) -> float:
+        """The alpha in use."""
+        return self._alpha
+
+    @property
+    def weights(self) -> np.ndarray:
+        """The weights of the displayed face (attenuated when attenuation is on)."""
+        return self._weights.copy()
+
+    @property
+    def slider_weights(self) -> np.ndarray:
+        """The weights the sliders ask for (``w_sliders``)."""
+        return self._C @ self.slider_values_array()
+
+    @property
+    def w_base(self) -> np.ndarray:
+        """The pose kept (weights taken by "select now" or by switching attenuation on)."""
+        return self._w_base.copy()
+
+    @property
+    def selection(self) -> np.ndarray | None:
+        """Selected rows of D (row ``3*v + axis``), or None when the selection is unusable."""
+        return None if self._sel is None else self._sel.copy()
+
+    @property
+    def selected_vertices(self) -> np.ndarray | None:
+        return None if self._sel_vertices is None else self._sel_vertices.copy()
+
+    @property
+    def selected_axes(self) -> str:
+        return "".join(a for a in AXES if self.axis_boxes[a].value)
+
+    def set_sliders(self, values: Mapping[str, float] | None = None, **kw: float) -> None:
+        """Set slider values by name (one update); names not on the panel raise ModelError."""
+        items = dict(values or {})
+        items.update(kw)
+        unknown = [k for k in items if k not in self.sliders]
+        if unknown:
+            raise ModelError(f"no slider {unknown} on this panel; sliders: {list(self.slider_names)}")
+        with self._batch():
+            for k, v in items.items():
+                self.sliders[k].value = v
+
+    def set_selection(self, region: str | None = None, axes: str | Iterable[str] | None = None) -> None:
+        """Choose a preset region and/or the selected axes (one update; "" = no axis, shown as an error)."""
+        if region is not None and region not in self._regions:
+            raise ModelError(f"unknown region {region!r}; known: {list(self._regions)}")
+        with self._batch():
+            if region is not None:
+                self.region.value = region
+            if axes is not None:
+                axes = self._axes_arg(axes)
+                for a in AXES:
+                    self.axis_boxes[a].value = a in axes
+            self._refresh_selection()
+            self._request_update()
+
+    def add_region(self, name: str, vertices, *, select: bool = True) -> None:
+        """Add a vertex set to the region chooser (e.g. a scenario's selection) and select it."""
+        v = np.unique(np.asarray(vertices, dtype=np.int64).ravel())
+        if v.size == 0 or v.min() < 0 or v.max() >= self.model.n_vertices:
+            raise SelectionError(f"region {name!r} must list vertex ids in 0..{self.model.n_vertices - 1}")
+        self._regions[str(name)] = v
+        with self._batch():
+            self.region.options = list(self._regions)
+            if select:
+                self.set_selection(region=str(name))
+
+    def set_alpha(self, alpha) -> bool:
+        """Use ``alpha`` (unticks "default"); False, with an error shown in the panel, if it is not > 0."""
+        if not self._valid_alpha(alpha):
+            self._show_error(AttenuationError(
+                f"alpha must be a finite number > 0 (Eq. 2), got {alpha!r}; kept alpha = {self._alpha:.6g}"))
+            return False
+        a = float(alpha)
+        with self._batch():
+            self._set_widget(self.default_alpha, False)
+            self._ensure_alpha_range(a)
+            self._alpha = a
+            self._set_widget(self.alpha_slider, a)
+            self._request_update()
+        return True
+
+    def use_default_alpha(self) -> None:
+        """Tick "default": alpha = #unselected / #selected coordinates of the selection (Section 5)."""
+        with self._batch():
+            self.default_alpha.value = True
+            self._apply_default_alpha()
+            self._request_update()
+
+    def set_attenuation(self, on: bool) -> None:
+        """Switch attenuation on (taking the current sliders as ``w_base``) or off (sliders act directly)."""
+        self.attenuation.value = bool(on)
+
+    def select_now(self) -> None:
+        """Take the current slider pose as ``w_base``, the pose to keep (Section 5's select step)."""
+        with self._batch():
+            self._refresh_selection()
+            self._take_base()
+            self._request_update()
+
+    def reset(self) -> None:
+        """All sliders to 0, attenuation off, ``w_base`` = neutral."""
+        with self._batch():
+            self._set_widget(self.attenuation, False)
+            for s in self.sliders.values():
+                s.value = 0.0
+            self._take_base()
+            self._request_update()
+
+    def close(self) -> None:
+        """Close the widgets and the view's figure or plotter."""
+        if self._view is not None:
+            self._view.close()
+            self._view = None
+        for w in [*self.sliders.values(), self.region, *self.axis_boxes.values(), self.select_button,
+                  self.alpha_slider, self.default_alpha, self.attenuation, self.reset_button,
+                  self.view_image, self.numbers_html, self.status_html, self.widget]:
+            w.close()
+
+    def image_png(self) -> bytes:
+        """The current view as PNG bytes (empty without a view)."""
+        return bytes(self.view_image.value)
+
+    def __repr__(self) -> str:
+        return (f"BlendshapePanel({self.model.name!r}, {len(self.slider_names)} sliders, "
+                f"view={self.view_kind!r})")
+
+    def _repr_mimebundle_(self, **kwargs):
+        bundle = self.widget._repr_mimebundle_(**kwargs)
+        if isinstance(bundle, dict):
+            bundle["text/plain"] = repr(self)
+        return bundle
+
+
+def _nan_quiet(func, *args):
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return func(*args)
+
+
+def blendshape_panel(model="procedural", sliders=None, view: str = "matplotlib", **kw) -> widgets.Widget:
+    """The ipywidgets widget of a :class:`BlendshapePanel` (keep the panel itself to drive it from code)."""
+    return BlendshapePanel(model, sliders, view, **kw).widget
