@@ -90,3 +90,66 @@ __all__ += [
     "hit_point_trajectory",
     "SyntheticDatabase",
 ]
+
+# The annotated motion database (Section 3.2), pose clustering (Section 3.2.2) and the
+# motion retrieval (Section 3.3): repro.motion.database, .clustering, .retrieval
+from repro.motion.clustering import (  # noqa: E402
+    AlignedPoseIndex,
+    PoseClusters,
+    aligned_distance,
+    cluster_poses,
+)
+from repro.motion.database import (  # noqa: E402
+    Clip,
+    Hit,
+    MotionDatabase,
+    augment,
+    build_cmu_database,
+    build_database,
+    detect_hits,
+)
+from repro.motion.retrieval import (  # noqa: E402
+    MotionRetriever,
+    RetrievalResult,
+    time_search,
+)
+
+__all__ += [
+    "aligned_distance",
+    "AlignedPoseIndex",
+    "cluster_poses",
+    "PoseClusters",
+    "Clip",
+    "Hit",
+    "MotionDatabase",
+    "build_database",
+    "build_cmu_database",
+    "detect_hits",
+    "augment",
+    "MotionRetriever",
+    "RetrievalResult",
+    "time_search",
+]
+
+# Section 3.4.2: the constraints solver (d(t), limb IK, CCD, feet kept planted).
+from repro.motion.adaptation import (  # noqa: E402
+    Adaptation,
+    CCDSolution,
+    LimbSolution,
+    adapt,
+    ccd,
+    offset_curve,
+    reach_limb,
+    time_adaptation,
+)
+
+__all__ += [
+    "offset_curve",
+    "reach_limb",
+    "ccd",
+    "adapt",
+    "Adaptation",
+    "LimbSolution",
+    "CCDSolution",
+    "time_adaptation",
+]

@@ -1,0 +1,514 @@
+"""Pose representation, the aligned pose distance of Kovar et al. and k-means of poses.
+
+Pronost et al., "Interactive Animation of Virtual Characters: Application to Virtual
+Kung-fu Fighting", Section 3.2.2 (Clustering):
+
+    "In order to compare the similarity of the poses, a distance is introduced. Since
+    the frames of the motion clips have variety of orientation and absolute positions on
+    the horizontal plane, defining this distance is not obvious. A solution that we use,
+    proposed by Kovar et al. [10] consists of minimizing the distance between the two
+    poses by tuning the alignment parameters of the two motions."
+
+and "we choose the K-mean clustering algorithm [...] to gather poses of various motions
+into clusters in order to minimize the total intra-cluster variance."
+
+Pose representation
+-------------------
+A pose is the point cloud of a few key joints (:data:`POSE_ROLES`: pelvis, chest,
+head, shoulders, elbows, wrists, hips, knees, ankles, feet; 17 points), optionally over
+a short window of frames, *expressed in the root frame of the pose*
+(:func:`root_frames`): the origin is the point of the floor below the pelvis, the
+y axis is up (BVH convention), the z axis is the body's heading (the horizontal
+direction perpendicular to the left-hip minus right-hip vector, pointing forward) and
+x points to the body's left.  Heights (y) stay absolute heights above the floor
+(y = 0), as in Kovar et al. (a crouched pose differs from a standing one).  The
+database (:mod:`repro.motion.database`) divides these coordinates by the actor's
+:attr:`~repro.motion.skeleton.Skeleton.size`, so that poses of actors of different
+statures can share clusters (the same normalisation as Eq. 1 for targets).
+
+Aligned distance (Kovar, Gleicher and Pighin, "Motion Graphs", SIGGRAPH 2002, Sec. 3.1)
+------------------------------------------------------------------------------------
+For point clouds ``a_i`` and ``b_i`` (i = 1..P) with weights ``w_i`` (normalised here to
+sum to 1), the distance is
+
+    ``D(a, b)^2 = min over theta, x0, z0 of  sum_i w_i |a_i - T(b_i)|^2``,
+
+where ``T`` rotates about the vertical axis by ``theta`` and translates by
+``(x0, 0, z0)``: ``T(x, y, z) = (c x + s z + x0, y, -s x + c z + z0)`` with
+``c = cos theta``, ``s = sin theta`` (the right-handed rotation about +y).  Derivation:
+for fixed ``theta`` the optimal translation matches the weighted centroids,
+``x0 = X - (c X' + s Z')``, ``z0 = Z - (-s X' + c Z')`` with ``X = sum w x``,
+``X' = sum w x'`` and so on (``sum w = 1``).  With centred clouds the cost becomes
+``sum w (y - y')^2 + H_a + H_b - 2 (c A + s B)`` where
+
+    ``A = sum w (x x' + z z') - (X X' + Z Z')``,
+    ``B = sum w (x z' - z x') - (X Z' - Z X')``,
+    ``H_a = sum w (x^2 + z^2) - (X^2 + Z^2)``   (likewise ``H_b``),
+
+which is minimal for ``(c, s)`` proportional to ``(A, B)``: ``theta = atan2(B, A)``
+(Kovar et al.'s formula), and the minimum is
+
+    ``D^2 = sum w (y - y')^2 + H_a + H_b - 2 sqrt(A^2 + B^2)``.
+
+This closed form needs only dot products between the query and each candidate, so
+:class:`AlignedPoseIndex` evaluates it for many candidate poses with one matrix product
+(the per-candidate sums are precomputed).  ``D`` is the weighted root-mean-square
+distance between the aligned clouds (metres for clouds in metres).  It is symmetric,
+zero for identical poses, and invariant to rotating either pose about y and translating
+it on the floor (checked by the tests).
+
+k-means and the aligned distance
+--------------------------------
+:func:`cluster_poses` runs :func:`scipy.cluster.vq.kmeans2` (k-means++ seeding, a fixed
+seed, so the result is deterministic) on the poses in their canonical root frame
+(flattened and multiplied by ``sqrt(w)``, so that squared Euclidean distance is the
+weighted squared distance *without* alignment).  Because the identity is one of the
+transformations the aligned distance minimises over, ``D(p, q) <= |p - q|_w`` for poses
+in canonical frames: k-means minimises an upper bound of the aligned intra-cluster
+variance, and each centroid (the weighted mean cloud of its members in the canonical
+frame) is itself a pose cloud that the aligned distance can compare with a query; the
+retrieval (:mod:`repro.motion.retrieval`) picks the cluster whose centroid is nearest
+to the query in the aligned distance.  Putting poses in the canonical heading frame
+before k-means removes most of what the alignment would remove (the residual is the
+heading-estimation error), which is why the bound is tight in practice.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.cluster.vq import kmeans2
+
+from repro.errors import MotionError
+
+__all__ = [
+    "POSE_ROLES",
+    "UP_AXIS",
+    "heading_from_hips",
+    "root_frames",
+    "to_root_frame",
+    "from_root_frame",
+    "rotate_y",
+    "pose_points",
+    "pose_weights",
+    "aligned_distance",
+    "AlignedPoseIndex",
+    "PoseClusters",
+    "cluster_poses",
+    "default_k",
+]
+
+#: Vertical axis of the world (BVH is Y-up; the floor is y = 0).
+UP_AXIS: int = 1
+
+#: Roles whose positions make a pose (see :func:`repro.motion.skeleton.find_roles`).
+POSE_ROLES: tuple[str, ...] = (
+    "pelvis", "chest", "head",
+    "left_shoulder", "left_elbow", "left_wrist",
+    "right_shoulder", "right_elbow", "right_wrist",
+    "left_hip", "left_knee", "left_ankle", "left_foot",
+    "right_hip", "right_knee", "right_ankle", "right_foot",
+)  # fmt: skip
+
+
+# ------------------------------------------------------------------ root frames
+def rotate_y(points: np.ndarray, theta) -> np.ndarray:
+    """Rotate ``points`` (..., 3) about +y by ``theta`` (radians; broadcast over leading axes).
+
+    ``(x, y, z) -> (c x + s z, y, -s x + c z)``: +z turns towards +x for ``theta > 0``
+    (a heading ``theta`` is the direction ``(sin theta, 0, cos theta)``).
+    """
+    p = np.asarray(points, dtype=float)
+    th = np.asarray(theta, dtype=float)[..., None]
+    c, s = np.cos(th)[..., 0], np.sin(th)[..., 0]
+    out = np.empty(np.broadcast_shapes(p.shape, th.shape[:-1] + (3,)))
+    out[..., 0] = c * p[..., 0] + s * p[..., 2]
+    out[..., 1] = p[..., 1]
+    out[..., 2] = -s * p[..., 0] + c * p[..., 2]
+    return out
+
+
+def heading_from_hips(left_hip: np.ndarray, right_hip: np.ndarray) -> np.ndarray:
+    """Heading angle (radians) of the body from its hip joints, (...,) from (..., 3).
+
+    Forward is ``(left - right) x up`` projected on the floor (a body whose left hip is at
+    +x faces +z): the heading ``theta`` is such that forward = ``(sin theta, 0, cos
+    theta)``.  A degenerate hip vector (vertical or zero) gives heading 0.
+    """
+    lat = np.asarray(left_hip, dtype=float) - np.asarray(right_hip, dtype=float)
+    fx, fz = -lat[..., 2], lat[..., 0]
+    bad = np.hypot(fx, fz) <= 1e-12
+    fz = np.where(bad, 1.0, fz)
+    fx = np.where(bad, 0.0, fx)
+    return np.arctan2(fx, fz)
+
+
+def root_frames(global_positions: np.ndarray, pelvis: int, left_hip: int, right_hip: int):
+    """Root reference frame of every frame: heading angle and origin on the floor.
+
+    The paper expresses targets "in the root reference frame" (Section 3.3).  Here that
+    frame has its origin on the floor below the pelvis joint, its y axis up and its z
+    axis along the body's heading (:func:`heading_from_hips`).
+
+    Parameters
+    ----------
+    global_positions : (F, J, 3) array
+        World joint positions (e.g. :meth:`repro.motion.Motion.global_positions`).
+    pelvis, left_hip, right_hip : int
+        Joint indices.
+
+    Returns
+    -------
+    theta : (F,) array
+        Heading angles (radians).
+    origin : (F, 3) array
+        ``(pelvis_x, 0, pelvis_z)``.
+    """
+    g = np.asarray(global_positions, dtype=float)
+    theta = heading_from_hips(g[:, left_hip], g[:, right_hip])
+    origin = g[:, pelvis].copy()
+    origin[:, UP_AXIS] = 0.0
+    return theta, origin
+
+
+def to_root_frame(points: np.ndarray, theta, origin) -> np.ndarray:
+    """World points -> coordinates in a root frame ``(theta, origin)``: ``R_y(-theta)(p - o)``."""
+    return rotate_y(np.asarray(points, dtype=float) - np.asarray(origin, dtype=float), -np.asarray(theta))
+
+
+def from_root_frame(points: np.ndarray, theta, origin) -> np.ndarray:
+    """Inverse of :func:`to_root_frame`: ``R_y(theta) p + o``."""
+    return rotate_y(points, theta) + np.asarray(origin, dtype=float)
+
+
+def pose_points(global_positions: np.ndarray, joints: Sequence[int], pelvis: int, left_hip: int,
+                right_hip: int, *, window: int = 1, step: int = 1) -> np.ndarray:
+    """Pose clouds of every frame, each in its own root frame.
+
+    Parameters
+    ----------
+    global_positions : (F, J, 3) array
+        World joint positions (metres for the database).
+    joints : sequence of int
+        The P joints of the cloud (:data:`POSE_ROLES` resolved on the skeleton).
+    pelvis, left_hip, right_hip : int
+        Joints defining the root frame (:func:`root_frames`).
+    window : int, default 1
+        Number of frames in the cloud (Kovar et al. use a short window so that
+        velocities count): frame ``f`` uses frames ``f - (window-1)*step, ..., f``
+        (clamped at 0), all expressed in the root frame of frame ``f``.
+    step : int, default 1
+        Frame spacing inside the window.
+
+    Returns
+    -------
+    (F, window * P, 3) array
+        Oldest frame first.
+    """
+    g = np.asarray(global_positions, dtype=float)
+    if g.ndim != 3 or g.shape[-1] != 3 or g.shape[0] == 0:
+        raise MotionError(f"global_positions must be a non-empty (F, J, 3) array, got {g.shape}")
+    if window < 1 or step < 1:
+        raise MotionError(f"window and step must be >= 1, got {window}, {step}")
+    theta, origin = root_frames(g, pelvis, left_hip, right_hip)
+    F = g.shape[0]
+    idx = np.asarray(joints, dtype=np.intp)
+    offs = np.arange(-(window - 1) * step, 1, step)
+    frames = np.clip(np.arange(F)[:, None] + offs[None, :], 0, F - 1)  # (F, window)
+    pts = g[frames][:, :, idx]  # (F, window, P, 3)
+    pts = to_root_frame(pts, theta[:, None, None], origin[:, None, None])
+    return pts.reshape(F, window * idx.size, 3)
+
+
+def pose_weights(n_points: int, weights: Sequence[float] | Mapping | None = None) -> np.ndarray:
+    """Per-point weights normalised to sum to 1 (uniform by default)."""
+    if weights is None:
+        w = np.ones(n_points)
+    else:
+        w = np.asarray(weights, dtype=float).reshape(-1)
+        if w.size != n_points:
+            raise MotionError(f"need {n_points} pose weights, got {w.size}")
+    if not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
+        raise MotionError("pose weights must be finite, >= 0 and not all 0")
+    return w / w.sum()
+
+
+# ------------------------------------------------------------ aligned distance
+def _moments(p: np.ndarray, w: np.ndarray):
+    x, y, z = p[..., 0], p[..., 1], p[..., 2]
+    X, Z = x @ w, z @ w
+    H = (x * x + z * z) @ w - (X * X + Z * Z)
+    return x, y, z, X, Z, H
+
+
+def aligned_distance(a, b, weights=None, *, return_transform: bool = False):
+    """Kovar et al.'s aligned pose distance (weighted RMS, see the module docstring).
+
+    Parameters
+    ----------
+    a, b : (..., P, 3) arrays
+        Point clouds, broadcast against each other.
+    weights : (P,) array, optional
+        Non-negative point weights (normalised to sum 1); default uniform.
+    return_transform : bool, default False
+        Also return the transformation ``T`` applied to ``b``.
+
+    Returns
+    -------
+    d : (...) array
+        ``sqrt(min sum w |a - T(b)|^2)``.
+    theta, x0, z0 : (...) arrays, only with ``return_transform``
+        ``T(p) = rotate_y(p, theta) + (x0, 0, z0)`` maps ``b`` onto ``a``.
+    """
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    if a.shape[-1] != 3 or b.shape[-1] != 3 or a.shape[-2] != b.shape[-2]:
+        raise MotionError(f"pose clouds must be (..., P, 3) with equal P, got {a.shape} and {b.shape}")
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        raise MotionError("pose clouds contain NaN or inf")
+    w = pose_weights(a.shape[-2], weights)
+    xa, ya, za, Xa, Za, Ha = _moments(a, w)
+    xb, yb, zb, Xb, Zb, Hb = _moments(b, w)
+    A = (xa * xb + za * zb) @ w - (Xa * Xb + Za * Zb)
+    B = (xa * zb - za * xb) @ w - (Xa * Zb - Za * Xb)
+    dy = ((ya - yb) ** 2) @ w
+    d2 = np.maximum(dy + Ha + Hb - 2.0 * np.hypot(A, B), 0.0)
+    d = np.sqrt(d2)
+    if not return_transform:
+        return d
+    theta = np.arctan2(B, A)
+    c, s = np.cos(theta), np.sin(theta)
+    x0 = Xa - (c * Xb + s * Zb)
+    z0 = Za - (-s * Xb + c * Zb)
+    return d, theta, x0, z0
+
+
+@dataclass(eq=False)
+class AlignedPoseIndex:
+    """Many candidate poses, ready for one-query-to-all aligned distances.
+
+    Precomputes everything of the closed form that does not depend on the query, so
+    that :meth:`distances` costs one ``(N, 3P) @ (3P, 3)`` matrix product plus O(N)
+    element-wise work.
+
+    Parameters
+    ----------
+    points : (N, P, 3) array
+        Candidate clouds (kept as :attr:`points`; None in a :meth:`subset`).
+    weights : (P,) array, optional
+        Point weights (normalised); default uniform.
+    """
+
+    points: np.ndarray | None
+    weights: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        p = np.ascontiguousarray(self.points, dtype=float)
+        if p.ndim != 3 or p.shape[-1] != 3:
+            raise MotionError(f"candidate poses must be (N, P, 3), got {p.shape}")
+        if not np.all(np.isfinite(p)):
+            raise MotionError("candidate poses contain NaN or inf")
+        self.points = p
+        N, P, _ = p.shape
+        self._P = P
+        w = pose_weights(P, self.weights)
+        self.weights = w
+        x, y, z, X, Z, H = _moments(p, w)
+        # columns: [w x', w z', w y'] -> M @ [[xa, -za, 0], [za, xa, 0], [0, 0, ya]]
+        self._M = np.ascontiguousarray(np.concatenate([x * w, z * w, y * w], axis=1))
+        self._X, self._Z, self._H = X, Z, H
+        self._Y2 = (y * y) @ w
+
+    def subset(self, rows) -> AlignedPoseIndex:
+        """An index of the candidates ``rows`` only (contiguous copies; ``points`` is None)."""
+        rows = np.asarray(rows, dtype=np.intp)
+        out = object.__new__(AlignedPoseIndex)
+        out.points = None
+        out.weights = self.weights
+        out._P = self._P
+        out._M = np.ascontiguousarray(self._M[rows])
+        out._X, out._Z, out._H, out._Y2 = self._X[rows], self._Z[rows], self._H[rows], self._Y2[rows]
+        return out
+
+    @property
+    def n(self) -> int:
+        """Number of candidate poses N."""
+        return int(self._X.size)
+
+    def query_matrix(self, q: np.ndarray) -> tuple[np.ndarray, float, float, float, float]:
+        """The query-dependent parts: ``(3P, 3)`` matrix and ``X, Z, H, sum w y^2`` of the query."""
+        q = np.asarray(q, dtype=float)
+        P = self._P
+        if q.shape != (P, 3):
+            raise MotionError(f"query pose must be ({P}, 3), got {q.shape}")
+        if not np.all(np.isfinite(q)):
+            raise MotionError("query pose contains NaN or inf")
+        w = self.weights
+        xa, ya, za = q[:, 0], q[:, 1], q[:, 2]
+        Q = np.zeros((3 * P, 3))
+        Q[:P, 0], Q[P:2 * P, 0] = xa, za
+        Q[:P, 1], Q[P:2 * P, 1] = -za, xa
+        Q[2 * P:, 2] = ya
+        Xa, Za = float(xa @ w), float(za @ w)
+        Ha = float((xa * xa + za * za) @ w) - (Xa * Xa + Za * Za)
+        return Q, Xa, Za, Ha, float((ya * ya) @ w)
+
+    def distances(self, q: np.ndarray, rows: np.ndarray | None = None, *, return_transform: bool = False,
+                  prepared=None):
+        """Aligned distances from query ``q`` (P, 3) to the candidates ``rows`` (default all).
+
+        Parameters
+        ----------
+        q : (P, 3) array
+        rows : int array, optional
+            Candidate subset (gathered: prefer a :meth:`subset` for repeated use).
+        return_transform : bool
+            Also return ``theta, x0, z0`` (n,) of the transformation mapping each
+            candidate onto ``q`` (as in :func:`aligned_distance` with ``a = q``).
+        prepared : tuple, optional
+            :meth:`query_matrix` of ``q`` when already computed.
+        """
+        Q, Xa, Za, Ha, Ya2 = self.query_matrix(q) if prepared is None else prepared
+        if rows is None:
+            M, X, Z, H, Y2 = self._M, self._X, self._Z, self._H, self._Y2
+        else:
+            M, X, Z, H, Y2 = self._M[rows], self._X[rows], self._Z[rows], self._H[rows], self._Y2[rows]
+        R = M @ Q
+        A = R[:, 0] - (Xa * X + Za * Z)
+        B = R[:, 1] - (Xa * Z - Za * X)
+        d2 = Ya2 - 2.0 * R[:, 2] + Y2 + Ha + H - 2.0 * np.hypot(A, B)
+        d = np.sqrt(np.maximum(d2, 0.0))
+        if not return_transform:
+            return d
+        theta = np.arctan2(B, A)
+        c, s = np.cos(theta), np.sin(theta)
+        return d, theta, Xa - (c * X + s * Z), Za - (-s * X + c * Z)
+
+
+# ------------------------------------------------------------------- k-means
+@dataclass(eq=False)
+class PoseClusters:
+    """Result of :func:`cluster_poses`.
+
+    Attributes
+    ----------
+    centroids : (k, P, 3) array
+        Mean cloud of each cluster, in the canonical root frame (same units as the
+        poses).
+    labels : (N,) int array
+        Cluster of each pose.
+    members : list of (n_c,) int arrays
+        Pose indices of each cluster (sorted).
+    weights : (P,) array
+        Point weights used.
+    seed : int
+    inertia : float
+        Mean weighted squared distance of the poses to their centroid (unaligned, in the
+        canonical frame): the k-means objective, an upper bound of the aligned one.
+    """
+
+    centroids: np.ndarray
+    labels: np.ndarray
+    members: list
+    weights: np.ndarray
+    seed: int
+    inertia: float
+
+    @property
+    def k(self) -> int:
+        """Number of clusters."""
+        return int(self.centroids.shape[0])
+
+    def sizes(self) -> np.ndarray:
+        """(k,) number of poses per cluster."""
+        return np.array([m.size for m in self.members])
+
+
+def default_k(n_poses: int) -> int:
+    """Default number of clusters: ``round(sqrt(n_poses / 8))``, in [1, 256].
+
+    About 16 clusters for the ~2,000 poses of the CMU database at 30 Hz (a cluster
+    holds ~125 poses, so the pruned search scores ~1/16 of the poses).
+    """
+    return int(np.clip(round(np.sqrt(max(n_poses, 1) / 8.0)), 1, 256))
+
+
+def _nearest_centroid(X: np.ndarray, C: np.ndarray, chunk: int = 65536) -> np.ndarray:
+    """Index of the nearest row of C for every row of X (squared Euclidean, via BLAS)."""
+    c2 = np.einsum("ij,ij->i", C, C)
+    out = np.empty(X.shape[0], dtype=np.intp)
+    for a in range(0, X.shape[0], chunk):
+        out[a:a + chunk] = np.argmin(c2[None, :] - 2.0 * (X[a:a + chunk] @ C.T), axis=1)
+    return out
+
+
+def cluster_poses(points: np.ndarray, k: int | None = None, *, weights=None, seed: int = 0,
+                  iterations: int = 20, max_fit: int | None = 50_000) -> PoseClusters:
+    """k-means of pose clouds (Section 3.2.2), deterministic for a fixed seed.
+
+    Parameters
+    ----------
+    points : (N, P, 3) array
+        Pose clouds in their canonical root frames (:func:`pose_points`).
+    k : int, optional
+        Number of clusters (default :func:`default_k`); clipped to N.
+    weights : (P,) array, optional
+        Point weights; default uniform.
+    seed : int, default 0
+        Seed of the k-means++ initialisation (:func:`scipy.cluster.vq.kmeans2`).
+    iterations : int, default 20
+    max_fit : int or None, default 50,000
+        With more poses than this (the 10x / 100x augmented databases), the k-means
+        iterations run on a random subset of ``max_fit`` poses (drawn with ``seed``), then
+        every pose is assigned to its nearest centroid and the centroids are recomputed
+        as the means of their members (one more Lloyd step on all poses).  None: always
+        use all poses.
+
+    Returns
+    -------
+    PoseClusters
+        Empty clusters (possible with k-means) are dropped, so ``k`` may be smaller
+        than asked.
+
+    Raises
+    ------
+    repro.errors.MotionError
+        Empty or non-finite input, ``k < 1``.
+    """
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 3 or p.shape[-1] != 3 or p.shape[0] == 0:
+        raise MotionError(f"need a non-empty (N, P, 3) array of poses, got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise MotionError("poses contain NaN or inf")
+    N, P, _ = p.shape
+    k = default_k(N) if k is None else int(k)
+    if k < 1:
+        raise MotionError(f"k must be >= 1, got {k}")
+    k = min(k, N)
+    w = pose_weights(P, weights)
+    sw = np.sqrt(w)[None, :, None]
+    X = (p * sw).reshape(N, 3 * P)
+    if k == 1:
+        labels = np.zeros(N, dtype=np.intp)
+        C = X.mean(axis=0, keepdims=True)
+    else:
+        rng = np.random.default_rng(seed)
+        if max_fit is not None and N > max_fit:
+            fit = np.sort(rng.choice(N, int(max_fit), replace=False))
+            C, _ = kmeans2(X[fit], k, iter=iterations, minit="++", rng=rng)
+            labels = _nearest_centroid(X, C)
+        else:
+            C, labels = kmeans2(X, k, iter=iterations, minit="++", rng=rng)
+            labels = labels.astype(np.intp)
+    used = np.unique(labels)
+    remap = np.full(max(k, 1), -1, dtype=np.intp)
+    remap[used] = np.arange(used.size)
+    labels = remap[labels]
+    C = np.stack([X[labels == c].mean(axis=0) for c in range(used.size)])
+    inertia = float(np.mean(np.sum((X - C[labels]) ** 2, axis=1)))
+    centroids = C.reshape(-1, P, 3) / sw
+    members = [np.flatnonzero(labels == c) for c in range(used.size)]
+    return PoseClusters(centroids=centroids, labels=labels, members=members, weights=w, seed=int(seed),
+                        inertia=inertia)

@@ -1,0 +1,1242 @@
+"""The annotated motion database of Pronost et al., Section 3.2.
+
+"Interactive Animation of Virtual Characters: Application to Virtual Kung-fu Fighting",
+Section 3.2.1 (Motion annotation):
+
+    "the user can extract the most interesting subsequences from long kung-fu fighting
+    sequences (such as times during which the actor is punching or kicking). For each
+    resulting subsequence, the user specifies the name of the hit segment (such as the
+    right hand or the left foot) as well as the semantics (such as punching or kicking).
+    The system automatically calculates the trajectory of the hit point. For each
+    motion, the system also automatically calculates the bounding box of this
+    trajectory [...] The motion database is so composed of elements including the
+    motion clip, the definition of the skeleton, the semantic information and some
+    necessary quantitative data (such as the hit time and the position of the segment
+    at this time)."
+
+Here the "user" is replaced by :func:`detect_hits` (overridable by a manifest):
+
+* :class:`Clip` -- one annotated subsequence: the motion (metres, resampled to the
+  database rate, 30 Hz by default), the hit segment (a role such as ``"right_fist"`` or
+  ``"left_foot"`` of :func:`repro.motion.skeleton.find_roles`, the joint, and whether
+  the hit point is the joint or its End Site), the semantics (``"punch"`` or
+  ``"kick"``), the hit frame/time, the source take and where it was cut.
+* :class:`MotionDatabase` -- the clips plus everything the retrieval
+  (:mod:`repro.motion.retrieval`) precomputes from them: per clip the actor and its
+  :attr:`~repro.motion.skeleton.Skeleton.size` ``size_a`` (Eq. 1), the hit-point
+  trajectory and its axis-aligned bounding box; per pose (every frame of every clip)
+  the pose cloud of :mod:`repro.motion.clustering`.  Saved to / loaded from ``.npz``
+  without pickles (:meth:`MotionDatabase.save`, :meth:`MotionDatabase.load`).
+* :func:`build_database` -- from a folder of BVH files with an optional
+  ``manifest.csv`` (the synthetic database of :mod:`repro.motion.synthetic`);
+  :func:`build_cmu_database` -- from the real CMU karate takes of subject 135, cut into
+  hit subsequences around every detected strike.
+* :func:`augment` -- "scaling the database" for the latency-versus-size measurements:
+  deterministic *synthetic* variants (mirror, actor rescaling, time warp, noise).
+
+Frames
+------
+World: Y up, floor y = 0, metres.  The **root reference frame** of a frame (the frame
+in which the paper expresses the target ``c``, Section 3.3) has its origin on the floor
+below the pelvis, y up and z along the body's heading (see
+:func:`repro.motion.clustering.root_frames`).  A clip's **hit-point trajectory**, its
+**bounding box** and :attr:`MotionDatabase.hit_position` are expressed in the root frame
+of the clip's **first frame** (the paper compares ``c_r``, "expressed in the root
+reference frame", with them), in metres of the actor.  Pose clouds are expressed in the
+root frame of their own frame and divided by ``size_a`` (adimensional).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+import re
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from repro.errors import MotionError
+from repro.io import atomic_path
+from repro.motion.clustering import (
+    POSE_ROLES,
+    heading_from_hips,
+    pose_points,
+    root_frames,
+    to_root_frame,
+)
+from repro.motion.motion import CMU_UNIT_M, Motion
+from repro.motion.skeleton import Skeleton
+
+__all__ = [
+    "DATABASE_FPS",
+    "SEMANTICS",
+    "CMU_TAKES",
+    "CMU_WINDOW",
+    "Hit",
+    "Clip",
+    "MotionDatabase",
+    "detect_hits",
+    "hit_frame_for",
+    "resample",
+    "cut",
+    "mirror_motion",
+    "mirror_joint_map",
+    "annotate",
+    "build_database",
+    "build_cmu_database",
+    "load_or_build",
+    "augment",
+]
+
+#: Common frame rate of the database (the retrieval compares poses frame by frame).
+DATABASE_FPS: float = 30.0
+#: The semantics of the paper ("punching or kicking", Section 3.2.1).
+SEMANTICS: tuple[str, ...] = ("punch", "kick")
+#: Subject-135 takes of the staged CMU set used by :func:`build_cmu_database`, with the
+#: kind of strike they hold (``mocap/cmu/PROVENANCE.md``, "The clips, and strikes found
+#: in them").  135_03 (labelled Empi but a 5 m walk with no strike) and 135_08 (the
+#: calibration pose) are left out.
+CMU_TAKES: dict[str, str] = {
+    "135_02": "kata_arm",  # Empi kata
+    "135_04": "front_kick",
+    "135_05": "kata_arm",  # Gedanbarai (down block)
+    "135_06": "kata_arm",  # Heiansyodan kata
+    "135_07": "roundhouse_kick",  # Mawashigeri
+    "135_09": "lunge_punch",  # Oiduki
+    "135_10": "kata_arm",  # Syutouuke (knife-hand block)
+    "135_11": "side_kick",  # Yokogeri
+}
+#: Seconds kept before and after each detected hit when cutting the CMU takes.
+CMU_WINDOW: tuple[float, float] = (0.6, 0.3)
+
+_ROLE_OF = {("punch", "left"): "left_fist", ("punch", "right"): "right_fist",
+            ("kick", "left"): "left_foot", ("kick", "right"): "right_foot"}
+
+
+# ======================================================================= motions
+def _slerp(q0: np.ndarray, q1: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """Vectorised slerp of unit quaternions (..., 4) with weights a (..., 1)."""
+    dot = np.sum(q0 * q1, axis=-1, keepdims=True)
+    q1 = np.where(dot < 0, -q1, q1)
+    dot = np.abs(dot)
+    omega = np.arccos(np.clip(dot, -1.0, 1.0))
+    so = np.sin(omega)
+    small = so < 1e-8
+    so_safe = np.where(small, 1.0, so)
+    w0 = np.where(small, 1.0 - a, np.sin((1.0 - a) * omega) / so_safe)
+    w1 = np.where(small, a, np.sin(a * omega) / so_safe)
+    q = w0 * q0 + w1 * q1
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def resample(motion: Motion, fps: float | None = None, *, frames: Sequence[float] | np.ndarray | None = None,
+             frame_time: float | None = None) -> Motion:
+    """A motion sampled at other times: slerp of rotations, linear position channels.
+
+    Parameters
+    ----------
+    motion : Motion
+    fps : float, optional
+        New rate; samples at ``0, 1/fps, ...`` up to the last frame's time.
+    frames : (n,) array, optional
+        Instead of ``fps``: the (fractional) source frame index of every new frame,
+        within ``[0, F-1]``.
+    frame_time : float, optional
+        Frame time of the result with ``frames`` (default the source's).
+
+    Returns
+    -------
+    Motion
+        Same skeleton; sample times that fall on source frames reproduce them exactly.
+    """
+    F = motion.n_frames
+    if frames is None:
+        if fps is None or not np.isfinite(fps) or fps <= 0:
+            raise MotionError(f"fps must be finite and > 0, got {fps!r}")
+        n = int(math.floor((F - 1) * motion.frame_time * fps + 1e-9)) + 1
+        u = np.arange(n) / fps / motion.frame_time
+        frame_time = 1.0 / fps
+    else:
+        u = np.asarray(frames, dtype=float).reshape(-1)
+        frame_time = motion.frame_time if frame_time is None else float(frame_time)
+    if u.size == 0 or not np.all(np.isfinite(u)) or u.min() < -1e-9 or u.max() > F - 1 + 1e-9:
+        raise MotionError(f"sample frames must be finite and inside [0, {F - 1}]")
+    u = np.clip(u, 0, F - 1)
+    i0 = np.clip(np.floor(u + 1e-9).astype(np.intp), 0, F - 1)
+    a = u - i0
+    a[np.abs(a) < 1e-9] = 0.0
+    i1 = np.minimum(i0 + 1, F - 1)
+    rot = _slerp(motion.rotations[i0], motion.rotations[i1], a[:, None, None])
+    exact = a == 0.0
+    rot[exact] = motion.rotations[i0[exact]]
+    pos = motion.positions[i0] * (1 - a)[:, None, None] + motion.positions[i1] * a[:, None, None]
+    return dataclasses.replace(motion, rotations=rot, positions=pos, frame_time=frame_time)
+
+
+def cut(motion: Motion, start: int, stop: int) -> Motion:
+    """Frames ``[start, stop)`` of a motion."""
+    if not 0 <= start < stop <= motion.n_frames:
+        raise MotionError(f"cannot cut frames [{start}, {stop}) of a {motion.n_frames}-frame motion")
+    return dataclasses.replace(motion, rotations=motion.rotations[start:stop], positions=motion.positions[start:stop])
+
+
+_SWAPS = (("Left", "Right"), ("left", "right"), ("LEFT", "RIGHT"))
+
+
+def _mirror_candidates(name: str) -> list[str]:
+    out = []
+    for a, b in _SWAPS:
+        if a in name:
+            out.append(name.replace(a, b))
+        if b in name:
+            out.append(name.replace(b, a))
+    for a, b in (("_L", "_R"), ("_l", "_r"), (".L", ".R"), (".l", ".r")):
+        if name.endswith(a):
+            out.append(name[: -len(a)] + b)
+        if name.endswith(b):
+            out.append(name[: -len(b)] + a)
+        if a + "_" in name:
+            out.append(name.replace(a + "_", b + "_"))
+        if b + "_" in name:
+            out.append(name.replace(b + "_", a + "_"))
+    m = re.match(r"^([A-Za-z]*:)?([lLrR])([a-z].*)$", name)  # CMU lhumerus / rhumerus
+    if m:
+        ns, s, rest = m.group(1) or "", m.group(2), m.group(3)
+        out.append(ns + {"l": "r", "r": "l", "L": "R", "R": "L"}[s] + rest)
+    return out
+
+
+def mirror_joint_map(joint_names: Sequence[str], parents: Sequence[int] | np.ndarray) -> np.ndarray:
+    """Left/right partner of every joint (itself for central joints), from the names.
+
+    Recognises ``Left``/``Right`` anywhere in the name (Mixamo), ``_L``/``_R`` suffixes
+    (Bandai Namco) and a leading ``l``/``r`` (CMU ``lhumerus``).  The map must be an
+    involution compatible with the tree (the partner of a joint's parent is the parent of
+    its partner), else :class:`~repro.errors.MotionError`.
+    """
+    names = list(joint_names)
+    index = {n: i for i, n in enumerate(names)}
+    par = np.asarray(parents, dtype=np.intp)
+    pi = np.arange(len(names))
+    for i, n in enumerate(names):
+        for c in _mirror_candidates(n):
+            if c != n and c in index:
+                pi[i] = index[c]
+                break
+    if not np.array_equal(pi[pi], np.arange(len(names))):
+        raise MotionError("left/right joint names do not pair up; cannot mirror this skeleton")
+    for j in range(1, len(names)):
+        if par[pi[j]] != pi[par[j]]:
+            raise MotionError(f"mirror partner of {names[j]!r} has another parent; cannot mirror this skeleton")
+    return pi
+
+
+def mirror_motion(motion: Motion) -> Motion:
+    """The motion reflected through the plane x = 0, with left and right swapped.
+
+    Joint ``j`` of the result carries the data of its partner ``pi(j)``
+    (:func:`mirror_joint_map`) reflected by ``M = diag(-1, 1, 1)``: offsets and positions
+    ``M t``, rotations ``M R M`` (quaternion ``(x, -y, -z, w)``); End Sites likewise.
+    Forward kinematics of the result is ``M p_{pi(j)}`` exactly.  For a left/right
+    symmetric skeleton (the synthetic actor) the skeleton is unchanged; for a captured one
+    (CMU) the mirrored skeleton has the other side's bone lengths.
+    """
+    pi = mirror_joint_map(motion.joint_names, motion.parents)
+    M = np.array([-1.0, 1.0, 1.0])
+    rot = motion.rotations[:, pi] * np.array([1.0, -1.0, -1.0, 1.0])
+    pos = motion.positions[:, pi] * M
+    off = motion.offsets[pi] * M
+    esp = motion.end_site_parents
+    eso = motion.end_site_offsets.copy()
+    for e, p in enumerate(esp):
+        mine = np.flatnonzero(esp == p)
+        theirs = np.flatnonzero(esp == pi[p])
+        k = int(np.flatnonzero(mine == e)[0])
+        if theirs.size != mine.size:
+            raise MotionError("End Sites are not symmetric; cannot mirror this skeleton")
+        eso[e] = motion.end_site_offsets[theirs[k]] * M
+    # position channels: a component is only meaningful where the mask says so; the mask
+    # of joint j and of its partner must agree for the mirror to be expressible
+    if not np.array_equal(motion.position_mask, motion.position_mask[pi]):
+        raise MotionError("position channels differ between left and right joints; cannot mirror")
+    return dataclasses.replace(motion, rotations=rot, positions=pos, offsets=off, end_site_offsets=eso,
+                               source=(motion.source or "") + " (mirrored)")
+
+
+# ================================================================ hit detection
+@dataclass(frozen=True)
+class Hit:
+    """A strike found by :func:`detect_hits`.
+
+    Attributes
+    ----------
+    frame : int
+        Hit frame (full reach).
+    time : float
+        ``frame * frame_time`` (s).
+    role : str
+        Hit segment: ``left_fist``, ``right_fist``, ``left_foot`` or ``right_foot``.
+    semantics : {"punch", "kick"}
+    side : {"left", "right"}
+    extension : float
+        Distal joint distance from the proximal one (shoulder->wrist, hip->ankle) over the
+        limb length, at the hit (1 = straight).
+    height : float
+        Hit point height above the floor over the stature.
+    start, stop : int
+        The run of frames satisfying the detector's criteria.
+    """
+
+    frame: int
+    time: float
+    role: str
+    semantics: str
+    side: str
+    extension: float
+    height: float
+    start: int
+    stop: int
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    m = np.concatenate([[False], mask, [False]]).astype(np.int8)
+    d = np.diff(m)
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
+
+
+class _Kinematics:
+    """Per-motion quantities used by the detector (metres, y up)."""
+
+    def __init__(self, motion: Motion, skeleton: Skeleton | None):
+        self.motion = motion
+        self.sk = skeleton or Skeleton.from_motion(motion)
+        if self.sk.unit_m is None:
+            raise MotionError("hit detection needs lengths in a known unit; read the BVH with unit_m=...")
+        self.k = self.sk.unit_m  # metres per unit
+        self.g = motion.global_positions() * self.k
+        sk, g = self.sk, self.g
+        self.floor = float(np.percentile(np.minimum(g[:, sk.index("left_foot"), 1],
+                                                    g[:, sk.index("right_foot"), 1]), 1.0))
+        lat = (g[:, sk.index("left_hip")] - g[:, sk.index("right_hip")]) + (
+            g[:, sk.index("left_shoulder")] - g[:, sk.index("right_shoulder")])
+        th = heading_from_hips(lat, np.zeros_like(lat))
+        self.forward = np.stack([np.sin(th), np.zeros_like(th), np.cos(th)], axis=1)
+        self.fps = motion.fps
+        self.stature = sk.size
+
+    def limb(self, semantics: str, side: str):
+        sk, g = self.sk, self.g
+        if semantics == "punch":
+            prox, dist = g[:, sk.index(f"{side}_shoulder")], g[:, sk.index(f"{side}_wrist")]
+            L = sk.limb_lengths[f"{side}_arm"] * self.k
+        else:
+            prox, dist = g[:, sk.index(f"{side}_hip")], g[:, sk.index(f"{side}_ankle")]
+            L = sk.limb_lengths[f"{side}_leg"] * self.k
+        ext = np.linalg.norm(dist - prox, axis=1) / L
+        return ext, dist, L
+
+    def hit_point(self, role: str) -> np.ndarray:
+        return self.g[:, self.sk.index(role)]
+
+
+def _refine_frame(kin: _Kinematics, role: str, ext: np.ndarray, a: int, b: int, tol: float) -> int:
+    """Full reach inside run [a, b): the first local maximum of the extension within
+    ``tol`` of the run's peak -- the arrival of the fist or foot, where its radial speed
+    away from the shoulder / hip vanishes (a lunge punch then holds the arm out; the hit
+    is the arrival, not a later drift of the held pose)."""
+    seg = ext[a:b]
+    f = int(np.flatnonzero(seg >= seg.max() - tol)[0])
+    while f + 1 < seg.size and seg[f + 1] > seg[f]:
+        f += 1
+    return a + f
+
+
+def detect_hits(motion: Motion, skeleton: Skeleton | None = None, *, semantics: str | None = None,
+                side: str | None = None, arm_extension: float = 0.9, arm_front: float = 0.6,
+                kick_height: float = 0.55, leg_extension: float = 0.85, merge_gap: float = 0.25,
+                min_duration: float = 0.015, peak_tolerance: float = 0.02) -> list[Hit]:
+    """Find the strikes of a motion: hit segment, semantics and hit frame (Section 3.2.1).
+
+    The paper's user marks the subsequences, the hit segment and the semantics by hand;
+    this detector does it from the kinematics, for each candidate end effector:
+
+    * **punch** (hit segment ``{side}_fist``): the arm is extended (shoulder->wrist
+      distance >= ``arm_extension`` x arm length) *and* the wrist is in front of the chest
+      (>= ``arm_front`` x arm length along the body's heading, from hips and shoulders);
+    * **kick** (``{side}_foot``): the ankle is high (>= ``kick_height`` x leg length
+      above the floor, the floor being the 1st percentile of the lower foot's height) *and*
+      the leg is extended (hip->ankle >= ``leg_extension`` x leg length; this rejects the
+      knee raises of the katas).
+
+    Runs of frames meeting a criterion that are less than ``merge_gap`` seconds apart are
+    merged, runs shorter than ``min_duration`` dropped; each run is one hit, whose frame is
+    the arrival at full reach: the first frame within ``peak_tolerance`` of the run's peak
+    extension, moved forward to the local maximum of the extension it belongs to (where
+    the limb's extension speed is zero; on the synthetic clips this is the annotated hit
+    frame exactly).  These
+    are the thresholds used to count the strikes of ``mocap/cmu/PROVENANCE.md``.
+
+    Parameters
+    ----------
+    motion : Motion
+        With a known ``unit_m``.
+    skeleton : Skeleton, optional
+        Default :meth:`Skeleton.from_motion`.
+    semantics : {"punch", "kick"}, optional
+        Only look for these.
+    side : {"left", "right"}, optional
+        Only this limb.
+
+    Returns
+    -------
+    list of Hit
+        Sorted by frame.
+    """
+    kin = _Kinematics(motion, skeleton)
+    sems = SEMANTICS if semantics is None else (_check_semantics(semantics),)
+    sides = ("left", "right") if side is None else (side,)
+    hits = []
+    for sem in sems:
+        for sd in sides:
+            role = _ROLE_OF[(sem, sd)]
+            ext, dist, L = kin.limb(sem, sd)
+            if sem == "punch":
+                chest = kin.g[:, kin.sk.index("chest")]
+                front = np.sum((dist - chest) * kin.forward, axis=1) / L
+                mask = (ext >= arm_extension) & (front >= arm_front)
+            else:
+                leg = kin.sk.leg_length * kin.k
+                mask = ((dist[:, 1] - kin.floor) >= kick_height * leg) & (ext >= leg_extension)
+            runs = []
+            for a, b in _runs(mask):
+                if runs and a - runs[-1][1] < merge_gap * kin.fps:
+                    runs[-1] = (runs[-1][0], b)
+                else:
+                    runs.append((a, b))
+            for a, b in runs:
+                if (b - a) / kin.fps < min_duration:
+                    continue
+                f = _refine_frame(kin, role, ext, a, b, peak_tolerance)
+                hp = kin.hit_point(role)[f]
+                hits.append(Hit(frame=f, time=f * motion.frame_time, role=role, semantics=sem, side=sd,
+                                extension=float(ext[f]), height=float((hp[1] - kin.floor) / kin.stature),
+                                start=a, stop=b))
+    return sorted(hits, key=lambda h: (h.frame, h.role))
+
+
+def hit_frame_for(motion: Motion, role: str, skeleton: Skeleton | None = None, **kw) -> int:
+    """Hit frame of a clip whose hit segment is known (e.g. from a manifest).
+
+    The strongest :func:`detect_hits` detection of that role (largest extension); when
+    the criteria are never met (a low kick, a short hook), the frame of peak extension of
+    the limb over the clip, refined like the detector.
+    """
+    m = re.fullmatch(r"(left|right)_(fist|foot)", role)
+    if not m:
+        raise MotionError(f"hit role must be left_fist, right_fist, left_foot or right_foot, got {role!r}")
+    side, seg = m.groups()
+    sem = "punch" if seg == "fist" else "kick"
+    hits = detect_hits(motion, skeleton, semantics=sem, side=side, **kw)
+    if hits:
+        return max(hits, key=lambda h: h.extension).frame
+    kin = _Kinematics(motion, skeleton)
+    ext, _, _ = kin.limb(sem, side)
+    return _refine_frame(kin, role, ext, 0, motion.n_frames, kw.get("peak_tolerance", 0.02))
+
+
+def _check_semantics(s) -> str:
+    if s not in SEMANTICS:
+        raise MotionError(f"semantics must be one of {list(SEMANTICS)}, got {s!r}")
+    return s
+
+
+# ===================================================================== clips
+@dataclass(frozen=True, eq=False)
+class Clip:
+    """One annotated subsequence of the database (Section 3.2.1).
+
+    Attributes
+    ----------
+    name : str
+        Unique name, e.g. ``"135_09_h03_right_fist"``.
+    motion : Motion
+        In metres (``unit_m = 1``), at the database rate.
+    semantics : {"punch", "kick"}
+    hit_role : str
+        ``left_fist``, ``right_fist``, ``left_foot`` or ``right_foot``.
+    hit_joint : str
+        Joint carrying the hit point.
+    hit_where : {"joint", "end_site"}
+        The hit point is the joint itself or its (first) End Site.
+    hit_frame : int
+    kind : str
+        Finer label (``"lunge_punch"``, ``"front_kick"``, ``"kata_arm"``, synthetic
+        ``"kick_round"`` ...).
+    side : {"left", "right"}
+    source : str
+        File the clip was cut from.
+    source_time : float
+        Time of the clip's first frame in the source file (s).
+    level : str
+        Target level of the synthetic clips (``"high"``...), ``""`` otherwise.
+    """
+
+    name: str
+    motion: Motion
+    semantics: str
+    hit_role: str
+    hit_joint: str
+    hit_where: str
+    hit_frame: int
+    kind: str = ""
+    side: str = ""
+    source: str = ""
+    source_time: float = 0.0
+    level: str = ""
+
+    def __post_init__(self) -> None:
+        _check_semantics(self.semantics)
+        if self.hit_where not in ("joint", "end_site"):
+            raise MotionError(f"hit_where must be 'joint' or 'end_site', got {self.hit_where!r}")
+        if not 0 <= int(self.hit_frame) < self.motion.n_frames:
+            raise MotionError(f"{self.name}: hit frame {self.hit_frame} outside the clip's {self.motion.n_frames} frames")
+        self.motion.joint_index(self.hit_joint)
+        if self.hit_where == "end_site" and not np.any(self.motion.end_site_parents == self.motion.joint_index(self.hit_joint)):
+            raise MotionError(f"{self.name}: joint {self.hit_joint!r} has no End Site")
+        if self.motion.unit_m != 1.0:
+            raise MotionError(f"{self.name}: clip motions must be in metres (unit_m = 1), got {self.motion.unit_m}")
+        object.__setattr__(self, "hit_frame", int(self.hit_frame))
+        if not self.side:
+            object.__setattr__(self, "side", self.hit_role.split("_")[0])
+
+    @property
+    def hit_time(self) -> float:
+        """Hit time from the clip's start (s)."""
+        return self.hit_frame * self.motion.frame_time
+
+
+def annotate(motion: Motion, hit_frame: int, hit_role: str, semantics: str, *, name: str,
+             hit_joint: str | None = None, hit_where: str = "joint", **kw) -> Clip:
+    """A :class:`Clip` from a motion in metres; ``hit_joint`` defaults to the role's joint."""
+    if hit_joint is None:
+        hit_joint = Skeleton.from_motion(motion).roles[hit_role]
+    return Clip(name=name, motion=motion, semantics=semantics, hit_role=hit_role, hit_joint=hit_joint,
+                hit_where=hit_where, hit_frame=hit_frame, **kw)
+
+
+def _cut_around(motion: Motion, hit_time: float, window: tuple[float, float] | None, fps: float):
+    """Resample to ``fps`` on a grid through the hit time, keeping ``window`` around it.
+
+    Returns the new motion, the hit frame in it and the start time in the source.
+    """
+    T = (motion.n_frames - 1) * motion.frame_time
+    before, after = (hit_time, T - hit_time) if window is None else window
+    k0 = int(math.floor(min(before, hit_time) * fps + 1e-9))
+    k1 = int(math.floor(min(after, T - hit_time) * fps + 1e-9))
+    times = hit_time + np.arange(-k0, k1 + 1) / fps
+    out = resample(motion, frames=times / motion.frame_time, frame_time=1.0 / fps)
+    return out, k0, float(times[0])
+
+
+# =================================================================== database
+def _json_list(a) -> str:
+    return json.dumps([str(x) for x in a])
+
+
+def _same_topology(a, b) -> bool:
+    return list(a.joint_names) == list(b.joint_names) and np.array_equal(a.parents, b.parents)
+
+
+def _proportional(base: Skeleton, sk: Skeleton) -> float | None:
+    """``s`` if ``sk`` is ``base`` scaled uniformly by ``s`` (same topology), else None."""
+    if not _same_topology(base, sk) or base.end_site_offsets.shape != sk.end_site_offsets.shape:
+        return None
+    if not np.array_equal(base.end_site_parents, sk.end_site_parents):
+        return None
+    s = sk.size / base.size
+    tol = 1e-6 * sk.size
+    if np.abs(sk.offsets - s * base.offsets).max() > tol:
+        return None
+    if sk.end_site_offsets.size and np.abs(sk.end_site_offsets - s * base.end_site_offsets).max() > tol:
+        return None
+    return float(s)
+
+
+_CLIP_STR = ("names", "sources", "semantics", "kinds", "sides", "levels", "hit_roles", "hit_joints", "hit_wheres")
+_CLIP_NUM = ("hit_frame", "n_frames", "actor", "scale", "size_a", "source_clip", "source_time", "mirror", "warp",
+             "noise", "box_min", "box_max", "hit_position", "traj_start", "pose_start")
+_POSE_NUM = ("traj", "pose_points", "pose_clip", "pose_frame", "pose_heading", "pose_origin")
+
+
+class MotionDatabase:
+    """Annotated clips and the query-independent data of the retrieval (Sections 3.2-3.3).
+
+    Build with :meth:`from_clips`, :func:`build_database`, :func:`build_cmu_database` or
+    :func:`augment`; save and load with :meth:`save` / :meth:`load`.
+
+    Attributes (C clips, N poses, T trajectory samples, P pose points)
+    -------------------------------------------------------------------
+    fps : float
+        Frame rate of every clip.
+    pose_roles : tuple of str
+        Roles of the pose points (:data:`~repro.motion.clustering.POSE_ROLES`).
+    window, step : int
+        Frames per pose cloud and their spacing (:func:`~repro.motion.clustering.pose_points`).
+    actors : list of Skeleton
+        The distinct *base* actor skeletons (metres); every clip's actor is a base actor
+        scaled uniformly by :attr:`scale` (several synthetic actors of other heights
+        share one base).
+    names, sources, semantics, kinds, sides, levels, hit_roles, hit_joints, hit_wheres : (C,) str arrays
+        Annotations (see :class:`Clip`).
+    hit_frame, n_frames : (C,) int arrays
+    actor : (C,) int array
+        Index into :attr:`actors`.
+    scale : (C,) float array
+        Clip actor = base actor x scale.
+    size_a : (C,) float array
+        The actor's :attr:`~repro.motion.skeleton.Skeleton.size` (metres), Eq. 1.
+    source_clip : (C,) int array
+        The clip a variant was made from (:func:`augment`); itself for original clips.
+    source_time : (C,) float array
+        Start of the clip in its source file (s).
+    mirror : (C,) bool array; warp, noise : (C,) float arrays
+        Augmentation parameters (False, 1, 0 for original clips).
+    box_min, box_max : (C, 3) arrays
+        Bounding box of the hit-point trajectory, clip's first-frame root frame, metres.
+    hit_position : (C, 3) array
+        The hit point at the hit frame, same frame.
+    traj : (T, 3) array; traj_start : (C+1,) int array
+        Hit-point trajectories, clip ``i`` at ``traj[traj_start[i]:traj_start[i+1]]``.
+    pose_points : (N, window*P, 3) array
+        Pose clouds in their own root frame, divided by ``size_a`` (adimensional).
+    pose_clip, pose_frame : (N,) int arrays
+        Clip and frame of every pose; ``pose_start`` (C+1,) as ``traj_start``.
+    pose_heading : (N,) array; pose_origin : (N, 3) array
+        Root frame of every pose in the clip's world (radians, metres).
+    """
+
+    def __init__(self, *, fps: float, pose_roles, window: int, step: int, actors: list[Skeleton],
+                 motions: Mapping[int, Motion], arrays: Mapping[str, np.ndarray], meta: Mapping | None = None):
+        self.fps = float(fps)
+        self.pose_roles = tuple(pose_roles)
+        self.window = int(window)
+        self.step = int(step)
+        self.actors = list(actors)
+        self._motions = dict(motions)
+        self.meta = dict(meta or {})
+        for k in _CLIP_STR:
+            setattr(self, k, np.asarray(arrays[k], dtype=str))
+        for k in _CLIP_NUM + _POSE_NUM:
+            setattr(self, k, np.asarray(arrays[k]))
+        self.mirror = self.mirror.astype(bool)
+        for k in ("hit_frame", "n_frames", "actor", "source_clip", "traj_start", "pose_start", "pose_clip", "pose_frame"):
+            setattr(self, k, getattr(self, k).astype(np.intp))
+        C = self.names.size
+        if len(set(self.names.tolist())) != C:
+            raise MotionError("clip names must be unique")
+        if self.traj_start.shape != (C + 1,) or self.pose_start.shape != (C + 1,):
+            raise MotionError("inconsistent database arrays")
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n_clips(self) -> int:
+        """Number of clips C."""
+        return int(self.names.size)
+
+    @property
+    def n_poses(self) -> int:
+        """Number of poses N (all frames of all clips)."""
+        return int(self.pose_clip.size)
+
+    def __len__(self) -> int:
+        return self.n_clips
+
+    @property
+    def hit_time(self) -> np.ndarray:
+        """(C,) hit time of every clip from its first frame (s)."""
+        return self.hit_frame / self.fps
+
+    def __repr__(self) -> str:
+        counts = {s: int(np.sum(self.semantics == s)) for s in SEMANTICS}
+        return (f"MotionDatabase({self.n_clips} clips {counts}, {self.n_poses} poses at {self.fps:g} fps, "
+                f"{len(self.actors)} base actor(s))")
+
+    def summary(self) -> dict:
+        """Counts for reports: clips per semantics, per kind, poses, actors, frames."""
+        return {
+            "clips": self.n_clips,
+            "poses": self.n_poses,
+            "fps": self.fps,
+            "per_semantics": {s: int(np.sum(self.semantics == s)) for s in SEMANTICS},
+            "per_kind": {k: int(np.sum(self.kinds == k)) for k in sorted(set(self.kinds.tolist()))},
+            "base_actors": len(self.actors),
+            "actor_sizes_m": sorted({round(float(s), 4) for s in self.size_a}),
+            "augmented": int(np.sum(self.source_clip != np.arange(self.n_clips))),
+        }
+
+    # ------------------------------------------------------------------ access
+    def trajectory(self, i: int) -> np.ndarray:
+        """(n_frames, 3) hit-point trajectory of clip ``i`` (first-frame root frame, metres)."""
+        return self.traj[self.traj_start[i]:self.traj_start[i + 1]]
+
+    def poses_of(self, i: int) -> np.ndarray:
+        """Pose indices of clip ``i``."""
+        return np.arange(self.pose_start[i], self.pose_start[i + 1])
+
+    def actor_skeleton(self, i: int) -> Skeleton:
+        """Skeleton of the actor of clip ``i`` (base actor scaled by ``scale[i]``)."""
+        base = self.actors[int(self.actor[i])]
+        s = float(self.scale[i])
+        return base if s == 1.0 else base.with_offsets(base.offsets * s, base.end_site_offsets * s)
+
+    def motion(self, i: int) -> Motion:
+        """The motion of clip ``i`` (metres, database rate).
+
+        For a variant made by :func:`augment` the motion is rebuilt from its source clip
+        (time warp, rescaling, mirror); the feature noise is not applied to it.
+        """
+        i = int(i)
+        if i in self._motions:
+            return self._motions[i]
+        src = int(self.source_clip[i])
+        if src not in self._motions:
+            raise MotionError(f"clip {i}: its source clip {src} has no stored motion")
+        return _variant_motion(self._motions[src], int(self.n_frames[i]), float(self.scale[i] / self.scale[src]),
+                               bool(self.mirror[i]))
+
+    def clip(self, i: int) -> Clip:
+        """Clip ``i`` as a :class:`Clip`."""
+        return Clip(name=str(self.names[i]), motion=self.motion(i), semantics=str(self.semantics[i]),
+                    hit_role=str(self.hit_roles[i]), hit_joint=str(self.hit_joints[i]),
+                    hit_where=str(self.hit_wheres[i]), hit_frame=int(self.hit_frame[i]), kind=str(self.kinds[i]),
+                    side=str(self.sides[i]), source=str(self.sources[i]), source_time=float(self.source_time[i]),
+                    level=str(self.levels[i]))
+
+    def clips(self) -> list[Clip]:
+        """Every clip (materialising augmented motions; slow for large databases)."""
+        return [self.clip(i) for i in range(self.n_clips)]
+
+    def select(self, mask) -> MotionDatabase:
+        """A database of the clips where ``mask`` (bool (C,) or indices) is true."""
+        idx = np.flatnonzero(np.asarray(mask)) if np.asarray(mask).dtype == bool else np.asarray(mask, dtype=np.intp)
+        return _subset(self, idx)
+
+    # ----------------------------------------------------------- construction
+    @classmethod
+    def from_clips(cls, clips: Sequence[Clip], *, pose_roles: Sequence[str] = POSE_ROLES, window: int = 1,
+                   step: int = 1, meta: Mapping | None = None) -> MotionDatabase:
+        """Compute the per-clip and per-pose data of annotated clips.
+
+        Parameters
+        ----------
+        clips : sequence of Clip
+            All at the same frame rate, motions in metres.
+        pose_roles : sequence of str
+            Roles of the pose clouds.
+        window, step : int
+            Pose cloud window (:func:`~repro.motion.clustering.pose_points`).
+        meta : mapping, optional
+            JSON-serialisable provenance stored with the database.
+        """
+        if len(clips) == 0:
+            raise MotionError("a motion database needs at least one clip")
+        fps = clips[0].motion.fps
+        for c in clips:
+            if abs(c.motion.fps - fps) > 1e-6 * fps:
+                raise MotionError(f"clip {c.name!r} is at {c.motion.fps:g} fps, not {fps:g}; resample first")
+        actors: list[Skeleton] = []
+        recs = []
+        for c in clips:
+            sk = Skeleton.from_motion(c.motion)
+            a, s = None, None
+            for ai, base in enumerate(actors):
+                s = _proportional(base, sk)
+                if s is not None:
+                    a = ai
+                    break
+            if a is None:
+                actors.append(sk)
+                a, s = len(actors) - 1, 1.0
+            recs.append(_clip_features(c, sk, a, s, pose_roles, window, step))
+        motions = {i: c.motion for i, c in enumerate(clips)}
+        arrays = _stack(recs)
+        arrays["source_clip"] = np.arange(len(clips))
+        return cls(fps=fps, pose_roles=pose_roles, window=window, step=step, actors=actors, motions=motions,
+                   arrays=arrays, meta=meta)
+
+    # ---------------------------------------------------------------- I/O
+    def save(self, path) -> Path:
+        """Write the database to ``path`` (``.npz``, no pickles), atomically.
+
+        Arrays are stored as they are; strings and structure (joint names, channels,
+        roles, metadata) as JSON strings.  :meth:`load` gives back an equal database
+        (:meth:`equals`).
+        """
+        path = Path(path)
+        out: dict[str, np.ndarray] = {}
+        for k in _CLIP_STR:
+            out[k] = np.array(json.dumps(getattr(self, k).tolist()))
+        for k in _CLIP_NUM + _POSE_NUM:
+            out[k] = np.asarray(getattr(self, k))
+        for a, sk in enumerate(self.actors):
+            out[f"actor{a}_parents"] = np.asarray(sk.parents)
+            out[f"actor{a}_offsets"] = np.asarray(sk.offsets)
+            out[f"actor{a}_end_site_parents"] = np.asarray(sk.end_site_parents)
+            out[f"actor{a}_end_site_offsets"] = np.asarray(sk.end_site_offsets)
+        motion_ids = sorted(self._motions)
+        for i in motion_ids:
+            m = self._motions[i]
+            for f in ("parents", "offsets", "rotations", "positions", "end_site_parents", "end_site_offsets"):
+                out[f"motion{i}_{f}"] = np.asarray(getattr(m, f))
+        header = {
+            "format": "repro.motion.database/1",
+            "fps": self.fps,
+            "pose_roles": list(self.pose_roles),
+            "window": self.window,
+            "step": self.step,
+            "meta": self.meta,
+            "actors": [{"joint_names": sk.joint_names, "channels": [list(c) for c in sk.channels or []],
+                        "unit_m": sk.unit_m, "roles": dict(sk.roles)} for sk in self.actors],
+            "motions": [{"clip": i, "joint_names": self._motions[i].joint_names,
+                         "channels": [list(c) for c in self._motions[i].channels],
+                         "frame_time": self._motions[i].frame_time, "unit_m": self._motions[i].unit_m,
+                         "source": self._motions[i].source} for i in motion_ids],
+        }
+        out["header"] = np.array(json.dumps(header))
+        if path.suffix != ".npz":
+            path = path.with_name(path.name + ".npz")
+        with atomic_path(path) as tmp:
+            with open(tmp, "wb") as fh:
+                np.savez_compressed(fh, **out)
+        return path
+
+    @classmethod
+    def load(cls, path) -> MotionDatabase:
+        """Read a database written by :meth:`save` (``allow_pickle=False``)."""
+        with np.load(Path(path), allow_pickle=False) as z:
+            header = json.loads(str(z["header"]))
+            if header.get("format") != "repro.motion.database/1":
+                raise MotionError(f"{path}: not a motion database file (format {header.get('format')!r})")
+            arrays = {k: np.array(json.loads(str(z[k])), dtype=str) for k in _CLIP_STR}
+            for k in _CLIP_NUM + _POSE_NUM:
+                arrays[k] = z[k]
+            actors = []
+            for a, h in enumerate(header["actors"]):
+                actors.append(Skeleton(joint_names=h["joint_names"], parents=z[f"actor{a}_parents"],
+                                       offsets=z[f"actor{a}_offsets"],
+                                       channels=[tuple(c) for c in h["channels"]] or None,
+                                       end_site_parents=z[f"actor{a}_end_site_parents"],
+                                       end_site_offsets=z[f"actor{a}_end_site_offsets"], unit_m=h["unit_m"],
+                                       roles=h["roles"]))
+            motions = {}
+            for h in header["motions"]:
+                i = h["clip"]
+                motions[i] = Motion(joint_names=h["joint_names"], parents=z[f"motion{i}_parents"],
+                                    offsets=z[f"motion{i}_offsets"], channels=[tuple(c) for c in h["channels"]],
+                                    frame_time=h["frame_time"], rotations=z[f"motion{i}_rotations"],
+                                    positions=z[f"motion{i}_positions"],
+                                    end_site_parents=z[f"motion{i}_end_site_parents"],
+                                    end_site_offsets=z[f"motion{i}_end_site_offsets"], unit_m=h["unit_m"],
+                                    source=h["source"])
+                # Motion() re-normalises quaternions, which may change their last bit; the
+                # stored ones are unit already, keep them bit for bit
+                rot = np.array(z[f"motion{i}_rotations"], dtype=float)
+                rot.flags.writeable = False
+                object.__setattr__(motions[i], "rotations", rot)
+        return cls(fps=header["fps"], pose_roles=header["pose_roles"], window=header["window"],
+                   step=header["step"], actors=actors, motions=motions, arrays=arrays, meta=header["meta"])
+
+    def equals(self, other: MotionDatabase) -> bool:
+        """Exact equality of every array, annotation, actor, stored motion and metadata."""
+        if not isinstance(other, MotionDatabase):
+            return False
+        if (self.fps, self.pose_roles, self.window, self.step) != (other.fps, other.pose_roles, other.window, other.step):
+            return False
+        if json.dumps(self.meta, sort_keys=True) != json.dumps(other.meta, sort_keys=True):
+            return False
+        for k in _CLIP_STR + _CLIP_NUM + _POSE_NUM:
+            a, b = getattr(self, k), getattr(other, k)
+            if a.shape != b.shape or not np.array_equal(a, b):
+                return False
+        if len(self.actors) != len(other.actors):
+            return False
+        for x, y in zip(self.actors, other.actors):
+            if not (_same_topology(x, y) and np.array_equal(x.offsets, y.offsets) and x.roles == y.roles
+                    and np.array_equal(x.end_site_offsets, y.end_site_offsets) and x.unit_m == y.unit_m):
+                return False
+        if sorted(self._motions) != sorted(other._motions):
+            return False
+        for i, m in self._motions.items():
+            n = other._motions[i]
+            if not (_same_topology(m, n) and m.channels == n.channels and m.frame_time == n.frame_time
+                    and all(np.array_equal(getattr(m, f), getattr(n, f)) for f in
+                            ("offsets", "rotations", "positions", "end_site_parents", "end_site_offsets"))):
+                return False
+        return True
+
+
+def _hit_trajectory(motion: Motion, g: np.ndarray, joint: str, where: str) -> np.ndarray:
+    j = motion.joint_index(joint)
+    if where == "joint":
+        return g[:, j]
+    sites = np.flatnonzero(motion.end_site_parents == j)
+    return motion.end_site_positions()[:, sites[0]]
+
+
+def _clip_features(c: Clip, sk: Skeleton, actor: int, scale: float, pose_roles, window, step,
+                   *, noise: float = 0.0, rng=None) -> dict:
+    m = c.motion
+    g = m.global_positions()
+    idx = [sk.index(r) for r in pose_roles]
+    pel, lh, rh = sk.index("pelvis"), sk.index("left_hip"), sk.index("right_hip")
+    theta, origin = root_frames(g, pel, lh, rh)
+    traj_w = _hit_trajectory(m, g, c.hit_joint, c.hit_where)
+    size = sk.size
+    pts = pose_points(g, idx, pel, lh, rh, window=window, step=step)
+    if noise > 0:
+        traj_w = traj_w + rng.normal(0.0, noise, traj_w.shape)
+        pts = pts + rng.normal(0.0, noise, pts.shape)
+    traj = to_root_frame(traj_w, theta[0], origin[0])
+    return {
+        "names": c.name, "sources": c.source, "semantics": c.semantics, "kinds": c.kind, "sides": c.side,
+        "levels": c.level, "hit_roles": c.hit_role, "hit_joints": c.hit_joint, "hit_wheres": c.hit_where,
+        "hit_frame": c.hit_frame, "n_frames": m.n_frames, "actor": actor, "scale": scale, "size_a": size,
+        "source_time": c.source_time, "mirror": False, "warp": 1.0, "noise": float(noise),
+        "box_min": traj.min(axis=0), "box_max": traj.max(axis=0), "hit_position": traj[c.hit_frame],
+        "traj": traj, "pose_points": pts / size, "pose_frame": np.arange(m.n_frames),
+        "pose_heading": theta, "pose_origin": origin,
+    }
+
+
+def _stack(recs: list[dict]) -> dict:
+    out = {k: np.array([r[k] for r in recs]) for k in _CLIP_STR}
+    for k in ("hit_frame", "n_frames", "actor", "scale", "size_a", "source_time", "mirror", "warp", "noise"):
+        out[k] = np.array([r[k] for r in recs])
+    for k in ("box_min", "box_max", "hit_position"):
+        out[k] = np.stack([r[k] for r in recs]).reshape(len(recs), 3)
+    lens = np.array([r["traj"].shape[0] for r in recs])
+    out["traj_start"] = np.concatenate([[0], np.cumsum(lens)])
+    out["pose_start"] = out["traj_start"].copy()
+    out["traj"] = np.concatenate([r["traj"] for r in recs])
+    out["pose_points"] = np.concatenate([r["pose_points"] for r in recs])
+    out["pose_clip"] = np.repeat(np.arange(len(recs)), lens)
+    out["pose_frame"] = np.concatenate([r["pose_frame"] for r in recs])
+    out["pose_heading"] = np.concatenate([r["pose_heading"] for r in recs])
+    out["pose_origin"] = np.concatenate([r["pose_origin"] for r in recs])
+    return out
+
+
+def _subset(db: MotionDatabase, idx: np.ndarray) -> MotionDatabase:
+    idx = np.asarray(idx, dtype=np.intp)
+    if idx.size == 0:
+        raise MotionError("selection is empty")
+    arrays = {k: getattr(db, k)[idx] for k in _CLIP_STR}
+    for k in ("hit_frame", "n_frames", "actor", "scale", "size_a", "source_time", "mirror", "warp", "noise",
+              "box_min", "box_max", "hit_position"):
+        arrays[k] = getattr(db, k)[idx]
+    lens = db.traj_start[idx + 1] - db.traj_start[idx]
+    rows = np.concatenate([np.arange(db.traj_start[i], db.traj_start[i + 1]) for i in idx])
+    arrays["traj_start"] = np.concatenate([[0], np.cumsum(lens)])
+    arrays["pose_start"] = arrays["traj_start"].copy()
+    arrays["traj"] = db.traj[rows]
+    for k in ("pose_points", "pose_frame", "pose_heading", "pose_origin"):
+        arrays[k] = getattr(db, k)[rows]
+    arrays["pose_clip"] = np.repeat(np.arange(idx.size), lens)
+    new_of_old = {int(o): n for n, o in enumerate(idx)}
+    motions, src = {}, np.arange(idx.size)
+    for n, o in enumerate(idx.tolist()):
+        if o in db._motions:
+            motions[n] = db._motions[o]
+        elif int(db.source_clip[o]) in new_of_old:
+            src[n] = new_of_old[int(db.source_clip[o])]
+        else:  # the source is not selected: keep a materialised copy
+            motions[n] = db.motion(o)
+    arrays["source_clip"] = src
+    return MotionDatabase(fps=db.fps, pose_roles=db.pose_roles, window=db.window, step=db.step, actors=db.actors,
+                          motions=motions, arrays=arrays, meta={**db.meta, "selected_from": db.n_clips})
+
+
+# ============================================================= building
+def _infer_unit(motion: Motion) -> float:
+    """Metres per unit guessed from the stature in file units (metres, cm, CMU units)."""
+    h = Skeleton.from_motion(motion).height
+    if 0.5 <= h <= 3.0:
+        return 1.0
+    if 50.0 <= h <= 300.0:
+        return 0.01
+    if 20.0 <= h <= 45.0:
+        return CMU_UNIT_M
+    raise MotionError(f"cannot guess the length unit of {motion.source!r} (stature {h:.4g} units); pass unit_m")
+
+
+def _read(path: Path, unit_m: float | None) -> Motion:
+    from repro.motion.bvh import read_bvh
+
+    m = read_bvh(path)
+    u = _infer_unit(m) if unit_m is None else float(unit_m)
+    return dataclasses.replace(m, unit_m=u).to_metres()
+
+
+def _clips_from_take(motion: Motion, name: str, *, fps: float, window, hits: Iterable[Hit], kind: str = "",
+                     level: str = "", hit_joint: str | None = None, hit_where: str = "joint", tag=True) -> list[Clip]:
+    sk = Skeleton.from_motion(motion)
+    out = []
+    for n, h in enumerate(hits):
+        m, k0, t0 = _cut_around(motion, h.frame * motion.frame_time, window, fps)
+        cname = f"{name}_h{n:02d}_{h.role}" if tag else name
+        out.append(Clip(name=cname, motion=m, semantics=h.semantics, hit_role=h.role,
+                        hit_joint=hit_joint or sk.roles[h.role], hit_where=hit_where, hit_frame=k0, kind=kind,
+                        side=h.side, source=str(motion.source or name), source_time=t0, level=level))
+    return out
+
+
+def _read_manifest_rows(path: Path) -> list[dict]:
+    with open(path, newline="", encoding="utf-8") as fh:
+        return [dict(r) for r in csv.DictReader(fh)]
+
+
+def build_database(source, *, fps: float = DATABASE_FPS, window: tuple[float, float] | None = None,
+                   unit_m: float | None = None, manifest: str | None = "manifest.csv",
+                   pose_roles: Sequence[str] = POSE_ROLES, pose_window: int = 1, detect_kw: Mapping | None = None
+                   ) -> MotionDatabase:
+    """Build the database from a folder of BVH files (and its manifest when there is one).
+
+    With a manifest (the columns of :data:`repro.motion.synthetic.MANIFEST_COLUMNS`:
+    ``file``, ``semantics``, ``side``, ``hit_joint``, ``hit_point`` (``joint`` or
+    ``end_site``), ``hit_frame``, ``kind``, ``level``; an optional ``unit_m``) each row
+    is one clip, annotated as the manifest says -- rows whose semantics is not a strike
+    (``"other"``, the stance clips) are skipped; an empty or negative ``hit_frame`` is
+    found with :func:`hit_frame_for`, an empty ``hit_joint`` is the role's joint.  Without
+    a manifest every BVH file is searched with :func:`detect_hits` and cut around each
+    strike.  Clips are resampled to ``fps`` on a grid that passes through the hit time
+    (so the hit stays on a frame).
+
+    Parameters
+    ----------
+    source : str or os.PathLike
+        Folder (or a single manifest file).
+    fps : float, default 30
+    window : (before, after) seconds, optional
+        Cut each clip to this window around its hit; default: the whole clip for manifest
+        rows (the manifest's clips *are* the annotated subsequences), (0.6, 0.3) for
+        detected strikes.
+    unit_m : float, optional
+        Metres per file unit; default from the manifest's ``unit_m`` column, else guessed
+        from the stature (metres, centimetres or CMU units).
+    manifest : str or None, default "manifest.csv"
+        Name of the manifest in the folder; None to ignore it.
+    pose_roles, pose_window
+        Pose representation (:meth:`MotionDatabase.from_clips`).
+    detect_kw : mapping, optional
+        Thresholds passed to :func:`detect_hits`.
+
+    Raises
+    ------
+    repro.errors.MotionError
+        No clip found, a manifest naming a missing file or bad annotation.
+    """
+    src = Path(source)
+    folder = src.parent if src.is_file() else src
+    mpath = src if src.is_file() else (folder / manifest if manifest else None)
+    detect_kw = dict(detect_kw or {})
+    clips: list[Clip] = []
+    if mpath is not None and mpath.is_file():
+        for r in _read_manifest_rows(mpath):
+            sem = (r.get("semantics") or "").strip()
+            if sem not in SEMANTICS:
+                continue
+            f = folder / r["file"]
+            if not f.is_file():
+                raise MotionError(f"{mpath}: {r['file']} is missing")
+            u = unit_m if unit_m is not None else (float(r["unit_m"]) if r.get("unit_m") else None)
+            m = _read(f, u)
+            side = (r.get("side") or "").strip()
+            role = _ROLE_OF.get((sem, side))
+            if role is None:
+                raise MotionError(f"{mpath}: {r['file']}: side must be left or right, got {side!r}")
+            hf = (r.get("hit_frame") or "").strip()
+            hf = int(hf) if hf not in ("",) else -1
+            if hf < 0:
+                hf = hit_frame_for(m, role, **detect_kw)
+            where = (r.get("hit_point") or "joint").strip() or "joint"
+            hj = (r.get("hit_joint") or "").strip() or None
+            hit = Hit(frame=hf, time=hf * m.frame_time, role=role, semantics=sem, side=side, extension=float("nan"),
+                      height=float("nan"), start=hf, stop=hf + 1)
+            clips += _clips_from_take(m, Path(r["file"]).stem, fps=fps, window=window, hits=[hit],
+                                      kind=(r.get("kind") or "").strip(), level=(r.get("level") or "").strip(),
+                                      hit_joint=hj, hit_where=where, tag=False)
+        how = f"manifest {mpath.name}"
+    else:
+        for f in sorted(folder.glob("*.bvh")):
+            m = _read(f, unit_m)
+            hits = detect_hits(m, **detect_kw)
+            clips += _clips_from_take(m, f.stem, fps=fps, window=CMU_WINDOW if window is None else window, hits=hits)
+        how = "detect_hits"
+    if not clips:
+        raise MotionError(f"no punch or kick clip found in {src}")
+    return MotionDatabase.from_clips(clips, pose_roles=pose_roles, window=pose_window,
+                                     meta={"built_from": str(src), "annotations": how, "fps": fps,
+                                           "window": None if window is None else list(window)})
+
+
+def build_cmu_database(takes: Mapping[str, str] | Sequence[str] | None = None, *, fps: float = DATABASE_FPS,
+                       window: tuple[float, float] = CMU_WINDOW, pose_roles: Sequence[str] = POSE_ROLES,
+                       pose_window: int = 1, detect_kw: Mapping | None = None) -> MotionDatabase:
+    """The database of the real CMU karate takes (subject 135), cut around detected strikes.
+
+    Each take of :data:`CMU_TAKES` is read in metres (:data:`~repro.motion.CMU_UNIT_M`),
+    searched with :func:`detect_hits` (kick drills for kicks, the other takes for arm
+    strikes), and every hit becomes a clip from ``window[0]`` s before to ``window[1]`` s
+    after it, resampled to ``fps``.  Semantics: ``"kick"`` for kicks, ``"punch"`` for
+    every arm strike (the lunge punches of 135_09 and the arm strikes and blocks of the
+    katas, kind ``"kata_arm"``).  With the default thresholds this gives 14 kicks, 9
+    lunge punches and about 50 kata arm strikes (see ``mocap/cmu/PROVENANCE.md``), about
+    the 75 motions of the paper.
+
+    Parameters
+    ----------
+    takes : mapping take -> kind, or sequence of takes, optional
+        Default :data:`CMU_TAKES`.
+    fps, window, pose_roles, pose_window, detect_kw
+        As :func:`build_database`.
+
+    Raises
+    ------
+    repro.errors.DataError
+        If the staged CMU files are missing (:func:`repro.data.fetch`).
+    """
+    from repro import data
+
+    if takes is None:
+        takes = CMU_TAKES
+    if not isinstance(takes, Mapping):
+        takes = {t: CMU_TAKES.get(t, "") for t in takes}
+    clips: list[Clip] = []
+    for take, kind in takes.items():
+        path = data.fetch(f"mocap/cmu/{take}.bvh")
+        m = _read(path, CMU_UNIT_M)
+        m = dataclasses.replace(m, source=f"mocap/cmu/{take}.bvh")
+        sem = "kick" if kind.endswith("kick") else "punch"
+        hits = detect_hits(m, semantics=sem, **dict(detect_kw or {}))
+        clips += _clips_from_take(m, take, fps=fps, window=window, hits=hits, kind=kind)
+    return MotionDatabase.from_clips(clips, pose_roles=pose_roles, window=pose_window,
+                                     meta={"built_from": "mocap/cmu", "takes": dict(takes), "annotations": "detect_hits",
+                                           "fps": fps, "window": list(window)})
+
+
+def load_or_build(path, build=build_cmu_database, **kw) -> MotionDatabase:
+    """Load the database saved at ``path``, or ``build(**kw)`` it and save it there.
+
+    For notebooks: the first run builds (about a second for the CMU takes) and saves
+    atomically; later runs load.  Delete the file to rebuild (nothing checks that the
+    saved database was built with the same ``kw``).
+    """
+    path = Path(path)
+    if path.exists():
+        return MotionDatabase.load(path)
+    db = build(**kw)
+    db.save(path)
+    return db
+
+
+# ============================================================= augmentation
+def _variant_motion(m: Motion, n_frames: int, scale: float, mirror: bool) -> Motion:
+    if n_frames != m.n_frames:
+        m = resample(m, frames=np.linspace(0.0, m.n_frames - 1, n_frames))
+    if scale != 1.0:
+        m = m.scaled(scale, unit_m=1.0)
+    if mirror:
+        m = mirror_motion(m)
+    return m
+
+
+def augment(db: MotionDatabase, factor: int, seed: int = 0, *, scale_range=(0.85, 1.15), warp_range=(0.85, 1.15),
+            noise: float = 0.005, mirror_probability: float = 0.5) -> MotionDatabase:
+    """A ``factor`` times larger database of *synthetic* variants, for latency-vs-size.
+
+    "Scaling the database": the paper's database holds about 75 motions; to measure how
+    the search time grows with the size of the database, every clip gets ``factor - 1``
+    variants (the originals are kept, first), each with parameters drawn from
+    ``numpy.random.default_rng(seed)`` in a fixed order (so the result is deterministic):
+
+    * mirrored left/right with probability ``mirror_probability``
+      (:func:`mirror_motion`; a punch with the right fist becomes one with the left);
+    * the actor rescaled uniformly by a factor in ``scale_range`` (a new, taller or
+      smaller actor: every length and ``size_a`` multiplied);
+    * time-warped: the number of frames multiplied by a factor in ``warp_range``
+      (resampled uniformly, the hit frame moved accordingly);
+    * Gaussian noise of ``noise`` metres (std) added to the pose clouds and the hit
+      trajectory (as capture noise; the stored motion is not noisy).
+
+    These are not new captures: the variants are strongly correlated with their source,
+    which makes the retrieval's job *easier* than on as many real motions would be.  A
+    mirrored variant keeps its source's base actor (exact for the left/right symmetric
+    synthetic actor; for a captured skeleton such as CMU's the mirrored one has the other
+    side's bone lengths, a difference of millimetres that the retrieval ignores).
+
+    Returns
+    -------
+    MotionDatabase
+        ``factor * n_clips`` clips; the variants store no motion of their own
+        (:meth:`MotionDatabase.motion` rebuilds it from the source clip).
+    """
+    factor = int(factor)
+    if factor < 1:
+        raise MotionError(f"factor must be >= 1, got {factor}")
+    rng = np.random.default_rng(seed)
+    C = db.n_clips
+    recs = []
+    src_ids = []
+    for v in range(1, factor):
+        for i in range(C):
+            mir = bool(rng.random() < mirror_probability)
+            s = float(rng.uniform(*scale_range))
+            w = float(rng.uniform(*warp_range))
+            n = max(2, int(round((db.n_frames[i] - 1) * w)) + 1)
+            base = db.motion(i)
+            m = _variant_motion(base, n, s, mir)
+            hf = int(round(db.hit_frame[i] * (n - 1) / (db.n_frames[i] - 1)))
+            role = str(db.hit_roles[i])
+            side = str(db.sides[i])
+            joint = str(db.hit_joints[i])
+            if mir:
+                role = role.replace("left", "@").replace("right", "left").replace("@", "right")
+                side = {"left": "right", "right": "left"}.get(side, side)
+                pi = mirror_joint_map(base.joint_names, base.parents)
+                joint = base.joint_names[pi[base.joint_index(joint)]]
+            c = Clip(name=f"{db.names[i]}~v{v:03d}", motion=m, semantics=str(db.semantics[i]), hit_role=role,
+                     hit_joint=joint, hit_where=str(db.hit_wheres[i]), hit_frame=min(hf, n - 1),
+                     kind=str(db.kinds[i]), side=side, source=str(db.sources[i]),
+                     source_time=float(db.source_time[i]), level=str(db.levels[i]))
+            sk = db.actor_skeleton(i)
+            sk = sk.with_offsets(sk.offsets * s, sk.end_site_offsets * s)
+            r = _clip_features(c, sk, int(db.actor[i]), float(db.scale[i]) * s, db.pose_roles, db.window, db.step,
+                               noise=noise, rng=rng)
+            r.update(mirror=mir ^ bool(db.mirror[i]), warp=w * float(db.warp[i]))
+            recs.append(r)
+            src_ids.append(int(db.source_clip[i]) if int(db.source_clip[i]) != i else i)
+    if not recs:
+        return db
+    new = _stack(recs)
+    arrays = {}
+    for k in _CLIP_STR + ("hit_frame", "n_frames", "actor", "scale", "size_a", "source_time", "mirror", "warp",
+                          "noise", "box_min", "box_max", "hit_position"):
+        arrays[k] = np.concatenate([getattr(db, k), new[k]])
+    arrays["source_clip"] = np.concatenate([db.source_clip, np.asarray(src_ids, dtype=np.intp)])
+    T0, N0 = db.traj.shape[0], db.n_poses
+    arrays["traj_start"] = np.concatenate([db.traj_start, new["traj_start"][1:] + T0])
+    arrays["pose_start"] = np.concatenate([db.pose_start, new["pose_start"][1:] + N0])
+    arrays["traj"] = np.concatenate([db.traj, new["traj"]])
+    arrays["pose_clip"] = np.concatenate([db.pose_clip, new["pose_clip"] + C])
+    for k in ("pose_points", "pose_frame", "pose_heading", "pose_origin"):
+        arrays[k] = np.concatenate([getattr(db, k), new[k]])
+    meta = {**db.meta, "augmented": {"factor": factor, "seed": seed, "scale_range": list(scale_range),
+                                     "warp_range": list(warp_range), "noise_m": noise,
+                                     "mirror_probability": mirror_probability,
+                                     "note": "synthetic variants of the original clips, for latency-vs-size only"}}
+    return MotionDatabase(fps=db.fps, pose_roles=db.pose_roles, window=db.window, step=db.step, actors=db.actors,
+                          motions=dict(db._motions), arrays=arrays, meta=meta)

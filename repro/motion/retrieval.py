@@ -1,0 +1,734 @@
+"""Motion retrieval of Pronost et al., Section 3.3, with two baselines and a benchmark.
+
+"Interactive Animation of Virtual Characters: Application to Virtual Kung-fu Fighting",
+Section 3.3 (Motion retrieval).  The inputs are the target ``c`` (e.g. the opponent's
+head), expressed in the root reference frame of the character, the character's current
+pose ``q`` and skeleton, and the semantics ordered by the supervisor (``"punch"`` or
+``"kick"``).  :meth:`MotionRetriever.search` follows the paper step by step:
+
+1. **Eq. 1**: ``c_r = c * size_a / size_c`` for the actor of every clip
+   (:func:`repro.motion.skeleton.rescale_constraint`; ``size`` is the straightened
+   stature, :attr:`repro.motion.skeleton.Skeleton.size`).
+2. **q_r**: the current pose retargeted to the actor
+   (:func:`repro.motion.morphology.retarget`, Section 3.4.1), as a pose cloud
+   (:mod:`repro.motion.clustering`), "so that the distance calculated between q_r and a
+   pose in each clip is based on the same skeleton".
+3. **Cluster selection**: "the centroids are compared with the initial pose q_r"; the
+   cluster whose centroid is nearest to ``q_r`` in the aligned distance of Kovar et al.
+   is selected (clusters: k-means of all poses, Section 3.2.2, made once in
+   :class:`MotionRetriever`).
+4. **Pruning**: clips "associated with the bounding box that does not contain" ``c_r``
+   are eliminated.  (The paper's text reads "does not contain q_r"; a pose cannot be
+   inside a box of hit-point positions, and Figure 4's caption shows the constraint
+   ``c_r`` (green) inside the box of the trajectory (red): ``q_r`` is a typo for
+   ``c_r``.)  Poses of clips of another semantics are eliminated too.
+5. **Scoring**: each remaining pose gets ``d = w_q d_qr + w_c d_cr`` with ``d_qr`` the
+   aligned distance between the pose and ``q_r`` (weighted RMS over the pose points,
+   metres of the actor) and ``d_cr`` the minimum distance between its clip's hit-point
+   trajectory and ``c_r`` (metres); "the pose (and the corresponding motion) that is
+   finally selected by the algorithm is the one that minimizes the weighted sum d".
+6. **Alignment**: "the motion associated with the lowest distance d is then rotated and
+   translated to fit the initial pose q_r": :class:`RetrievalResult` holds that rotation
+   about the vertical axis and translation (Kovar et al.'s closed form).
+
+Choices the paper leaves open (documented here, all parameters):
+
+* Start frames: only poses *before* their clip's hit frame can start a motion (a pose
+  after the hit would start a motion whose hit has already happened).
+* Frames: ``c`` and the hit trajectories are in root frames as defined in
+  :mod:`repro.motion.database` (origin on the floor below the pelvis, z = heading);
+  each trajectory in the root frame of its clip's first frame, as in the paper, which
+  compares one bounding box per motion with ``c_r``.
+* Fallbacks when pruning leaves nothing (the paper does not say): widen to the next
+  clusters in order of centroid distance (``fallback="neighbour_clusters"``); if no
+  clip of the semantics has a box containing ``c_r``, score every startable pose of the
+  semantics without the box test (``fallback="no_box"``).  The result says which.
+* Several actors: the database's clips may come from actors of other statures (the
+  synthetic database has three).  ``c_r`` is computed per clip with its own ``size_a``;
+  ``q_r`` is retargeted once per *base* actor (actors that are uniform scalings of one
+  another share it, scaled), and pose clouds are compared in units of the actor's size.
+
+Baselines (for the figures): :meth:`MotionRetriever.search_exhaustive` scores every
+startable pose of the semantics with the same ``d`` (no clusters, no boxes: the exact
+optimum of ``d``); :meth:`MotionRetriever.search_kdtree` queries a
+:class:`scipy.spatial.cKDTree` over a feature vector (the pose cloud in its canonical
+frame and the hit position at the hit frame, both in units of the actor's size,
+weighted by ``w_q`` and ``w_c``) for its nearest neighbours and rescores them with
+``d``.  :func:`time_search` measures the latency of the three.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from repro.errors import MotionError, RetrievalError
+from repro.motion.clustering import (
+    AlignedPoseIndex,
+    PoseClusters,
+    cluster_poses,
+    pose_points,
+    root_frames,
+    rotate_y,
+)
+from repro.motion.database import SEMANTICS, MotionDatabase, resample
+from repro.motion.morphology import retarget
+from repro.motion.motion import Motion
+from repro.motion.skeleton import Skeleton, rescale_constraint, skeleton_of
+
+__all__ = [
+    "FALLBACKS",
+    "Query",
+    "RetrievalResult",
+    "MotionRetriever",
+    "search",
+    "make_queries",
+    "time_search",
+]
+
+#: Values of :attr:`RetrievalResult.fallback`.
+FALLBACKS: tuple[str, ...] = ("none", "neighbour_clusters", "no_box", "disabled")
+
+
+@dataclass(frozen=True, eq=False)
+class Query:
+    """The character-dependent inputs of a search, prepared by :meth:`MotionRetriever.prepare`.
+
+    Attributes
+    ----------
+    q_n : dict base actor -> (P', 3) array
+        ``q_r`` (the current pose retargeted to that actor) as a pose cloud in its root
+        frame, divided by the actor's size.
+    size_c : float
+        The character's size (metres), Eq. 1.
+    heading, origin : float, (3,) array
+        Root frame of the current pose in the character's world.
+    actors : tuple of int
+        The base actors the character could be retargeted to (same joint tree).
+    """
+
+    q_n: dict
+    size_c: float
+    heading: float
+    origin: np.ndarray
+    actors: tuple
+
+
+@dataclass(frozen=True, eq=False)
+class RetrievalResult:
+    """The selected motion, where to start it, how to place it, and why.
+
+    Attributes
+    ----------
+    clip : int
+        Clip index in the database; ``name``, ``semantics``, ``hit_role`` describe it.
+    start_frame : int
+        The selected pose's frame: the motion is played from there.
+    hit_frame : int
+        The clip's hit frame (the hit comes ``hit_frame - start_frame`` frames later).
+    pose : int
+        Index of the selected pose in the database.
+    d, d_qr, d_cr : float
+        ``d = w_q d_qr + w_c d_cr`` (metres); ``d_qr`` aligned pose distance to ``q_r``,
+        ``d_cr`` distance from the clip's hit trajectory to ``c_r``.
+    w_q, w_c : float
+    c_r : (3,) array
+        The target for this clip's actor (Eq. 1), in the actor's root frame (metres).
+    size_a, size_c : float
+        Actor and character sizes (metres).
+    cluster : int
+        Selected cluster (-1 for the baselines).
+    n_candidates : int
+        Number of poses scored.
+    fallback : str
+        One of :data:`FALLBACKS`: ``"none"`` (the paper's algorithm found candidates in
+        the nearest cluster), ``"neighbour_clusters"`` (found in the ``cluster_rank``-th
+        nearest cluster), ``"no_box"`` (no clip of the semantics contains ``c_r``: every
+        startable pose of the semantics scored), ``"disabled"`` (pruning off, or a
+        baseline).
+    cluster_rank : int
+    method : str
+        ``"pruned"``, ``"exhaustive"`` or ``"kdtree"``.
+    rotation_y : float
+        Rotation (radians, about +y) of the alignment ``A`` taking the clip's world
+        coordinates (metres of the actor) to the root frame of ``q_r``:
+        ``A(p) = rotate_y(p, rotation_y) + translation``.
+    translation : (3,) array
+        Its translation (y = 0).
+    heading, origin : float, (3,) array
+        Root frame of the current pose in the character's world.
+    """
+
+    clip: int
+    name: str
+    semantics: str
+    hit_role: str
+    start_frame: int
+    hit_frame: int
+    pose: int
+    d: float
+    d_qr: float
+    d_cr: float
+    w_q: float
+    w_c: float
+    c_r: np.ndarray
+    size_a: float
+    size_c: float
+    cluster: int
+    n_candidates: int
+    fallback: str
+    cluster_rank: int
+    method: str
+    rotation_y: float
+    translation: np.ndarray
+    heading: float = 0.0
+    origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def align(self, points) -> np.ndarray:
+        """Clip-world points (actor metres) -> root frame of ``q_r`` (actor metres)."""
+        return rotate_y(points, self.rotation_y) + self.translation
+
+    def place(self, points, scale: float | None = None) -> np.ndarray:
+        """Clip-world points -> the character's world.
+
+        ``R_y(heading) (scale * align(p)) + origin``: the aligned clip, scaled from the
+        actor to the character (default ``scale = size_c / size_a``, a uniform
+        approximation of retargeting; exact when the character is the actor, where the
+        start pose lands on the current pose up to ``d_qr``) and put in the current
+        pose's root frame.
+        """
+        k = self.size_c / self.size_a if scale is None else float(scale)
+        return rotate_y(k * self.align(points), self.heading) + self.origin
+
+    @property
+    def lead_frames(self) -> int:
+        """Frames from the start pose to the hit."""
+        return self.hit_frame - self.start_frame
+
+
+@dataclass(eq=False)
+class _Block:
+    """Candidate poses with their precomputed, contiguous data."""
+
+    rows: np.ndarray  # global pose indices
+    index: AlignedPoseIndex  # their closed-form terms
+    clips: np.ndarray  # clip of each pose
+    size: np.ndarray  # size_a of each pose's actor
+    actor: np.ndarray  # base actor of each pose
+    uclips: np.ndarray  # distinct clips
+    inv: np.ndarray  # clips == uclips[inv]
+    single_actor: int | None
+
+
+def _check_target(target) -> np.ndarray:
+    try:
+        c = np.asarray(target, dtype=float)
+    except (TypeError, ValueError):
+        raise RetrievalError(f"target must be a 3-vector of numbers, got {target!r}") from None
+    if c.shape != (3,):
+        raise RetrievalError(f"target must be a 3-vector (x, y, z) in the character's root frame, got shape {c.shape}")
+    if not np.all(np.isfinite(c)):
+        raise RetrievalError(f"target contains NaN or inf: {c.tolist()}")
+    return c
+
+
+class MotionRetriever:
+    """The database organised for the search: clusters, indices, per-clip arrays.
+
+    Everything that does not depend on the query is computed here once (Section 3.2.2:
+    "we propose to organize the database into clusters in a precomputation process"):
+    k-means clusters of all poses, the candidate poses of every (cluster, semantics), the
+    closed-form terms of the aligned distance for every pose, padded hit trajectories.
+
+    Parameters
+    ----------
+    db : MotionDatabase
+    k : int, optional
+        Number of clusters (default :func:`repro.motion.clustering.default_k`).
+    seed : int, default 0
+        k-means seed.
+    weights : (P',) array, optional
+        Pose point weights (default uniform).
+    w_q, w_c : float, default 1
+        Weights of ``d = w_q d_qr + w_c d_cr`` (both distances in metres).
+    kd_neighbours : int, default 32
+        Neighbours fetched by :meth:`search_kdtree` before rescoring.
+
+    Raises
+    ------
+    repro.errors.RetrievalError
+        Empty database, bad weights.
+    """
+
+    def __init__(self, db: MotionDatabase, *, k: int | None = None, seed: int = 0, weights=None,
+                 w_q: float = 1.0, w_c: float = 1.0, kd_neighbours: int = 32):
+        if not isinstance(db, MotionDatabase):
+            raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
+        if db.n_clips == 0 or db.n_poses == 0:
+            raise RetrievalError("the motion database is empty")
+        for name, w in (("w_q", w_q), ("w_c", w_c)):
+            if not (np.isfinite(w) and w >= 0):
+                raise RetrievalError(f"{name} must be finite and >= 0, got {w!r}")
+        self.db = db
+        self.w_q, self.w_c = float(w_q), float(w_c)
+        self.kd_neighbours = int(kd_neighbours)
+        try:
+            self.index = AlignedPoseIndex(db.pose_points, weights)
+            self.clusters: PoseClusters = cluster_poses(db.pose_points, k, weights=weights, seed=seed)
+        except MotionError as e:
+            raise RetrievalError(str(e)) from None
+        self.weights = self.index.weights
+        self.centroid_index = AlignedPoseIndex(self.clusters.centroids, self.weights)
+        pc = db.pose_clip
+        self.pose_size = db.size_a[pc]
+        self.startable = db.pose_frame < db.hit_frame[pc]
+        sem_of_pose = db.semantics[pc]
+        self.actors_present = np.unique(db.actor)
+        self.sem_rows = {s: np.flatnonzero(self.startable & (sem_of_pose == s)) for s in SEMANTICS}
+        self.sem_block = {s: self._block(r) for s, r in self.sem_rows.items()}
+        self.cluster_block = [{s: self._block(m[self.startable[m] & (sem_of_pose[m] == s)]) for s in SEMANTICS}
+                              for m in self.clusters.members]
+        L = int((db.traj_start[1:] - db.traj_start[:-1]).max())
+        idx = db.traj_start[:-1, None] + np.minimum(np.arange(L)[None, :], (db.n_frames - 1)[:, None])
+        self.traj_padded = db.traj[idx]  # (C, L, 3), each padded with its last sample
+        self._kd: dict = {}
+        self._prep_cache: dict = {}
+
+    # ------------------------------------------------------------ query side
+    @property
+    def k(self) -> int:
+        """Number of clusters."""
+        return self.clusters.k
+
+    def prepare(self, current_pose: Motion, character, *, frame: int | None = None) -> Query:
+        """Retarget the current pose to the database's actors: ``q_r`` (Section 3.3).
+
+        Parameters
+        ----------
+        current_pose : Motion
+            The character's motion; its frame ``frame`` (default: the last) is the current
+            pose ``q``.  For pose windows longer than 1 frame the preceding frames are used
+            (resampled to the database rate when needed).
+        character : Skeleton or Motion
+            The character (its ``size`` is ``size_c`` of Eq. 1); must have the joint tree
+            of the database actor(s) it is compared with (e.g. made by
+            :func:`~repro.motion.skeleton.scale_skeleton`).
+
+        Raises
+        ------
+        repro.errors.RetrievalError
+            No database actor shares the character's joint tree; a pose that is not a
+            Motion.
+        """
+        if not isinstance(current_pose, Motion):
+            raise RetrievalError(f"current_pose must be a repro.motion.Motion, got {type(current_pose).__name__}")
+        try:
+            ch = skeleton_of(character)
+            size_c = ch.size
+        except MotionError as e:
+            raise RetrievalError(f"bad character: {e}") from None
+        if not ch.is_compatible(current_pose):
+            raise RetrievalError("current_pose is not on the character's skeleton (joint names / parents differ)")
+        db = self.db
+        F = current_pose.n_frames
+        f = F - 1 if frame is None else int(frame)
+        if not 0 <= f < F:
+            raise RetrievalError(f"frame {frame} outside the current pose's {F} frames")
+        need = (db.window - 1) * db.step + 1
+        m = current_pose
+        if need > 1 and abs(m.fps - db.fps) > 1e-6 * db.fps:
+            t = f * m.frame_time - np.arange(need - 1, -1, -1) / db.fps
+            m = resample(m, frames=np.clip(t / m.frame_time, 0, F - 1), frame_time=1.0 / db.fps)
+        else:
+            lo = max(0, f - need + 1)
+            m = dataclasses.replace(m, rotations=m.rotations[lo:f + 1], positions=m.positions[lo:f + 1])
+        unit = m.unit_m if m.unit_m is not None else ch.unit_m
+        if unit is None:
+            raise RetrievalError("the current pose's length unit is unknown; read it with unit_m=... (metres expected)")
+        if unit != 1.0:
+            m = m.to_metres(unit)
+        q_n = {}
+        for a in self.actors_present.tolist():
+            actor = db.actors[a]
+            if not actor.is_compatible(ch):
+                continue
+            try:
+                qr = retarget(m, actor)
+            except MotionError as e:
+                raise RetrievalError(f"cannot retarget the current pose to actor {a}: {e}") from None
+            g = qr.global_positions()
+            idx = [actor.index(r) for r in db.pose_roles]
+            pts = pose_points(g, idx, actor.index("pelvis"), actor.index("left_hip"), actor.index("right_hip"),
+                              window=db.window, step=db.step)[-1]
+            q_n[a] = pts / actor.size
+        if not q_n:
+            raise RetrievalError(
+                "the character shares no joint tree with the database's actors; make it from an actor "
+                "with repro.motion.scale_skeleton (joints: " + ", ".join(ch.joint_names[:5]) + ", ...)")
+        gc = m.global_positions()
+        th, o = root_frames(gc[-1:], ch.index("pelvis"), ch.index("left_hip"), ch.index("right_hip"))
+        return Query(q_n=q_n, size_c=float(size_c), heading=float(th[0]), origin=o[0], actors=tuple(q_n))
+
+    def _semantics(self, semantics) -> str:
+        if semantics not in SEMANTICS:
+            raise RetrievalError(f"unknown semantics {semantics!r}; expected one of {list(SEMANTICS)}")
+        if self.sem_rows[semantics].size == 0:
+            raise RetrievalError(f"the database has no {semantics!r} clip with a pose before its hit")
+        return semantics
+
+    def _c_r(self, c: np.ndarray, size_c: float, scale_target: bool) -> np.ndarray:
+        """(C, 3) target of every clip's actor: Eq. 1 (or c itself without scaling)."""
+        if not scale_target:
+            return np.broadcast_to(c, (self.db.n_clips, 3))
+        # Eq. 1, c * size_a / size_c (rescale_constraint), for every clip's size_a at once
+        rescale_constraint(c, 1.0, size_c)  # validates c and size_c
+        return c[None, :] * (self.db.size_a / size_c)[:, None]
+
+    def _block(self, rows: np.ndarray) -> _Block | None:
+        """Contiguous precomputed data of a set of candidate poses (None if empty)."""
+        if rows.size == 0:
+            return None
+        db = self.db
+        clips = db.pose_clip[rows]
+        uclips, inv = np.unique(clips, return_inverse=True)
+        actor = db.actor[clips]
+        return _Block(rows=rows, index=self.index.subset(rows), clips=clips, size=self.pose_size[rows], actor=actor,
+                      uclips=uclips, inv=inv, single_actor=int(actor[0]) if np.all(actor == actor[0]) else None)
+
+    def _allowed(self, rows: np.ndarray, q: Query) -> np.ndarray:
+        if len(q.actors) == len(self.actors_present):
+            return rows
+        return rows[np.isin(self.db.actor[self.db.pose_clip[rows]], q.actors)]
+
+    def _d_qr(self, rows: np.ndarray, q: Query) -> np.ndarray:
+        """Aligned distances (metres of each pose's actor) from q_r to poses ``rows`` (gathered)."""
+        out = np.empty(rows.size)
+        act = self.db.actor[self.db.pose_clip[rows]]
+        for a, qn in q.q_n.items():
+            sel = act == a
+            if np.any(sel):
+                out[sel] = self.index.distances(qn, rows[sel])
+        return self.pose_size[rows] * out
+
+    def _d_cr(self, clips: np.ndarray, c_r: np.ndarray) -> np.ndarray:
+        """Min distance from each clip's hit trajectory to its c_r."""
+        diff = self.traj_padded[clips] - c_r[clips][:, None, :]
+        return np.sqrt(np.min(np.einsum("ctk,ctk->ct", diff, diff), axis=1))
+
+    def _score(self, rows: np.ndarray, q: Query, c_r: np.ndarray):
+        """Best of an arbitrary set of poses (gathering path, for the k-d tree's neighbours)."""
+        clips_of_rows = self.db.pose_clip[rows]
+        uc, inv = np.unique(clips_of_rows, return_inverse=True)
+        dcr = self._d_cr(uc, c_r)[inv]
+        dqr = self._d_qr(rows, q)
+        d = self.w_q * dqr + self.w_c * dcr
+        j = int(np.argmin(d))
+        return int(rows[j]), float(d[j]), float(dqr[j]), float(dcr[j]), rows.size
+
+    def _score_block(self, b: _Block | None, q: Query, c_r: np.ndarray, inside: np.ndarray | None = None):
+        """Best pose of a block: ``(row, d, d_qr, d_cr, n_scored)``, or None if none qualifies.
+
+        ``inside`` (C,) bool: the box test; poses of other clips are not candidates.
+        """
+        if b is None:
+            return None
+        valid_u = np.ones(b.uclips.size, dtype=bool) if inside is None else inside[b.uclips]
+        if len(q.q_n) != len(self.actors_present):
+            valid_u &= np.isin(self.db.actor[b.uclips], q.actors)
+        if not valid_u.any():
+            return None
+        dcr_u = np.zeros(b.uclips.size)
+        dcr_u[valid_u] = self._d_cr(b.uclips[valid_u], c_r)
+        if b.single_actor is not None:
+            dq = b.index.distances(q.q_n[b.single_actor])
+        else:
+            dq = np.zeros(b.rows.size)
+            for a, qn in q.q_n.items():
+                sel = np.flatnonzero(b.actor == a)
+                if sel.size:
+                    dq[sel] = b.index.distances(qn, sel)
+        dq *= b.size
+        valid = valid_u[b.inv]
+        d = self.w_q * dq + self.w_c * dcr_u[b.inv]
+        n = int(valid.sum())
+        if n < valid.size:
+            d[~valid] = np.inf
+        j = int(np.argmin(d))
+        return int(b.rows[j]), float(d[j]), float(dq[j]), float(dcr_u[b.inv[j]]), n
+
+    def _result(self, q: Query, best, c_r, *, cluster, fallback, rank, method) -> RetrievalResult:
+        row, d, dqr, dcr, n = best
+        db = self.db
+        i = int(db.pose_clip[row])
+        a = int(db.actor[i])
+        qn = q.q_n[a]
+        _, alpha, x0, z0 = self.index.distances(qn, np.array([row]), return_transform=True)
+        s = float(db.size_a[i])
+        th_i, o_i = float(db.pose_heading[row]), db.pose_origin[row]
+        rot = float(alpha[0]) - th_i
+        t = -rotate_y(o_i, rot) + s * np.array([x0[0], 0.0, z0[0]])
+        return RetrievalResult(
+            clip=i, name=str(db.names[i]), semantics=str(db.semantics[i]), hit_role=str(db.hit_roles[i]),
+            start_frame=int(db.pose_frame[row]), hit_frame=int(db.hit_frame[i]), pose=int(row), d=d, d_qr=dqr,
+            d_cr=dcr, w_q=self.w_q, w_c=self.w_c, c_r=np.array(c_r[i]), size_a=s, size_c=q.size_c,
+            cluster=cluster, n_candidates=int(n), fallback=fallback, cluster_rank=rank, method=method,
+            rotation_y=rot, translation=t, heading=q.heading, origin=np.array(q.origin))
+
+    # ------------------------------------------------------------- searches
+    def search(self, target, current_pose, character=None, semantics: str = "punch", *, prune: bool = True,
+               scale_target: bool = True, frame: int | None = None) -> RetrievalResult:
+        """The paper's retrieval (Section 3.3): cluster, box pruning, weighted distance.
+
+        Clips whose hit-trajectory box does not contain ``c_r`` are pruned (the paper's
+        "does not contain q_r" is a typo for ``c_r``: see Figure 4 and the module
+        docstring).
+
+        Parameters
+        ----------
+        target : (3,) array
+            ``c``: the target in the character's root frame (metres; origin on the floor
+            below the pelvis, y up, z the character's heading).
+        current_pose : Motion or Query
+            The character's current pose (see :meth:`prepare`), or an already prepared
+            :class:`Query`.
+        character : Skeleton or Motion
+            The character (ignored with a :class:`Query`).
+        semantics : {"punch", "kick"}
+        prune : bool, default True
+            False disables both the cluster selection and the box test (every startable
+            pose of the semantics is scored): then the result is the exhaustive optimum.
+        scale_target : bool, default True
+            Apply Eq. 1; False uses ``c_r = c`` (an ablation, to show what Eq. 1 does).
+        frame : int, optional
+            Frame of ``current_pose`` to use (default the last).
+
+        Returns
+        -------
+        RetrievalResult
+
+        Raises
+        ------
+        repro.errors.RetrievalError
+            Unknown semantics, a database without clips of it, a target that is not a
+            finite 3-vector, a character that cannot be retargeted to.
+        """
+        c = _check_target(target)
+        sem = self._semantics(semantics)
+        q = current_pose if isinstance(current_pose, Query) else self.prepare(current_pose, character, frame=frame)
+        return self._search_pruned(c, q, sem, prune=prune, scale_target=scale_target)
+
+    def _search_pruned(self, c, q: Query, sem: str, *, prune: bool = True, scale_target: bool = True):
+        c_r = self._c_r(c, q.size_c, scale_target)
+        if not prune:
+            best = self._score_block(self.sem_block[sem], q, c_r)
+            if best is None:
+                raise RetrievalError(f"no {sem!r} clip of an actor compatible with the character")
+            return self._result(q, best, c_r, cluster=-1, fallback="disabled", rank=-1, method="pruned")
+        # 3. the cluster nearest to q_r (aligned distance to the centroids)
+        if len(q.q_n) == 1:
+            (qn,) = q.q_n.values()
+            dc = self.centroid_index.distances(qn)
+        else:
+            dc = np.min([self.centroid_index.distances(v) for v in q.q_n.values()], axis=0)
+        order = np.argsort(dc, kind="stable")
+        # 4. box pruning (clip level, all clips at once), 5. scoring of what remains
+        db = self.db
+        inside = np.all((db.box_min <= c_r) & (c_r <= db.box_max), axis=1)
+        any_inside = bool(np.any(inside[self.sem_block[sem].uclips]))
+        for rank, cl in enumerate(order.tolist() if any_inside else ()):
+            best = self._score_block(self.cluster_block[cl][sem], q, c_r, inside)
+            if best is not None:
+                return self._result(q, best, c_r, cluster=int(cl),
+                                    fallback="none" if rank == 0 else "neighbour_clusters", rank=rank,
+                                    method="pruned")
+        # no clip of this semantics has a box containing c_r: score them all
+        best = self._score_block(self.sem_block[sem], q, c_r)
+        if best is None:
+            raise RetrievalError(f"no {sem!r} clip of an actor compatible with the character")
+        return self._result(q, best, c_r, cluster=int(order[0]), fallback="no_box", rank=-1, method="pruned")
+
+    def search_exhaustive(self, target, current_pose, character=None, semantics: str = "punch", *,
+                          scale_target: bool = True, frame: int | None = None) -> RetrievalResult:
+        """Baseline: score every startable pose of the semantics with the same ``d``."""
+        c = _check_target(target)
+        sem = self._semantics(semantics)
+        q = current_pose if isinstance(current_pose, Query) else self.prepare(current_pose, character, frame=frame)
+        c_r = self._c_r(c, q.size_c, scale_target)
+        best = self._score_block(self.sem_block[sem], q, c_r)
+        if best is None:
+            raise RetrievalError(f"no {sem!r} clip of an actor compatible with the character")
+        return self._result(q, best, c_r, cluster=-1, fallback="disabled", rank=-1, method="exhaustive")
+
+    def _kdtree(self, sem: str):
+        if sem not in self._kd:
+            rows = self.sem_rows[sem]
+            db = self.db
+            sw = np.sqrt(self.weights)[None, :, None]
+            pose = (db.pose_points[rows] * sw).reshape(rows.size, -1) * self.w_q
+            clips = db.pose_clip[rows]
+            hit = db.hit_position[clips] / db.size_a[clips, None] * self.w_c
+            self._kd[sem] = (cKDTree(np.concatenate([pose, hit], axis=1)), rows)
+        return self._kd[sem]
+
+    def search_kdtree(self, target, current_pose, character=None, semantics: str = "punch", *,
+                      frame: int | None = None) -> RetrievalResult:
+        """Baseline: k-d tree nearest neighbours of a feature vector, rescored with ``d``.
+
+        Feature of a pose: ``w_q sqrt(w) * cloud`` (its canonical-frame cloud, in units of
+        the actor's size, flattened) and ``w_c * hit_position / size_a``; the query uses
+        ``q_r``'s cloud and ``c / size_c`` (= ``c_r / size_a`` by Eq. 1).  Euclidean
+        distance between these vectors ignores the alignment (an upper bound of
+        ``d_qr``) and replaces ``d_cr`` by the distance to the hit position; the
+        ``kd_neighbours`` nearest are rescored with the exact ``d``.  No box pruning.
+        Built lazily per semantics (the first call includes the build).
+        """
+        c = _check_target(target)
+        sem = self._semantics(semantics)
+        q = current_pose if isinstance(current_pose, Query) else self.prepare(current_pose, character, frame=frame)
+        tree, rows_all = self._kdtree(sem)
+        c_r = self._c_r(c, q.size_c, True)
+        sw = np.sqrt(self.weights)[:, None]
+        best = None
+        for a, qn in q.q_n.items():
+            v = np.concatenate([(qn * sw).reshape(-1) * self.w_q, c / q.size_c * self.w_c])
+            kk = min(self.kd_neighbours, rows_all.size)
+            _, nb = tree.query(v, k=kk)
+            rows = self._allowed(rows_all[np.atleast_1d(nb)], q)
+            if rows.size == 0:
+                continue
+            cand = self._score(rows, q, c_r)
+            if best is None or cand[1] < best[1]:
+                best = cand
+        if best is None:
+            raise RetrievalError(f"no {sem!r} clip of an actor compatible with the character")
+        return self._result(q, best, c_r, cluster=-1, fallback="disabled", rank=-1, method="kdtree")
+
+
+_RETRIEVERS: dict = {}
+
+
+def search(db: MotionDatabase, target, current_pose, character, semantics: str, **kw) -> RetrievalResult:
+    """``MotionRetriever(db).search(target, current_pose, character, semantics)``.
+
+    The retriever (clusters, indices) is built on the first call for ``db`` and kept
+    (keyed by the database object); keyword arguments go to
+    :meth:`MotionRetriever.search`.
+    """
+    if not isinstance(db, MotionDatabase):
+        raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
+    key = id(db)
+    r = _RETRIEVERS.get(key)
+    if r is None or r.db is not db:
+        r = MotionRetriever(db)
+        _RETRIEVERS.clear()
+        _RETRIEVERS[key] = r
+    return r.search(target, current_pose, character, semantics, **kw)
+
+
+# ------------------------------------------------------------------ benchmark
+def _pose_motion(m: Motion, f: int) -> Motion:
+    return dataclasses.replace(m, rotations=m.rotations[f:f + 1], positions=m.positions[f:f + 1])
+
+
+def make_queries(db: MotionDatabase, n: int, seed: int = 0, *, noise: float = 0.05):
+    """Random queries for :func:`time_search`: (target, current pose, character, semantics).
+
+    The current pose is a random frame of a random original clip (on its actor, which is
+    the character); the target is a random point of a random clip's hit trajectory near
+    its hit (within 3 frames), moved by Gaussian noise of ``noise`` metres, rescaled to
+    the character (Eq. 1 inverted) -- so that most queries have clips whose box contains
+    ``c_r``, as in the paper's use.
+    """
+    rng = np.random.default_rng(seed)
+    originals = np.flatnonzero(db.source_clip == np.arange(db.n_clips))
+    out = []
+    for _ in range(n):
+        i = int(rng.choice(originals))
+        m = db.motion(i)
+        f = int(rng.integers(0, m.n_frames))
+        pose = _pose_motion(m, f)
+        character = Skeleton.from_motion(m)
+        j = int(rng.integers(0, db.n_clips))
+        h = int(db.hit_frame[j])
+        tf = int(np.clip(h + rng.integers(-3, 4), 0, db.n_frames[j] - 1))
+        c = db.trajectory(j)[tf] * (character.size / db.size_a[j]) + rng.normal(0, noise, 3)
+        out.append((c, pose, character, str(db.semantics[j])))
+    return out
+
+
+def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retriever: MotionRetriever | None = None,
+                methods: Sequence[str] = ("pruned", "exhaustive", "kdtree"), repeats: int = 3, noise: float = 0.05,
+                **retriever_kw) -> dict:
+    """Latency of the three searches on random queries (no assertion; for the figures).
+
+    Times, per query, the search proper given the prepared query (Eq. 1, cluster
+    selection, pruning, scoring, alignment) for each method, and separately
+    :meth:`MotionRetriever.prepare` (retargeting the current pose to the actor), which is
+    the same for every method.  Every method sees the same queries (:func:`make_queries`
+    with ``noise``), after a warm-up on the first 20.  Each query is run ``repeats``
+    times and its fastest time kept (the machine is shared: this removes most of the
+    scheduler noise, not the cache effects).
+
+    Returns
+    -------
+    dict
+        ``n_clips``, ``n_poses``, ``k``, ``precompute_s`` (building the retriever),
+        ``prepare_ms`` (p50, p99), per method ``{method: {"p50_ms", "p99_ms",
+        "mean_ms"}}`` under ``"latency"``, and ``"agreement"``: for ``pruned`` and
+        ``kdtree``, the fraction of queries whose selection (clip, start frame) differs
+        from the exhaustive optimum and the mean / max relative excess of ``d``; plus the
+        fallback counts of the pruned search.
+    """
+    t0 = time.perf_counter()
+    r = retriever if retriever is not None else MotionRetriever(db, **retriever_kw)
+    precompute = time.perf_counter() - t0
+    queries = make_queries(db, n_queries, seed, noise=noise)
+    prep_t, prepared = [], []
+    for c, pose, ch, sem in queries:
+        t = time.perf_counter()
+        qq = r.prepare(pose, ch)
+        prep_t.append(time.perf_counter() - t)
+        prepared.append((c, qq, sem))
+    fns = {"pruned": r.search, "exhaustive": r.search_exhaustive, "kdtree": r.search_kdtree}
+    lat, results = {}, {}
+    for mth in methods:
+        fn = fns[mth]
+        for c, qq, sem in prepared[: min(20, len(prepared))]:  # warm-up (and the lazy kd-tree build)
+            fn(c, qq, None, sem)
+        ts, res = [], []
+        for c, qq, sem in prepared:
+            best = np.inf
+            for _ in range(max(1, int(repeats))):
+                t = time.perf_counter()
+                out = fn(c, qq, None, sem)
+                best = min(best, time.perf_counter() - t)
+            res.append(out)
+            ts.append(best)
+        ts = np.array(ts) * 1e3
+        lat[mth] = {"p50_ms": float(np.percentile(ts, 50)), "p99_ms": float(np.percentile(ts, 99)),
+                    "mean_ms": float(ts.mean())}
+        results[mth] = res
+    agreement = {}
+    if "exhaustive" in results:
+        ex = results["exhaustive"]
+        for mth in results:
+            if mth == "exhaustive":
+                continue
+            diff = [(a.clip, a.start_frame) != (b.clip, b.start_frame) for a, b in zip(results[mth], ex)]
+            excess = np.array([(a.d - b.d) / max(b.d, 1e-12) for a, b in zip(results[mth], ex)])
+            agreement[mth] = {"differs": float(np.mean(diff)), "mean_excess": float(excess.mean()),
+                              "max_excess": float(excess.max()), "same_clip": float(np.mean(
+                                  [a.clip == b.clip for a, b in zip(results[mth], ex)]))}
+    fb = {}
+    for res in results.get("pruned", []):
+        fb[res.fallback] = fb.get(res.fallback, 0) + 1
+    pt = np.array(prep_t) * 1e3
+    return {"n_clips": db.n_clips, "n_poses": db.n_poses, "k": r.k, "n_queries": n_queries, "seed": seed,
+            "repeats": repeats, "noise_m": noise, "precompute_s": precompute if retriever is None else None,
+            "prepare_ms": {"p50_ms": float(np.percentile(pt, 50)), "p99_ms": float(np.percentile(pt, 99))},
+            "latency": lat, "agreement": agreement, "pruned_fallbacks": fb}
