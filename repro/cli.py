@@ -4,6 +4,8 @@
     repro run NAME [NAME ...]       write NAME.png and NAME.csv into figures/
     repro all                       run every registered figure
     repro bench attenuation         print speed ratios, write figures/bench_attenuation.csv
+    repro bench retrieval           search latency vs database size, write figures/retrieval_latency.csv
+    repro bench adaptation          retarget/adapt cost per frame, write figures/bench_adaptation.csv
     repro data list                 each dataset: present? verified?
     repro data fetch NAME           download (and verify) a dataset into the data folder
 
@@ -20,7 +22,7 @@ from pathlib import Path
 from repro.errors import ReproError, UnknownFigureError
 
 DEFAULT_OUT = "figures"
-BENCHES = ("attenuation",)
+BENCHES = ("attenuation", "retrieval", "adaptation")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -112,12 +114,17 @@ def main(argv=None) -> int:
 
             return _run(list(registry()), args.out, args.quick)
         if args.command == "bench":
-            from repro.bench import bench_attenuation, format_attenuation
+            from repro import bench
             from repro.io import write_csv
 
-            table = bench_attenuation(quick=args.quick)
-            print(format_attenuation(table))
-            print(f"wrote {write_csv(Path(args.out) / 'bench_attenuation.csv', table)}")
+            run_, fmt, csv_name = {
+                "attenuation": (bench.bench_attenuation, bench.format_attenuation, "bench_attenuation.csv"),
+                "retrieval": (bench.bench_retrieval, bench.format_retrieval, "retrieval_latency.csv"),
+                "adaptation": (bench.bench_adaptation, bench.format_adaptation, "bench_adaptation.csv"),
+            }[args.which]
+            table = run_(quick=args.quick)
+            print(fmt(table))
+            print(f"wrote {write_csv(Path(args.out) / csv_name, table)}")
             return 0
         if args.command == "data":
             return _data(args)

@@ -56,10 +56,11 @@ import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from functools import lru_cache
 
 import numpy as np
 
-from repro.errors import MotionError
+from repro.errors import DataError, MotionError, RetrievalError
 from repro.io import atomic_path
 from repro.motion.clustering import (
     POSE_ROLES,
@@ -1240,3 +1241,31 @@ def augment(db: MotionDatabase, factor: int, seed: int = 0, *, scale_range=(0.85
                                      "note": "synthetic variants of the original clips, for latency-vs-size only"}}
     return MotionDatabase(fps=db.fps, pose_roles=db.pose_roles, window=db.window, step=db.step, actors=db.actors,
                           motions=dict(db._motions), arrays=arrays, meta=meta)
+
+
+# ============================================================= the two default databases
+@lru_cache(maxsize=4)
+def default_database(name: str = "synthetic", seed: int = 0) -> MotionDatabase:
+    """A ready database by name, built once per process.
+
+    ``"synthetic"``: the embedded set of :func:`repro.motion.synthetic.synthetic_database`
+    (75 clips written to a temporary folder, built from its manifest), always available.
+    ``"cmu"``: :func:`build_cmu_database` from the staged CMU takes (needs dataset
+    ``cmu-bvh``; raises :class:`~repro.errors.DataError` saying how to get it).
+    """
+    if name == "synthetic":
+        import tempfile
+
+        from repro.motion.synthetic import synthetic_database
+
+        with tempfile.TemporaryDirectory(prefix="repro-synthetic-") as tmp:
+            synthetic_database(tmp, seed=seed)
+            return build_database(tmp)
+    if name == "cmu":
+        from repro import data
+
+        reason = data.missing_reason("cmu-bvh")
+        if reason:
+            raise DataError(reason)
+        return build_cmu_database()
+    raise RetrievalError(f"unknown database {name!r}; known: 'synthetic', 'cmu'")
