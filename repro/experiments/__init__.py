@@ -1,17 +1,17 @@
 """Every figure and measurement, one module each; importing this registers them all.
 
-See :mod:`repro.experiments.registry` for the registry and ``repro list``.
+Each public module of this package (not starting with ``_``) registers its
+experiment with :func:`repro.experiments.registry.experiment` when imported; they
+are discovered here, so adding a figure is adding a module.  See ``repro list``.
 """
 
-from repro.experiments import (  # noqa: F401  (each module registers its experiment)
-    alpha_sweep,
-    attenuation_speed,
-    fig2_interference,
-    fig3_attenuation,
-    fig4_axis_selection,
-    fig5_alpha,
-    rejected_alternatives,
-)
+import importlib
+import pkgutil
+
 from repro.experiments.registry import Result, experiment, get, registry, run
+
+for _info in sorted(pkgutil.iter_modules(__path__), key=lambda i: i.name):
+    if not _info.name.startswith("_") and _info.name != "registry":
+        importlib.import_module(f"{__name__}.{_info.name}")
 
 __all__ = ["Result", "experiment", "get", "registry", "run"]
