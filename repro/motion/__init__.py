@@ -153,3 +153,8 @@ __all__ += [
     "CCDSolution",
     "time_adaptation",
 ]
+
+# The other real sources of the database (Bandai Namco strikes, non-fighting takes).
+from repro.motion.database import build_bandai_database, build_real_database, non_fighting_poses  # noqa: E402
+
+__all__ += ["build_bandai_database", "build_real_database", "non_fighting_poses"]
