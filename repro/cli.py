@@ -35,6 +35,7 @@ def _parser() -> argparse.ArgumentParser:
             sp.add_argument("names", nargs="+", metavar="NAME")
         sp.add_argument("--out", default=DEFAULT_OUT, help="output folder (default: figures)")
         sp.add_argument("--quick", action="store_true", help="reduced sweeps (as CI runs them)")
+        sp.add_argument("--force", action="store_true", help="rerun even when inputs and outputs are unchanged")
     b = sub.add_parser("bench", help="benchmarks printing ratios against an in-process baseline")
     b.add_argument("which", choices=BENCHES)
     b.add_argument("--quick", action="store_true")
@@ -47,24 +48,32 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def _run(names, out: str, quick: bool) -> int:
+def _run(names, out: str, quick: bool, force: bool = False) -> int:
     from tqdm.auto import tqdm
 
-    from repro.experiments import registry, run
+    from repro.experiments import registry
+    from repro.experiments.registry import run_many
 
     reg = registry()
     unknown = [n for n in names if n not in reg]
     if unknown:
         print(f"repro: unknown figure {', '.join(map(repr, unknown))}; known: {', '.join(reg)}", file=sys.stderr)
         return 2
-    failed = []
-    for name in tqdm(names, desc="figures", unit="fig", delay=1.0):
-        try:
-            for path in run(name, out, quick=quick):
+    bar = tqdm(total=len(names), desc="figures", unit="fig", delay=1.0)
+
+    def report(name, status, paths):
+        if status == "cached":
+            tqdm.write(f"{name}: up to date (inputs unchanged; --force to rerun)")
+        elif status == "ran":
+            for path in paths:
                 tqdm.write(f"wrote {path}")
-        except ReproError as exc:
-            tqdm.write(f"repro: {name} failed: {exc}", file=sys.stderr)
-            failed.append(name)
+        else:
+            tqdm.write(f"repro: {name} {status}", file=sys.stderr)
+        bar.update()
+
+    status = run_many(names, out, quick=quick, force=force, on_result=report)
+    bar.close()
+    failed = [n for n, s in status.items() if s not in ("ran", "cached")]
     if failed:
         print(f"repro: {len(failed)} of {len(names)} failed: {', '.join(failed)}", file=sys.stderr)
         return 1
@@ -108,11 +117,11 @@ def main(argv=None) -> int:
                 print(f"{exp.name:28s} [{exp.paper}] {exp.caption}")
             return 0
         if args.command == "run":
-            return _run(args.names, args.out, args.quick)
+            return _run(args.names, args.out, args.quick, args.force)
         if args.command == "all":
             from repro.experiments import registry
 
-            return _run(list(registry()), args.out, args.quick)
+            return _run(list(registry()), args.out, args.quick, args.force)
         if args.command == "bench":
             from repro import bench
             from repro.io import write_csv

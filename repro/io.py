@@ -11,7 +11,7 @@ import os
 import tempfile
 from pathlib import Path
 
-__all__ = ["atomic_path", "write_csv", "write_text", "save_figure"]
+__all__ = ["atomic_path", "csv_text", "write_csv", "write_text", "save_figure"]
 
 
 @contextlib.contextmanager
@@ -38,11 +38,14 @@ def write_text(path, text: str) -> Path:
     return Path(path)
 
 
+def csv_text(table) -> str:
+    """The CSV text repro writes for a pandas DataFrame (no index, stable float format)."""
+    return table.to_csv(index=False, float_format="%.10g", lineterminator="\n")
+
+
 def write_csv(path, table) -> Path:
-    """Write a pandas DataFrame to ``path`` atomically (no index, stable float format)."""
-    with atomic_path(path) as tmp:
-        table.to_csv(tmp, index=False, float_format="%.10g", lineterminator="\n")
-    return Path(path)
+    """Write a pandas DataFrame to ``path`` atomically, as :func:`csv_text`."""
+    return write_text(path, csv_text(table))
 
 
 def save_figure(path, figure, **kw) -> Path:

@@ -38,7 +38,7 @@ def test_run_writes_png_and_csv(tmp_path, capsys):
     png = (tmp_path / "attenuation_speed.png").read_bytes()
     assert png.startswith(b"\x89PNG")
     assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "attenuation_speed-scaling.csv", "attenuation_speed.csv", "attenuation_speed.png"]
+        "attenuation_speed-scaling.csv", "attenuation_speed.csv", "attenuation_speed.png", "manifest.json"]
     scaling = pd.read_csv(tmp_path / "attenuation_speed-scaling.csv")
     assert set(scaling.sweep) == {"vertices", "shapes"} and (scaling.selection_speedup > 0).all()
 
@@ -59,3 +59,39 @@ def test_atomic_write_keeps_the_old_file_when_writing_fails(tmp_path):
             raise RuntimeError("writer crashed")
     assert target.read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["out.csv"]
+
+
+def test_manifest_records_provenance_and_reruns_only_what_changed(tmp_path, capsys):
+    import json
+
+    out = str(tmp_path)
+    assert cli.main(["run", "fig4_axis_selection", "--quick", "--out", out]) == 0
+    entry = json.loads((tmp_path / "manifest.json").read_text())["fig4_axis_selection"]
+    assert entry["function"] == "repro.experiments.fig4_axis_selection.fig4_axis_selection"
+    assert "notebooks/01_blendshape_interference.ipynb" in entry["notebooks"]
+    assert {f["file"] for f in entry["files"]} >= {"fig4_axis_selection.csv"}
+    assert entry["inputs"]["versions"]["numpy"] and len(entry["inputs"]["code_sha256"]) == 64
+    assert "ict" in entry["data"]
+    capsys.readouterr()
+    assert cli.main(["run", "fig4_axis_selection", "--quick", "--out", out]) == 0
+    assert "up to date" in capsys.readouterr().out
+    (tmp_path / "fig4_axis_selection.csv").write_text("tampered")  # a changed output is rebuilt
+    assert cli.main(["run", "fig4_axis_selection", "--quick", "--out", out]) == 0
+    assert "up to date" not in capsys.readouterr().out
+    assert (tmp_path / "fig4_axis_selection.csv").read_text() != "tampered"
+    assert cli.main(["run", "fig4_axis_selection", "--quick", "--force", "--out", out]) == 0
+    assert "up to date" not in capsys.readouterr().out
+
+
+def test_two_runs_give_identical_csvs_for_deterministic_figures():
+    """Every figure without wall-clock numbers writes the same CSV bytes twice (nbval and reviewers rely on it)."""
+    from repro.experiments import registry
+    from repro.io import csv_text
+
+    names = [n for n, e in registry().items() if not e.timing]
+    assert len(names) >= 5
+    for name in names:
+        first, second = (registry()[name].func(quick=True) for _ in range(2))
+        assert csv_text(first.table) == csv_text(second.table), name
+        for suffix, table in first.extra_tables.items():
+            assert csv_text(table) == csv_text(second.extra_tables[suffix]), (name, suffix)
