@@ -6,6 +6,7 @@
     repro bench attenuation         print speed ratios, write figures/bench_attenuation.csv
     repro bench retrieval           search latency vs database size, write figures/retrieval_latency.csv
     repro bench adaptation          retarget/adapt cost per frame, write figures/bench_adaptation.csv
+    repro claims                    the claims ledger (figures/claims.md, figures/claims.csv)
     repro data list                 each dataset: present? verified?
     repro data fetch NAME           download (and verify) a dataset into the data folder
 
@@ -40,6 +41,9 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("which", choices=BENCHES)
     b.add_argument("--quick", action="store_true")
     b.add_argument("--out", default=DEFAULT_OUT)
+    c = sub.add_parser("claims", help="the claims ledger: each claim, its measured value, a verdict")
+    c.add_argument("--full", action="store_true", help="measure with the full sweeps (default: the quick ones CI uses)")
+    c.add_argument("--out", default=DEFAULT_OUT)
     d = sub.add_parser("data", help="the datasets: list, fetch")
     dsub = d.add_subparsers(dest="data_command", required=True)
     dsub.add_parser("list", help="each dataset, whether present and verified")
@@ -107,6 +111,20 @@ def _data(args) -> int:
     return 0
 
 
+def _claims(args) -> int:
+    from repro import claims
+    from repro.io import write_csv, write_text
+
+    rows = claims.evaluate(quick=not args.full)
+    for r in rows:
+        print(f"{r['id']:4s} {r['embedded_verdict']:15s} {r['real_verdict']:15s} {r['statement'][:90]}")
+    print(claims.summary_line(rows))
+    out = Path(args.out)
+    print(f"wrote {write_text(out / 'claims.md', claims.to_markdown(rows))}")
+    print(f"wrote {write_csv(out / 'claims.csv', claims.ledger_table(rows))}")
+    return 0
+
+
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
     try:
@@ -135,6 +153,8 @@ def main(argv=None) -> int:
             print(fmt(table))
             print(f"wrote {write_csv(Path(args.out) / csv_name, table)}")
             return 0
+        if args.command == "claims":
+            return _claims(args)
         if args.command == "data":
             return _data(args)
     except UnknownFigureError as exc:
