@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
 # Install everything repro needs, on a fresh Debian machine with Python >= 3.11 and pip:
 #  - system libraries for headless 3D rendering (Mesa EGL, OSMesa fallback; see ../shared/notes/toolchain.md)
-#  - a virtual environment .venv with repro and its dev extra (pytest, nbval, hypothesis, ...)
+#  - Debian's Chromium (/usr/bin/chromium), which the browser tests (tests/browser) drive through
+#    Playwright; about 500 MB the first time, a quick dpkg check afterwards.  Playwright's own browser
+#    download (`playwright install`) is never used.
+#  - a virtual environment .venv with repro and its dev extra (pytest, nbval, hypothesis, playwright, ...)
 # Safe to run again: it installs only what is missing or changed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -16,8 +19,8 @@ apt_install() {
 
 if command -v dpkg >/dev/null 2>&1; then
   missing=()
-  for p in libegl1 libgl1-mesa-dri libosmesa6 libxrender1; do
-    dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
+  for p in libegl1 libgl1-mesa-dri libosmesa6 libxrender1 chromium chromium-driver; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
   done
   "$PY" -c "import ensurepip" >/dev/null 2>&1 || missing+=("python3-venv")
   if [ ${#missing[@]} -gt 0 ]; then
