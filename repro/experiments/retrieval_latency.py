@@ -1,0 +1,243 @@
+"""Pronost et al., Sections 3.2.2-3.3 and 4: retrieval latency and quality versus database size and k.
+
+The paper's search ("Search" thread, Section 4) takes "almost 0.28 s" on a Pentium 4 for
+a database of about 75 motions, while the system must react to the supervisor "in less
+than 1/30 s" (Section 3.4.2).  Both are drawn as reference lines, not as pass/fail
+thresholds (another machine, another implementation, 2008).
+
+What the numbers are
+--------------------
+``table`` is :func:`repro.bench.bench_retrieval` (the contract of
+``figures/retrieval_latency.csv``): for each base database (the synthetic one always,
+the CMU one when dataset ``cmu-bvh`` is present) and each augmentation factor (1x and 10x
+with ``quick``; 1x, 10x, 100x otherwise), the same random queries
+(:func:`repro.motion.retrieval.make_queries`) are answered by three methods of
+:class:`repro.motion.retrieval.MotionRetriever`, in one process:
+
+* ``pruned`` -- the paper's algorithm (:meth:`~MotionRetriever.search`): Eq. 1, nearest
+  cluster centroid to ``q_r``, box test on ``c_r``, minimum of ``d = w_q d_qr + w_c d_cr``
+  over what is left (with the documented fallbacks when nothing is left);
+* ``exhaustive`` -- the same ``d`` over every startable pose of the semantics (the exact
+  optimum of ``d``; :meth:`~MotionRetriever.search_exhaustive`);
+* ``kdtree`` -- a k-d tree over a pose + hit-point feature, 32 neighbours rescored with
+  ``d`` (:meth:`~MotionRetriever.search_kdtree`).
+
+``p50_ms`` / ``p99_ms`` are percentiles over the queries of the *search proper* given a
+prepared query (each query run 3 times, its fastest time kept).  The query preparation
+-- retargeting the current pose ``q`` to the database actor(s) to get ``q_r``
+(:meth:`MotionRetriever.prepare`, Section 3.4.1) -- is the same for every method and is
+reported separately as ``prepare_p50_ms`` (drawn as a grey line): a full query costs
+``prepare_p50_ms + p50_ms``.  ``precompute_s`` is building the retriever (k-means and
+indices, once per database, Section 3.2.2), not part of a query.  ``k`` is the number of
+clusters (:func:`repro.motion.clustering.default_k`, which grows as the square root of
+the number of poses).
+
+Quality: ``differs_from_exhaustive`` is the fraction of queries whose selected (clip,
+start frame) is not the exhaustive optimum; ``mean_excess_d`` is the mean over *all*
+queries of the relative excess ``(d - d_opt) / d_opt``; ``mean_excess_when_differs`` (added
+here) is the same mean over the queries that differ only (``mean_excess_d /
+differs_from_exhaustive``): "how much worse, when it is worse".  The pruned candidates are
+a subset of the exhaustive ones, so the excess is never negative.
+
+The 10x and 100x databases are made by :func:`repro.motion.database.augment` (mirrored,
+rescaled, time-warped, noisy *variants* of the base clips), not new captures: they are
+strongly correlated with their sources, which flatters both the clustering and the
+box pruning compared with as many real motions.
+
+``extra_tables["k_sweep"]``: on each base database, :class:`MotionRetriever` with
+``k`` in 4, 8, 16, 32, 64 (full: 2 ... 128) and the default ``k``: the pruned search's p50
+/ p99 latency, the exhaustive p50 measured in the same call, the differs fraction, the
+excess of ``d``, how often each fallback was taken, and the mean number of poses scored.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pandas as pd
+
+from repro.bench import PAPER_SEARCH_S, REACTION_BUDGET_S, bench_retrieval, retrieval_summary
+from repro.experiments.registry import Result, experiment
+
+#: Cluster counts of the k sweep.
+K_VALUES_QUICK = (4, 8, 16, 32, 64)
+K_VALUES_FULL = (2, 4, 8, 16, 32, 64, 128)
+
+METHOD_STYLE = {"pruned": ("C0", "pruned (paper: cluster + box)"), "exhaustive": ("C3", "exhaustive scan"),
+                "kdtree": ("C2", "k-d tree + rescoring")}
+
+
+def base_databases() -> list[str]:
+    """The base databases measured: synthetic always, CMU when its data is present."""
+    from repro import data
+
+    return ["synthetic"] + (["cmu"] if data.missing_reason("cmu-bvh") is None else [])
+
+
+def k_sweep(databases=None, k_values=K_VALUES_QUICK, *, n_queries: int = 100, seed: int = 0) -> pd.DataFrame:
+    """The pruned search on each base database for several numbers of clusters ``k``.
+
+    For every ``k`` (and the default one), :func:`repro.motion.retrieval.time_search` times
+    the pruned and the exhaustive search on the same ``n_queries`` queries; then the
+    pruned search is run once more per query (untimed) to count the poses it scored and
+    the fallbacks it took.
+    """
+    from repro.motion.clustering import default_k
+    from repro.motion.database import default_database
+    from repro.motion.retrieval import MotionRetriever, make_queries, time_search
+
+    rows = []
+    for name in databases or base_databases():
+        db = default_database(name)
+        kd = default_k(db.n_poses)
+        queries = make_queries(db, n_queries, seed)
+        prepared = None
+        for k in sorted(set(k_values) | {kd}):
+            t0 = time.perf_counter()
+            r = MotionRetriever(db, k=k, seed=seed)
+            pre = time.perf_counter() - t0
+            if prepared is None:  # q_r does not depend on the clusters: prepare once per database
+                prepared = [(c, r.prepare(pose, ch), sem) for c, pose, ch, sem in queries]
+            t = time_search(db, n_queries=n_queries, seed=seed, retriever=r, methods=("pruned", "exhaustive"))
+            res = [r.search(c, q, None, sem) for c, q, sem in prepared]
+            ag = t["agreement"]["pruned"]
+            fb = t["pruned_fallbacks"]
+            rows.append(dict(
+                database=name, n_clips=db.n_clips, n_poses=db.n_poses, k=r.k, k_asked=k, is_default_k=k == kd,
+                mean_cluster_size=db.n_poses / r.k, p50_ms=t["latency"]["pruned"]["p50_ms"],
+                p99_ms=t["latency"]["pruned"]["p99_ms"], exhaustive_p50_ms=t["latency"]["exhaustive"]["p50_ms"],
+                differs_from_exhaustive=ag["differs"], same_clip=ag["same_clip"], mean_excess_d=ag["mean_excess"],
+                mean_excess_when_differs=ag["mean_excess"] / ag["differs"] if ag["differs"] > 0 else 0.0,
+                max_excess_d=ag["max_excess"],
+                fallback_none=fb.get("none", 0) / n_queries,
+                fallback_neighbour_clusters=fb.get("neighbour_clusters", 0) / n_queries,
+                fallback_no_box=fb.get("no_box", 0) / n_queries,
+                mean_poses_scored=float(np.mean([x.n_candidates for x in res])),
+                median_poses_scored=float(np.median([x.n_candidates for x in res])),
+                mean_poses_exhaustive=float(np.mean([r.sem_rows[sem].size for _, _, sem in prepared])),
+                precompute_s=pre, n_queries=n_queries,
+            ))
+    return pd.DataFrame(rows)
+
+
+@experiment("retrieval_latency", "Retrieval latency versus database size (1x-100x) and number of clusters k; "
+            "quality against the exhaustive optimum", paper="pronost2008")
+def retrieval_latency(quick: bool = False) -> Result:
+    table = bench_retrieval(quick=quick, progress=False)
+    differs = table.differs_from_exhaustive
+    table["mean_excess_when_differs"] = (table.mean_excess_d / differs.where(differs > 0)).fillna(0.0)
+    ks = k_sweep(sorted(set(table.database), key=list(table.database).index),
+                 K_VALUES_QUICK if quick else K_VALUES_FULL, n_queries=100 if quick else 200)
+    return Result(table=table, draw=lambda: draw(table, ks), extra_tables={"k_sweep": ks})
+
+
+def _latency_panel(ax, g: pd.DataFrame, name: str) -> None:
+    for method, sub in g.groupby("method", sort=False):
+        sub = sub.sort_values("n_poses")
+        color, label = METHOD_STYLE.get(method, (None, method))
+        ax.plot(sub.n_poses, sub.p50_ms, "o-", color=color, label=f"{label}: p50")
+        ax.plot(sub.n_poses, sub.p99_ms, "s--", color=color, alpha=0.6, ms=4, label=f"{label}: p99")
+    prep = g.groupby("n_poses").prepare_p50_ms.first()
+    ax.plot(prep.index, prep.values, ":", color="0.45", label="query preparation q -> q_r (shared), p50")
+    ax.axhline(PAPER_SEARCH_S * 1e3, color="k", lw=1.2)
+    ax.annotate("paper: 0.28 s (Pentium 4, ~75 motions)", (0.01, PAPER_SEARCH_S * 1e3),
+                xycoords=("axes fraction", "data"),
+                va="bottom", fontsize=7)
+    ax.axhline(REACTION_BUDGET_S * 1e3, color="k", ls="--", lw=1.0)
+    ax.annotate("reaction budget 1/30 s", (0.01, REACTION_BUDGET_S * 1e3), xycoords=("axes fraction", "data"),
+                va="bottom", fontsize=7)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    lo = min(g.p50_ms.min(), g.prepare_p50_ms.min()) / 6
+    ax.set_ylim(lo, PAPER_SEARCH_S * 1e3 * 3)
+    for (f, n, c, k), _ in g.groupby(["factor", "n_poses", "n_clips", "k"]):
+        ax.annotate(f"{f}x: {c:,} clips\n{n:,} poses, k={k}", (n, lo), xytext=(0, 3), textcoords="offset points",
+                    ha="center", va="bottom", fontsize=6, color="0.3")
+    xs = np.sort(g.n_poses.unique())
+    ax.set_xlim(xs[0] / 1.6, xs[-1] * 1.6)
+    _no_minor_labels(ax)
+    ax.set_xlabel("poses in the database (log)")
+    ax.set_ylabel("search latency per query (ms, log)")
+    ax.set_title(f"{name} database: latency vs size", fontsize=9)
+    s = retrieval_summary(g)[name]
+    ax.text(0.02, 0.62, f"pruned search p50 at 1x: {s['base_p50_ms']:.3f} ms (+ {g.prepare_p50_ms.iloc[0]:.2f} ms "
+            f"preparation)\npruned vs exhaustive at {s['largest_factor']}x: "
+            f"{s['speedup_vs_exhaustive_at_largest']:.1f}x "
+            f"faster (p50)\nlog-log slope of the pruned p50: {s['loglog_slope_pruned']:.2f}",
+            transform=ax.transAxes, ha="left", va="top", fontsize=7,
+            bbox=dict(boxstyle="round", fc="white", ec="0.7"))
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=6, loc="center right")
+
+
+def _no_minor_labels(ax) -> None:
+    from matplotlib.ticker import NullFormatter
+
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.yaxis.set_minor_formatter(NullFormatter())
+
+
+def draw(table: pd.DataFrame, ks: pd.DataFrame):
+    """Top row: latency vs size per base database.  Bottom row: quality vs size, quality and latency vs k."""
+    import matplotlib.pyplot as plt
+
+    names = list(dict.fromkeys(table.database))
+    top = [f"lat:{n}" for n in names] + (["lat:none"] if len(names) == 1 else [])
+    mosaic = [[top[0], top[0], top[1], top[1]], ["q_differs", "q_excess", "k_quality", "k_latency"]]
+    fig, ax = plt.subplot_mosaic(mosaic, figsize=(16, 9.5), layout="constrained", height_ratios=[1.25, 1])
+    for n in names:
+        _latency_panel(ax[f"lat:{n}"], table[table.database == n], n)
+    if "lat:none" in ax:
+        a = ax["lat:none"]
+        a.axis("off")
+        a.text(0.5, 0.5, "CMU database: dataset 'cmu-bvh' not present\n(repro data fetch cmu-bvh)", ha="center",
+               va="center", fontsize=9, transform=a.transAxes)
+    lines = {"synthetic": "-", "cmu": "--"}
+    for n in names:
+        g = table[(table.database == n) & (table.method != "exhaustive")]
+        for method, sub in g.groupby("method", sort=False):
+            sub = sub.sort_values("n_poses")
+            color, label = METHOD_STYLE[method]
+            ax["q_differs"].plot(sub.n_poses, 100 * sub.differs_from_exhaustive, "o" + lines.get(n, "-"), color=color,
+                                 label=f"{n}: {method}")
+            ax["q_excess"].plot(sub.n_poses, 100 * sub.mean_excess_when_differs, "o" + lines.get(n, "-"), color=color,
+                                label=f"{n}: {method}")
+    for key, ylabel, title in [("q_differs", "queries whose choice differs (%)",
+                                "choice differs from the exhaustive optimum"),
+                               ("q_excess", "mean excess of d when it differs (%)", "penalty: (d - d_opt) / d_opt")]:
+        a = ax[key]
+        a.set_xscale("log")
+        _no_minor_labels(a)
+        a.set_xlabel("poses in the database (log)")
+        a.set_ylabel(ylabel)
+        a.set_title(f"vs size: {title}", fontsize=9)
+        a.set_ylim(bottom=0)
+        a.grid(alpha=0.3)
+        a.legend(fontsize=6)
+    for n in ks.database.unique():
+        g = ks[ks.database == n].sort_values("k")
+        ls = lines.get(n, "-")
+        ax["k_quality"].plot(g.k, 100 * g.differs_from_exhaustive, "o" + ls, color="C0", label=f"{n}: differs (%)")
+        ax["k_quality"].plot(g.k, 100 * g.mean_excess_when_differs, "^" + ls, color="C1",
+                             label=f"{n}: excess of d when it differs (%)")
+        ax["k_quality"].plot(g.k, 100 * g.fallback_no_box, "x" + ls, color="0.5", label=f"{n}: no box contains c_r (%)")
+        ax["k_latency"].plot(g.k, g.p50_ms, "o" + ls, color="C0", label=f"{n}: pruned p50")
+        ax["k_latency"].plot(g.k, g.exhaustive_p50_ms, "s" + ls, color="C3", ms=4, label=f"{n}: exhaustive p50")
+        d = g[g.is_default_k]
+        ax["k_quality"].plot(d.k, 100 * d.differs_from_exhaustive, "o", ms=11, mfc="none", color="k")
+        ax["k_latency"].plot(d.k, d.p50_ms, "o", ms=11, mfc="none", color="k")
+    for key, ylabel in [("k_quality", "% (of queries; excess: % of d_opt)"), ("k_latency", "search latency p50 (ms)")]:
+        a = ax[key]
+        a.set_xscale("log", base=2)
+        a.set_xlabel("clusters k (log2; circled: default k)")
+        a.set_ylabel(ylabel)
+        a.set_title(f"base database{'s' if ks.database.nunique() > 1 else ''}: vs k", fontsize=9)
+        a.grid(alpha=0.3)
+        a.legend(fontsize=6)
+    ax["k_quality"].set_ylim(0, 100 * max(ks.differs_from_exhaustive.max(), ks.mean_excess_when_differs.max()) * 1.5)
+    ax["k_quality"].legend(fontsize=6, ncol=2, loc="upper center")
+    ax["k_latency"].set_ylim(bottom=0)
+    fig.suptitle(f"Retrieval latency and quality (Pronost et al. Sections 3.3, 4) — {table['machine'].iloc[0]}",
+                 fontsize=9)
+    return fig

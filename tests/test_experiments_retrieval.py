@@ -1,0 +1,128 @@
+"""The retrieval figures of Pronost et al.: ``retrieval_latency`` (Fig. 1) and ``clusters`` (Fig. 6).
+
+What is asserted, on the data the experiments return (quick mode, as CI runs them):
+
+* the paper's pruned search answers within the 1/30 s reaction budget at the base size (p50);
+* at the largest size of the run, the pruned search is faster than the exhaustive scan
+  (both measured in the same process, on the same queries: a comparison, not a time);
+* the k sweep has the columns the notebook and the figure read, one row per (database, k),
+  the default k among them, and quality numbers in range;
+* the cluster table's sizes sum to the number of poses of each database, and the box table
+  holds one row per clip with non-negative extents;
+* both experiments are registered (paper "pronost2008"), and ``run`` writes their PNG and CSVs.
+
+``retrieval_latency`` is computed once for the module (about 25 s with the CMU data); the
+``run`` test writes that same result through the registry instead of measuring again.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import repro.experiments as E
+from repro.bench import REACTION_BUDGET_S
+from repro.motion.database import default_database
+
+# the module (the package exports a function of the same name)
+registry = importlib.import_module("repro.experiments.registry")
+
+
+@pytest.fixture(scope="module")
+def latency():
+    return E.get("retrieval_latency").func(quick=True)
+
+
+@pytest.fixture(scope="module")
+def clusters():
+    return E.get("clusters").func(quick=True)
+
+
+def test_both_registered_for_pronost():
+    reg = E.registry()
+    for name in ("retrieval_latency", "clusters"):
+        assert name in reg
+        assert reg[name].paper == "pronost2008"
+        assert reg[name].module == f"repro.experiments.{name}"
+
+
+def test_latency_table_is_the_bench_contract(latency):
+    t = latency.table
+    assert list(t.columns[:7]) == ["database", "factor", "n_clips", "n_poses", "method", "p50_ms", "p99_ms"]
+    assert "synthetic" in set(t.database)
+    assert set(t.method) == {"pruned", "exhaustive", "kdtree"}
+    assert set(t.factor) == {1, 10}  # quick
+    assert (t[t.method == "exhaustive"].differs_from_exhaustive == 0).all()
+    assert t.differs_from_exhaustive.between(0, 1).all()
+    assert (t.mean_excess_d >= 0).all() and (t.mean_excess_when_differs >= t.mean_excess_d - 1e-12).all()
+
+
+def test_pruned_search_within_reaction_budget_at_base_size(latency):
+    t = latency.table
+    base = t[(t.factor == 1) & (t.method == "pruned")]
+    assert len(base) == t.database.nunique()
+    assert (base.p50_ms < REACTION_BUDGET_S * 1e3).all(), base[["database", "p50_ms"]]
+    assert (base.n_clips >= 70).all()  # the paper's ~75 motions
+
+
+def test_pruned_faster_than_exhaustive_at_largest_size(latency):
+    t = latency.table
+    for name, g in t.groupby("database"):
+        big = g[g.n_poses == g.n_poses.max()].set_index("method")
+        assert big.loc["pruned", "p50_ms"] < big.loc["exhaustive", "p50_ms"], (name, big[["p50_ms"]])
+
+
+def test_k_sweep_columns_and_rows(latency):
+    ks = latency.extra_tables["k_sweep"]
+    expected = {"database", "n_clips", "n_poses", "k", "is_default_k", "p50_ms", "p99_ms", "exhaustive_p50_ms",
+                "differs_from_exhaustive", "mean_excess_d", "mean_excess_when_differs", "same_clip",
+                "fallback_none", "fallback_neighbour_clusters", "fallback_no_box", "mean_poses_scored",
+                "median_poses_scored", "mean_poses_exhaustive", "precompute_s"}
+    assert expected <= set(ks.columns)
+    assert set(ks.database) == set(latency.table.database)
+    for name, g in ks.groupby("database"):
+        assert {4, 8, 16, 32, 64} <= set(g.k)
+        assert g.is_default_k.sum() == 1 and g.k.is_unique
+        fb = g.fallback_none + g.fallback_neighbour_clusters + g.fallback_no_box
+        np.testing.assert_allclose(fb, 1.0)
+        assert g.differs_from_exhaustive.between(0, 1).all()
+        assert (g.mean_poses_scored <= g.mean_poses_exhaustive).all()
+        # more clusters, fewer poses scored per query (the point of clustering)
+        g = g.sort_values("k")
+        assert g.median_poses_scored.iloc[-1] < g.median_poses_scored.iloc[0]
+
+
+def test_cluster_sizes_sum_to_poses(clusters):
+    t = clusters.table
+    for name, g in t.groupby("database"):
+        db = default_database(name)
+        assert g["size"].sum() == db.n_poses
+        assert len(g) == g.k.iloc[0] and (g["size"] > 0).all()
+        assert (g.punch_poses + g.kick_poses == g["size"]).all()
+    boxes = clusters.extra_tables["boxes"]
+    for name, b in boxes.groupby("database"):
+        db = default_database(name)
+        assert len(b) == db.n_clips
+        assert (b[["extent_x", "extent_y", "extent_z"]] >= 0).all().all()
+        # a target at a clip's own hit point passes at least that clip's box test
+        assert (b.boxes_containing_hit >= 1).all()
+
+
+def test_run_writes_png_and_csvs(tmp_path, monkeypatch, latency):
+    # clusters: a real run through the registry
+    written = {p.name for p in E.run("clusters", tmp_path, quick=True)}
+    assert {"clusters.csv", "clusters-boxes.csv", "clusters.png"} <= written
+    # retrieval_latency: the module's result, written through the registry (no second measurement)
+    exp = registry.get("retrieval_latency")
+    monkeypatch.setitem(registry._REGISTRY, "retrieval_latency", dataclasses.replace(exp, func=lambda quick: latency))
+    written = {p.name for p in E.run("retrieval_latency", tmp_path, quick=True)}
+    assert {"retrieval_latency.csv", "retrieval_latency-k_sweep.csv", "retrieval_latency.png"} <= written
+    for name in written | {"clusters.png"}:
+        assert (tmp_path / name).stat().st_size > 0
+    t = pd.read_csv(tmp_path / "retrieval_latency.csv")
+    assert list(t.columns[:7]) == ["database", "factor", "n_clips", "n_poses", "method", "p50_ms", "p99_ms"]
+    assert (tmp_path / "clusters.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
