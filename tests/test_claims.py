@@ -16,7 +16,8 @@ def test_every_claim_has_a_statement_figure_notebook_and_values(rows):
     from repro.experiments import registry
 
     ids = [r["id"] for r in rows]
-    assert len(ids) == len(set(ids)) and {f"L{i}" for i in range(1, 11)} <= set(ids)
+    assert len(ids) == len(set(ids))
+    assert {f"L{i}" for i in range(1, 11)} | {f"K{i}" for i in range(1, 8)} == set(ids)
     for r in rows:
         assert r["figure"] in registry(), r["id"]
         assert r["notebook"].startswith("notebooks/") and r["statement"] and r["criterion"]
