@@ -46,3 +46,12 @@ def test_repro_claims_writes_markdown_and_csv(tmp_path, capsys, monkeypatch, row
     md = (tmp_path / "claims.md").read_text()
     assert md.startswith("# Claims ledger") and all(f"| {r['id']} |" in md for r in rows)
     assert (tmp_path / "claims.csv").read_text().startswith("id,paper,")
+
+
+def test_readme_shows_the_measured_summary_line(rows):
+    from tests.conftest import REPO
+
+    if any(data.missing_reason(d) for d in DATASET.values()):
+        pytest.skip("the README's line is measured with the real datasets present")
+    line = claims.summary_line([r for r in rows if not r["timing"]])
+    assert line in (REPO / "README.md").read_text(), f"README.md should show: {line}"
