@@ -192,21 +192,10 @@ def foot_slide(motion, contacts: np.ndarray, *, skeleton=None, globals_=None) ->
 
 
 def effector(db, i: int) -> str:
-    """The :func:`~repro.motion.adaptation.adapt` effector role whose joint is clip ``i``'s hit joint.
+    """The :func:`~repro.motion.adaptation.adapt` effector role of clip ``i`` (see :func:`repro.motion.database.effector_role`)."""
+    from repro.motion.database import effector_role
 
-    A clip's ``hit_role`` names the striking limb's default hit point (``left_foot`` =
-    the toe joint), but its ``hit_joint`` can be another joint of that limb: the synthetic
-    side and round kicks hit with the heel (``LeftFoot``, the ankle joint).  Driving the
-    role's joint would put the *toe* on the target.
-    """
-    roles = db.actor_skeleton(i).roles
-    role, joint = str(db.hit_roles[i]), str(db.hit_joints[i])
-    side, stem = role.split("_", 1)
-    stems = ("fist", "hand", "wrist") if stem in ("fist", "hand", "wrist") else ("foot", "toe", "ankle")
-    for r in (role,) + tuple(f"{side}_{s}" for s in stems):
-        if roles.get(r) == joint:
-            return r
-    raise ValueError(f"clip {db.names[i]}: no {side} effector role for hit joint {joint!r}")
+    return effector_role(db.actor_skeleton(i).roles, str(db.hit_roles[i]), str(db.hit_joints[i]))
 
 
 def bone_length_error(motion, skeleton, *, globals_=None) -> float:

@@ -91,6 +91,8 @@ __all__ = [
     "build_cmu_database",
     "load_or_build",
     "augment",
+    "default_database",
+    "effector_role",
 ]
 
 #: Common frame rate of the database (the retrieval compares poses frame by frame).
@@ -1725,3 +1727,19 @@ __all__ += [
     "non_fighting_poses",
     "match_rest_pose",
 ]
+
+
+def effector_role(roles: Mapping[str, str], hit_role: str, hit_joint: str) -> str:
+    """The role (of a skeleton's ``roles``) whose joint is a clip's hit joint: the effector to adapt.
+
+    A clip's ``hit_role`` names its striking limb's default hit point (``left_foot`` is
+    the toe joint), but its ``hit_joint`` can be another joint of that limb: the
+    synthetic side and round kicks strike with the heel (``LeftFoot``, the ankle).
+    Driving the role's own joint onto the target would put the toe there instead.
+    """
+    side, _, stem = hit_role.partition("_")
+    stems = ("fist", "hand", "wrist") if stem in ("fist", "hand", "wrist") else ("foot", "toe", "ankle")
+    for role in (hit_role,) + tuple(f"{side}_{s}" for s in stems):
+        if roles.get(role) == hit_joint:
+            return role
+    raise MotionError(f"no {side} effector role maps to the hit joint {hit_joint!r} (hit role {hit_role!r})")

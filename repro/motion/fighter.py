@@ -92,7 +92,7 @@ import numpy as np
 from repro.errors import MotionError, RetrievalError
 from repro.motion.adaptation import Adaptation, adapt
 from repro.motion.clustering import root_frames, rotate_y, to_root_frame
-from repro.motion.database import SEMANTICS, MotionDatabase, _slerp, cut
+from repro.motion.database import SEMANTICS, MotionDatabase, _slerp, cut, effector_role
 from repro.motion.morphology import retarget
 from repro.motion.motion import Motion, quat_multiply
 from repro.motion.retrieval import MotionRetriever, RetrievalResult
@@ -128,9 +128,6 @@ MAX_TURN_RATE: float = math.radians(270.0)
 ORDER_KINDS: tuple[str, ...] = tuple(SEMANTICS)
 #: Measured stages of an order, in :attr:`Strike.timings` (seconds).
 STAGES: tuple[str, ...] = ("prepare", "search", "load_convert", "adapt", "first_frame")
-
-_EFFECTOR_STEMS = ("fist", "foot", "toe", "ankle", "hand", "wrist")
-
 
 # ------------------------------------------------------------------ characters
 def character_from(height: float = 1.75, arm_scale: float = 1.0, leg_scale: float = 1.0, *, base=None) -> Skeleton:
@@ -271,14 +268,10 @@ def _wrap(a: float) -> float:
 
 def _effector(sk: Skeleton, hit_role: str, hit_joint: str) -> str:
     """The adaptation effector role whose joint is the clip's hit joint (``"right_ankle"`` for a heel kick)."""
-    side = hit_role.partition("_")[0]
-    if sk.roles.get(hit_role) == hit_joint:
-        return hit_role
-    for stem in _EFFECTOR_STEMS:
-        r = f"{side}_{stem}"
-        if sk.roles.get(r) == hit_joint:
-            return r
-    raise RetrievalError(f"no effector role of the character is the hit joint {hit_joint!r} ({hit_role})")
+    try:
+        return effector_role(sk.roles, hit_role, hit_joint)
+    except MotionError as exc:
+        raise RetrievalError(str(exc)) from None
 
 
 def check_target(target) -> np.ndarray:
