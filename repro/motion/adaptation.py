@@ -105,7 +105,7 @@ import numpy as np
 
 from repro.errors import MotionError
 from repro.motion.morphology import _cross, _fk, _levels, _min_rotation, _normalize, _qrot, _transport, foot_contacts
-from repro.motion.motion import Motion, quat_multiply
+from repro.motion.motion import Motion, finite_vector3, quat_multiply
 from repro.motion.skeleton import Skeleton
 
 __all__ = [
@@ -170,15 +170,7 @@ def _check_int(name: str, v, lo: int, hi: int) -> int:
 
 
 def _vec3(name: str, v) -> np.ndarray:
-    try:
-        a = np.asarray(v, dtype=float)
-    except (TypeError, ValueError):
-        raise MotionError(f"{name} must be a 3-vector of numbers, got {v!r}") from None
-    if a.shape != (3,):
-        raise MotionError(f"{name} must be a 3-vector, got shape {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise MotionError(f"{name} contains NaN or inf: {a}")
-    return a
+    return finite_vector3(v, name, MotionError)
 
 
 def offset_curve(

@@ -1112,20 +1112,7 @@ def build_cmu_database(takes: Mapping[str, str] | Sequence[str] | None = None, *
     repro.errors.DataError
         If the staged CMU files are missing (:func:`repro.data.fetch`).
     """
-    from repro import data
-
-    if takes is None:
-        takes = CMU_TAKES
-    if not isinstance(takes, Mapping):
-        takes = {t: CMU_TAKES.get(t, "") for t in takes}
-    clips: list[Clip] = []
-    for take, kind in takes.items():
-        path = data.fetch(f"mocap/cmu/{take}.bvh")
-        m = _read(path, CMU_UNIT_M)
-        m = dataclasses.replace(m, source=f"mocap/cmu/{take}.bvh")
-        sem = "kick" if kind.endswith("kick") else "punch"
-        hits = detect_hits(m, semantics=sem, **dict(detect_kw or {}))
-        clips += _clips_from_take(m, take, fps=fps, window=window, hits=hits, kind=kind)
+    clips, takes = _cmu135_clips(takes, fps=fps, window=window, detect_kw=detect_kw)
     return MotionDatabase.from_clips(clips, pose_roles=pose_roles, window=pose_window,
                                      meta={"built_from": "mocap/cmu", "takes": dict(takes), "annotations": "detect_hits",
                                            "fps": fps, "window": list(window)})

@@ -94,7 +94,7 @@ from repro.motion.adaptation import Adaptation, adapt
 from repro.motion.clustering import root_frames, rotate_y, to_root_frame
 from repro.motion.database import SEMANTICS, MotionDatabase, _slerp, cut, effector_role
 from repro.motion.morphology import retarget
-from repro.motion.motion import Motion, quat_multiply
+from repro.motion.motion import Motion, finite_vector3, quat_multiply
 from repro.motion.retrieval import MotionRetriever, RetrievalResult
 from repro.motion.skeleton import Skeleton, rescale_constraint, scale_skeleton, skeleton_of
 
@@ -276,14 +276,7 @@ def _effector(sk: Skeleton, hit_role: str, hit_joint: str) -> str:
 
 def check_target(target) -> np.ndarray:
     """A finite 3-vector inside :data:`AREA`, else :class:`RetrievalError`."""
-    try:
-        c = np.asarray(target, dtype=float)
-    except (TypeError, ValueError):
-        raise RetrievalError(f"target must be a 3-vector (x, y, z) of numbers, got {target!r}") from None
-    if c.shape != (3,):
-        raise RetrievalError(f"target must be a 3-vector (x, y, z) in metres, got shape {c.shape}")
-    if not np.all(np.isfinite(c)):
-        raise RetrievalError(f"target contains NaN or inf: {c.tolist()}")
+    c = finite_vector3(target, "target (x, y, z) in metres", RetrievalError)
     for v, (a, b), name in zip(c, AREA, "xyz"):
         if not a - 1e-9 <= v <= b + 1e-9:
             raise RetrievalError(

@@ -45,7 +45,7 @@ from functools import cached_property
 
 import numpy as np
 
-from repro.errors import BVHError
+from repro.errors import BVHError, MotionError
 
 __all__ = [
     "Motion",
@@ -53,6 +53,7 @@ __all__ = [
     "BANDAI_UNIT_M",
     "POSITION_CHANNELS",
     "ROTATION_CHANNELS",
+    "finite_vector3",
     "quat_multiply",
     "quat_rotate",
     "euler_to_quat",
@@ -72,6 +73,24 @@ POSITION_CHANNELS: tuple[str, str, str] = ("Xposition", "Yposition", "Zposition"
 ROTATION_CHANNELS: tuple[str, str, str] = ("Xrotation", "Yrotation", "Zrotation")
 
 _AXIS = {"X": 0, "Y": 1, "Z": 2}
+
+
+def finite_vector3(value, name: str, error=None) -> np.ndarray:
+    """``value`` as a finite float 3-vector, or ``error`` (default :class:`MotionError`) naming ``name``.
+
+    The one check every 3-D input of the motion library goes through (targets,
+    offsets, positions), so bad input gets the same clear message everywhere.
+    """
+    error = MotionError if error is None else error
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise error(f"{name} must be a 3-vector of numbers, got {value!r}") from None
+    if a.shape != (3,):
+        raise error(f"{name} must be a 3-vector, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise error(f"{name} contains NaN or inf: {a.tolist()}")
+    return a
 
 
 def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -78,7 +78,7 @@ from repro.motion.clustering import (
 )
 from repro.motion.database import SEMANTICS, MotionDatabase, resample
 from repro.motion.morphology import retarget
-from repro.motion.motion import Motion
+from repro.motion.motion import Motion, finite_vector3
 from repro.motion.skeleton import Skeleton, rescale_constraint, skeleton_of
 
 __all__ = [
@@ -226,15 +226,7 @@ class _Block:
 
 
 def _check_target(target) -> np.ndarray:
-    try:
-        c = np.asarray(target, dtype=float)
-    except (TypeError, ValueError):
-        raise RetrievalError(f"target must be a 3-vector of numbers, got {target!r}") from None
-    if c.shape != (3,):
-        raise RetrievalError(f"target must be a 3-vector (x, y, z) in the character's root frame, got shape {c.shape}")
-    if not np.all(np.isfinite(c)):
-        raise RetrievalError(f"target contains NaN or inf: {c.tolist()}")
-    return c
+    return finite_vector3(target, "target (x, y, z) in the character's root frame", RetrievalError)
 
 
 class MotionRetriever:
