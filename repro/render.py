@@ -153,3 +153,156 @@ def panel_figure(images, titles, *, clim, cmap: str = "YlOrRd", label: str = "",
     if suptitle:
         fig.suptitle(suptitle, fontsize=9)
     return fig
+
+
+def skeleton_images(
+    panels,
+    edges,
+    *,
+    colors,
+    bone_radius=0.018,
+    joint_radius=0.026,
+    targets=None,
+    target_color="#1f4fe0",
+    target_radius=0.05,
+    paths=None,
+    path_colors=None,
+    path_radius=0.006,
+    floor: bool = True,
+    window_size=(340, 460),
+    camera=None,
+    azimuth: float = 40.0,
+    elevation: float = 14.0,
+    zoom: float = 1.0,
+) -> list:
+    """Off-screen renders of stick figures (tubes for bones, spheres for joints) with target spheres.
+
+    Coordinates are y-up (x lateral, z forward), in metres.
+
+    Parameters
+    ----------
+    panels : sequence of sequences of (n, 3) arrays
+        One entry per panel; each is the skeletons drawn together in it (e.g. the
+        original and the adapted pose), drawn in ``colors``' order.
+    edges : sequence of (a, b) joint index pairs
+        The bones, shared by every skeleton.
+    colors : sequence of colours
+        One per skeleton of a panel (the same in every panel).
+    bone_radius, joint_radius : float or sequence of floats (one per skeleton)
+        Tube and joint-sphere radii (m).
+    targets : sequence of (3,) points or None, optional
+        One per panel (None: no target on that panel), drawn as a sphere of
+        ``target_radius`` in ``target_color``.
+    paths : sequence of sequences of (m, 3) polylines, optional
+        One entry per panel, each a list of polylines (e.g. the hit point's
+        trajectory) drawn as thin tubes in ``path_colors``.
+    floor : bool
+        Draw a light floor plane at y = 0 under everything.
+    camera : (position, focal_point, view_up), optional
+        Default: a perspective three-quarter view (``azimuth`` degrees from the +z
+        axis towards +x, ``elevation`` degrees up) fitted to all panels at once.
+
+    Returns
+    -------
+    list of (H, W, 3) uint8 images, one per panel, all with the same camera, so
+    sizes compare across panels.
+    """
+    require_render()
+    import numpy as np
+    import pyvista as pv
+
+    panels = [[np.asarray(P, dtype=float).reshape(-1, 3) for P in skels] for skels in panels]
+    edges = np.asarray(edges, dtype=int).reshape(-1, 2)
+    colors = list(colors)
+    n_sk = max((len(s) for s in panels), default=0)
+    if len(colors) < n_sk:
+        raise ValueError(f"{len(colors)} colours for panels of {n_sk} skeletons")
+
+    def per_skeleton(value):
+        return list(value) if np.ndim(value) else [float(value)] * len(colors)
+
+    bone_r, joint_r = per_skeleton(bone_radius), per_skeleton(joint_radius)
+    targets = list(targets) if targets is not None else [None] * len(panels)
+    paths = [[np.asarray(q, dtype=float).reshape(-1, 3) for q in ps] for ps in paths] if paths is not None else None
+    path_colors = list(path_colors) if path_colors is not None else colors
+    if len(targets) != len(panels) or (paths is not None and len(paths) != len(panels)):
+        raise ValueError("targets and paths need one entry per panel")
+
+    # one camera and floor for every panel, fitted to everything any panel draws
+    pts = [P for s in panels for P in s] + [np.asarray(t, float).reshape(1, 3) for t in targets if t is not None]
+    pts += [q for ps in paths for q in ps] if paths is not None else []
+    pts = np.vstack(pts) if pts else np.zeros((1, 3))
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pad = max(bone_r + joint_r + [target_radius])
+    if camera is None:
+        az, el = np.radians(azimuth), np.radians(elevation)
+        back = np.array([np.sin(az) * np.cos(el), np.sin(el), np.cos(az) * np.cos(el)])  # towards the camera
+        right = np.cross((0.0, 1.0, 0.0), back)
+        right /= np.linalg.norm(right)
+        up = np.cross(back, right)
+        fl_lo, fl_hi = lo - 2 * pad, hi + 2 * pad  # the floor's extent too
+        corners = np.array([[x, 0.0, z] for x in (fl_lo[0], fl_hi[0]) for z in (fl_lo[2], fl_hi[2])])
+        fit = np.vstack([pts, corners, pts + pad * up, pts - pad * up, pts + pad * right, pts - pad * right])
+        # perspective fit (VTK's default view angle: 30 degrees vertically), iterated a few times:
+        # distance so the farthest-out point just fits, then re-centre on the projected extent
+        tan_v = np.tan(np.radians(15.0))
+        tan_h = tan_v * window_size[0] / window_size[1]
+        centre = (fit.min(axis=0) + fit.max(axis=0)) / 2
+        for _ in range(8):
+            r = fit - centre
+            w, u, v = r @ back, r @ right, r @ up
+            dist = float(np.max(w + np.maximum(np.abs(u) / tan_h, np.abs(v) / tan_v)))
+            pu, pv_ = u / (dist - w), v / (dist - w)
+            centre = centre + dist * ((pu.max() + pu.min()) / 2 * right + (pv_.max() + pv_.min()) / 2 * up)
+        r = fit - centre
+        w = r @ back
+        dist = 1.03 * float(np.max(w + np.maximum(np.abs(r @ right) / tan_h, np.abs(r @ up) / tan_v)))
+        camera = [tuple(centre + dist * back), tuple(centre), tuple(up)]
+
+    def skeleton_meshes(P, k):
+        lines = np.column_stack([np.full(len(edges), 2), edges]).ravel()
+        bones = pv.PolyData(P.copy(), lines=lines).tube(radius=bone_r[k], n_sides=14, capping=True)
+        joints = pv.PolyData(P.copy()).glyph(geom=pv.Sphere(radius=joint_r[k], theta_resolution=14,
+                                                           phi_resolution=10), scale=False, orient=False)
+        return bones, joints
+
+    configure_headless()
+    with pv.vtk_verbosity("error"):
+        pl = pv.Plotter(off_screen=True, window_size=list(window_size), lighting="three lights")
+        try:
+            pl.set_background("white")
+            pl.enable_anti_aliasing("msaa")
+            if floor:
+                a, b = lo[[0, 2]] - 2 * pad, hi[[0, 2]] + 2 * pad
+                plane = pv.Plane(center=((a[0] + b[0]) / 2, 0.0, (a[1] + b[1]) / 2), direction=(0, 1, 0),
+                                 i_size=b[1] - a[1], j_size=b[0] - a[0])
+                pl.add_mesh(plane, color="#ebebeb", lighting=False, name="floor")  # flat: no shading
+            n_paths = max((len(p) for p in paths), default=0) if paths is not None else 0
+            images = []
+            for i, skels in enumerate(panels):
+                for k in range(n_sk):
+                    for part in ("bones", "joints"):
+                        pl.remove_actor(f"skeleton{k}_{part}")
+                for k, P in enumerate(skels):
+                    bones, joints = skeleton_meshes(P, k)
+                    pl.add_mesh(bones, color=colors[k], smooth_shading=True, specular=0.2, name=f"skeleton{k}_bones")
+                    pl.add_mesh(joints, color=colors[k], smooth_shading=True, specular=0.2,
+                                name=f"skeleton{k}_joints")
+                pl.remove_actor("target")
+                if targets[i] is not None:
+                    pl.add_mesh(pv.Sphere(radius=target_radius, center=np.asarray(targets[i], float).ravel()),
+                                color=target_color, smooth_shading=True, specular=0.3, name="target")
+                for k in range(n_paths):
+                    pl.remove_actor(f"path{k}")
+                for k, q in enumerate(paths[i] if paths is not None else []):
+                    if len(q) >= 2:
+                        pl.add_mesh(pv.Spline(q, max(2, 4 * len(q))).tube(radius=path_radius, n_sides=8),
+                                    color=path_colors[k % len(path_colors)], name=f"path{k}")
+                pl.camera_position = camera
+                if zoom != 1.0:
+                    pl.camera.zoom(zoom)
+                pl.render()  # pyvista renders a screenshot only once otherwise
+                images.append(pl.screenshot(return_img=True).copy())
+            return images
+        finally:
+            pl.close()

@@ -154,3 +154,79 @@ def test_run_writes_png_and_csv(tmp_path):
         assert len(pd.read_csv(tmp_path / f"{name}.csv")) > 0
     assert len(pd.read_csv(tmp_path / "retargeting_morphologies-eq1.csv")) > 0
     assert len(pd.read_csv(tmp_path / "database_vs_adaptation-grid.csv")) > 0
+
+
+# ------------------------------------------------------------------ Fig. 10 analog: the renderers
+def _near(img, color, tol=40.0) -> int:
+    """How many pixels of an RGB(A) image lie within ``tol`` (0-255 units) of ``color``."""
+    from matplotlib.colors import to_rgb
+
+    img = np.asarray(img, dtype=float)
+    if img.max() <= 1.0:
+        img = img * 255
+    return int((np.linalg.norm(img[..., :3] - 255 * np.array(to_rgb(color)), axis=-1) < tol).sum())
+
+
+@pytest.mark.render
+def test_skeleton_images_draw_bones_and_the_target_with_one_camera():
+    from repro.render import skeleton_images
+
+    P = np.array([[0, 1.0, 0], [0, 1.5, 0], [0.3, 1.3, 0.3], [0, 0.0, 0]])  # a T of three bones
+    Q = P + [0.0, 0.0, 0.1]
+    edges = [(0, 1), (1, 2), (0, 3)]
+    imgs = skeleton_images([[P, Q], [P, Q]], edges, colors=["#8a8a8a", "#7ec8ff"],
+                           targets=[[0.5, 1.3, 0.5], None], target_color="#1f4fe0", window_size=(160, 200))
+    assert len(imgs) == 2 and all(im.shape == (200, 160, 3) and im.dtype == np.uint8 for im in imgs)
+    for im in imgs:
+        assert im.std() > 5  # not blank
+        assert _near(im, "#7ec8ff") > 20 and _near(im, "#8a8a8a") > 5  # both skeletons
+    assert _near(imgs[0], "#1f4fe0") > 20  # the target sphere
+    assert _near(imgs[1], "#1f4fe0") == 0  # panel without one
+    # the same camera: the floor and the skeletons are where they were
+    assert np.mean(np.abs(imgs[0].astype(int) - imgs[1].astype(int)) > 30) < 0.05
+
+
+@pytest.mark.render
+def test_adapted_motions_figure_is_rendered_with_pyvista(results):
+    from repro.experiments.adapted_motions import TARGET_COLOR
+
+    fig = results["adapted_motions"].draw()
+    try:
+        assert "pyvista" in fig._suptitle.get_text()
+        t = results["adapted_motions"].table
+        panels = [ax for ax in fig.axes if ax.images]
+        assert len(panels) == len(t)  # one panel per order and fighter
+        titles = " ".join(ax.get_title() for ax in panels)
+        assert "1.5 m fighter" in titles and "2.0 m fighter" in titles and "hit error before" in titles
+        imgs = [ax.images[0].get_array() for ax in panels]
+        assert all(img.std() > 5 for img in imgs)  # not blank
+        # the target sphere, in its colour (a body in front of it may hide it in a panel or two)
+        assert sum(_near(img, TARGET_COLOR) > 10 for img in imgs) >= 0.75 * len(imgs)
+    finally:
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
+
+
+def test_adapted_motions_falls_back_to_matplotlib(monkeypatch, tmp_path):
+    import matplotlib.pyplot as plt
+
+    from repro import render
+
+    def no_render(*a, **k):
+        raise AssertionError("pyvista must not be used without GL")
+
+    monkeypatch.setattr(render, "render_unavailable_reason", lambda: "VTK off-screen rendering unavailable (test)")
+    monkeypatch.setattr(render, "skeleton_images", no_render)
+    written = run("adapted_motions", tmp_path, quick=True)
+    assert tmp_path / "adapted_motions.png" in written
+    assert len(pd.read_csv(tmp_path / "adapted_motions.csv")) > 0  # the numbers never depend on rendering
+    r = get("adapted_motions").func(quick=True)
+    fig = r.draw()
+    try:
+        title = fig._suptitle.get_text()
+        assert "matplotlib" in title and "unavailable (test)" in title
+        axes3d = [ax for ax in fig.axes if ax.name == "3d"]
+        assert len(axes3d) == len(r.table)
+    finally:
+        plt.close(fig)

@@ -103,18 +103,90 @@ def _compute(quick: bool):
     return pd.DataFrame(rows), tuple(poses)
 
 
-def draw(poses):
-    import matplotlib.pyplot as plt
+#: Colours of the figure (the paper's Fig. 10: "the modified posture is depicted in light blue and the target is
+#: modeled as a blue sphere").
+ORIGINAL_COLOR, ADAPTED_COLOR, TARGET_COLOR = "#8a8a8a", "#7ec8ff", "#1f4fe0"
+PATH_ORIGINAL_COLOR, PATH_ADAPTED_COLOR = "#5a5a5a", "#2f8fd6"
 
+
+def _grid(poses):
     heights = sorted({p["height_m"] for p in poses})
     orders = list(dict.fromkeys(p["order"] for p in poses))
+    return heights, orders, [[next(p for p in poses if p["height_m"] == H and p["order"] == o) for o in orders]
+                             for H in heights]
+
+
+def _panel_title(p) -> str:
+    return (f"{p['height_m']:.1f} m fighter: {p['order']}\n{p['clip']}\nhit error before {p['before_m']:.3f} m, "
+            f"after {p['after_m']:.3f} m")
+
+
+def draw(poses, renderer: str = "auto"):
+    """The figure: pyvista renders when off-screen VTK works here, else matplotlib 3D stick figures.
+
+    ``renderer``: ``"auto"`` (probe :func:`repro.render.render_unavailable_reason`), ``"pyvista"`` or
+    ``"matplotlib"``.  The figure's title says which renderer drew it.
+    """
+    from repro.render import render_unavailable_reason
+
+    if renderer not in ("auto", "pyvista", "matplotlib"):
+        raise ValueError(f"renderer must be 'auto', 'pyvista' or 'matplotlib', not {renderer!r}")
+    reason = render_unavailable_reason() if renderer != "matplotlib" else "matplotlib requested"
+    if renderer == "pyvista" or (renderer == "auto" and reason is None):
+        return _draw_pyvista(poses)
+    return _draw_matplotlib(poses, reason)
+
+
+def _draw_pyvista(poses):
+    import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+
+    from repro.render import skeleton_images
+
+    heights, orders, grid = _grid(poses)
+    flat = [p for row in grid for p in row]
+    images = skeleton_images(
+        [[p["original"], p["adapted"]] for p in flat], flat[0]["segments"],
+        colors=[ORIGINAL_COLOR, ADAPTED_COLOR], bone_radius=[0.011, 0.017], joint_radius=[0.016, 0.024],
+        targets=[p["target"] for p in flat], target_color=TARGET_COLOR, target_radius=0.05,
+        paths=[[p["traj_original"], p["traj_adapted"]] for p in flat],
+        path_colors=[PATH_ORIGINAL_COLOR, PATH_ADAPTED_COLOR], window_size=(420, 460),
+        azimuth=-50.0, elevation=12.0)  # from in front, on the side the fighter faces: targets in view
+    nrows, ncols = len(heights), len(orders)
+    head = 1.05  # inches above the panels' titles: title and legend
+    fig, axes = plt.subplots(nrows, ncols, figsize=(3.4 * ncols, 4.2 * nrows + head), squeeze=False)
+    for ax, img, p in zip(axes.ravel(), images, flat):
+        ax.imshow(img)
+        ax.set_axis_off()
+        ax.set_title(_panel_title(p), fontsize=8.5)
+    handles = [Line2D([], [], color=ORIGINAL_COLOR, lw=2, label="retrieved clip, pose at contact"),
+               Line2D([], [], color=ADAPTED_COLOR, lw=4, label="adapted pose at contact"),
+               Line2D([], [], color=TARGET_COLOR, marker="o", ls="", ms=9, label="target"),
+               Line2D([], [], color=PATH_ORIGINAL_COLOR, lw=1, label="hit point's path, retrieved"),
+               Line2D([], [], color=PATH_ADAPTED_COLOR, lw=1, label="hit point's path, adapted")]
+    h = fig.get_figheight()
+    fig.suptitle("Fig. 10 analog: punches and kicks selected into the database and adapted to targets\n"
+                 "rendered with pyvista (off-screen VTK); the same camera for every panel, in the fighter's root "
+                 "frame, start frame to contact", fontsize=10, y=1 - 0.06 / h, va="top")
+    fig.legend(handles=handles, loc="upper center", ncol=5, fontsize=8.5, frameon=False,
+               bbox_to_anchor=(0.5, 1 - 0.5 / h))
+    fig.subplots_adjust(left=0.005, right=0.995, bottom=0.005, top=1 - (head + 0.5) / h, wspace=0.02, hspace=0.16)
+    return fig
+
+
+def _draw_matplotlib(poses, reason: str | None = None):
+    import textwrap
+
+    import matplotlib.pyplot as plt
+
+    heights, orders, grid = _grid(poses)
     fig = plt.figure(figsize=(3.3 * len(orders), 3.9 * len(heights)))
     u, v = np.mgrid[0:2 * np.pi:16j, 0:np.pi:9j]
     for row, H in enumerate(heights):
         for col, order in enumerate(orders):
-            p = next(p for p in poses if p["height_m"] == H and p["order"] == order)
+            p = grid[row][col]
             ax = fig.add_subplot(len(heights), len(orders), row * len(orders) + col + 1, projection="3d")
-            for key, color, lw in (("adapted", "#7ec8ff", 2.8), ("original", "0.4", 1.1)):
+            for key, color, lw in (("adapted", ADAPTED_COLOR, 2.8), ("original", "0.4", 1.1)):
                 P = p[key]
                 for a, b in p["segments"]:  # plot axes: x lateral, z forward (depth), y up
                     ax.plot([P[a, 0], P[b, 0]], [P[a, 2], P[b, 2]], [P[a, 1], P[b, 1]], color=color, lw=lw)
@@ -124,7 +196,7 @@ def draw(poses):
             c, rad = p["target"], 0.05
             ax.plot_surface(c[0] + rad * np.cos(u) * np.sin(v), c[2] + rad * np.sin(u) * np.sin(v),
                             c[1] + rad * np.cos(v), color="tab:blue", alpha=0.8, linewidth=0)
-            ax.set_xlim(-0.8, 0.8)
+            ax.set_xlim(0.8, -0.8)  # (x, depth, up) is left-handed: flip x, or the fighters are mirrored
             ax.set_ylim(-0.6, 1.2)
             ax.set_zlim(0.0, 2.1)
             ax.set_box_aspect((1.6, 1.8, 2.1))
@@ -133,12 +205,13 @@ def draw(poses):
             ax.set_yticks([0.0, 0.5, 1.0])
             ax.set_zticks([0.0, 0.5, 1.0, 1.5, 2.0])
             ax.tick_params(labelsize=6, pad=0)
-            ax.set_title(f"{H:g} m fighter: {order}\n{p['clip']}\nbefore {p['before_m']:.3f} m, "
-                         f"after {p['after_m']:.3f} m", fontsize=7.5)
-    fig.suptitle("Fig. 10 analog: punches and kicks selected into the database and adapted -- grey: retrieved "
-                 "clip at contact, light blue: adapted, blue sphere: target (fighter's root frame, metres)",
-                 fontsize=10, y=0.995)
-    fig.subplots_adjust(left=0.01, right=0.99, bottom=0.02, top=0.88, wspace=0.02, hspace=0.18)
+            ax.set_title(_panel_title(p), fontsize=7.5)
+    how = ("drawn with matplotlib" if reason == "matplotlib requested" else
+           f"drawn with matplotlib, the fallback renderer: {reason or 'pyvista not used'}")
+    fig.suptitle("Fig. 10 analog: punches and kicks selected into the database and adapted -- grey: retrieved clip "
+                 "at contact, light blue: adapted, blue sphere: target (fighter's root frame, metres)\n"
+                 + textwrap.fill(how, 170), fontsize=9.5, y=0.995, va="top")
+    fig.subplots_adjust(left=0.01, right=0.99, bottom=0.02, top=0.85, wspace=0.02, hspace=0.18)
     return fig
 
 
