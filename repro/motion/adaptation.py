@@ -104,7 +104,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from repro.errors import MotionError
-from repro.motion.morphology import _cross, _fk, _levels, _min_rotation, _normalize, _qrot, _transport, foot_contacts
+from repro.motion.kinematics import cross as _cross
+from repro.motion.kinematics import depth_levels as _levels
+from repro.motion.kinematics import fk_arrays as _fk
+from repro.motion.kinematics import min_rotation as _min_rotation
+from repro.motion.kinematics import normalize as _normalize
+from repro.motion.kinematics import qrot as _qrot
+from repro.motion.kinematics import transport as _transport
+from repro.motion.morphology import foot_contacts
 from repro.motion.motion import Motion, finite_vector3, quat_multiply
 from repro.motion.skeleton import Skeleton
 

@@ -69,6 +69,7 @@ from repro.motion.clustering import (
     root_frames,
     to_root_frame,
 )
+from repro.motion.kinematics import slerp as _slerp
 from repro.motion.motion import CMU_UNIT_M, Motion
 from repro.motion.skeleton import Skeleton
 
@@ -121,21 +122,6 @@ _ROLE_OF = {("punch", "left"): "left_fist", ("punch", "right"): "right_fist",
 
 
 # ======================================================================= motions
-def _slerp(q0: np.ndarray, q1: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """Vectorised slerp of unit quaternions (..., 4) with weights a (..., 1)."""
-    dot = np.sum(q0 * q1, axis=-1, keepdims=True)
-    q1 = np.where(dot < 0, -q1, q1)
-    dot = np.abs(dot)
-    omega = np.arccos(np.clip(dot, -1.0, 1.0))
-    so = np.sin(omega)
-    small = so < 1e-8
-    so_safe = np.where(small, 1.0, so)
-    w0 = np.where(small, 1.0 - a, np.sin((1.0 - a) * omega) / so_safe)
-    w1 = np.where(small, a, np.sin(a * omega) / so_safe)
-    q = w0 * q0 + w1 * q1
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
-
-
 def resample(motion: Motion, fps: float | None = None, *, frames: Sequence[float] | np.ndarray | None = None,
              frame_time: float | None = None) -> Motion:
     """A motion sampled at other times: slerp of rotations, linear position channels.

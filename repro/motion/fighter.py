@@ -92,7 +92,8 @@ import numpy as np
 from repro.errors import MotionError, RetrievalError
 from repro.motion.adaptation import Adaptation, adapt
 from repro.motion.clustering import root_frames, rotate_y, to_root_frame
-from repro.motion.database import SEMANTICS, MotionDatabase, _slerp, cut, effector_role
+from repro.motion.database import SEMANTICS, MotionDatabase, cut, effector_role
+from repro.motion.kinematics import slerp as _slerp
 from repro.motion.morphology import retarget
 from repro.motion.motion import Motion, finite_vector3, quat_multiply
 from repro.motion.retrieval import MotionRetriever, RetrievalResult

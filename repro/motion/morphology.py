@@ -118,98 +118,17 @@ UP_AXIS: int = 1
 
 
 # ----------------------------------------------------------- quaternion helpers
-# Component-wise versions of np.cross / quat_rotate: same results, but
-# without np.cross's axis juggling, which dominates the cost of short (online) clips.
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+# (shared with repro.motion.adaptation; public in repro.motion.kinematics)
+from repro.motion.kinematics import cross as _cross  # noqa: E402
+from repro.motion.kinematics import depth_levels as _levels  # noqa: E402
+from repro.motion.kinematics import fk_arrays as _fk  # noqa: E402
+from repro.motion.kinematics import min_rotation as _min_rotation  # noqa: E402
+from repro.motion.kinematics import normalize as _normalize  # noqa: E402
+from repro.motion.kinematics import qinv as _qinv  # noqa: E402
+from repro.motion.kinematics import qrot as _qrot  # noqa: E402
+from repro.motion.kinematics import transport as _transport  # noqa: E402
 
-
-def _qrot(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``R(q) v`` for unit quaternions ``(x, y, z, w)`` (as :func:`quat_rotate`)."""
-    u = q[..., :3]
-    t = 2.0 * _cross(u, v)
-    return v + q[..., 3:4] * t + _cross(u, t)
-
-
-_qmul = quat_multiply  # Hamilton product a * b (one implementation, in repro.motion.motion)
-
-
-def _qinv(q: np.ndarray) -> np.ndarray:
-    return q * np.array([-1.0, -1.0, -1.0, 1.0])
-
-
-def _normalize(v: np.ndarray, eps: float = 1e-300) -> tuple[np.ndarray, np.ndarray]:
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return v / np.maximum(n, eps), n[..., 0]
-
-
-def _min_rotation(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Quaternion of the smallest rotation taking direction ``u`` to direction ``v`` (broadcast).
-
-    ``q = normalise(u x v, |u||v| + u.v)``; for (nearly) opposite vectors, a half turn
-    about an axis perpendicular to ``u``.  Zero vectors give the identity.
-    """
-    u, v = np.broadcast_arrays(u, v)
-    nu = np.linalg.norm(u, axis=-1)
-    nv = np.linalg.norm(v, axis=-1)
-    q = np.concatenate([_cross(u, v), (nu * nv + np.sum(u * v, axis=-1))[..., None]], axis=-1)
-    qn = np.linalg.norm(q, axis=-1)
-    scale = nu * nv
-    bad = qn <= 1e-12 * np.maximum(scale, 1e-300)
-    if np.any(bad):
-        ub = u[bad]
-        # axis perpendicular to u: cross with the basis vector least aligned with u
-        k = np.argmin(np.abs(ub), axis=-1)
-        e = np.zeros_like(ub)
-        e[np.arange(len(k)), k] = 1.0
-        ax, _ = _normalize(_cross(ub, e))
-        qb = np.concatenate([ax, np.zeros(ax.shape[:-1] + (1,))], axis=-1)
-        zero = scale[bad] <= 1e-300
-        qb[zero] = [0.0, 0.0, 0.0, 1.0]
-        q[bad] = qb
-        qn = np.linalg.norm(q, axis=-1)
-    return q / qn[..., None]
-
-
-def _transport(a0: np.ndarray, r0: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """Reference direction ``R(a0 -> a) r0`` (unit, perpendicular to unit ``a``), broadcast.
-
-    ``R v = v + w x v + w x (w x v) / (1 + c)`` with ``w = a0 x a``, ``c = a0 . a`` is
-    the smallest rotation taking ``a0`` to ``a``; the last term has norm at most
-    ``1 - c``, so it is stable everywhere but at ``c = -1`` exactly, where ``r0`` itself
-    (perpendicular to ``a0 = -a``) is used.
-    """
-    w = _cross(a0, a)
-    c = np.sum(a0 * a, axis=-1, keepdims=True)
-    opp = c[..., 0] <= -1.0 + 1e-12
-    denom = np.where(opp[..., None], 1.0, 1.0 + c)
-    wr = _cross(w, r0)
-    r = r0 + wr + _cross(w, wr) / denom
-    r = np.where(opp[..., None], r0, r)
-    r = r - np.sum(r * a, axis=-1, keepdims=True) * a  # clean rounding
-    return _normalize(r)[0]
-
-
-def _fk(levels, rotations: np.ndarray, translations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Forward kinematics as :meth:`Motion.global_transforms` on raw arrays."""
-    gq = np.empty_like(rotations)
-    gp = translations.copy()
-    gq[:, 0] = rotations[:, 0]
-    for idx, par in levels:
-        pq = gq[:, par]
-        gp[:, idx] = gp[:, par] + _qrot(pq, gp[:, idx])
-        gq[:, idx] = _qmul(pq, rotations[:, idx])
-    return gq, gp
-
-
-def _levels(parents: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-    J = len(parents)
-    depth = np.zeros(J, dtype=np.intp)
-    for j in range(1, J):
-        depth[j] = depth[parents[j]] + 1
-    return [(np.flatnonzero(depth == d), parents[depth == d]) for d in range(1, int(depth.max(initial=0)) + 1)]
+_qmul = quat_multiply
 
 
 def _position_mask(channels) -> np.ndarray:
