@@ -34,11 +34,11 @@ import html
 import io
 import math
 import re
-from contextlib import contextmanager
 
 import ipywidgets as widgets
 import numpy as np
 
+from repro._panel import PanelCallbacks
 from repro.motion.fighter import AREA, KungFuFighter, Strike, character_from, simulated_user
 
 __all__ = [
@@ -240,7 +240,7 @@ def _png(fig) -> bytes:
 
 
 # ----------------------------------------------------------------------- panel
-class FighterPanel:
+class FighterPanel(PanelCallbacks):
     """Target sliders, morphology sliders, kick / punch buttons, a simulated user, a filmstrip and numbers.
 
     Parameters
@@ -345,25 +345,10 @@ class FighterPanel:
         self._show()
 
     # ------------------------------------------------------------- helpers
-    def _guarded(self, func):
-        def callback(*args):
-            try:
-                func(*args)
-            except Exception as exc:  # noqa: BLE001 - a widget callback must not raise
-                self._show_error(exc)
-
-        return callback
-
-    @contextmanager
-    def _batch(self):
-        self._batch_depth += 1
-        try:
-            yield
-        finally:
-            self._batch_depth -= 1
-            if self._batch_depth == 0 and self._pending_character:
-                self._pending_character = False
-                self._apply_character()
+    def _flush(self) -> None:
+        if self._pending_character:
+            self._pending_character = False
+            self._apply_character()
 
     def _show_error(self, exc: BaseException) -> None:
         msg = str(exc) if isinstance(exc, ValueError) else f"{type(exc).__name__}: {exc}"

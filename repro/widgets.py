@@ -53,11 +53,11 @@ import math
 import re
 import time
 from collections.abc import Iterable, Mapping
-from contextlib import contextmanager
 
 import ipywidgets as widgets
 import numpy as np
 
+from repro._panel import PanelCallbacks
 from repro.blendshapes import Attenuator, load_model, metrics, select_vertices
 from repro.blendshapes.model import AXES, BlendshapeModel
 from repro.errors import AttenuationError, ModelError, SelectionError
@@ -227,7 +227,7 @@ class _PyvistaView:
 
 
 # ----------------------------------------------------------------------- panel
-class BlendshapePanel:
+class BlendshapePanel(PanelCallbacks):
     """Sliders, selection, alpha and attenuation for a blendshape model (Lewis et al. 2005, Section 5).
 
     Parameters
@@ -445,28 +445,10 @@ class BlendshapePanel:
             raise SelectionError(f"unknown axes {bad}; expected some of 'x', 'y', 'z'")
         return "".join(a for a in AXES if a in axes)
 
-    def _guarded(self, func):
-        """A widget callback that shows an error in the panel instead of raising."""
-
-        def callback(*args):
-            try:
-                func(*args)
-            except Exception as exc:  # noqa: BLE001 - a callback must not raise into the kernel's log
-                self._show_error(exc)
-
-        return callback
-
-    @contextmanager
-    def _batch(self):
-        """Defer updates until the outermost batch ends (one update for several widget changes)."""
-        self._batch_depth += 1
-        try:
-            yield
-        finally:
-            self._batch_depth -= 1
-            if self._batch_depth == 0 and self._pending:
-                self._pending = False
-                self._update()
+    def _flush(self) -> None:
+        if self._pending:
+            self._pending = False
+            self._update()
 
     def _request_update(self) -> None:
         if self._batch_depth:

@@ -31,8 +31,3 @@ def motion(d, d_ref=None):
 
 def zeros(model):
     return np.zeros(3 * model.n_vertices)
-
-
-def shared_clim(*arrays) -> tuple[float, float]:
-    hi = max(float(np.max(a)) for a in arrays)
-    return (0.0, hi if hi > 0 else 1.0)
