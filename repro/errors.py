@@ -22,6 +22,9 @@ __all__ = [
     "RetrievalError",
     "UnknownFigureError",
     "RenderUnavailableError",
+    "ReproWarning",
+    "BVHWarning",
+    "CacheWarning",
 ]
 
 
@@ -66,3 +69,15 @@ class UnknownFigureError(ReproError, KeyError):
 
 class RenderUnavailableError(ReproError, RuntimeError):
     """Off-screen 3D rendering (VTK/pyvista) is not available on this machine."""
+
+
+class ReproWarning(UserWarning):
+    """Base class of every warning issued on purpose by :mod:`repro`."""
+
+
+class BVHWarning(ReproWarning):
+    """A BVH (or ASF/AMC) file was read, but part of it was ignored (e.g. text after the frames)."""
+
+
+class CacheWarning(ReproWarning):
+    """A derived cache did not match its sources or its content hash and was rebuilt."""
