@@ -11,7 +11,6 @@ sculpted (quoted next to each), so a change that weakens the interference fails.
 import hashlib
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -168,14 +167,14 @@ def test_model_is_read_only_and_fresh_per_call(face):
     assert "jaw" in procedural_model().regions
 
 
-def test_build_is_fast():
-    best = np.inf
-    for _ in range(3):
-        _build_cached.cache_clear()
-        t = time.perf_counter()
-        procedural_model()
-        best = min(best, time.perf_counter() - t)
-    assert best < 0.1, f"building the 2016-vertex face took {best:.3f} s"  # measured ~4 ms
+def test_build_is_cached():
+    # speed is measured by benchmarks (ratios in one process), never asserted here: the build
+    # runs once, later calls reuse it
+    _build_cached.cache_clear()
+    procedural_model()
+    procedural_model()
+    info = _build_cached.cache_info()
+    assert info.misses == 1 and info.hits >= 1
 
 
 def test_left_right_shapes_are_mirror_images(face):
