@@ -39,7 +39,25 @@ singular (shapes with no support outside the selection): that is legitimate,
 the solution is still unique, and such shapes are strongly suppressed; but then
 the ``alpha -> 0`` limit is not ``w1`` for those components (Section 5's limit
 assumes ``P`` invertible).  A selection of *every* coordinate leaves nothing
-that may move (``P = 0``) and is refused.
+that may move (``P = 0``) and is refused.  A system that cannot be solved at
+all raises :class:`~repro.errors.AttenuationError`, never numpy's ``LinAlgError``.
+
+Scale
+-----
+Eq. (3) does not depend on the scale of ``D``: for ``D -> s D``, ``P`` and ``Q``
+scale by ``s^2`` and ``M = (P + alpha Q)^-1 P`` does not change.  The
+arithmetic does: ``P`` overflows for ``|D| ~ 1e155`` and underflows for ``|D| ~
+1e-160``.  Both implementations therefore scale ``D`` by a power of two (exact)
+to ``max |D|`` in [0.5, 1) before forming ``P`` and ``Q`` whenever ``max |D|``
+is outside ``2^-100 .. 2^100`` (so a face in millimetres, metres or light years
+gives the same ``w2``, to about 1e-14, from 1e-300 to 1e300; any sensibly
+scaled ``D`` is used as it is).  ``Attenuator.G`` is then the Gram matrix of the
+scaled ``D`` (``Attenuator.scale_exponent`` tells the power of two).
+
+Arguments are checked (:func:`repro.blendshapes.model._as_real_array`):
+strings, ``None``, objects, booleans, complex or non-finite values, floats where
+indices are meant and wrong shapes raise :class:`~repro.errors.AttenuationError`
+or :class:`~repro.errors.SelectionError` naming the argument.
 """
 
 from __future__ import annotations

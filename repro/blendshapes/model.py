@@ -11,6 +11,12 @@ The whole-face form of Section 3 (``f = B c``, weights summing to one) is
 available through :meth:`BlendshapeModel.to_whole_face` and
 :meth:`BlendshapeModel.from_whole_face`; the paper's remark that the two forms
 are "identical in power" is what the round-trip tests check.
+
+Every argument of the blendshape package is checked by the helpers of this
+module (:func:`_as_real_array`, :func:`_as_int`, :func:`_as_real`): real arrays
+must hold real numbers (no strings, ``None``, objects, booleans, complex values,
+NaN/inf), indices and counts must be integers (numpy integers accepted; bools,
+floats and strings refused) in range, and the error names the argument.
 """
 
 from __future__ import annotations
@@ -187,6 +193,15 @@ class BlendshapeModel:
 
     All arrays are copied and made read-only, so caches keyed on a model stay
     valid.
+
+    Raises
+    ------
+    ModelError
+        For a non-numeric, complex, boolean or non-finite ``f0``/``D``, wrong
+        shapes, names that are not distinct strings, faces that are not integer
+        vertex ids in range, slider coefficients that are not finite real
+        numbers or combine unknown shapes, and regions that are not integer
+        vertex ids in range.
     """
 
     f0: np.ndarray
