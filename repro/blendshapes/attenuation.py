@@ -70,7 +70,15 @@ import math
 import numpy as np
 import scipy.linalg
 
-from repro.blendshapes.model import AXES, BlendshapeModel, _as_int, _as_real, _as_real_array, _describe
+from repro.blendshapes.model import (
+    AXES,
+    BlendshapeModel,
+    _abs_max,
+    _as_int,
+    _as_real,
+    _as_real_array,
+    _describe,
+)
 from repro.errors import AttenuationError, SelectionError
 
 __all__ = [
@@ -287,9 +295,9 @@ _SAFE_EXP = 100
 _GRAM_BLOCK = 1 << 16  # rows per block when a scaled Gram matrix is accumulated (bounded extra memory)
 
 
-def _scale_exponent(D: np.ndarray) -> int:
-    """``e`` such that ``D * 2**-e`` is well scaled for Eq. (3): 0 when ``D`` already is."""
-    top = float(np.abs(D).max(initial=0.0))
+def _scale_exponent(D: np.ndarray, top: float | None = None) -> int:
+    """``e`` such that ``D * 2**-e`` is well scaled for Eq. (3): 0 when ``D`` already is (``top`` = max |D|)."""
+    top = _abs_max(D) if top is None else top
     if top == 0.0:
         return 0
     e = int(np.frexp(top)[1])
@@ -418,9 +426,9 @@ class Attenuator:
             D = _check_D(model_or_D)
         self.D = D
         self.n_rows, self.m = D.shape
+        self._abs_max = model_or_D._abs_max[0] if self.model is not None else _abs_max(D)
         #: ``D`` is used as ``D * 2**-scale_exponent`` in the Gram matrices (0 for any sensibly scaled D)
-        self.scale_exponent = _scale_exponent(D)
-        self._abs_max = float(np.abs(D).max(initial=0.0))
+        self.scale_exponent = _scale_exponent(D, self._abs_max)
         self.G = _gram(D, self.scale_exponent)  #: ``(D 2^-e)^T (D 2^-e)``; = ``D^T D`` when ``e = 0``
         self.G.flags.writeable = False
         self._q: OrderedDict[bytes, np.ndarray] = OrderedDict()

@@ -121,6 +121,13 @@ def _as_real_array(
     return a
 
 
+def _abs_max(X: np.ndarray) -> float:
+    """``max |X|`` of a finite float array without an |X|-sized temporary (0 for an empty one)."""
+    if X.size == 0:
+        return 0.0
+    return float(max(X.max(), -X.min()))
+
+
 def _as_int(
     x, name: str, *, error: type[Exception] = ModelError, lo: int | None = None, hi: int | None = None
 ) -> int:
@@ -374,7 +381,7 @@ class BlendshapeModel:
     @cached_property
     def _abs_max(self) -> tuple[float, float]:
         """``(max |D|, max |f0|)``: bounds that tell cheaply when ``f0 + D w`` cannot overflow."""
-        return float(np.abs(self.D).max(initial=0.0)), float(np.abs(self.f0).max(initial=0.0))
+        return _abs_max(self.D), _abs_max(self.f0)
 
     def _posed(self, w, with_f0: bool) -> np.ndarray:
         """``D w`` (or ``f0 + D w``) as (n, 3); refuses a result that overflows float64."""
