@@ -56,9 +56,14 @@ def load_model(name: str = "procedural", **kw) -> BlendshapeModel:
     from the data folder (keywords of :func:`repro.blendshapes.ict.load_ict`);
     raises :class:`~repro.errors.DataError` saying how to get it when absent.
     """
+    if not isinstance(name, str):
+        raise ModelError(f"model name must be a string, got {name!r}; known: {sorted(MODELS)}")
     if name == "procedural":
         from repro.blendshapes.procedural import procedural_model
 
+        unknown = sorted(set(kw) - {"n_vertices"})
+        if unknown:
+            raise ModelError(f"load_model('procedural') takes only n_vertices=, got {unknown}")
         return procedural_model(**kw)
     if name == "ict":
         from repro.blendshapes.ict import load_ict

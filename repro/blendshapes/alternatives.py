@@ -22,7 +22,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from repro.blendshapes.attenuation import _check_D, _check_w, check_selection
+from repro.blendshapes.attenuation import (
+    _check_D,
+    _check_w,
+    _finite_result,
+    _scale_exponent,
+    _scaled,
+    check_selection,
+)
+from repro.blendshapes.model import _as_real_array
 from repro.errors import AttenuationError
 
 __all__ = ["zero_rows", "edit_zeroed", "orthogonal_lock", "edit_orthogonal"]
@@ -44,14 +52,18 @@ def edit_zeroed(D, w_base, w_target, selected) -> np.ndarray:
     through the zeroed basis: ``D w_base + D_0 (w_target - w_base)``.
     """
     D = _check_D(D)
-    w_base = _check_w(w_base, D.shape[1])
-    dw = _check_w(w_target, D.shape[1]) - w_base
-    return D @ w_base + zero_rows(D, selected) @ dw
+    w_base = _check_w(w_base, D.shape[1], "w_base")
+    w_target = _check_w(w_target, D.shape[1], "w_target")
+    with np.errstate(over="ignore", invalid="ignore"):
+        dw = _finite_result(w_target - w_base, "w_target - w_base")
+    with np.errstate(over="ignore", invalid="ignore"):
+        d = D @ w_base + zero_rows(D, selected) @ dw
+    return _finite_result(d, "the displacement")
 
 
 def _locked_columns(locked, m: int) -> np.ndarray:
-    L = np.asarray(locked)
-    if L.ndim != 1 or L.size == 0 or not np.issubdtype(L.dtype, np.integer):
+    L = _as_real_array(locked, "locked (shape indices)", error=AttenuationError, integer=True)
+    if L.ndim != 1 or L.size == 0:
         raise AttenuationError(f"locked must be a non-empty 1-D array of shape (column) indices, got {locked!r}")
     if L.min() < 0 or L.max() >= m or np.unique(L).size != L.size:
         raise AttenuationError(f"locked shape indices must be distinct and in 0..{m - 1}, got {L.tolist()}")
@@ -65,17 +77,22 @@ def orthogonal_lock(D, locked) -> np.ndarray:
 
     Section 3's second rejected idea.  Locked columns are kept as they are.  The
     projection uses an orthonormal basis of the locked columns from a QR
-    factorisation (numerically stable Gram-Schmidt).
+    factorisation (numerically stable Gram-Schmidt) of the locked columns, scaled by a
+    power of two when ``D`` is very large or very small (the projection does not
+    depend on the scale of ``D``).
     """
     D = _check_D(D)
     L = _locked_columns(locked, D.shape[1])
-    Ql, R = np.linalg.qr(D[:, L])
+    try:
+        Ql, R = np.linalg.qr(_scaled(D[:, L], _scale_exponent(D)))
+    except np.linalg.LinAlgError as e:  # pragma: no cover - QR of a finite matrix does not fail
+        raise AttenuationError(f"QR factorisation of the locked shapes failed: {e}") from None
     keep = np.abs(np.diag(R)) > 1e-12 * max(np.abs(np.diag(R)).max(initial=0.0), 1e-300)
     Ql = Ql[:, keep]  # drop directions of locked shapes that are zero or dependent
     free = np.setdiff1d(np.arange(D.shape[1]), L)
     Do = D.copy()
     Do[:, free] -= Ql @ (Ql.T @ D[:, free])
-    return Do
+    return _finite_result(Do, "the projected basis")
 
 
 def edit_orthogonal(D, w_base, w_target, locked) -> np.ndarray:
@@ -88,7 +105,11 @@ def edit_orthogonal(D, w_base, w_target, locked) -> np.ndarray:
     D = _check_D(D)
     m = D.shape[1]
     L = _locked_columns(locked, m)
-    w_base = _check_w(w_base, m)
-    dw = _check_w(w_target, m) - w_base
+    w_base = _check_w(w_base, m, "w_base")
+    w_target = _check_w(w_target, m, "w_target")
+    with np.errstate(over="ignore", invalid="ignore"):
+        dw = _finite_result(w_target - w_base, "w_target - w_base")
     dw[L] = 0.0
-    return D @ w_base + orthogonal_lock(D, L) @ dw
+    with np.errstate(over="ignore", invalid="ignore"):
+        d = D @ w_base + orthogonal_lock(D, L) @ dw
+    return _finite_result(d, "the displacement")

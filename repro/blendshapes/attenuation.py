@@ -39,7 +39,25 @@ singular (shapes with no support outside the selection): that is legitimate,
 the solution is still unique, and such shapes are strongly suppressed; but then
 the ``alpha -> 0`` limit is not ``w1`` for those components (Section 5's limit
 assumes ``P`` invertible).  A selection of *every* coordinate leaves nothing
-that may move (``P = 0``) and is refused.
+that may move (``P = 0``) and is refused.  A system that cannot be solved at
+all raises :class:`~repro.errors.AttenuationError`, never numpy's ``LinAlgError``.
+
+Scale
+-----
+Eq. (3) does not depend on the scale of ``D``: for ``D -> s D``, ``P`` and ``Q``
+scale by ``s^2`` and ``M = (P + alpha Q)^-1 P`` does not change.  The
+arithmetic does: ``P`` overflows for ``|D| ~ 1e155`` and underflows for ``|D| ~
+1e-160``.  Both implementations therefore scale ``D`` by a power of two (exact)
+to ``max |D|`` in [0.5, 1) before forming ``P`` and ``Q`` whenever ``max |D|``
+is outside ``2^-100 .. 2^100`` (so a face in millimetres, metres or light years
+gives the same ``w2``, to about 1e-14, from 1e-300 to 1e300; any sensibly
+scaled ``D`` is used as it is).  ``Attenuator.G`` is then the Gram matrix of the
+scaled ``D`` (``Attenuator.scale_exponent`` tells the power of two).
+
+Arguments are checked (:func:`repro.blendshapes.model._as_real_array`):
+strings, ``None``, objects, booleans, complex or non-finite values, floats where
+indices are meant and wrong shapes raise :class:`~repro.errors.AttenuationError`
+or :class:`~repro.errors.SelectionError` naming the argument.
 """
 
 from __future__ import annotations
@@ -47,10 +65,20 @@ from __future__ import annotations
 from collections import OrderedDict
 from collections.abc import Iterable
 
+import math
+
 import numpy as np
 import scipy.linalg
 
-from repro.blendshapes.model import AXES, BlendshapeModel
+from repro.blendshapes.model import (
+    AXES,
+    BlendshapeModel,
+    _abs_max,
+    _as_int,
+    _as_real,
+    _as_real_array,
+    _describe,
+)
 from repro.errors import AttenuationError, SelectionError
 
 __all__ = [
@@ -71,7 +99,7 @@ def _axis_index(axis) -> int:
         if a in AXES:
             return AXES.index(a)
         raise SelectionError(f"unknown axis {axis!r}; expected one of 'x', 'y', 'z' (or 0, 1, 2)")
-    if isinstance(axis, (int, np.integer)) and 0 <= int(axis) < 3:
+    if isinstance(axis, (int, np.integer)) and not isinstance(axis, bool) and 0 <= int(axis) < 3:
         return int(axis)
     raise SelectionError(f"unknown axis {axis!r}; expected one of 'x', 'y', 'z' (or 0, 1, 2)")
 
@@ -79,6 +107,8 @@ def _axis_index(axis) -> int:
 def _axes(axes) -> list[int]:
     if isinstance(axes, str):
         axes = list(axes)
+    elif not isinstance(axes, (list, tuple, np.ndarray, range)):
+        raise SelectionError(f"axes must be a string like 'xy' or a list of axes, got {_describe(axes)}")
     idx = [_axis_index(a) for a in axes]
     if not idx:
         raise SelectionError("no axis given; expected some of 'x', 'y', 'z'")
@@ -87,12 +117,23 @@ def _axes(axes) -> list[int]:
     return sorted(idx)
 
 
+#: Largest vertex count a selection helper accepts (3 x 10^8 rows of D, far above any face model).
+MAX_VERTICES = 100_000_000
+
+
+def _n_vertices(n_vertices, *, optional: bool = True) -> int | None:
+    if n_vertices is None and optional:
+        return None
+    return _as_int(n_vertices, "n_vertices", error=SelectionError, lo=1, hi=MAX_VERTICES)
+
+
 def _vertex_ids(vertices, n_vertices: int | None) -> np.ndarray:
-    v = np.asarray(vertices)
+    n_vertices = _n_vertices(n_vertices)
+    v = _as_real_array(vertices, "vertex ids", error=SelectionError, integer=True)
     if v.ndim == 0:
         v = v.reshape(1)
-    if v.ndim != 1 or (v.size and not np.issubdtype(v.dtype, np.integer)):
-        raise SelectionError(f"vertex ids must be a 1-D integer array, got {v.dtype} of shape {v.shape}")
+    if v.ndim != 1:
+        raise SelectionError(f"vertex ids must be a 1-D integer array, got shape {v.shape}")
     if v.size == 0:
         raise SelectionError("the selection is empty: select at least one vertex")
     vals, counts = np.unique(v, return_counts=True)
@@ -118,13 +159,21 @@ def select_vertices(vertices, axes="xyz", n_vertices: int | None = None) -> np.n
 
 def select_pairs(pairs: Iterable[tuple[int, int | str]], n_vertices: int | None = None) -> np.ndarray:
     """Rows of ``D`` from ``(vertex, axis)`` pairs, e.g. ``[(12, "y"), (40, "x")]``."""
+    n_vertices = _n_vertices(n_vertices)
+    if isinstance(pairs, (str, bytes)) or not isinstance(pairs, Iterable):
+        raise SelectionError(f"expected an iterable of (vertex, axis) pairs, got {_describe(pairs)}")
     rows = []
     for p in pairs:
         try:
             v, axis = p
         except (TypeError, ValueError):
             raise SelectionError(f"expected (vertex, axis) pairs, got {p!r}") from None
-        if not isinstance(v, (int, np.integer)) or v < 0 or (n_vertices is not None and v >= n_vertices):
+        if (
+            not isinstance(v, (int, np.integer))
+            or isinstance(v, (bool, np.bool_))
+            or v < 0
+            or v >= (MAX_VERTICES if n_vertices is None else n_vertices)
+        ):
             raise SelectionError(f"vertex {v!r} in pair {p!r} is not a valid vertex id")
         rows.append(3 * int(v) + _axis_index(axis))
     if not rows:
@@ -137,7 +186,7 @@ def select_pairs(pairs: Iterable[tuple[int, int | str]], n_vertices: int | None 
 
 def select_axis(axis, n_vertices: int) -> np.ndarray:
     """Rows of ``D`` for one axis of every vertex (e.g. all ``"y"`` coordinates)."""
-    return np.arange(_axis_index(axis), 3 * int(n_vertices), 3, dtype=np.int64)
+    return np.arange(_axis_index(axis), 3 * _n_vertices(n_vertices, optional=False), 3, dtype=np.int64)
 
 
 def check_selection(selected, n_rows: int) -> np.ndarray:
@@ -147,18 +196,12 @@ def check_selection(selected, n_rows: int) -> np.ndarray:
     out-of-range, non-integer or multi-dimensional selection, and for one that
     selects every row (then nothing may move and ``P = 0``).
     """
-    s = np.asarray(selected)
+    n_rows = _as_int(n_rows, "n_rows", error=SelectionError, lo=1)
+    s = _as_real_array(selected, "selected (row indices of D)", error=SelectionError, integer=True)
     if s.ndim != 1:
         raise SelectionError(f"selected must be a 1-D array of row indices of D, got shape {s.shape}")
     if s.size == 0:
         raise SelectionError("the selection is empty: select at least one coordinate")
-    if s.dtype == bool:
-        raise SelectionError(
-            "selected must hold row indices of D, not a boolean mask (use np.flatnonzero(mask))"
-        )
-    if not np.issubdtype(s.dtype, np.integer):
-        raise SelectionError(f"selected must hold integer row indices of D, got dtype {s.dtype}")
-    s = s.astype(np.int64)
     if s.min() < 0 or s.max() >= n_rows:
         raise SelectionError(
             f"selected rows {s.min()}..{s.max()} are outside 0..{n_rows - 1} (D has {n_rows} rows)"
@@ -176,6 +219,8 @@ def check_selection(selected, n_rows: int) -> np.ndarray:
 
 def default_alpha(n_selected: int, n_rows: int) -> float:
     """Section 5's default: ``#unselected / #selected`` (rows; = vertices for whole vertices)."""
+    n_selected = _as_int(n_selected, "n_selected", error=SelectionError)
+    n_rows = _as_int(n_rows, "n_rows", error=SelectionError)
     if n_selected <= 0 or n_selected >= n_rows:
         raise SelectionError(f"cannot form the default alpha with {n_selected} of {n_rows} rows selected")
     return (n_rows - n_selected) / n_selected
@@ -185,16 +230,16 @@ def _check_alpha(alpha, n_selected: int, n_rows: int) -> float:
     if alpha is None:
         return default_alpha(n_selected, n_rows)
     try:
-        a = float(alpha)
-    except (TypeError, ValueError):
-        raise AttenuationError(f"alpha must be a positive number, got {alpha!r}") from None
-    if not np.isfinite(a) or a <= 0:
-        raise AttenuationError(f"alpha must be a finite number > 0 (Eq. 2), got {alpha!r}")
+        a = _as_real(alpha, "alpha", error=AttenuationError, finite=False)
+    except AttenuationError:
+        a = float("nan")
+    if not math.isfinite(a) or a <= 0:
+        raise AttenuationError(f"alpha must be a finite number > 0 (Eq. 2), got {_describe(alpha)}")
     return a
 
 
 def _check_D(D) -> np.ndarray:
-    D = np.asarray(D, dtype=np.float64)
+    D = _as_real_array(D, "D", error=AttenuationError, finite=False)
     if D.ndim != 2 or D.shape[0] == 0 or D.shape[1] == 0:
         raise AttenuationError(f"D must be a non-empty 3n x m matrix, got shape {D.shape}")
     if D.shape[0] % 3:
@@ -206,18 +251,84 @@ def _check_D(D) -> np.ndarray:
     return D
 
 
-def _check_w(w1, m: int) -> np.ndarray:
-    w = np.asarray(w1, dtype=np.float64)
+def _check_w_max(w1, m: int, name: str = "w1") -> tuple[np.ndarray, float]:
+    """``w1`` as a finite float vector of length ``m``, and ``max |w1|`` (one reduction checks both)."""
+    if type(w1) is np.ndarray and w1.dtype == np.float64:  # the slider-move hot path
+        w = w1
+    else:
+        w = _as_real_array(w1, name, error=AttenuationError, finite=False)
     if w.shape != (m,):
-        raise AttenuationError(f"w1 must have shape ({m},) for D with {m} shapes, got {w.shape}")
-    if not np.isfinite(w).all():
-        raise AttenuationError(f"w1 has NaN/inf at shapes {np.flatnonzero(~np.isfinite(w)).tolist()}")
-    return w
+        raise AttenuationError(f"{name} must have shape ({m},) for D with {m} shapes, got {w.shape}")
+    wmax = float(np.abs(w).max(initial=0.0))
+    if not wmax <= _FMAX:  # NaN or inf somewhere
+        raise AttenuationError(f"{name} has NaN/inf at shapes {np.flatnonzero(~np.isfinite(w)).tolist()}")
+    return w, wmax
+
+
+def _check_w(w1, m: int, name: str = "w1") -> np.ndarray:
+    return _check_w_max(w1, m, name)[0]
+
+
+_FMAX = float(np.finfo(np.float64).max)
+
+
+def _matvec(A: np.ndarray, amax: float, x: np.ndarray, xmax: float, what: str) -> np.ndarray:
+    """``A @ x``; when the bound ``max|A| max|x| n`` allows overflow, refuse a non-finite result."""
+    if amax * xmax * x.size < 1e300:  # cannot overflow: the hot path, no errstate needed
+        return A @ x
+    with np.errstate(over="ignore", invalid="ignore"):
+        y = A @ x
+    return _finite_result(y, what)
+
+
+def _finite_result(x: np.ndarray, what: str) -> np.ndarray:
+    if not np.isfinite(x).all():
+        raise AttenuationError(f"{what} overflows float64 (the weights or D are too large)")
+    return x
+
+
+# Eq. (3) is invariant under D -> s D (P and Q scale by s^2, M = (P + alpha Q)^-1 P does not), but
+# P and Q overflow for |D| ~ 1e155 and underflow for |D| ~ 1e-160.  D is therefore scaled by a power
+# of two (exact, no rounding) to max |D| in [0.5, 1) before the Gram matrices are formed, unless max
+# |D| is already within 2^-_SAFE_EXP .. 2^_SAFE_EXP, where nothing overflows or loses precision.
+_SAFE_EXP = 100
+_GRAM_BLOCK = 1 << 16  # rows per block when a scaled Gram matrix is accumulated (bounded extra memory)
+
+
+def _scale_exponent(D: np.ndarray, top: float | None = None) -> int:
+    """``e`` such that ``D * 2**-e`` is well scaled for Eq. (3): 0 when ``D`` already is (``top`` = max |D|)."""
+    top = _abs_max(D) if top is None else top
+    if top == 0.0:
+        return 0
+    e = int(np.frexp(top)[1])
+    return 0 if -_SAFE_EXP <= e <= _SAFE_EXP else e
+
+
+def _scaled(X: np.ndarray, e: int) -> np.ndarray:
+    return X if e == 0 else np.ldexp(X, -e)
+
+
+def _gram(X: np.ndarray, e: int) -> np.ndarray:
+    """``(X 2^-e)^T (X 2^-e)``, in row blocks when scaling is needed (no full copy of ``X``)."""
+    if e == 0:
+        return X.T @ X
+    G = np.zeros((X.shape[1], X.shape[1]))
+    for i in range(0, X.shape[0], _GRAM_BLOCK):
+        B = np.ldexp(X[i : i + _GRAM_BLOCK], -e)
+        G += B.T @ B
+    return G
 
 
 def _solve_matrix(A: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, int]:
-    """``A^-1 P`` by Cholesky, or the pseudo-inverse when ``A`` is singular; and rank(A)."""
+    """``A^-1 P`` by Cholesky, or the pseudo-inverse when ``A`` is singular; and rank(A).
+
+    Never lets numpy/scipy's ``LinAlgError`` out: a system that cannot be solved
+    at all (non-finite entries, an SVD that does not converge) is an
+    :class:`~repro.errors.AttenuationError`.
+    """
     m = A.shape[0]
+    if not (np.isfinite(A).all() and np.isfinite(P).all()):
+        raise AttenuationError("P + alpha Q of Eq. (3) has NaN/inf entries: D or alpha is out of range")
     scale = np.abs(np.diag(A)).max(initial=0.0)
     if scale > 0:
         try:
@@ -229,8 +340,14 @@ def _solve_matrix(A: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, int]:
         except np.linalg.LinAlgError:
             pass
     # rank-deficient D: all solutions of Eq. (3) give the same face; take the minimum-norm one
-    pinv, rank = scipy.linalg.pinvh(A, return_rank=True, check_finite=False)
-    return pinv @ P, int(rank)
+    try:
+        pinv, rank = scipy.linalg.pinvh(A, return_rank=True, check_finite=False)
+    except (np.linalg.LinAlgError, ValueError) as e:
+        raise AttenuationError(f"Eq. (3) cannot be solved: P + alpha Q is singular and its pseudo-inverse failed ({e})") from None
+    M = pinv @ P
+    if not np.isfinite(M).all():
+        raise AttenuationError("Eq. (3) cannot be solved: the solution of the singular system is not finite")
+    return M, int(rank)
 
 
 def attenuate(D, w1, selected, alpha=None) -> np.ndarray:
@@ -262,11 +379,18 @@ def attenuate(D, w1, selected, alpha=None) -> np.ndarray:
     a = _check_alpha(alpha, sel.size, n_rows)
     mask = np.zeros(n_rows, dtype=bool)
     mask[sel] = True
-    S, Sbar = D[mask], D[~mask]
+    e = _scale_exponent(D)  # Eq. (3) does not depend on the scale of D; the arithmetic does
+    S, Sbar = _scaled(D[mask], e), _scaled(D[~mask], e)
     P = Sbar.T @ Sbar
     Q = S.T @ S
-    M, _ = _solve_matrix(P + a * Q, P)
-    return M @ w1
+    with np.errstate(over="ignore", invalid="ignore"):
+        A = P + a * Q  # an inf here (alpha ~ 1e300) is refused by _solve_matrix
+    M, _ = _solve_matrix(A, P)
+    return _matvec(M, float(np.abs(M).max()), w1, float(np.abs(w1).max()), "w2 = M w1")
+
+
+#: Largest ``cache_size`` an :class:`Attenuator` accepts (each entry holds an m x m matrix).
+MAX_CACHE_SIZE = 100_000
 
 
 class Attenuator:
@@ -276,7 +400,8 @@ class Attenuator:
     ----------
     model_or_D : BlendshapeModel or (3n, m) array
     cache_size : int
-        How many (selection, alpha) solutions to keep.
+        How many (selection, alpha) solutions to keep, ``0..MAX_CACHE_SIZE``
+        (0 keeps none: every call solves).
 
     Examples
     --------
@@ -292,6 +417,7 @@ class Attenuator:
     """
 
     def __init__(self, model_or_D, *, cache_size: int = 64):
+        self._cache_size = _as_int(cache_size, "cache_size", error=AttenuationError, lo=0, hi=MAX_CACHE_SIZE)
         if isinstance(model_or_D, BlendshapeModel):
             self.model: BlendshapeModel | None = model_or_D
             D = model_or_D.D
@@ -300,11 +426,13 @@ class Attenuator:
             D = _check_D(model_or_D)
         self.D = D
         self.n_rows, self.m = D.shape
-        self.G = D.T @ D
+        self._abs_max = model_or_D._abs_max[0] if self.model is not None else _abs_max(D)
+        #: ``D`` is used as ``D * 2**-scale_exponent`` in the Gram matrices (0 for any sensibly scaled D)
+        self.scale_exponent = _scale_exponent(D, self._abs_max)
+        self.G = _gram(D, self.scale_exponent)  #: ``(D 2^-e)^T (D 2^-e)``; = ``D^T D`` when ``e = 0``
         self.G.flags.writeable = False
         self._q: OrderedDict[bytes, np.ndarray] = OrderedDict()
-        self._M: OrderedDict[tuple[bytes, float], tuple[np.ndarray, int]] = OrderedDict()
-        self._cache_size = int(cache_size)
+        self._M: OrderedDict[tuple[bytes, float], tuple[np.ndarray, int, float]] = OrderedDict()
         self.rank: int | None = None  #: rank of ``P + alpha Q`` for the last solve (m = full)
 
     def __repr__(self) -> str:
@@ -325,7 +453,7 @@ class Attenuator:
     def _Q(self, sel: np.ndarray, key: bytes) -> np.ndarray:
         Q = self._q.get(key)
         if Q is None:
-            S = self.D[sel]
+            S = _scaled(self.D[sel], self.scale_exponent)
             Q = self._remember(self._q, key, S.T @ S, self._cache_size)
         else:
             self._q.move_to_end(key)
@@ -338,29 +466,37 @@ class Attenuator:
 
     def matrix(self, selected, alpha=None) -> np.ndarray:
         """``M = (P + alpha Q)^-1 P`` (m x m), so that ``w2 = M w1`` (Eq. 3); cached."""
+        return self._matrix(selected, alpha)[0]
+
+    def _matrix(self, selected, alpha) -> tuple[np.ndarray, int, float]:
+        """``(M, rank, max |M|)`` for a selection and alpha, from the cache or solved."""
         sel, key = self._selection(selected)
         a = _check_alpha(alpha, sel.size, self.n_rows)
         hit = self._M.get((key, a))
         if hit is not None:
             self._M.move_to_end((key, a))
             self.rank = hit[1]
-            return hit[0]
+            return hit
         Q = self._Q(sel, key)
         if 2 * sel.size <= self.n_rows:
             P = self.G - Q  # O(m^2): the point of precomputing G
         else:  # most rows selected: the unselected slice is the smaller (and avoids cancellation)
-            Sbar = np.delete(self.D, sel, axis=0)
+            Sbar = _scaled(np.delete(self.D, sel, axis=0), self.scale_exponent)
             P = Sbar.T @ Sbar
-        M, rank = _solve_matrix(P + a * Q, P)
+        with np.errstate(over="ignore", invalid="ignore"):
+            A = P + a * Q  # an inf here (alpha ~ 1e300) is refused by _solve_matrix
+        M, rank = _solve_matrix(A, P)
         M.flags.writeable = False
-        self._remember(self._M, (key, a), (M, rank), self._cache_size)
+        hit = (M, rank, float(np.abs(M).max(initial=0.0)))
+        self._remember(self._M, (key, a), hit, self._cache_size)
         self.rank = rank
-        return M
+        return hit
 
     def attenuate(self, w1, selected, alpha=None) -> np.ndarray:
         """``w2`` for slider values (or a slider change) ``w1``: Eq. (3)."""
-        M = self.matrix(selected, alpha)
-        return M @ _check_w(w1, self.m)
+        M, _, mmax = self._matrix(selected, alpha)
+        w, wmax = _check_w_max(w1, self.m)
+        return _matvec(M, mmax, w, wmax, "w2 = M w1")
 
     __call__ = attenuate
 
@@ -371,16 +507,27 @@ class Attenuator:
         keep); the change ``w_target - w_base`` is attenuated (Section 5's
         workflow: select, adjust sliders, release): ``w_base + M (w_target - w_base)``.
         """
-        w_base = _check_w(w_base, self.m)
-        return w_base + self.attenuate(_check_w(w_target, self.m) - w_base, selected, alpha)
+        w_base, bmax = _check_w_max(w_base, self.m, "w_base")
+        w_target, tmax = _check_w_max(w_target, self.m, "w_target")
+        M, _, mmax = self._matrix(selected, alpha)
+        dmax = bmax + tmax  # bounds max |w_target - w_base|
+        if dmax < 1e300 and mmax * dmax * self.m + bmax < 1e300:  # nothing can overflow: the hot path
+            return w_base + M @ (w_target - w_base)
+        with np.errstate(over="ignore", invalid="ignore"):
+            dw = _finite_result(w_target - w_base, "w_target - w_base")
+            return _finite_result(w_base + M @ dw, "w_base + w2")
 
     def displacement(self, w) -> np.ndarray:
         """``D w`` as a flat (3n,) vector."""
-        return self.D @ _check_w(w, self.m)
+        w, wmax = _check_w_max(w, self.m, "w")
+        return _matvec(self.D, self._abs_max, w, wmax, "the displacement D w")
 
     def pose(self, w) -> np.ndarray:
         """Posed vertices ``f0 + D w`` (needs a model)."""
         if self.model is None:
             raise AttenuationError("pose() needs an Attenuator built from a BlendshapeModel")
-        return self.model.f0 + self.displacement(w).reshape(-1, 3)
+        d = self.displacement(w).reshape(-1, 3)
+        with np.errstate(over="ignore", invalid="ignore"):
+            f = self.model.f0 + d
+        return _finite_result(f, "the pose f0 + D w")
 

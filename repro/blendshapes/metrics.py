@@ -20,10 +20,13 @@ Displacements are flat (3n,) vectors in the xyz packing of ``D`` (row
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+import scipy.linalg
 
 from repro.blendshapes.attenuation import check_selection
-from repro.blendshapes.model import BlendshapeModel
+from repro.blendshapes.model import BlendshapeModel, _as_real_array
 from repro.errors import ModelError
 
 __all__ = [
@@ -39,7 +42,7 @@ __all__ = [
 
 
 def _flat(d, name: str = "displacement") -> np.ndarray:
-    d = np.asarray(d, dtype=np.float64)
+    d = _as_real_array(d, name, finite=False)
     if d.ndim == 2 and d.shape[1] == 3:
         d = d.reshape(-1)
     if d.ndim != 1 or d.size % 3:
@@ -47,6 +50,31 @@ def _flat(d, name: str = "displacement") -> np.ndarray:
     if not np.isfinite(d).all():
         raise ModelError(f"{name} has NaN/inf values")
     return d
+
+
+def _norm(x: np.ndarray) -> float:
+    """Euclidean norm of a vector; BLAS ``nrm2`` neither overflows (|x| ~ 1e200) nor underflows (~ 1e-200)."""
+    r = float(scipy.linalg.norm(x, check_finite=False)) if x.size else 0.0
+    if not math.isfinite(r):
+        raise ModelError("a displacement norm overflows float64")
+    return r
+
+
+def _row_norms(x: np.ndarray) -> np.ndarray:
+    """Norms of the rows of an (n, 3) array, without overflow or underflow (``hypot``)."""
+    with np.errstate(over="ignore"):
+        r = np.hypot(np.hypot(x[:, 0], x[:, 1]), x[:, 2])
+    if not np.isfinite(r).all():
+        raise ModelError("a per-vertex displacement norm overflows float64")
+    return r
+
+
+def _diff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    with np.errstate(over="ignore", invalid="ignore"):
+        out = a - b
+    if not np.isfinite(out).all():
+        raise ModelError("the difference of two displacements overflows float64")
+    return out
 
 
 def _pair(d, d_ref, name="reference"):
@@ -62,14 +90,14 @@ def _pair(d, d_ref, name="reference"):
 def per_vertex_motion(d, d_ref=None) -> np.ndarray:
     """Euclidean motion of every vertex, ``||d_v - d_ref_v||`` (n,), e.g. for heat maps."""
     d, r = _pair(d, d_ref)
-    return np.linalg.norm((d - r).reshape(-1, 3), axis=1)
+    return _row_norms(_diff(d, r).reshape(-1, 3))
 
 
 def selected_motion(d, selected, d_ref=None) -> float:
     """``||S (d - d_ref)||``: how far the selected coordinates moved from ``d_ref`` (default: neutral)."""
     d, r = _pair(d, d_ref)
     sel = check_selection(selected, d.size)
-    return float(np.linalg.norm(d[sel] - r[sel]))
+    return _norm(_diff(d[sel], r[sel]))
 
 
 def _unselected(n: int, selected) -> np.ndarray:
@@ -82,7 +110,7 @@ def unselected_error(d, d_intended, selected) -> float:
     """``||Sbar (d - d_intended)||``: how far the unselected coordinates are from where the sliders meant them."""
     d, t = _pair(d, d_intended, "intended displacement")
     m = _unselected(d.size, selected)
-    return float(np.linalg.norm(d[m] - t[m]))
+    return _norm(_diff(d[m], t[m]))
 
 
 def unselected_fidelity(d, d_intended, selected, d_ref=None) -> float:
@@ -94,10 +122,10 @@ def unselected_fidelity(d, d_intended, selected, d_ref=None) -> float:
     d, t = _pair(d, d_intended, "intended displacement")
     _, r = _pair(d, d_ref)
     m = _unselected(d.size, selected)
-    intended = np.linalg.norm(t[m] - r[m])
+    intended = _norm(_diff(t[m], r[m]))
     if intended == 0:
         return float("nan")
-    return float(1.0 - np.linalg.norm(d[m] - t[m]) / intended)
+    return float(1.0 - _norm(_diff(d[m], t[m])) / intended)
 
 
 def _model(model) -> BlendshapeModel:
@@ -114,7 +142,11 @@ def laplacian_magnitude(model: BlendshapeModel, d) -> np.ndarray:
     d = _flat(d)
     if d.size != 3 * model.n_vertices:
         raise ModelError(f"displacement has {d.size // 3} vertices, model has {model.n_vertices}")
-    return np.linalg.norm(model.laplacian @ d.reshape(-1, 3), axis=1)
+    with np.errstate(over="ignore", invalid="ignore"):
+        lap = model.laplacian @ d.reshape(-1, 3)
+    if not np.isfinite(lap).all():
+        raise ModelError("the Laplacian of the displacement overflows float64")
+    return _row_norms(lap)
 
 
 def roughness(model: BlendshapeModel, d) -> float:
@@ -129,7 +161,7 @@ def roughness_near(model: BlendshapeModel, d, vertices) -> float:
     its neighbours, the tear shows here, whatever happens elsewhere on the face.
     """
     model = _model(model)
-    v = np.unique(np.asarray(vertices, dtype=np.int64))
+    v = np.unique(_as_real_array(vertices, "vertices", integer=True))
     if v.size == 0 or v.min() < 0 or v.max() >= model.n_vertices:
         raise ModelError(f"vertices must be ids in 0..{model.n_vertices - 1}")
     e = model.edges
@@ -145,7 +177,8 @@ def edge_strain(model: BlendshapeModel, d) -> np.ndarray:
     if d.shape[0] != model.n_vertices:
         raise ModelError(f"displacement has {d.shape[0]} vertices, model has {model.n_vertices}")
     e = model.edges
-    rest = model.f0[e[:, 1]] - model.f0[e[:, 0]]
-    moved = rest + d[e[:, 1]] - d[e[:, 0]]
-    L0 = np.linalg.norm(rest, axis=1)
-    return np.abs(np.linalg.norm(moved, axis=1) - L0) / np.where(L0 > 0, L0, 1.0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        rest = model.f0[e[:, 1]] - model.f0[e[:, 0]]
+        moved = rest + d[e[:, 1]] - d[e[:, 0]]
+    L0 = _row_norms(rest)
+    return np.abs(_row_norms(moved) - L0) / np.where(L0 > 0, L0, 1.0)

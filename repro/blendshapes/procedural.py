@@ -94,12 +94,11 @@ under the left eye (a 3 x 2 block, spread over the same physical patch as at
 from __future__ import annotations
 
 import math
-import operator
 from functools import lru_cache
 
 import numpy as np
 
-from repro.blendshapes.model import BlendshapeModel
+from repro.blendshapes.model import BlendshapeModel, _as_int
 from repro.errors import ModelError
 
 __all__ = [
@@ -193,14 +192,7 @@ _SLIDERS = {
 
 # ---------------------------------------------------------------- the grid
 def _check_n(n_vertices) -> int:
-    if isinstance(n_vertices, bool | np.bool_):
-        raise ModelError(f"n_vertices must be an integer, got the bool {n_vertices!r}")
-    try:
-        n = operator.index(n_vertices)
-    except TypeError:
-        raise ModelError(
-            f"n_vertices must be an integer, got {n_vertices!r} ({type(n_vertices).__name__})"
-        ) from None
+    n = _as_int(n_vertices, "n_vertices")
     if not MIN_N_VERTICES <= n <= MAX_N_VERTICES:
         raise ModelError(
             f"n_vertices must be in {MIN_N_VERTICES}..{MAX_N_VERTICES} "

@@ -32,8 +32,8 @@ import numpy as np
 
 from repro.blendshapes import metrics
 from repro.blendshapes.alternatives import edit_orthogonal, edit_zeroed
-from repro.blendshapes.attenuation import Attenuator, select_vertices
-from repro.blendshapes.model import AXES, BlendshapeModel
+from repro.blendshapes.attenuation import Attenuator, _check_alpha, select_vertices
+from repro.blendshapes.model import AXES, BlendshapeModel, _as_int, _as_str, _describe
 from repro.errors import ModelError
 
 __all__ = [
@@ -62,6 +62,14 @@ class Scenario:
     #: when > 0, select only this many vertices of the region: those the base pose moved most
     #: (the animator tags what the first move positioned)
     top_moved: int = 0
+
+    def __post_init__(self) -> None:
+        for f in ("key", "figure", "description", "region", "axes"):
+            _as_str(getattr(self, f), f"Scenario.{f}")
+        for f in ("moves", "base"):
+            if not isinstance(getattr(self, f), Mapping):
+                raise ModelError(f"Scenario.{f} must be a mapping of slider name to value, got {_describe(getattr(self, f))}")
+        _as_int(self.top_moved, "Scenario.top_moved", lo=0)
 
     def vertices(self, model: BlendshapeModel) -> np.ndarray:
         """Vertex ids this scenario selects on ``model``."""
@@ -122,13 +130,33 @@ SCENARIOS: dict[str, Scenario] = {
 
 def scenario(key: str) -> Scenario:
     """The scenario named ``key`` (see :data:`SCENARIOS`)."""
-    try:
+    if isinstance(key, str) and key in SCENARIOS:
         return SCENARIOS[key]
-    except KeyError:
-        raise ModelError(f"unknown scenario {key!r}; known: {sorted(SCENARIOS)}") from None
+    raise ModelError(f"unknown scenario {_describe(key)}; known: {sorted(SCENARIOS)}")
+
+
+def _scenario(sc) -> Scenario:
+    if isinstance(sc, Scenario):
+        return sc
+    if isinstance(sc, str):
+        return scenario(sc)
+    raise ModelError(f"expected a Scenario or a scenario name, got {_describe(sc)}; known: {sorted(SCENARIOS)}")
+
+
+def _check_model(model) -> BlendshapeModel:
+    if not isinstance(model, BlendshapeModel):
+        raise ModelError(f"expected a BlendshapeModel, got {_describe(model)}")
+    return model
+
+
+def _alpha(att: Attenuator, sel: np.ndarray, alpha) -> float:
+    return att.default_alpha(sel) if alpha is None else _check_alpha(alpha, sel.size, att.n_rows)
 
 
 def _attenuator(model: BlendshapeModel, att: Attenuator | None) -> Attenuator:
+    _check_model(model)
+    if att is not None and not isinstance(att, Attenuator):
+        raise ModelError(f"attenuator must be an Attenuator or None, got {_describe(att)}")
     if att is None:
         return Attenuator(model)
     if att.model is not model:
@@ -166,11 +194,11 @@ def evaluate(model: BlendshapeModel, sc: Scenario | str, alpha=None, *, attenuat
     their neighbours).  ``reduction`` is attenuated
     over unattenuated selected motion.
     """
-    sc = scenario(sc) if isinstance(sc, str) else sc
+    sc = _scenario(sc)
     att = _attenuator(model, attenuator)
     sel = sc.selection(model)
     w_base, w_target = sc.weights(model)
-    a = att.default_alpha(sel) if alpha is None else float(alpha)
+    a = _alpha(att, sel, alpha)
     w2 = att.edit(w_base, w_target, sel, a)
     d_base, d_target, d_att = att.displacement(w_base), att.displacement(w_target), att.displacement(w2)
     out = {
@@ -201,12 +229,12 @@ def compare_methods(model: BlendshapeModel, sc: Scenario | str, alpha=None, *, a
     projected orthogonal to them; not applicable when the base pose is empty).
     Each row has the metrics of :func:`evaluate` for that method.
     """
-    sc = scenario(sc) if isinstance(sc, str) else sc
+    sc = _scenario(sc)
     att = _attenuator(model, attenuator)
     sel = sc.selection(model)
     w_base, w_target = sc.weights(model)
     d_base, d_target = att.displacement(w_base), att.displacement(w_target)
-    a = att.default_alpha(sel) if alpha is None else float(alpha)
+    a = _alpha(att, sel, alpha)
     candidates = {
         "none": d_target,
         "attenuation": att.displacement(att.edit(w_base, w_target, sel, a)),
@@ -235,13 +263,16 @@ def alpha_sweep(model: BlendshapeModel, sc: Scenario | str, alphas: Iterable[flo
     quantities whose limits Section 5 discusses: alpha -> 0 gives w2 -> w1,
     alpha -> infinity gives S w2 -> 0.
     """
-    sc = scenario(sc) if isinstance(sc, str) else sc
+    sc = _scenario(sc)
     att = _attenuator(model, attenuator)
     sel = sc.selection(model)
     w_base, w_target = sc.weights(model)
     w1 = w_target - w_base
     d_base, d_target = att.displacement(w_base), att.displacement(w_target)
     none = metrics.selected_motion(d_target, sel, d_base)
+    if isinstance(alphas, (str, bytes)) or not isinstance(alphas, Iterable):
+        raise ModelError(f"alphas must be an iterable of numbers > 0, got {_describe(alphas)}")
+    w1_norm = float(np.linalg.norm(w1))
     rows = []
     for a in alphas:
         w2 = att.attenuate(w1, sel, a)
@@ -254,18 +285,18 @@ def alpha_sweep(model: BlendshapeModel, sc: Scenario | str, alphas: Iterable[flo
             "selected_motion_fraction": m["selected_motion"] / none if none > 0 else float("nan"),
             "unselected_fidelity": m["unselected_fidelity"],
             "unselected_error": m["unselected_error"],
-            "w_change_vs_w1": float(np.linalg.norm(w2 - w1) / np.linalg.norm(w1)),
+            "w_change_vs_w1": float(np.linalg.norm(w2 - w1) / w1_norm) if w1_norm > 0 else float("nan"),
         })
     return rows
 
 
 def axis_table(model: BlendshapeModel, sc: Scenario | str, alpha=None, *, attenuator: Attenuator | None = None) -> list[dict]:
     """x/y/z displacement of each selected vertex with and without attenuation (Fig. 4)."""
-    sc = scenario(sc) if isinstance(sc, str) else sc
+    sc = _scenario(sc)
     att = _attenuator(model, attenuator)
     sel = sc.selection(model)
     w_base, w_target = sc.weights(model)
-    a = att.default_alpha(sel) if alpha is None else float(alpha)
+    a = _alpha(att, sel, alpha)
     d_base = att.displacement(w_base).reshape(-1, 3)
     poses = {
         "none": att.displacement(w_target).reshape(-1, 3),
@@ -290,7 +321,8 @@ def interference(model: BlendshapeModel, sc: Scenario | str) -> dict:
     the returned numbers compare the drift of the selected vertices with the
     motion the first move gave them.
     """
-    sc = scenario(sc) if isinstance(sc, str) else sc
+    sc = _scenario(sc)
+    _check_model(model)
     sel = sc.selection(model)
     verts = np.unique(sel // 3)
     w_base, w_target = sc.weights(model)
