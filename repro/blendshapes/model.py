@@ -254,6 +254,12 @@ class BlendshapeModel:
         D = np.delete(B, neutral, axis=1) - f0[:, None]
         return cls(f0=f0.reshape(-1, 3), D=D, names=tuple(names), faces=faces, **kw)
 
+    def to_gltf(self, path, weights=None, animation=None, **kw):
+        """Write this face as glTF 2.0 (``.glb``/``.gltf``); see :func:`repro.blendshapes.gltf.write_gltf`."""
+        from repro.blendshapes.gltf import write_gltf
+
+        return write_gltf(self, path, weights, animation, **kw)
+
     # --------------------------------------------------------------- topology
     @cached_property
     def edges(self) -> np.ndarray:
