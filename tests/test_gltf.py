@@ -358,6 +358,20 @@ def _not_json_schema(doc, _):
     doc["meshes"] = 5
 
 
+def _many_targets(doc, _):
+    prim = doc["meshes"][0]["primitives"][0]
+    prim["targets"] = [prim["targets"][0]] * 60_000  # one small accessor, 60,000 times
+    doc["meshes"][0]["extras"] = {}
+
+
+def _remote_buffer(doc, _):
+    doc["buffers"][0]["uri"] = "https://example.invalid/face.bin"
+
+
+def _absolute_buffer(doc, _):
+    doc["buffers"][0]["uri"] = "/etc/hostname"
+
+
 @pytest.mark.parametrize(
     "mutate, match",
     [
@@ -371,6 +385,9 @@ def _not_json_schema(doc, _):
         (_nan, "NaN"),
         (_names_wrong_length, "targetNames"),
         (_not_json_schema, "malformed glTF"),
+        (_many_targets, "60000 targets.*refusing"),
+        (_remote_buffer, "not a file name relative to the model"),
+        (_absolute_buffer, "not a file name relative to the model"),
     ],
     ids=lambda x: getattr(x, "__name__", "")[1:],
 )
@@ -429,3 +446,30 @@ def test_pygltflib_reads_what_we_write(expected, tmp_path):
     g = pygltflib.GLTF2.load(str(tmp_path / "f.glb"))
     assert g.meshes[0].extras["targetNames"] == list(expected.names)
     assert len(g.binary_blob()) >= expected.n_vertices * 12
+
+
+# ---------------------------------------------------------------- the real ICT face
+@pytest.mark.slow
+@pytest.mark.data("ict")
+def test_ict_written_as_a_third_party_arkit_face_gets_icts_sliders_and_nearby_regions(tmp_path):
+    """ICT's names are ARKit's: through glTF without repro's extras, the ARKit mapping gives
+    ICT's own sliders, and regions found from the shapes' motion near ICT's landmark ones."""
+    ict = load_model("ict")
+    gpath = tmp_path / "ict.gltf"
+    ict.to_gltf(gpath, quantize=True, meshopt=True)
+    doc = json.loads(gpath.read_text())
+    del doc["meshes"][0]["extras"]["repro"]
+    gpath.write_text(json.dumps(doc))
+    m = load_model(gpath)
+    assert m.units == "m" and m.names == ict.names
+    assert m.sliders == ict.sliders
+    for key, tol_cm in (("mouth_corners", 0.2), ("under_left_eye", 0.8), ("brow_middle", 1.5)):
+        got, want = m.f0[m.regions[key]] / 0.01, ict.f0[ict.regions[key]]
+        assert len(got) == len(want)
+        # each selected vertex lies near the landmark-based selection
+        gap = np.linalg.norm(got[:, None] - want[None], axis=2).min(axis=1)
+        assert gap.max() < tol_cm, (key, gap)
+    for key in scenarios.SCENARIOS:
+        res, ref = scenarios.evaluate(m, key), scenarios.evaluate(ict, key)
+        assert res["n_selected_vertices"] == ref["n_selected_vertices"]
+        assert res["reduction"] < max(1.5 * ref["reduction"], 0.1), key

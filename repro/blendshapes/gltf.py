@@ -11,14 +11,19 @@ Blender or a browser viewer.
 
 Container library
 -----------------
-The JSON and GLB container is parsed and written with ``pygltflib``: a thin,
+The JSON and GLB container is parsed with ``pygltflib`` (``GLTF2.from_json`` and
+``GLTF2.load_from_bytes``; a GLB's framing -- magic, version, declared length, chunk
+lengths -- is checked here first, because the library reports a cut file as a bare
+``struct.error`` or reads it short) and the document is built with its dataclasses
+and serialised by it (``gltf_to_json``) when writing: a thin,
 maintained dataclass mapping of the glTF 2.0 schema that keeps every field,
 extension and ``extras`` as written, and leaves the vertex data alone.
 ``trimesh`` (the other well-kept reader) was not chosen because its glTF
-loader builds render meshes: it merges primitives and vertices, drops or
-flattens morph targets and does not expose sparse or quantised target
-accessors, which would break the vertex correspondence between the neutral
-and its targets that a blendshape model depends on.  Accessors are decoded
+loader builds render meshes (vertices merged by default, one geometry per
+primitive) and offers no morph-target basis or weight animation (its
+maintainer: "there's no animation or skeletons implemented", mikedh/trimesh
+#2026); merged vertices would break the vertex correspondence between the
+neutral and its targets that a blendshape model depends on.  Accessors are decoded
 here with numpy (strided views, bounds-checked against their buffer views),
 so normalised integers (``KHR_mesh_quantization``) and sparse accessors follow
 the spec's formulas; ``EXT_meshopt_compression`` buffer views are decoded with
@@ -115,6 +120,9 @@ _MODES = {0: "POINTS", 1: "LINES", 2: "LINE_LOOP", 3: "LINE_STRIP", 4: "TRIANGLE
 _GLB_MAGIC, _CHUNK_JSON, _CHUNK_BIN = b"glTF", 0x4E4F534A, 0x004E4942
 #: meshopt-decoded buffer views may be at most this many times the file's size.
 _MESHOPT_MAX_RATIO = 256
+#: the dense delta matrix (float64) may be at most this many times the file's size (or 64 MiB):
+#: float32 targets take 3x less, quantised 6x, sparse ones any less.
+_DENSE_MAX_RATIO = 64
 
 
 # ====================================================================== reading
@@ -126,11 +134,9 @@ class _Reader:
         self.budget = max(len(raw), 1 << 16)  # bound on decoded sizes, from the file's size
         self.max_bytes = max_bytes
         self.glb_bin: bytes | None = None
-        if raw[:4] == _GLB_MAGIC or path.suffix.lower() == ".glb":
-            text = self._split_glb(raw)
-        else:
-            text = self._text(raw)
-        self.doc = self._parse(text)
+        glb = raw[:4] == _GLB_MAGIC or path.suffix.lower() == ".glb"
+        text = self._split_glb(raw) if glb else self._text(raw)
+        self.doc = self._parse(text, raw if glb else None)
         self._buffers: dict[int, bytes] = {}
         self._views: dict[int, memoryview] = {}
 
@@ -173,14 +179,12 @@ class _Reader:
             pos += 8 + clen
         if not chunks or chunks[0][0] != _CHUNK_JSON:
             raise self.err("binary glTF without a JSON chunk first")
-        if len(chunks) > 1 and chunks[1][0] == _CHUNK_BIN:
-            self.glb_bin = chunks[1][1]
         try:
             return chunks[0][1].decode("utf-8")
         except UnicodeDecodeError as exc:
             raise self.err(f"the JSON chunk is not UTF-8 ({exc})") from None
 
-    def _parse(self, text: str):
+    def _parse(self, text: str, glb: bytes | None):
         import pygltflib
 
         try:
@@ -195,7 +199,11 @@ class _Reader:
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                doc = pygltflib.GLTF2.from_json(text, infer_missing=True)
+                if glb is None:
+                    doc = pygltflib.GLTF2.from_json(text, infer_missing=True)
+                else:  # framing already checked by _split_glb
+                    doc = pygltflib.GLTF2.load_from_bytes(glb)
+                    self.glb_bin = doc.binary_blob()
         except Exception as exc:  # the library raises TypeError/KeyError/... on a malformed schema
             raise self.err(f"malformed glTF JSON ({type(exc).__name__}: {exc})") from None
         required = list(doc.extensionsRequired or [])
@@ -246,8 +254,10 @@ class _Reader:
             except (binascii.Error, ValueError) as exc:
                 raise self.err(f"buffers[{i}]: corrupt base64 data URI ({exc})") from None
         else:
-            from urllib.parse import unquote
+            from urllib.parse import unquote, urlsplit
 
+            if urlsplit(uri).scheme or uri.startswith(("/", "\\")):
+                raise self.err(f"buffers[{i}] uri {uri[:60]!r} is not a file name relative to the model; only those and data: URIs are read")
             target = self.path.parent / unquote(uri)
             try:
                 data, _ = read_bytes(target, error=ModelError, max_bytes=self.max_bytes)
@@ -454,6 +464,9 @@ def _read_primitive(r: _Reader, mi: int, pj: int) -> tuple[np.ndarray, np.ndarra
     n = len(f0)
     if not np.isfinite(f0).all():
         raise r.err(f"{label} POSITION has {np.count_nonzero(~np.isfinite(f0))} NaN/inf values")
+    dense = n * 3 * len(prim.targets) * 8
+    if dense > max(_DENSE_MAX_RATIO * r.budget, 1 << 26):
+        raise r.err(f"{label}: {len(prim.targets)} targets of {n} vertices would take {dense} bytes; refusing (bounded by the file size)")
     deltas = np.zeros((n, 3, len(prim.targets)))
     for k, target in enumerate(prim.targets):
         ti = target.get("POSITION") if isinstance(target, dict) else getattr(target, "POSITION", None)
