@@ -473,3 +473,25 @@ def test_ict_written_as_a_third_party_arkit_face_gets_icts_sliders_and_nearby_re
         res, ref = scenarios.evaluate(m, key), scenarios.evaluate(ict, key)
         assert res["n_selected_vertices"] == ref["n_selected_vertices"]
         assert res["reduction"] < max(1.5 * ref["reduction"], 0.1), key
+
+
+def test_a_face_packed_by_gltfpack_loads(expected):
+    """Third-party writer: gltfpack 1.3 -cc (its own quantisation, TRS node under a parent node,
+    vertex reordering, meshopt-compressed 16-bit triangle indices) of face.glb."""
+    path = DATA / "face_gltfpack.glb"
+    doc = _doc(path)
+    assert doc.asset.generator.startswith("gltfpack")
+    assert {"KHR_mesh_quantization", "EXT_meshopt_compression"} <= set(doc.extensionsRequired)
+    assert "repro" not in doc.meshes[0].extras  # a third party keeps only targetNames
+    back = load_model(path)
+    assert back.names == expected.names and back.n_vertices == expected.n_vertices
+    from scipy.spatial import cKDTree
+
+    dist, idx = cKDTree(expected.f0).query(back.f0)
+    assert np.unique(idx).size == expected.n_vertices and dist.max() < 1e-5  # gltfpack's 14-bit grid
+    np.testing.assert_allclose(back.D.reshape(-1, 3, 5), expected.D.reshape(-1, 3, 5)[idx], atol=1e-5)
+    np.testing.assert_array_equal(_canonical_faces(idx[back.faces]), _canonical_faces(expected.faces))
+    # sliders and regions come from the ARKit names, at the same places as the original's
+    assert back.sliders == expected.sliders
+    for key in ("brow_middle", "mouth_corners"):
+        np.testing.assert_array_equal(idx[back.regions[key]], expected.regions[key], err_msg=key)
