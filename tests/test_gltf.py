@@ -495,3 +495,56 @@ def test_a_face_packed_by_gltfpack_loads(expected):
     assert back.sliders == expected.sliders
     for key in ("brow_middle", "mouth_corners"):
         np.testing.assert_array_equal(idx[back.regions[key]], expected.regions[key], err_msg=key)
+
+
+def _paths(node, prefix=()):
+    """Every key path of a JSON document."""
+    if isinstance(node, dict):
+        for k, v in node.items():
+            yield prefix + (k,)
+            yield from _paths(v, prefix + (k,))
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            yield prefix + (i,)
+            yield from _paths(v, prefix + (i,))
+
+
+def test_mangled_documents_give_a_model_or_a_model_error(tmp_path):
+    """Any field replaced by a value of another type or range: never a bare exception."""
+    import shutil
+
+    shutil.copy(DATA / "face.bin", tmp_path / "face.bin")
+    doc = json.loads((DATA / "face.gltf").read_text())
+    paths = [p for p in _paths(doc) if "repro" not in p and "targetNames" not in p[-2:]]
+    rng = np.random.default_rng(11)
+    junk = [None, -1, 0, 3, 10**12, 2.5, "x", [], {}, [1, 2], {"a": 1}, True, float("nan")]
+    outcomes = {"ok": 0, "error": 0}
+    for _ in range(120):
+        mangled = json.loads(json.dumps(doc))
+        where = paths[rng.integers(len(paths))]
+        node = mangled
+        for key in where[:-1]:
+            node = node[key]
+        node[where[-1]] = junk[rng.integers(len(junk))]
+        (tmp_path / "face.gltf").write_text(json.dumps(mangled))
+        try:
+            load_model(tmp_path / "face.gltf")
+            outcomes["ok"] += 1
+        except ModelError as exc:
+            assert "face.gltf" in str(exc)
+            outcomes["error"] += 1
+    assert outcomes["error"] > 20
+
+
+def test_flipped_bytes_in_a_glb_give_a_model_or_a_model_error(tmp_path):
+    raw = (DATA / "face_meshopt.glb").read_bytes()
+    rng = np.random.default_rng(12)
+    for _ in range(60):
+        b = bytearray(raw)
+        for i in rng.integers(0, len(b), size=4):
+            b[i] = rng.integers(256)
+        (tmp_path / "f.glb").write_bytes(bytes(b))
+        try:
+            load_model(tmp_path / "f.glb")
+        except ModelError as exc:
+            assert "f.glb" in str(exc)

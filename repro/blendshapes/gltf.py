@@ -220,6 +220,8 @@ class _Reader:
         items = getattr(self.doc, kind) or []
         if not isinstance(index, int) or isinstance(index, bool) or not 0 <= index < len(items):
             raise self.err(f"refers to {kind}[{index!r}], but the file has {len(items)} {kind}")
+        if not hasattr(items[index], "extras"):  # null or a scalar where an object belongs
+            raise self.err(f"{kind}[{index}] is {items[index]!r:.40}, not a glTF object")
         return items[index]
 
     def integer(self, value, what: str, *, lo: int = 0, default=None) -> int:
@@ -321,9 +323,9 @@ class _Reader:
         """Accessor ``i`` as float64 (count, ncomp) (dequantised) -- or int64 for index data."""
         acc = self.item("accessors", i)
         label = f"accessors[{i}] ({what})"
-        if acc.type not in _NCOMP or (want and acc.type not in want):
+        if not isinstance(acc.type, str) or acc.type not in _NCOMP or (want and acc.type not in want):
             raise self.err(f"{label} has type {acc.type!r}, expected {want or list(_NCOMP)}")
-        if acc.componentType not in _COMPONENTS:
+        if not isinstance(acc.componentType, int) or acc.componentType not in _COMPONENTS:
             raise self.err(f"{label} has componentType {acc.componentType!r}, not one of {sorted(_COMPONENTS)}")
         dtype, divisor = _COMPONENTS[acc.componentType]
         dtype = np.dtype(dtype).newbyteorder("<")
@@ -356,7 +358,8 @@ class _Reader:
         if acc.sparse is not None:
             out = self._sparse(acc, out, label, dtype, ncomp, count)
         if dtype.kind == "f":
-            return out.astype(np.float64)
+            with np.errstate(invalid="ignore"):  # signalling-NaN bit patterns; NaN is refused by the callers
+                return out.astype(np.float64)
         if acc.normalized:
             if divisor is None:
                 raise self.err(f"{label} is normalized with componentType {acc.componentType} (only 8/16-bit integers can be)")
@@ -415,7 +418,7 @@ def _world_of_mesh(r: _Reader, mesh_index: int) -> tuple[np.ndarray, str]:
     doc = r.doc
     nodes = doc.nodes or []
     if doc.scenes:
-        scene = doc.scenes[doc.scene if isinstance(doc.scene, int) and 0 <= doc.scene < len(doc.scenes) else 0]
+        scene = r.item("scenes", doc.scene if isinstance(doc.scene, int) and 0 <= doc.scene < len(doc.scenes) else 0)
         roots = list(scene.nodes or [])
     else:
         children = {c for n in nodes for c in (n.children or [])}
@@ -456,7 +459,10 @@ def _read_primitive(r: _Reader, mi: int, pj: int) -> tuple[np.ndarray, np.ndarra
     label = f"meshes[{mi}] ({mesh.name!r}) primitive {pj}"
     mode = 4 if prim.mode is None else prim.mode
     if mode != 4:
-        raise r.err(f"{label} has mode {mode} ({_MODES.get(mode, 'unknown')}); only triangles (mode 4) are supported")
+        kind = _MODES.get(mode, "unknown") if isinstance(mode, int) else "unknown"
+        raise r.err(f"{label} has mode {mode!r} ({kind}); only triangles (mode 4) are supported")
+    if not isinstance(prim.targets, list):
+        raise r.err(f"{label} targets must be a list, got {prim.targets!r:.60}")
     pos_i = getattr(prim.attributes, "POSITION", None)
     if pos_i is None:
         raise r.err(f"{label} has no POSITION attribute")
@@ -568,6 +574,16 @@ def read_gltf(
     raw, _ = read_bytes(p, error=ModelError, max_bytes=max_bytes)
     if not raw:
         raise ModelError(f"{p}: empty file")
+    try:
+        return _read(p, raw, mesh, primitive, max_bytes)
+    except ModelError:
+        raise
+    except (TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError, struct.error) as exc:
+        # a field of an unexpected JSON type that no check above caught: still the file's fault
+        raise ModelError(f"{p}: malformed glTF ({type(exc).__name__}: {exc})") from None
+
+
+def _read(p: Path, raw: bytes, mesh, primitive, max_bytes: int) -> BlendshapeModel:
     r = _Reader(p, raw, max_bytes)
     mi, prims = _choose(r, mesh, primitive)
     gmesh = r.doc.meshes[mi]
