@@ -337,6 +337,10 @@ def _out_of_bounds(doc, _):
     doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"]]["byteOffset"] = 400
 
 
+def _view_out_of_buffer(doc, _):
+    doc["bufferViews"][-1]["byteLength"] += 64
+
+
 def _huge_count(doc, _):
     for a in doc["accessors"]:
         a["count"] = 10**12
@@ -381,6 +385,7 @@ def _absolute_buffer(doc, _):
         (_draco, "unsupported extension.*KHR_draco_mesh_compression"),
         (_missing_bin, r"missing buffer 0 \('bad.bin'\).*no such file"),
         (_out_of_bounds, "out of bounds"),
+        (_view_out_of_buffer, r"bufferViews\[\d+\] \(bytes \d+\.\.\d+\) is out of bounds of buffers\[0\]"),
         (_huge_count, "refusing"),
         (_nan, "NaN"),
         (_names_wrong_length, "targetNames"),
@@ -548,3 +553,13 @@ def test_flipped_bytes_in_a_glb_give_a_model_or_a_model_error(tmp_path):
             load_model(tmp_path / "f.glb")
         except ModelError as exc:
             assert "f.glb" in str(exc)
+
+
+def test_load_model_takes_paths_and_still_knows_its_names(tmp_path):
+    from pathlib import Path
+
+    assert load_model(DATA / "face.glb").n_vertices == load_model(str(DATA / "face.glb")).n_vertices
+    assert isinstance(DATA / "face.glb", Path)
+    assert load_model("procedural").name == "procedural"
+    with pytest.raises(ModelError, match="unknown model 'bingo'"):
+        load_model("bingo")
