@@ -5,6 +5,7 @@ Motion Attenuation" (I3D 2005).
   whole-face form (Section 3).
 - :mod:`~repro.blendshapes.procedural`: the embedded 2,016-vertex face.
 - :mod:`~repro.blendshapes.ict`: the real ICT Face Model (staged data).
+- :mod:`~repro.blendshapes.gltf`: glTF 2.0 faces (morph targets) in and out.
 - :mod:`~repro.blendshapes.attenuation`: Eq. (3), ``attenuate`` and the cached
   ``Attenuator`` (Sections 4-5).
 - :mod:`~repro.blendshapes.alternatives`: zeroed rows and orthogonal locking,
@@ -12,6 +13,8 @@ Motion Attenuation" (I3D 2005).
 - :mod:`~repro.blendshapes.metrics`: selected motion, unselected fidelity,
   surface smoothness.
 """
+
+import os
 
 from repro.blendshapes.alternatives import edit_orthogonal, edit_zeroed, orthogonal_lock, zero_rows
 from repro.blendshapes.attenuation import (
@@ -45,19 +48,25 @@ __all__ = [
 ]
 
 #: Models :func:`load_model` knows, with the dataset each needs (None = embedded).
-MODELS = {"procedural": None, "ict": "ict"}
+MODELS = {"procedural": None, "ict": "ict"}  # and any .gltf/.glb path
 
 
-def load_model(name: str = "procedural", **kw) -> BlendshapeModel:
-    """A blendshape model by name.
+def load_model(name="procedural", **kw) -> BlendshapeModel:
+    """A blendshape model by name, or a glTF 2.0 face by path.
 
+    A path (``str`` or ``os.PathLike``) ending in ``.gltf`` or ``.glb``: the face
+    in that file, in metres (keywords of :func:`repro.blendshapes.gltf.read_gltf`).
     ``"procedural"``: the embedded 2,016-vertex face, always available
     (keyword ``n_vertices`` for a scaled-up one).  ``"ict"``: the ICT Face Model
     from the data folder (keywords of :func:`repro.blendshapes.ict.load_ict`);
     raises :class:`~repro.errors.DataError` saying how to get it when absent.
     """
+    if isinstance(name, os.PathLike) or (isinstance(name, str) and name.lower().endswith((".gltf", ".glb"))):
+        from repro.blendshapes.gltf import read_gltf
+
+        return read_gltf(name, **kw)
     if not isinstance(name, str):
-        raise ModelError(f"model name must be a string, got {name!r}; known: {sorted(MODELS)}")
+        raise ModelError(f"model name must be a string or a .gltf/.glb path, got {name!r}; known: {sorted(MODELS)}")
     if name == "procedural":
         from repro.blendshapes.procedural import procedural_model
 
