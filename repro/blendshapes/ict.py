@@ -215,23 +215,28 @@ def _parse_obj(raw: bytes, source: str) -> tuple[np.ndarray, np.ndarray]:
             raise _err(source, i + 1, "line continuations ('\\') are not supported")
     if not vi:
         raise ModelError(f"{source}: no vertices ('v' lines)")
-    if b"_" in raw:  # float() and int() take '1_0' for 10; OBJ numbers have no '_'
-        for i in sorted(vi + fi):
-            if b"_" in lines[i]:
-                tok = next(t for t in lines[i].split()[1:] if b"_" in t)
-                raise _err(source, i + 1, f"{tok.decode(errors='replace')[:40]!r} is not an OBJ number ('_' in it)")
     vertices = _parse_vertices(lines, vi, source)
     faces = _parse_faces(lines, vi, fi, len(vertices), source)
     return vertices, faces
 
 
+def _no_underscores(joined: bytes, bodies: list[bytes], index: list[int], source: str) -> None:
+    """float() and int() read '1_0' as 10; OBJ numbers have no '_' (one scan of the joined lines)."""
+    if b"_" in joined:
+        k = next(k for k, b in enumerate(bodies) if b"_" in b)
+        tok = next(t for t in bodies[k].split() if b"_" in t)
+        raise _err(source, index[k] + 1, f"{tok.decode(errors='replace')[:40]!r} is not an OBJ number ('_' in it)")
+
+
 def _parse_vertices(lines: list[bytes], vi: list[int], source: str) -> np.ndarray:
     bodies = [lines[i][1:] for i in vi]
+    joined = b" ".join(bodies)
+    _no_underscores(joined, bodies, vi, source)
     counts = np.fromiter((len(b.split()) for b in bodies), dtype=np.int64, count=len(bodies))
     V = None
     if (counts == 3).all():
         try:
-            V = np.array(b" ".join(bodies).split(), dtype=np.float64).reshape(-1, 3)
+            V = np.array(joined.split(), dtype=np.float64).reshape(-1, 3)
         except ValueError:
             V = None  # locate the bad line below
     if V is None:
@@ -274,9 +279,11 @@ def _parse_faces(lines: list[bytes], vi: list[int], fi: list[int], nv: int, sour
     if short.size:
         k = short[0]
         raise _err(source, fi[k] + 1, f"a face needs at least 3 vertices, got {counts[k]}")
+    joined = b" ".join(bodies)
+    _no_underscores(joined, bodies, fi, source)
     idx = None
     try:
-        idx = np.array(_SLASH_TAIL.sub(b"", b" ".join(bodies)).split(), dtype=np.int64)
+        idx = np.array(_SLASH_TAIL.sub(b"", joined).split(), dtype=np.int64)
     except (ValueError, OverflowError):
         pass
     if idx is None or idx.size != counts.sum():

@@ -170,6 +170,7 @@ def test_many_bones_without_dofs_times_many_frames_is_refused_before_allocating(
     # 3,001 joints x 20,000 frames x 56 bytes = 3.4 GB of arrays from two files of < 1 MB
     root = str(Path(__file__).resolve().parents[2])  # this checkout's repro first
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, os.environ.get("PYTHONPATH", "")]))
+    env.update(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")  # small address space
     run = subprocess.run(
         [sys.executable, "-c", _LIMITED, os.path.dirname(__file__)],
         capture_output=True, text=True, timeout=120, env=env,
