@@ -464,9 +464,12 @@ def read_asf(src) -> AsfSkeleton:
     angle = units.get("angle", "deg").lower()
     if angle not in ("deg", "rad"):
         raise BVHError(f"line {units_line['angle']}: :units angle must be deg or rad, got {angle!r}")
+    length_text = units.get("length", "1")
     try:
-        length_unit = float(units.get("length", "1"))
+        length_unit = float(length_text)
     except ValueError:
+        length_unit = float("nan")
+    if "_" in length_text or not length_text.isascii():  # float() takes '1_0' and other scripts' digits
         length_unit = float("nan")
     if not math.isfinite(length_unit) or length_unit <= 0:
         raise BVHError(f"line {units_line['length']}: :units length must be a number > 0, got {units['length']!r}")

@@ -269,3 +269,10 @@ def test_every_error_is_a_repro_error():
     for bad in ("id +-5", "id ²"):
         with pytest.raises(ReproError):
             read_asf(io.StringIO(SMALL_ASF.replace("id 1", bad)))
+
+
+@pytest.mark.parametrize("value", ["0_45", "\u0663"])
+def test_length_unit_must_be_a_plain_number(value):
+    asf = SMALL_ASF.replace("  length 0.45\n", f"  length {value}\n")
+    with pytest.raises(BVHError, match=rf"^line 5: :units length must be a number > 0, got '{value}'"):
+        read_asf(io.StringIO(asf))
