@@ -26,7 +26,7 @@ from repro.blendshapes.ict import (
     load_ict,
     read_obj,
 )
-from repro.errors import DataError, ModelError
+from repro.errors import CacheWarning, DataError, ModelError
 
 
 # --------------------------------------------------------------- read_obj
@@ -430,7 +430,8 @@ def test_cache_round_trip_and_corruption(tmp_path, monkeypatch, full):
         cache_file.write_bytes(bad)
         assert ict._load_cache(cache_file, CACHE_SHAPES) is None  # detected as unusable
         load_ict.cache_clear()
-        again = load_ict(shapes=CACHE_SHAPES, face_only=False)
+        with pytest.warns(CacheWarning, match="damaged"):  # rebuilt, and said so
+            again = load_ict(shapes=CACHE_SHAPES, face_only=False)
         for x, y in zip(_arrays_of(again), _arrays_of(cold)):
             np.testing.assert_array_equal(x, y)
         # the damaged file was replaced by a good one

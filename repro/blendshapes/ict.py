@@ -30,19 +30,19 @@ Caching
 Parsing the 58 OBJs (about 150 MB of text) takes a few seconds, so the
 assembled arrays are cached in an ``.npz`` file in ``$REPRO_CACHE_DIR`` (else
 ``pooch.os_cache("repro") / "derived"``), named after the registry sha256s of
-the files used; the data folder itself is never written to.  The model is also
-kept in memory per process (see :func:`load_ict`).
+the files used; the data folder itself is never written to.  The file records
+those sha256s and a sha256 of its arrays, both checked when it is loaded; a
+damaged cache is rebuilt with a :class:`~repro.errors.CacheWarning`.  The model
+is also kept in memory per process (see :func:`load_ict`).
 """
 
 from __future__ import annotations
 
-import gzip
 import hashlib
 import json
 import os
 import re
-import uuid
-import zipfile
+import warnings
 from collections.abc import Sequence
 from functools import lru_cache
 from pathlib import Path
@@ -51,7 +51,8 @@ import numpy as np
 
 from repro import data
 from repro.blendshapes.model import BlendshapeModel
-from repro.errors import DataError, ModelError
+from repro.errors import CacheWarning, DataError, ModelError
+from repro.io import atomic_path, read_bytes
 
 __all__ = [
     "read_obj",
@@ -130,7 +131,7 @@ ICT_SLIDERS: dict[str, dict[str, float]] = {
 }
 
 _FOLDER = "faces/ict"
-_CACHE_FORMAT = 1  # bump when the cached arrays or their meaning change
+_CACHE_FORMAT = 2  # bump when the cached arrays or their meaning change (2: source and content hashes)
 
 
 # ---------------------------------------------------------------------- OBJ
@@ -170,10 +171,14 @@ def read_obj(stream_or_path) -> tuple[np.ndarray, np.ndarray]:
     ------
     ModelError
         The file has no vertices, a vertex with fewer than 3 (or non-numeric,
-        NaN or infinite) coordinates, a face with fewer than 3 corners, a face
+        NaN or infinite) coordinates, a number with ``_`` (Python reads ``1_0``
+        as 10; OBJ does not), a face with fewer than 3 corners, a face
         index that is not an integer, is 0 or is out of range, or a line
         continuation (``\\``); the message names the source and the 1-based line
         number.
+    DataError
+        The file is missing, a folder, unreadable, a damaged gzip stream or
+        holds more than :data:`repro.io.MAX_READ_BYTES`; the message names it.
 
     Notes
     -----
@@ -182,24 +187,10 @@ def read_obj(stream_or_path) -> tuple[np.ndarray, np.ndarray]:
     line-by-line pass runs only to locate an error.  About 0.05-0.1 s for a
     2.5 MB ICT mesh.
     """
-    if hasattr(stream_or_path, "read"):
-        source = str(getattr(stream_or_path, "name", "<stream>"))
-        try:
-            raw = stream_or_path.read()
-        except (OSError, EOFError) as exc:  # e.g. a damaged gzip stream
-            raise DataError(f"{source} cannot be read: {exc}") from exc
-    else:
-        p = Path(stream_or_path)
-        source = str(p)
-        try:
-            opener = gzip.open if p.suffix == ".gz" else open
-            with opener(p, "rb") as fh:
-                raw = fh.read()
-        except (OSError, EOFError) as exc:
-            raise DataError(f"{p} cannot be read: {exc}") from exc
-    if isinstance(raw, str):
-        raw = raw.encode("utf-8")
-    return _parse_obj(bytes(raw), source)
+    # path-named DataError for a missing file, a folder, no permission, a damaged gzip
+    # stream or more than repro.io.MAX_READ_BYTES of content (checked while reading)
+    raw, name = read_bytes(stream_or_path, error=DataError)
+    return _parse_obj(raw, name or "<stream>")
 
 
 def _parse_obj(raw: bytes, source: str) -> tuple[np.ndarray, np.ndarray]:
@@ -229,13 +220,23 @@ def _parse_obj(raw: bytes, source: str) -> tuple[np.ndarray, np.ndarray]:
     return vertices, faces
 
 
+def _no_underscores(joined: bytes, bodies: list[bytes], index: list[int], source: str) -> None:
+    """float() and int() read '1_0' as 10; OBJ numbers have no '_' (one scan of the joined lines)."""
+    if b"_" in joined:
+        k = next(k for k, b in enumerate(bodies) if b"_" in b)
+        tok = next(t for t in bodies[k].split() if b"_" in t)
+        raise _err(source, index[k] + 1, f"{tok.decode(errors='replace')[:40]!r} is not an OBJ number ('_' in it)")
+
+
 def _parse_vertices(lines: list[bytes], vi: list[int], source: str) -> np.ndarray:
     bodies = [lines[i][1:] for i in vi]
+    joined = b" ".join(bodies)
+    _no_underscores(joined, bodies, vi, source)
     counts = np.fromiter((len(b.split()) for b in bodies), dtype=np.int64, count=len(bodies))
     V = None
     if (counts == 3).all():
         try:
-            V = np.array(b" ".join(bodies).split(), dtype=np.float64).reshape(-1, 3)
+            V = np.array(joined.split(), dtype=np.float64).reshape(-1, 3)
         except ValueError:
             V = None  # locate the bad line below
     if V is None:
@@ -278,9 +279,11 @@ def _parse_faces(lines: list[bytes], vi: list[int], fi: list[int], nv: int, sour
     if short.size:
         k = short[0]
         raise _err(source, fi[k] + 1, f"a face needs at least 3 vertices, got {counts[k]}")
+    joined = b" ".join(bodies)
+    _no_underscores(joined, bodies, fi, source)
     idx = None
     try:
-        idx = np.array(_SLASH_TAIL.sub(b"", b" ".join(bodies)).split(), dtype=np.int64)
+        idx = np.array(_SLASH_TAIL.sub(b"", joined).split(), dtype=np.int64)
     except (ValueError, OverflowError):
         pass
     if idx is None or idx.size != counts.sum():
@@ -473,16 +476,27 @@ def _relpath(stem: str) -> str:
     return f"{_FOLDER}/{stem}.obj"
 
 
-def _cache_key(shapes: tuple[str, ...]) -> str:
-    """Cache file name from the registry sha256s of every file the arrays come from."""
+def _used_files(shapes: tuple[str, ...]) -> list[str]:
+    return [_relpath(ICT_NEUTRAL), f"{_FOLDER}/vertex_indices.json"] + [_relpath(s) for s in shapes]
+
+
+def _source_hashes(shapes: tuple[str, ...]) -> dict[str, str]:
+    """Registry sha256 of every file the arrays come from (``fetch`` checks the files against them)."""
     reg = data.registry()
-    used = [_relpath(ICT_NEUTRAL), f"{_FOLDER}/vertex_indices.json"] + [_relpath(s) for s in shapes]
-    h = hashlib.sha256(f"repro.blendshapes.ict cache format {_CACHE_FORMAT}\n".encode())
-    for rel in used:
+    out = {}
+    for rel in _used_files(shapes):
         try:
-            h.update(f"{rel} {reg[rel].sha256}\n".encode())
+            out[rel] = reg[rel].sha256
         except KeyError:
             raise DataError(f"{rel!r} is not a registered data file") from None
+    return out
+
+
+def _cache_key(shapes: tuple[str, ...]) -> str:
+    """Cache file name from the registry sha256s of every file the arrays come from."""
+    h = hashlib.sha256(f"repro.blendshapes.ict cache format {_CACHE_FORMAT}\n".encode())
+    for rel, sha in _source_hashes(shapes).items():
+        h.update(f"{rel} {sha}\n".encode())
     return f"ict-{h.hexdigest()[:24]}.npz"
 
 
@@ -532,46 +546,83 @@ def _build_arrays(shapes: tuple[str, ...]) -> dict[str, np.ndarray]:
     }
 
 
-def _load_cache(path: Path, shapes: tuple[str, ...]) -> dict[str, np.ndarray] | None:
-    """The cached arrays, or None when the file is absent, unreadable or inconsistent."""
+#: The arrays of a cache file, with their dtype kind (f: float, i: integer, U: text).
+_CACHE_ARRAYS = {"f0": "f", "D": "f", "faces": "i", "names": "U", "landmarks": "i", "format": "i"}
+
+
+def _content_hash(arrays: dict[str, np.ndarray]) -> str:
+    """sha256 of the arrays' names, dtypes, shapes and bytes (about 0.05 s for all 57 shapes)."""
+    h = hashlib.sha256()
+    for k in sorted(arrays):
+        a = np.ascontiguousarray(arrays[k])
+        h.update(f"{k} {a.dtype.str} {a.shape}\n".encode())
+        h.update(memoryview(a).cast("B") if a.size else b"")
+    return h.hexdigest()
+
+
+def _check_cache(path: Path, shapes: tuple[str, ...]) -> tuple[dict[str, np.ndarray] | None, str | None]:
+    """The cached arrays and None, or None and what is wrong with the file (None if it is absent).
+
+    Every kind of damage counts: not a zip, truncated, a bad member CRC, missing
+    keys, wrong types or shapes, another format, source hashes other than the
+    registry's, or arrays whose content hash is not the recorded one.
+    """
     try:
-        with np.load(path, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in ("f0", "D", "faces", "names", "landmarks", "format")}
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
-        return None
+        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as z:
+            missing = [k for k in (*_CACHE_ARRAYS, "sources", "content") if k not in z.files]
+            if missing:
+                return None, f"no {missing} in it"
+            arrays = {k: z[k] for k in _CACHE_ARRAYS}
+            sources, content = z["sources"], z["content"]
+    except (FileNotFoundError, NotADirectoryError):  # no cache yet (or no cache folder)
+        return None, None
+    except Exception as exc:  # noqa: BLE001 - any failure to read the file is damage
+        return None, f"unreadable, {type(exc).__name__}: {str(exc)[:100]}"
+    for k, kind in _CACHE_ARRAYS.items():
+        if arrays[k].dtype.kind != kind and not (kind == "i" and arrays[k].dtype.kind == "u"):
+            return None, f"{k!r} has dtype {arrays[k].dtype}, expected kind {kind!r}"
+    for k in ("sources", "content"):
+        v = sources if k == "sources" else content
+        if v.dtype.kind != "U" or v.shape != ():
+            return None, f"{k!r} is not a text entry"
+    if arrays["format"].shape != () or int(arrays["format"]) != _CACHE_FORMAT:
+        return None, f"format {arrays['format'].tolist()!r}, expected {_CACHE_FORMAT}"
+    try:
+        recorded = json.loads(str(sources))
+    except ValueError:
+        recorded = None
+    if recorded != _source_hashes(shapes):
+        return None, "made from other source files (their sha256 differ from the registry's)"
     n = ICT_N_VERTICES
-    ok = (
-        int(arrays["format"]) == _CACHE_FORMAT
-        and tuple(arrays["names"].tolist()) == shapes
+    shape_ok = (
+        tuple(arrays["names"].tolist()) == shapes
         and arrays["f0"].shape == (n, 3)
         and arrays["D"].shape == (3 * n, len(shapes))
-        and arrays["f0"].dtype == np.float64
-        and arrays["D"].dtype == np.float64
         and arrays["faces"].shape == (ICT_N_TRIANGLES, 3)
-        and np.issubdtype(arrays["faces"].dtype, np.integer)
         and arrays["landmarks"].shape == (68,)
     )
-    return arrays if ok else None
+    if not shape_ok:
+        return None, "arrays of other shapes or shape names than requested"
+    if _content_hash(arrays) != str(content):
+        return None, "content hash does not match (the arrays were changed)"
+    return arrays, None
 
 
-def _save_cache(path: Path, arrays: dict[str, np.ndarray]) -> bool:
-    """Write ``arrays`` atomically (temporary file + ``os.replace``); False if not writable."""
-    tmp = None
+def _load_cache(path: Path, shapes: tuple[str, ...]) -> dict[str, np.ndarray] | None:
+    """The cached arrays, or None when the file is absent, unreadable or inconsistent."""
+    return _check_cache(path, shapes)[0]
+
+
+def _save_cache(path: Path, arrays: dict[str, np.ndarray], sources: dict[str, str] | None = None) -> bool:
+    """Write ``arrays`` with their source and content hashes atomically; False if not writable."""
+    entries = dict(arrays)
+    entries["sources"] = np.array(json.dumps(sources or {}, sort_keys=True))
+    entries["content"] = np.array(_content_hash(arrays))
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        # a unique name in the same folder (so os.replace is atomic), created with
-        # open(..., "xb") so the file gets the usual umask permissions
-        tmp = path.with_name(f".{path.stem}-{os.getpid()}-{uuid.uuid4().hex[:8]}.tmp")
-        with open(tmp, "xb") as fh:
-            np.savez(fh, **arrays)
-        os.replace(tmp, path)
+        with atomic_path(path) as tmp, open(tmp, "wb") as fh:  # a file object: savez adds no suffix
+            np.savez(fh, **entries)
         return True
     except OSError:
-        if tmp is not None:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
         return False
 
 
@@ -579,10 +630,12 @@ def _arrays(shapes: tuple[str, ...], use_cache: bool) -> dict[str, np.ndarray]:
     if not use_cache:
         return _build_arrays(shapes)
     path = cache_dir() / _cache_key(shapes)
-    arrays = _load_cache(path, shapes)
+    arrays, damage = _check_cache(path, shapes)
     if arrays is None:
+        if damage is not None:  # a first build is silent; only a damaged cache is reported
+            warnings.warn(f"ICT cache {path} is damaged ({damage}); rebuilding it", CacheWarning, stacklevel=5)
         arrays = _build_arrays(shapes)
-        _save_cache(path, arrays)
+        _save_cache(path, arrays, _source_hashes(shapes))
     return arrays
 
 
@@ -686,8 +739,12 @@ def load_ict(
     -----
     The on-disk cache file is named after the registry sha256s of the neutral,
     ``vertex_indices.json`` and the requested shapes, so changed data never
-    reuses stale arrays; it is written atomically and a damaged or
-    inconsistent cache file is ignored and rebuilt.  When the cache folder is
+    reuses stale arrays.  The file also records those sha256s and a sha256 of
+    its arrays' bytes, checked on every load (about 0.05 s); it is written
+    atomically, and a damaged or inconsistent cache file (unreadable,
+    truncated, missing or mistyped entries, another format, other source
+    hashes, changed arrays) is rebuilt with a
+    :class:`~repro.errors.CacheWarning`.  A first build prints and warns nothing.  When the cache folder is
     not writable the model is simply rebuilt each time.  A warm load skips the
     data files altogether.  Measured on the shared 2-core build machine (all
     57 shapes, face only): about 4 s cold (sha256 check and parse of 58 OBJs,

@@ -34,21 +34,46 @@ Lengths stay in ASF units (CMU: ``:units length 0.45``, one unit = 1/0.45 inch, 
 from __future__ import annotations
 
 import math
+import re
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
 from repro.errors import BVHError
-from repro.motion.bvh import _read_bytes
+from repro.io import read_bytes
 from repro.motion.motion import Motion, euler_to_quat, quat_multiply
 
-__all__ = ["AsfBone", "AsfSkeleton", "read_asf", "read_amc", "read_asf_amc", "CMU_FRAME_TIME"]
+__all__ = [
+    "AsfBone",
+    "AsfSkeleton",
+    "read_asf",
+    "read_amc",
+    "read_asf_amc",
+    "CMU_FRAME_TIME",
+    "MAX_ASF_BYTES",
+    "MAX_AMC_BYTES",
+]
 
 #: CMU captures at 120 Hz; AMC files carry no frame rate.
 CMU_FRAME_TIME: float = 1.0 / 120.0
 
 _ROTATION_DOFS = ("rx", "ry", "rz")
 _ROOT_DOFS = ("TX", "TY", "TZ", "RX", "RY", "RZ")
+
+#: Most bytes (after gzip is undone) an ASF file may hold: 64 MiB, some 400,000 bones.
+MAX_ASF_BYTES = 64 << 20
+#: Most bytes (after gzip is undone) an AMC file may hold: 1 GiB (CMU takes are 1-40 MB).
+MAX_AMC_BYTES = 1 << 30
+#: The arrays of the motion (rotations and positions, 56 bytes per joint and frame) may
+#: take at most this many times the AMC file's bytes, or 256 MiB if that is more.  Only
+#: joints without dofs, which take no AMC text, can make a motion much larger than its file.
+_MOTION_BYTES_PER_AMC_BYTE = 64
+_MOTION_BYTES_FLOOR = 256 << 20
+
+#: A plain ASCII integer (Python's int() also takes '1_0', ' 7', Arabic-Indic digits ...).
+_INT_RE = re.compile(r"[+-]?[0-9]{1,18}")
+_UINT_RE = re.compile(r"[0-9]{1,18}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,40 +176,49 @@ class AsfSkeleton:
 
     def axis_quaternions(self) -> np.ndarray:
         """(J, 4) quaternions of the local frames ``C`` (root: its ``orientation``)."""
-        out = []
-        for name in self.joint_names:
-            if name == "root":
-                out.append(self._angles_to_quat(self.root_axis, self.root_orientation))
-            else:
-                b = self.bones[name]
-                out.append(self._angles_to_quat(b.axis_order, b.axis))
-        return np.array(out)
+        names = self.joint_names
+        bones = [self.bones[n] for n in names[1:]]
+        orders = np.array([self.root_axis] + [b.axis_order for b in bones])
+        angles = np.array([self.root_orientation] + [b.axis for b in bones], dtype=float).reshape(-1, 3)
+        out = np.empty((len(names), 4))
+        for order in np.unique(orders):  # one vectorised call per axis order
+            sel = orders == order
+            out[sel] = self._angles_to_quat(str(order), angles[sel])
+        return out
 
     def offsets(self) -> np.ndarray:
         """(J, 3) BVH offsets: the parent bone's ``direction x length`` (root: ``position``)."""
         names = self.joint_names
-        par = self.parents
-        out = np.zeros((len(names), 3))
+        vectors = np.zeros((len(names), 3))  # the root has no bone vector
+        if len(names) > 1:
+            vectors[1:] = [self.bones[n].vector for n in names[1:]]
+        out = vectors[self.parents]
         out[0] = self.root_position
-        for j in range(1, len(names)):
-            p = names[par[j]]
-            out[j] = 0.0 if p == "root" else self.bones[p].vector
         return out
 
 
-def _lines(src) -> tuple[list[tuple[int, list[str]]], str | None]:
-    data, name = _read_bytes(src)
+def _text(src, max_bytes: int) -> tuple[str, str | None, int]:
+    """Decoded text of a path or stream, its name and its size in bytes (errors name the path)."""
+    data, name = read_bytes(src, error=BVHError, max_bytes=max_bytes)
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         line = data[: exc.start].count(b"\n") + 1
-        raise BVHError(f"line {line}: not valid UTF-8 text") from None
-    out = []
+        raise BVHError(f"{name or '<stream>'}, line {line}: not valid UTF-8 text") from None
+    return text, name, len(data)
+
+
+def _lines(text: str) -> Iterator[tuple[int, list[str]]]:
+    """(1-based line number, tokens) of each line with tokens, comments (``#``) removed.
+
+    A generator, so that the token lists of the whole file are never held at once.
+    """
     for i, ln in enumerate(text.split("\n")):
-        tok = ln.split("#", 1)[0].split()
+        if "#" in ln:
+            ln = ln.split("#", 1)[0]
+        tok = ln.split()
         if tok:
-            out.append((i + 1, tok))
-    return out, name
+            yield i + 1, tok
 
 
 def _floats(tok: list[str], n: int, where: str, what: str) -> np.ndarray:
@@ -196,7 +230,7 @@ def _floats(tok: list[str], n: int, where: str, what: str) -> np.ndarray:
             v = float(t)
         except ValueError:
             raise BVHError(f"{where}: {what} value {t!r} is not a number") from None
-        if not math.isfinite(v) or "_" in t:
+        if not math.isfinite(v) or "_" in t or not t.isascii():
             raise BVHError(f"{where}: {what} value {t!r} is not a finite number")
         out.append(v)
     return np.array(out)
@@ -217,6 +251,8 @@ def _parse_limits(tok: list[str], where: str) -> tuple[float, float]:
         lo, hi = float(s[0]), float(s[1])
     except ValueError:
         raise BVHError(f"{where}: limit {' '.join(tok)!r} is not numeric") from None
+    if "_" in s[0] + s[1] or not (s[0] + s[1]).isascii():
+        raise BVHError(f"{where}: limit {' '.join(tok)!r} is not numeric")
     if math.isnan(lo) or math.isnan(hi):
         raise BVHError(f"{where}: limit {' '.join(tok)!r} is NaN")
     return lo, hi
@@ -242,11 +278,16 @@ def read_asf(src) -> AsfSkeleton:
         ``name``, ``direction``, ``length`` or ``axis``, unsupported translation or
         length dofs, non-numeric or non-finite values, duplicate or unknown bone names,
         bones not connected to the root, a bone with two parents, an unterminated
-        ``begin`` block); the message names the line.
+        ``begin`` block, a bone ``id`` that is not a plain ASCII integer, numbers with
+        ``_`` or non-ASCII digits); the message names the line.  Also a missing or
+        unreadable file, a folder, a corrupt gzip stream, or more than
+        :data:`MAX_ASF_BYTES` of content; the message names the path.
+
+    Notes
+    -----
+    Linear in the number of bones, without recursion (a chain of 100,000 bones reads).
     """
-    lines, _ = _lines(src)
-    if not lines:
-        raise BVHError("line 1: empty ASF file")
+    text, source, _ = _text(src, MAX_ASF_BYTES)
     section = None
     name = ""
     units: dict[str, str] = {}
@@ -259,7 +300,7 @@ def read_asf(src) -> AsfSkeleton:
     seen_sections: set[str] = set()
     section_line: dict[str, int] = {}
     units_line: dict[str, int] = {}
-    last = lines[-1][0]
+    last = 0  # last line with tokens
 
     def finish_bone(lineno: int) -> None:
         for key in ("name", "direction", "length", "axis"):
@@ -285,7 +326,8 @@ def read_asf(src) -> AsfSkeleton:
         )
 
     last_key = None
-    for lineno, tok in lines:
+    for lineno, tok in _lines(text):
+        last = lineno
         where = f"line {lineno}"
         head = tok[0]
         if head.startswith(":"):
@@ -337,8 +379,10 @@ def read_asf(src) -> AsfSkeleton:
             if key == "begin":
                 raise BVHError(f"{where}: 'begin' inside the bone block begun at line {bone['line']} (missing 'end')")
             if key == "id":
-                if len(tok) != 2 or not tok[1].lstrip("+-").isdigit():
-                    raise BVHError(f"{where}: bone id must be an integer")
+                if len(tok) != 2 or not _INT_RE.fullmatch(tok[1]):
+                    raise BVHError(
+                        f"{where}: bone id must be an integer of at most 18 digits, got {' '.join(tok[1:])[:40]!r}"
+                    )
                 bone["id"] = int(tok[1])
             elif key == "name":
                 if len(tok) != 2:
@@ -404,6 +448,8 @@ def read_asf(src) -> AsfSkeleton:
             raise BVHError(f"{where}: unexpected {' '.join(tok)!r} before the first section")
         # other sections (:version, :documentation, :skin ...) are free text: ignored
 
+    if not last:
+        raise BVHError(f"{source or '<stream>'}, line 1: empty ASF file")
     if bone is not None:
         raise BVHError(f"line {last + 1}: end of file inside the bone block begun at line {bone['line']} (truncated?)")
     if in_hier:
@@ -418,9 +464,12 @@ def read_asf(src) -> AsfSkeleton:
     angle = units.get("angle", "deg").lower()
     if angle not in ("deg", "rad"):
         raise BVHError(f"line {units_line['angle']}: :units angle must be deg or rad, got {angle!r}")
+    length_text = units.get("length", "1")
     try:
-        length_unit = float(units.get("length", "1"))
+        length_unit = float(length_text)
     except ValueError:
+        length_unit = float("nan")
+    if "_" in length_text or not length_text.isascii():  # float() takes '1_0' and other scripts' digits
         length_unit = float("nan")
     if not math.isfinite(length_unit) or length_unit <= 0:
         raise BVHError(f"line {units_line['length']}: :units length must be a number > 0, got {units['length']!r}")
@@ -451,20 +500,23 @@ def read_asf(src) -> AsfSkeleton:
     return skel
 
 
-def _amc_values(src, skel: AsfSkeleton) -> tuple[dict[str, np.ndarray], bool | None, str | None]:
-    """Per bone (and "root"), the (F, n_dofs) AMC values; whether angles are degrees; the source name."""
-    lines, source = _lines(src)
+def _amc_values(src, skel: AsfSkeleton) -> tuple[dict[str, np.ndarray], bool | None, str | None, int]:
+    """Per bone (and "root"), the (F, n_dofs) AMC values; whether angles are degrees; the
+    source name; the file's size in bytes."""
+    text, source, nbytes = _text(src, MAX_AMC_BYTES)
     ndof = {"root": len(skel.root_order)}
     ndof.update({b: len(bone.dofs) for b, bone in skel.bones.items()})
     required = {b for b, n in ndof.items() if n > 0} | {"root"}
-    rows: dict[str, list[list[str]]] = {b: [] for b in ndof}
+    # flat value tokens per bone (row k of bone b is values[b][k*n:(k+1)*n]) and the
+    # line of each row: compact, and converted by one numpy call per bone
+    values: dict[str, list[str]] = {b: [] for b in ndof}
     rows_line: dict[str, list[int]] = {b: [] for b in ndof}
     degrees: bool | None = None
     frame_no: int | None = None
     frame_line = 0
     n_frames = 0
     seen: set[str] = set()
-    last = lines[-1][0] if lines else 0
+    last = 0
 
     def close_frame(lineno: int) -> None:
         missing = required - seen
@@ -474,7 +526,8 @@ def _amc_values(src, skel: AsfSkeleton) -> tuple[dict[str, np.ndarray], bool | N
                 f"{sorted(missing)} (truncated file?)"
             )
 
-    for lineno, tok in lines:
+    for lineno, tok in _lines(text):
+        last = lineno
         head = tok[0]
         if head.startswith(":"):
             if frame_no is not None:
@@ -484,7 +537,16 @@ def _amc_values(src, skel: AsfSkeleton) -> tuple[dict[str, np.ndarray], bool | N
             elif head.upper() == ":RADIANS":
                 degrees = False
             continue
-        if len(tok) == 1 and head.isdigit():
+        if len(tok) == 1 and (head not in ndof or _UINT_RE.fullmatch(head)):
+            if not _UINT_RE.fullmatch(head):
+                if _numberish(head):  # '²', Arabic-Indic digits, '1_0', '-3', 30 digits ...
+                    raise BVHError(
+                        f"line {lineno}: frame number {head[:40]!r} is not a plain integer "
+                        f"(ASCII digits 0-9, at most 18)"
+                    )
+                raise BVHError(
+                    f"line {lineno}: {head[:40]!r} is neither a frame number nor a bone of the skeleton"
+                )
             k = int(head)
             if frame_no is not None:
                 close_frame(lineno)
@@ -506,39 +568,55 @@ def _amc_values(src, skel: AsfSkeleton) -> tuple[dict[str, np.ndarray], bool | N
             )
         seen.add(head)
         if ndof[head]:
-            rows[head].append(tok[1:])
+            values[head] += tok[1:]
             rows_line[head].append(lineno)
     if frame_no is None:
         raise BVHError(f"line {last + 1}: AMC file has no frames")
     close_frame(last + 1)
 
     out = {}
-    for b, r in rows.items():
-        if not ndof[b]:
+    for b, flat in values.items():
+        n = ndof[b]
+        if not n:
             out[b] = np.zeros((n_frames, 0))
             continue
-        if len(r) != n_frames:  # pragma: no cover - guaranteed by close_frame
-            raise BVHError(f"bone {b!r} has {len(r)} frames of values, expected {n_frames}")
+        if len(flat) != n_frames * n:  # pragma: no cover - guaranteed by close_frame
+            raise BVHError(f"bone {b!r} has {len(flat) // n} frames of values, expected {n_frames}")
         try:
-            v = np.array(r, dtype=float)
+            v = np.array(flat, dtype=float).reshape(n_frames, n)
             bad_row = None if np.all(np.isfinite(v)) else int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
         except ValueError:
             v, bad_row = None, None
-            for i, row in enumerate(r):
-                try:
-                    [float(x) for x in row]
-                except ValueError:
-                    bad_row = i
-                    break
-        if bad_row is None and "_" in "".join(map("".join, r)):  # float() accepts "1_0"; AMC does not
-            bad_row = next(i for i, row in enumerate(r) if "_" in "".join(row))
+        # float() accepts '1_0' and non-ASCII digits ('\u0663'); AMC files do not
+        if v is None or (bad_row is None and not _plain_numbers(flat)):
+            bad_row = next(i for i in range(n_frames) if not _plain_numbers(flat[i * n : (i + 1) * n], strict=True))
         if bad_row is not None:
+            row = flat[bad_row * n : (bad_row + 1) * n]
             raise BVHError(
                 f"line {rows_line[b][bad_row]}: bone {b!r} has a value that is not a finite number: "
-                f"{' '.join(r[bad_row])[:80]!r}"
+                f"{' '.join(row)[:80]!r}"
             )
         out[b] = v
-    return out, degrees, source
+    return out, degrees, source, nbytes
+
+
+def _numberish(tok: str) -> bool:
+    """Whether a token looks like a (malformed) number: digits of any script, ``_``, ``.``, a sign."""
+    body = tok.lstrip("+-")
+    return bool(body) and any(c.isnumeric() for c in body) and all(c.isnumeric() or c in "_." for c in body)
+
+
+def _plain_numbers(tokens: list[str], strict: bool = False) -> bool:
+    """Whether the tokens hold only ASCII and no ``_`` (``strict``: and each is a finite float)."""
+    joined = "".join(tokens)
+    if "_" in joined or not joined.isascii():
+        return False
+    if strict:
+        try:
+            return all(math.isfinite(float(t)) for t in tokens)
+        except ValueError:
+            return False
+    return True
 
 
 def read_amc(src, skeleton: AsfSkeleton, *, frame_time: float = CMU_FRAME_TIME, unit_m: float | None = None) -> Motion:
@@ -568,24 +646,37 @@ def read_amc(src, skeleton: AsfSkeleton, *, frame_time: float = CMU_FRAME_TIME, 
         If the file is malformed (unknown bone, wrong number of values on a line,
         non-numeric or non-finite values, a bone twice in a frame, a frame lacking a
         bone that has dofs — e.g. a truncated last frame —, non-consecutive frame
-        numbers, no frames); the message names the line.  A file cut exactly between
-        two frames cannot be told from a shorter take.
+        numbers, a frame number that is not plain ASCII digits, no frames); the
+        message names the line.  A file cut exactly between two frames cannot be told
+        from a shorter take.  Also a missing or unreadable file, a folder, a corrupt
+        gzip stream, more than :data:`MAX_AMC_BYTES` of content, or a motion whose
+        arrays (56 bytes per joint and frame) would exceed 64 times the file's size
+        (at least 256 MiB are always allowed) -- checked before allocating them.
     """
-    values, degrees, source = _amc_values(src, skeleton)
+    values, degrees, source, nbytes = _amc_values(src, skeleton)
     if degrees is None:
         degrees = skeleton.angle_unit == "deg"
     names = skeleton.joint_names
     J = len(names)
     F = values["root"].shape[0]
+    need = F * J * 7 * 8  # rotations (F, J, 4) and positions (F, J, 3)
+    allowed = max(_MOTION_BYTES_FLOOR, _MOTION_BYTES_PER_AMC_BYTE * nbytes)
+    if need > allowed:
+        raise BVHError(
+            f"{source or '<stream>'}: {F} frames x {J} joints would need {need / 2**20:.0f} MiB of motion "
+            f"arrays, more than the {allowed / 2**20:.0f} MiB allowed for an AMC file of {nbytes} bytes "
+            f"(a skeleton with many bones without dofs?)"
+        )
     axis_q = skeleton.axis_quaternions()  # C, (J, 4)
-    axis_inv = axis_q * np.array([-1.0, -1.0, -1.0, 1.0])
+    conj = np.array([-1.0, -1.0, -1.0, 1.0])
     rotations = np.zeros((F, J, 4))
     rotations[..., 3] = 1.0
     offsets = skeleton.offsets()
     positions = np.broadcast_to(offsets, (F, J, 3)).copy()
     channels: list[tuple[str, ...]] = []
+    rot_channels = ("Zrotation", "Yrotation", "Xrotation")
+    groups: dict[str, list[tuple[int, np.ndarray]]] = {}  # dof sequence -> (joint, (F, n) angles)
     for j, name in enumerate(names):
-        rot_channels = ("Zrotation", "Yrotation", "Xrotation")
         if name == "root":
             order = skeleton.root_order
             v = values["root"]
@@ -604,10 +695,13 @@ def read_amc(src, skeleton: AsfSkeleton, *, frame_time: float = CMU_FRAME_TIME, 
             seq = "".join(d[1] for d in bone.dofs)
             ang = values[name]
             channels.append(rot_channels)
-        if not seq:
-            continue  # no motion: C I C^-1 = I
-        m = euler_to_quat(seq, ang, degrees=degrees)  # extrinsic, in dof order
-        rotations[:, j] = quat_multiply(quat_multiply(axis_q[j], m), axis_inv[j])
+        if seq:  # no motion: C I C^-1 = I
+            groups.setdefault(seq, []).append((j, ang))
+    for seq, members in groups.items():  # one vectorised product per dof sequence
+        js = np.array([j for j, _ in members], dtype=np.intp)
+        m = euler_to_quat(seq, np.stack([a for _, a in members], axis=1), degrees=degrees)  # (F, G, 4)
+        c = axis_q[js]
+        rotations[:, js] = quat_multiply(quat_multiply(c, m), c * conj)
     ends = [(j, skeleton.bones[n].vector) for j, n in enumerate(names) if n != "root" and not skeleton.children.get(n)]
     return Motion(
         joint_names=names,

@@ -1,0 +1,264 @@
+"""The OBJ reader and the ICT cache against the defects found by fuzzing (issue 9, section 2).
+
+``read_obj``: numbers with ``_`` (Python's ``float``/``int`` read ``1_0`` as 10) and
+path-named errors from :func:`repro.io.read_bytes` (item 3).  The derived ``.npz`` cache
+of :func:`load_ict` (item 9): it records the source sha256s and a content hash, and any
+damage -- a bad ``format``, rewritten arrays, missing or mistyped entries, a truncated
+zip -- is rebuilt with a :class:`~repro.errors.CacheWarning`; a first build is silent.
+"""
+
+from __future__ import annotations
+
+import gzip
+import io
+import json
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from repro.blendshapes import ict
+from repro.blendshapes.ict import load_ict, read_obj
+from repro.errors import CacheWarning, DataError, ModelError
+
+TRI = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+
+
+# ------------------------------------------------------------ read_obj
+@pytest.mark.parametrize(
+    "text, line, token",
+    [
+        ("v 1_0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", 1, "1_0"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1_000.5 0\nf 1 2 3\n", 3, "1_000.5"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0 1_0\nf 1 2 3\n", 3, "1_0"),  # the ignored w is checked too
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 0_3\n", 6, "0_3"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1_0/1 2 3\n", 4, "1/1_0/1"),
+    ],
+)
+def test_underscore_numbers_are_a_model_error_naming_the_line(tmp_path, text, line, token):
+    p = tmp_path / "u.obj"
+    p.write_text(text)
+    with pytest.raises(ModelError, match=rf"u.obj, line {line}: '{token}' is not an OBJ number"):
+        read_obj(p)
+    with pytest.raises(ModelError, match=rf"line {line}: '{token}'"):
+        read_obj(io.BytesIO(text.encode()))
+
+
+def test_underscores_outside_v_and_f_lines_are_fine():
+    text = "mtllib my_mat.mtl\no generic_neutral_mesh\ng a_b\nusemtl skin_1\n# a_comment\n" + TRI
+    V, F = read_obj(io.StringIO(text))
+    assert V.shape == (3, 3) and F.tolist() == [[0, 1, 2]]
+
+
+def test_unreadable_paths_are_data_errors_naming_the_path(tmp_path):
+    with pytest.raises(DataError, match=r"absent.obj: no such file"):
+        read_obj(tmp_path / "absent.obj")
+    with pytest.raises(DataError, match=rf"{tmp_path.name}: is a folder"):
+        read_obj(tmp_path)
+    bad = tmp_path / "bad.obj.gz"
+    bad.write_bytes(gzip.compress(TRI.encode())[:-12])  # cut inside the stream
+    with pytest.raises(DataError, match=r"bad.obj.gz: corrupt gzip"):
+        read_obj(bad)
+    good = tmp_path / "good.obj.gz"
+    good.write_bytes(gzip.compress(TRI.encode()))
+    assert read_obj(good)[0].shape == (3, 3)
+
+
+def test_stream_name_is_used():
+    fh = io.BytesIO(b"v 0 0 0\nv nan 0 0\n")
+    fh.name = "named.obj"
+    with pytest.raises(ModelError, match=r"^named.obj, line 2"):
+        read_obj(fh)
+    with pytest.raises(ModelError, match=r"^<stream>: no vertices"):
+        read_obj(io.BytesIO(b"f 1 2 3\n"))
+
+
+# ------------------------------------------------------------ the cache
+SHAPES = ("jawOpen",)
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    """The cache folder pointed at a fresh temporary folder, and the memo cleared."""
+    folder = tmp_path / "derived"
+    monkeypatch.setenv("REPRO_CACHE_DIR", str(folder))
+    load_ict.cache_clear()
+    yield folder
+    load_ict.cache_clear()
+
+
+def _load(**kw):
+    load_ict.cache_clear()  # the in-process memo would hide the disk cache
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        m = load_ict(shapes=SHAPES, face_only=False, **kw)
+    return m, [w for w in caught if issubclass(w.category, CacheWarning)]
+
+
+def _entries(path: Path) -> dict[str, np.ndarray]:
+    with np.load(path, allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
+
+
+def _rewrite(path: Path, entries: dict) -> None:
+    with open(path, "wb") as fh:
+        np.savez(fh, **entries)
+
+
+@pytest.mark.data("ict")
+def test_first_build_is_silent_and_records_hashes(cache, capsys):
+    m, caught = _load()
+    assert caught == []
+    out = capsys.readouterr()
+    assert out.out == "" and out.err == ""
+    files = list(cache.iterdir())
+    assert [f.name for f in files] == [ict._cache_key(SHAPES)]  # no temporary file left
+    e = _entries(files[0])
+    assert json.loads(str(e["sources"])) == ict._source_hashes(SHAPES)
+    assert set(json.loads(str(e["sources"]))) == {
+        "faces/ict/generic_neutral_mesh.obj", "faces/ict/vertex_indices.json", "faces/ict/jawOpen.obj",
+    }  # fmt: skip
+    assert str(e["content"]) == ict._content_hash({k: e[k] for k in ict._CACHE_ARRAYS})
+    assert int(e["format"]) == ict._CACHE_FORMAT
+    warm, caught = _load()
+    assert caught == [] and capsys.readouterr().out == ""
+    np.testing.assert_array_equal(warm.D, m.D)
+
+
+def _damages(good: dict[str, np.ndarray]):
+    """(name, entries or raw bytes) of damaged caches, starting from the good entries."""
+
+    def edit(**changes):
+        e = dict(good)
+        for k, v in changes.items():
+            if v is None:
+                del e[k]
+            else:
+                e[k] = v
+        return e
+
+    yield "format abc", edit(format=np.array("abc"))
+    yield "format 2-d", edit(format=np.array([[ict._CACHE_FORMAT]]))
+    yield "format other", edit(format=np.array(ict._CACHE_FORMAT + 1))
+    yield "D doubled", edit(D=good["D"] * 2.0)
+    yield "one D entry changed", edit(D=np.where(np.arange(good["D"].size).reshape(good["D"].shape) == 7, 1.0, good["D"]))
+    yield "f0 as float32", edit(f0=good["f0"].astype(np.float32))
+    yield "faces as float", edit(faces=good["faces"].astype(float))
+    yield "names as numbers", edit(names=np.arange(len(SHAPES)))
+    yield "no content", edit(content=None)
+    yield "no D", edit(D=None)
+    yield "content not text", edit(content=np.zeros(3))
+    yield "content wrong", edit(content=np.array("0" * 64))
+    yield "sources not json", edit(sources=np.array("{not json"))
+    yield "sources other sha", edit(
+        sources=np.array(json.dumps({k: "0" * 64 for k in ict._source_hashes(SHAPES)}))
+    )
+    yield "landmarks as text", edit(landmarks=np.array(["a"] * 68))
+
+
+def _write_damage(path: Path, good: dict, good_bytes: bytes, bad) -> None:
+    if isinstance(bad, dict):
+        _rewrite(path, bad)
+    elif bad is None:  # a plain .npy, not an archive
+        with open(path, "wb") as fh:
+            np.save(fh, good["f0"])
+    else:
+        path.write_bytes(bad)
+
+
+@pytest.fixture(scope="module")
+def built():
+    return ict._build_arrays(SHAPES)
+
+
+@pytest.mark.data("ict")
+def test_damaged_cache_is_rebuilt_with_a_cache_warning(cache, capsys, built, monkeypatch):
+    # the cache layer itself, with the (slow, separately tested) build replaced by a copy
+    builds = []
+    monkeypatch.setattr(ict, "_build_arrays", lambda shapes: builds.append(shapes) or {k: v.copy() for k, v in built.items()})
+
+    def arrays():
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            out = ict._arrays(SHAPES, use_cache=True)
+        return out, [w for w in caught if issubclass(w.category, CacheWarning)]
+
+    first, caught = arrays()
+    assert caught == [] and len(builds) == 1
+    path = cache / ict._cache_key(SHAPES)
+    good_bytes = path.read_bytes()
+    good = _entries(path)
+    _, caught = arrays()
+    assert caught == [] and len(builds) == 1  # read from the cache
+    cases = list(_damages(good)) + [
+        ("truncated zip", good_bytes[: len(good_bytes) // 3]),
+        ("cut at the end", good_bytes[:-30]),
+        ("garbage", b"not a zip file at all"),
+        ("empty file", b""),
+        ("an .npy", None),
+    ]
+    for name, bad in cases:
+        _write_damage(path, good, good_bytes, bad)
+        n = len(builds)
+        again, caught = arrays()
+        assert len(caught) == 1 and len(builds) == n + 1, (name, caught)
+        msg = str(caught[0].message)
+        assert str(path) in msg and "damaged" in msg and "rebuilding" in msg, (name, msg)
+        for k in ict._CACHE_ARRAYS:
+            np.testing.assert_array_equal(again[k], built[k], err_msg=name)
+        # the damaged file was replaced by a good one, which loads silently
+        assert ict._load_cache(path, SHAPES) is not None, name
+        _, caught = arrays()
+        assert caught == [] and len(builds) == n + 1, name
+    assert capsys.readouterr().out == ""
+    assert sorted(p.name for p in cache.iterdir()) == [path.name]  # no temporary files left
+
+
+@pytest.mark.data("ict")
+@pytest.mark.parametrize("damage", ["format abc", "D doubled"])
+def test_damaged_cache_end_to_end(cache, capsys, damage, built):
+    _load()
+    path = cache / ict._cache_key(SHAPES)
+    e = _entries(path)
+    if damage == "format abc":
+        e["format"] = np.array("abc")
+    else:  # well-formed, but not what the sources give
+        e["D"] = e["D"] * 2.0
+    _rewrite(path, e)
+    again, caught = _load()
+    assert [type(w.message) for w in caught] == [CacheWarning]
+    np.testing.assert_array_equal(again.D, built["D"])
+    np.testing.assert_array_equal(again.f0, built["f0"])
+    assert capsys.readouterr().out == ""
+    _, caught = _load()
+    assert caught == []  # rebuilt for good
+
+
+@pytest.mark.data("ict")
+def test_verification_is_cheap_compared_to_a_rebuild(cache):
+    load_ict(shapes=SHAPES, face_only=False)
+    path = cache / ict._cache_key(SHAPES)
+
+    def best(fn, n=3):
+        out = float("inf")
+        for _ in range(n):
+            t = time.perf_counter()
+            fn()
+            out = min(out, time.perf_counter() - t)
+        return out
+
+    t_check = best(lambda: ict._check_cache(path, SHAPES))
+    t_build = best(lambda: ict._build_arrays(SHAPES), n=1)
+    assert ict._check_cache(path, SHAPES)[1] is None
+    assert t_check < 0.5 * t_build, (t_check, t_build)
+
+
+def test_unwritable_cache_is_not_a_warning(tmp_path, monkeypatch):
+    # a cache folder that cannot exist (below a file) is "no cache", not a damaged one
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    assert ict._check_cache(blocker / "c" / "ict-x.npz", SHAPES) == (None, None)
+    assert ict._check_cache(tmp_path / "absent.npz", SHAPES) == (None, None)
+    assert not ict._save_cache(blocker / "c" / "x.npz", {"a": np.zeros(1)})
