@@ -13,7 +13,6 @@ import os
 import subprocess
 import sys
 import textwrap
-import time
 from pathlib import Path
 
 import numpy as np
@@ -187,27 +186,12 @@ def test_motion_size_bound_scales_with_the_file():
 
 
 # ---------------------------------------------------- item 8: deep chains
-def _best_time(fn, repeat: int = 3) -> float:
-    best = float("inf")
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t)
-    return best
-
-
-def test_deep_chain_reads_in_linear_time():
-    small, big = 500, 8000
-    texts = {n: (chain_asf(n), chain_amc(n)) for n in (small, big)}
-
-    def read(n):
-        return lambda: read_asf_amc(io.StringIO(texts[n][0]), io.StringIO(texts[n][1]))
-
-    t_small = _best_time(read(small))
-    t_big = _best_time(read(big), repeat=2)
-    # linear: 16x; quadratic: 256x.  The generous bound leaves room for a busy machine
-    # (Python's garbage collector alone makes 16x data cost up to ~24x on a loaded one).
-    assert t_big / t_small < 64, (t_small, t_big)
+def test_deep_chain_reads():
+    # an 8,000-deep chain reads without recursion; that the work is linear is checked by
+    # counting operations (below), never by timing in a test
+    n = 8000
+    m = read_asf_amc(io.StringIO(chain_asf(n)), io.StringIO(chain_amc(n)))
+    assert m.rotations.shape[1] == n + 1
 
 
 @pytest.mark.parametrize("n", [10, 2000])
