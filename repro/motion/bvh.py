@@ -38,9 +38,15 @@ in the tests):
   channels equal to its offset);
 * End Sites are kept (parent joint and offset) so that :func:`write_bvh` writes them back.
 
-The frame block is parsed with numpy in one pass and then validated (values per line,
-number of lines, finiteness); every malformed input raises
-:class:`repro.errors.BVHError` naming the line or the field.
+The frame block is checked with numpy (values per line, number of lines) and then
+parsed, both in chunks of a few MB, so that memory stays proportional to the file and
+nothing is allocated for frames the file does not hold; every malformed input raises
+:class:`repro.errors.BVHError` naming the line or the field (or the joint and frame,
+for lengths so large that world positions overflow).  Text after the declared frames
+(some Second Life / QAvimator exporters append keyframe lists) is ignored with a
+:class:`repro.errors.BVHWarning`, or rejected with ``strict=True``.  Reading, writing
+and forward kinematics take time linear in the number of joints and never recurse,
+however deep the hierarchy.
 """
 
 from __future__ import annotations
@@ -503,10 +509,10 @@ def _parse_motion_block(data: bytes, pos: int, lineno: int, n_channels: int, n_j
     size = len(data) - pos
     if n_frames * n_joints > max(_POSE_FLOOR, size):
         raise BVHError(
-            f"line {frames_line}: {n_frames} frames of {n_joints} joints would need "
-            f"{n_frames * n_joints * 56 / 2**30:.1f} GiB of poses, more than {size} bytes of frame data can "
-            f"describe (at most {max(_POSE_FLOOR, size)} joint-frames: one byte of frame data per joint-frame "
-            "above 4 Mi); the frame or joint count is wrong"
+            f"line {frames_line}: {n_frames} frames of {n_joints} joints would need {n_frames * n_joints} joint "
+            f"poses ({n_frames * n_joints * 56 / 2**30:.2g} GiB), more than {size} bytes of frame data can "
+            f"describe (limit: {_POSE_FLOOR}, or one joint pose per byte of frame data); the frame or joint "
+            "count is wrong"
         )
     if n_channels:
         values = _parse_values(data, pos, frames_end, first, n_frames, n_channels)

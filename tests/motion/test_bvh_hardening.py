@@ -154,7 +154,7 @@ def test_pose_arrays_are_bounded_by_the_frame_data():
     text = head + f"\nFrames: {F}\nFrame Time: 0.1\n" + "0\n" * F
 
     def read():
-        with pytest.raises(BVHError, match=r"2000 frames of 3000 joints would need .* GiB"):
+        with pytest.raises(BVHError, match=r"2000 frames of 3000 joints would need 6000000 joint poses \(0.31 GiB\)"):
             _read(text)
 
     assert _peak_mib(read) < 60
@@ -259,13 +259,6 @@ def test_two_axis_rotations_beyond_90_degrees_are_written(tmp_path):
     back = read_bvh(write_bvh(m, tmp_path / "yz.bvh"))
     np.testing.assert_allclose(np.abs(np.sum(back.rotations * m.rotations, axis=-1)), 1.0, atol=1e-12)
     np.testing.assert_allclose(back.global_positions(), m.global_positions(), atol=1e-9)
-
-
-def test_deep_kinematics_levels_are_linear():
-    m = _read(_chain(3000, frames=1))
-    levels = m._depth_levels
-    assert len(levels) == 2999
-    assert all(idx.tolist() == [d + 1] and par.tolist() == [d] for d, (idx, par) in enumerate(levels))
 
 
 # ----------------------------------------------- item 10: text after the frames
