@@ -38,15 +38,20 @@ in the tests):
   channels equal to its offset);
 * End Sites are kept (parent joint and offset) so that :func:`write_bvh` writes them back.
 
-The frame block is parsed with numpy in one pass and then validated (values per line,
-number of lines, finiteness); every malformed input raises
-:class:`repro.errors.BVHError` naming the line or the field.
+The frame block is checked with numpy (values per line, number of lines) and then
+parsed, both in chunks of a few MB, so that memory stays proportional to the file and
+nothing is allocated for frames the file does not hold; every malformed input raises
+:class:`repro.errors.BVHError` naming the line or the field (or the joint and frame,
+for lengths so large that world positions overflow).  Text after the declared frames
+(some Second Life / QAvimator exporters append keyframe lists) is ignored with a
+:class:`repro.errors.BVHWarning`, or rejected with ``strict=True``.  Reading, writing
+and forward kinematics take time linear in the number of joints and never recurse,
+however deep the hierarchy.
 """
 
 from __future__ import annotations
 
 import errno
-import gzip
 import os
 import re
 import stat
@@ -57,7 +62,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from repro.errors import BVHError
+from repro.errors import BVHError, BVHWarning
+from repro.io import read_bytes
 from repro.motion.motion import POSITION_CHANNELS, ROTATION_CHANNELS, Motion, euler_to_quat
 
 __all__ = ["read_bvh", "write_bvh", "MAX_FRAMES"]
@@ -65,31 +71,34 @@ __all__ = ["read_bvh", "write_bvh", "MAX_FRAMES"]
 #: Largest frame count accepted (10 million frames: a day of 120 Hz capture is 10.4 M).
 MAX_FRAMES = 10_000_000
 
+#: Joint-frames (frames x joints) a file may always ask for, whatever its size:
+#: 4 Mi joint-frames is about 235 MB of pose arrays.  Above it, a file must hold at
+#: least one byte of frame data per joint-frame (real files hold 24 to 60).
+_POSE_FLOOR = 1 << 22
+#: Bytes of the frame block handled at a time (bounds the temporary arrays).
+_CHUNK = 1 << 22
+#: Writers indent at most this many levels (deeper joints keep this indentation),
+#: so that the text of a deep chain grows linearly with its depth.
+_MAX_INDENT = 32
+
 _CANONICAL_CHANNEL = {c.lower(): c for c in POSITION_CHANNELS + ROTATION_CHANNELS}
 _MOTION_RE = re.compile(rb"^[ \t]*MOTION[ \t]*\r?$", re.M)
 _FRAMES_RE = re.compile(r"^Frames\s*:\s*(\S+)$")
 _FRAME_TIME_RE = re.compile(r"^Frame\s+Time\s*:\s*(\S+)$")
+_INT_RE = re.compile(r"[+-]?[0-9]+")
+_TOKEN_RE = re.compile(rb"[^ \t\n\r\x0b\x0c]+")  # the tokens of bytes.split()
 _NOT_SPACE = np.ones(256, dtype=bool)
 _NOT_SPACE[[9, 10, 11, 12, 13, 32]] = False  # the ASCII whitespace bytes.split() splits on
 
 
 # ---------------------------------------------------------------------- input
 def _read_bytes(src) -> tuple[bytes, str | None]:
-    """Content of a path (``.gz`` undone) or of a binary/text stream, and its name."""
-    if hasattr(src, "read"):
-        data = src.read()
-        if isinstance(data, str):
-            data = data.encode("utf-8")
-        name = getattr(src, "name", None)
-        return bytes(data), (str(name) if isinstance(name, (str, os.PathLike)) else None)
-    p = Path(src)
-    if p.suffix == ".gz":
-        try:
-            with gzip.open(p, "rb") as fh:
-                return fh.read(), str(p)
-        except (EOFError, gzip.BadGzipFile) as exc:
-            raise BVHError(f"{p}: corrupt gzip stream ({exc})") from exc
-    return p.read_bytes(), str(p)
+    """Content of a path (``.gz`` undone, size capped) or of a stream, and its name.
+
+    :func:`repro.io.read_bytes` with :class:`BVHError`: a missing file, a folder, a
+    corrupt gzip stream ... raise a BVHError naming the path.
+    """
+    return read_bytes(src, error=BVHError)
 
 
 def _float(tok: str, where: str) -> float:
@@ -109,21 +118,20 @@ class _Hierarchy:
     def __init__(self) -> None:
         self.names: list[str] = []
         self.parents: list[int] = []
-        self.offsets: list[list[float]] = []
+        self.offsets: list[tuple[float, float, float]] = []
         self.channels: list[tuple[str, ...]] = []
         self.end_parents: list[int] = []
-        self.end_offsets: list[list[float]] = []
+        self.end_offsets: list[tuple[float, float, float]] = []
 
 
 def _parse_channels(tok: list[str], where: str) -> tuple[str, ...]:
     if len(tok) < 2:
         raise BVHError(f"{where}: CHANNELS needs a count")
-    try:
-        n = int(tok[1])
-    except ValueError:
-        raise BVHError(f"{where}: channel count {tok[1]!r} is not an integer") from None
+    if not _INT_RE.fullmatch(tok[1]):
+        raise BVHError(f"{where}: channel count {tok[1][:40]!r} is not an integer")
+    n = int(tok[1]) if len(tok[1]) <= 20 else 7  # no int() of thousands of digits
     if n < 0 or n > 6:
-        raise BVHError(f"{where}: channel count {n} is out of range 0..6")
+        raise BVHError(f"{where}: channel count {tok[1][:40]} is out of range 0..6")
     if len(tok) - 2 != n:
         raise BVHError(f"{where}: CHANNELS declares {n} channels but names {len(tok) - 2}")
     out = []
@@ -142,11 +150,13 @@ def _parse_channels(tok: list[str], where: str) -> tuple[str, ...]:
 
 def _parse_hierarchy(header: str, motion_found: bool) -> _Hierarchy:
     h = _Hierarchy()
-    lines = [(i + 1, ln.split()) for i, ln in enumerate(header.split("\n"))]
-    lines = [(n, t) for n, t in lines if t]
-    if not lines:
+    seen: set[str] = set()  # joint names so far (a list lookup would make deep files quadratic)
+    # lazily, one line's tokens at a time: a list of every line's tokens would keep
+    # hundreds of thousands of containers alive for the garbage collector to rescan
+    lines = ((i + 1, t) for i, ln in enumerate(header.split("\n")) if (t := ln.split()))
+    n0, t0 = next(lines, (0, None))
+    if t0 is None:
         raise BVHError("line 1: empty file (expected HIERARCHY)")
-    n0, t0 = lines[0]
     if t0 != ["HIERARCHY"]:
         raise BVHError(f"line {n0}: expected 'HIERARCHY', got {' '.join(t0)!r}")
 
@@ -170,7 +180,7 @@ def _parse_hierarchy(header: str, motion_found: bool) -> _Hierarchy:
         if entry[0] == "joint" and not entry[4]:
             raise BVHError(f"line {lineno}: {_what(entry)} has no CHANNELS before {doing}")
 
-    for lineno, tok in lines[1:]:
+    for lineno, tok in lines:
         last_line = lineno
         where = f"line {lineno}"
         if pending is not None:
@@ -200,11 +210,12 @@ def _parse_hierarchy(header: str, motion_found: bool) -> _Hierarchy:
             name = " ".join(body[1:])
             if not name:
                 raise BVHError(f"{where}: {head} without a name")
-            if name in h.names:
+            if name in seen:
                 raise BVHError(f"{where}: duplicate joint name {name!r}")
+            seen.add(name)
             h.names.append(name)
             h.parents.append(stack[-1][1] if stack else -1)
-            h.offsets.append([0.0, 0.0, 0.0])
+            h.offsets.append((0.0, 0.0, 0.0))
             h.channels.append(())
             entry = ("joint", len(h.names) - 1, lineno)
             if opens:
@@ -217,7 +228,7 @@ def _parse_hierarchy(header: str, motion_found: bool) -> _Hierarchy:
             _complete(stack[-1], lineno, "its End Site")
             stack[-1][5] = True
             h.end_parents.append(stack[-1][1])
-            h.end_offsets.append([0.0, 0.0, 0.0])
+            h.end_offsets.append((0.0, 0.0, 0.0))
             entry = ("end", stack[-1][1], lineno)
             if opens:
                 _open(*entry)
@@ -233,7 +244,7 @@ def _parse_hierarchy(header: str, motion_found: bool) -> _Hierarchy:
                 raise BVHError(f"{where}: OFFSET after the children of {_what(top)}")
             if len(tok) != 4:
                 raise BVHError(f"{where}: OFFSET needs 3 numbers, got {len(tok) - 1}")
-            off = [_float(v, f"{where} (OFFSET)") for v in tok[1:]]
+            off = (_float(tok[1], f"{where} (OFFSET)"), _float(tok[2], f"{where} (OFFSET)"), _float(tok[3], f"{where} (OFFSET)"))
             if top[0] == "end":
                 h.end_offsets[-1] = off
             else:
@@ -296,11 +307,164 @@ def _next_line(data: bytes, pos: int) -> tuple[str, int, int]:
     return "", consumed, pos
 
 
-def _parse_motion_block(data: bytes, pos: int, lineno: int, n_channels: int) -> tuple[np.ndarray, float, int]:
+def _chunks(data: bytes, start: int, stop: int):
+    """``(begin, end)`` byte ranges of about :data:`_CHUNK` covering ``data[start:stop]``, each cut after a newline."""
+    while start < stop:
+        end = min(start + _CHUNK, stop)
+        if end < stop:
+            nl = data.rfind(b"\n", start, end)
+            if nl < 0:  # a line longer than a chunk: take it whole
+                nl = data.find(b"\n", end, stop)
+                end = stop if nl < 0 else nl + 1
+            else:
+                end = nl + 1
+        yield start, end
+        start = end
+
+
+def _line_counts(data: bytes, begin: int, end: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The lines of ``data[begin:end]`` that hold tokens: (their index in the chunk, token counts, newline offsets)."""
+    b = np.frombuffer(data, dtype=np.uint8, count=end - begin, offset=begin)
+    nonws = _NOT_SPACE[b]
+    starts = np.flatnonzero(nonws[1:] & ~nonws[:-1]) + 1
+    if nonws[:1].any():
+        starts = np.concatenate(([0], starts))
+    newlines = np.flatnonzero(b == 10)
+    tok_line = np.searchsorted(newlines, starts)  # newlines before each token = its line
+    if not tok_line.size:
+        return tok_line, tok_line, newlines
+    brk = np.flatnonzero(tok_line[1:] != tok_line[:-1]) + 1  # sorted: run lengths, no np.unique sort
+    edges = np.concatenate(([0], brk, [tok_line.size]))
+    return tok_line[edges[:-1]], np.diff(edges), newlines
+
+
+def _is_frame(line: bytes, n_channels: int) -> bool:
+    """Whether ``line`` holds exactly ``n_channels`` finite numbers, i.e. looks like one more frame."""
+    tokens = line.split()
+    if len(tokens) != n_channels or b"_" in line:
+        return False
+    try:
+        return bool(np.isfinite(np.array(tokens, dtype=np.float64)).all())
+    except ValueError:
+        return False
+
+
+def _scan_frames(data: bytes, start: int, first: int, n_frames: int, n_channels: int, strict: bool):
+    """Check the frame lines after ``Frame Time`` (token counts only, in bounded memory).
+
+    With channels a frame is a non-empty line (blank lines are skipped); without any
+    channel every line is a frame (an empty one), so the file must hold ``n_frames``
+    lines.  ``first`` is the number of the line starting at ``start``.  Returns the byte
+    offset where the declared frames end, and the non-empty content after them as
+    ``(line number, number of lines, first line)`` or None.
+    """
+    stop = len(data)
+    if n_channels == 0:
+        n_lines = data.count(b"\n", start) + (1 if stop > start and not data.endswith(b"\n") else 0)
+        if n_frames > n_lines:
+            raise BVHError(
+                f"line {first + n_lines}: 'Frames: {n_frames}' declared but {n_lines} frame lines present "
+                "(no joint has channels, so each frame is an empty line; truncated file?)"
+            )
+    k = 0  # frames found so far (with channels)
+    line_base = 0  # lines before the current chunk
+    frames_end = start
+    trail: tuple[int, bytes] | None = None  # first non-empty line after the frames
+    n_trail = 0
+    run, run_open = 0, True  # frame-like lines right after the declared frames
+    for begin, end in _chunks(data, start, stop):
+        lines, counts, newlines = _line_counts(data, begin, end)
+        if n_channels:
+            take = min(lines.size, n_frames - k)
+            frame_no = k + 1 + np.arange(lines.size)
+        else:  # lines whose index is below n_frames are frames
+            take = int(np.searchsorted(lines, n_frames - line_base))
+            frame_no = line_base + lines + 1
+        bad = np.flatnonzero(counts[: lines.size if strict else take] != n_channels)
+        if bad.size:
+            i = bad[0]
+            raise BVHError(
+                f"line {first + line_base + lines[i]}: frame {frame_no[i]} has {counts[i]} values, "
+                f"expected {n_channels} (channel count mismatch or truncated line)"
+            )
+        if n_channels and take and k + take == n_frames:
+            last = int(lines[take - 1])
+            frames_end = begin + (int(newlines[last]) + 1 if last < newlines.size else end - begin)
+        if lines.size > take:
+            if trail is None:
+                i = int(lines[take])
+                lb = begin + (int(newlines[i - 1]) + 1 if i > 0 else 0)
+                le = begin + (int(newlines[i]) if i < newlines.size else end - begin)
+                trail = (first + line_base + i, data[lb:le].strip())
+            if run_open:
+                other = np.flatnonzero(counts[take:] != n_channels)
+                run += int(other[0]) if other.size else lines.size - take
+                run_open = not other.size
+            n_trail += lines.size - take
+        k += take
+        line_base += newlines.size
+    if n_channels and k < n_frames:
+        raise BVHError(
+            f"line {first + line_base}: 'Frames: {n_frames}' declared but {k} frame lines present (truncated file?)"
+        )
+    if trail is not None and n_channels and (strict or _is_frame(trail[1], n_channels)):
+        # one more frame than declared: the count is wrong, this is not an appendix
+        present = n_frames + (n_trail if strict else run)
+        raise BVHError(f"line {trail[0]}: 'Frames: {n_frames}' declared but {present} frame lines present")
+    return frames_end, (None if trail is None else (trail[0], n_trail, trail[1]))
+
+
+def _bad_value(chunk: bytes, tokens: list[bytes], t0: int, line0: int, n_channels: int) -> BVHError:
+    """The error for the first non-numeric or non-finite token of a chunk of frame lines."""
+    for t, tok in enumerate(tokens):
+        try:
+            finite = bool(np.isfinite(float(tok))) and b"_" not in tok
+            what = "not finite"
+        except ValueError:
+            finite, what = False, "not a number"
+        if not finite:
+            break
+    else:  # pragma: no cover - only called when some token is bad
+        return BVHError(f"line {line0}: bad frame values")
+    pos = next(m for i, m in enumerate(_TOKEN_RE.finditer(chunk)) if i == t).start()
+    g = t0 + t
+    line = line0 + chunk.count(b"\n", 0, pos)
+    return BVHError(
+        f"line {line}: value {tok[:40].decode('latin-1')!r} is {what} "
+        f"(channel {g % n_channels + 1} of frame {g // n_channels + 1})"
+    )
+
+
+def _parse_values(data: bytes, start: int, stop: int, first: int, n_frames: int, n_channels: int) -> np.ndarray:
+    """The (F, C) table of the frame lines in ``data[start:stop]`` (already checked by :func:`_scan_frames`)."""
+    values = np.empty((n_frames, n_channels))
+    flat = values.reshape(-1)
+    t0 = line0 = 0
+    for begin, end in _chunks(data, start, stop):
+        chunk = data[begin:end]
+        tokens = chunk.split()
+        if t0 + len(tokens) > flat.size:  # pragma: no cover - _scan_frames counted them
+            raise BVHError(f"line {first + line0}: more frame values than declared")
+        try:
+            arr = np.array(tokens, dtype=np.float64)
+            ok = b"_" not in chunk and bool(np.isfinite(arr).all())
+        except ValueError:
+            ok = False
+        if not ok:
+            raise _bad_value(chunk, tokens, t0, first + line0, n_channels)
+        flat[t0 : t0 + arr.size] = arr
+        t0 += arr.size
+        line0 += chunk.count(b"\n")
+    if t0 != flat.size:  # pragma: no cover - _scan_frames counted them
+        raise BVHError(f"line {first + line0}: fewer frame values than declared")
+    return values
+
+
+def _parse_motion_block(data: bytes, pos: int, lineno: int, n_channels: int, n_joints: int = 1, strict: bool = False):
     """Parse ``Frames:``, ``Frame Time:`` and the frame lines after MOTION.
 
     ``lineno`` is the number of the MOTION line.  Returns (values (F, C), frame time,
-    line number of the first frame line).
+    line number of the first frame line, trailing content or None).
     """
     line, k, pos = _next_line(data, pos)
     lineno += k
@@ -309,11 +473,16 @@ def _parse_motion_block(data: bytes, pos: int, lineno: int, n_channels: int) -> 
     m = _FRAMES_RE.match(line)
     if m is None:
         raise BVHError(f"line {lineno}: expected 'Frames: <count>', got {line[:80]!r}")
-    if not re.fullmatch(r"[+-]?\d+", m.group(1)):
-        raise BVHError(f"line {lineno}: frame count {m.group(1)[:40]!r} is not an integer")
-    n_frames = int(m.group(1))
+    count = m.group(1)
+    if not _INT_RE.fullmatch(count):
+        raise BVHError(f"line {lineno}: frame count {count[:40]!r} is not an integer")
+    digits = count.lstrip("+-").lstrip("0")
+    if len(digits) > 18:  # no int() of thousands of digits (Python refuses over 4300)
+        raise BVHError(f"line {lineno}: frame count {count[:40]}{'...' if len(count) > 40 else ''} is out of range 0..{MAX_FRAMES}")
+    n_frames = int(digits or "0") * (-1 if count.startswith("-") else 1)
     if n_frames < 0 or n_frames > MAX_FRAMES:
         raise BVHError(f"line {lineno}: frame count {n_frames} is out of range 0..{MAX_FRAMES}")
+    frames_line = lineno
     line, k, pos = _next_line(data, pos)
     lineno += k
     if not line:
@@ -327,57 +496,32 @@ def _parse_motion_block(data: bytes, pos: int, lineno: int, n_channels: int) -> 
         raise BVHError(f"line {lineno}: frame time {m.group(1)[:40]!r} is not a number") from None
     if not np.isfinite(frame_time) or frame_time <= 0:
         raise BVHError(f"line {lineno}: frame time must be finite and > 0, got {m.group(1)[:40]!r}")
+    with np.errstate(over="ignore", divide="ignore"):
+        if not (np.isfinite(1.0 / frame_time) and np.isfinite(frame_time * max(n_frames, 1))):
+            raise BVHError(
+                f"line {lineno}: frame time {m.group(1)[:40]} s gives an infinite frame rate or duration "
+                "(expected a positive frame time with a finite 1 / frame time)"
+            )
     first = lineno + 1  # number of the line starting at ``pos``
-    block = data[pos:]
-
-    # token starts and the line (relative to ``first``) each token sits on, vectorised
-    b = np.frombuffer(block, dtype=np.uint8)
-    nonws = _NOT_SPACE[b]
-    starts = np.flatnonzero(nonws & ~np.concatenate(([False], nonws[:-1])))
-    newlines = np.flatnonzero(b == 10)
-    tok_line = np.searchsorted(newlines, starts)  # newlines before each token
-    lines_used, counts = np.unique(tok_line, return_counts=True)
-    bad = np.flatnonzero(counts != n_channels)
-    if bad.size:
-        i = bad[0]
+    pos = min(pos, len(data))
+    frames_end, trailing = _scan_frames(data, pos, first, n_frames, n_channels, strict)
+    # bound the pose arrays (F x J quaternions and translations) by what the file holds
+    size = len(data) - pos
+    if n_frames * n_joints > max(_POSE_FLOOR, size):
         raise BVHError(
-            f"line {first + lines_used[i]}: frame {i + 1} has {counts[i]} values, expected {n_channels} "
-            "(channel count mismatch or truncated line)"
+            f"line {frames_line}: {n_frames} frames of {n_joints} joints would need {n_frames * n_joints} joint "
+            f"poses ({n_frames * n_joints * 56 / 2**30:.2g} GiB), more than {size} bytes of frame data can "
+            f"describe (limit: {_POSE_FLOOR}, or one joint pose per byte of frame data); the frame or joint "
+            "count is wrong"
         )
-    if lines_used.size != n_frames and not (n_channels == 0 and lines_used.size == 0):
-        where = first + (lines_used[-1] + 1 if lines_used.size else 0)
-        raise BVHError(
-            f"line {where}: 'Frames: {n_frames}' declared but {lines_used.size} frame lines present"
-            + (" (truncated file?)" if lines_used.size < n_frames else "")
-        )
-    tokens = block.split()
-    try:
-        values = np.array(tokens, dtype=np.float64)
-    except ValueError:
-        values = None
-    if values is None or b"_" in block:
-        for t, tok in enumerate(tokens):
-            try:
-                float(tok)
-                ok = b"_" not in tok
-            except ValueError:
-                ok = False
-            if not ok:
-                raise BVHError(
-                    f"line {first + tok_line[t]}: value {tok[:40].decode('latin-1')!r} is not a number "
-                    f"(channel {t % n_channels + 1} of frame {t // n_channels + 1})"
-                )
-    finite = np.isfinite(values)
-    if not finite.all():
-        t = int(np.flatnonzero(~finite)[0])
-        raise BVHError(
-            f"line {first + tok_line[t]}: value {tokens[t][:40].decode('latin-1')!r} is not finite "
-            f"(channel {t % n_channels + 1} of frame {t // n_channels + 1})"
-        )
-    return values.reshape(n_frames, n_channels), frame_time, first
+    if n_channels:
+        values = _parse_values(data, pos, frames_end, first, n_frames, n_channels)
+    else:
+        values = np.zeros((n_frames, 0))
+    return values, frame_time, first, trailing
 
 
-def read_bvh(src, *, unit_m: float | None = None) -> Motion:
+def read_bvh(src, *, unit_m: float | None = None, strict: bool = False) -> Motion:
     """Read a BVH file into a :class:`~repro.motion.Motion`.
 
     Parameters
@@ -389,6 +533,12 @@ def read_bvh(src, *, unit_m: float | None = None) -> Motion:
         Metres per length unit of the file, stored on the motion for
         :meth:`Motion.to_metres` (e.g. :data:`~repro.motion.CMU_UNIT_M` for the CMU
         files, :data:`~repro.motion.BANDAI_UNIT_M` for Bandai Namco's).
+    strict : bool, default False
+        Some exporters (Second Life / QAvimator tools) append text after the declared
+        frames (keyframe lists, a readme line).  By default it is ignored with a
+        :class:`~repro.errors.BVHWarning` saying how many lines were skipped; with
+        ``strict=True`` it is an error.  In both modes a line after the declared frames
+        that holds one more complete frame is an error (the frame count is wrong).
 
     Returns
     -------
@@ -399,14 +549,15 @@ def read_bvh(src, *, unit_m: float | None = None) -> Motion:
     Raises
     ------
     repro.errors.BVHError
-        If the file is malformed: the message names the line (truncation, unbalanced
+        If the file cannot be read (missing, a folder, corrupt gzip: the message names
+        the path) or is malformed: the message names the line (truncation, unbalanced
         braces, a joint without OFFSET or CHANNELS, unknown channel names, duplicate
         joint names, an empty hierarchy, a frame line with the wrong number of values,
         non-numeric or non-finite values, a frame count that is negative, above
-        :data:`MAX_FRAMES` or different from the number of frame lines, a frame time
-        that is not finite and positive).
-    OSError
-        If the file cannot be read.
+        :data:`MAX_FRAMES`, different from the number of frame lines or larger than
+        the file can hold, a frame time that is not finite and positive or whose frame
+        rate is infinite) or the joint and frame (offsets and positions so large that
+        world positions overflow).
     """
     data, name = _read_bytes(src)
     if data.startswith(b"\xef\xbb\xbf"):
@@ -421,8 +572,20 @@ def read_bvh(src, *, unit_m: float | None = None) -> Motion:
     h = _parse_hierarchy(header, motion_found=m is not None)
     n_channels = sum(len(c) for c in h.channels)
     motion_line = header_bytes.count(b"\n") + 1
-    values, frame_time, _ = _parse_motion_block(data, m.end() + 1, motion_line, n_channels)
-    return _motion_from_table(h, values, frame_time, unit_m=unit_m, source=name)
+    values, frame_time, _, trailing = _parse_motion_block(
+        data, m.end() + 1, motion_line, n_channels, len(h.names), strict
+    )
+    motion = _motion_from_table(h, values, frame_time, unit_m=unit_m, source=name)
+    if trailing is not None:
+        line, n, text = trailing
+        warnings.warn(
+            f"{name or '<stream>'}: ignored {n} line{'s' if n != 1 else ''} of text after the "
+            f"{values.shape[0]} declared frames, from line {line} "
+            f"({text[:60].decode('latin-1')!r}); pass strict=True to make this an error",
+            BVHWarning,
+            stacklevel=2,
+        )
+    return motion
 
 
 def _motion_from_table(h: _Hierarchy, values: np.ndarray, frame_time: float, *, unit_m, source) -> Motion:
@@ -496,7 +659,16 @@ def _joint_columns(motion: Motion) -> list[np.ndarray]:
             full = seq + "".join(a for a in "XYZ" if a not in seq)
             with warnings.catch_warnings():
                 warnings.filterwarnings("ignore", message="Gimbal lock")
-                ang = r.as_euler(full, degrees=True)[:, : len(seq)]
+                ang = r.as_euler(full, degrees=True)
+            if len(seq) == 2:
+                # scipy keeps the middle angle within +-90 deg, so a rotation of the two
+                # axes whose second angle is beyond 90 comes out with a third angle of
+                # 180: switch to the equivalent triple (a + 180, 180 - b, c + 180)
+                flip = np.abs(ang[:, 2]) > 90
+                ang[flip, 0] += 180.0
+                ang[flip, 1] = 180.0 - ang[flip, 1]
+                ang[:, :2] = (ang[:, :2] + 180.0) % 360.0 - 180.0
+            ang = ang[:, : len(seq)]
             back = (
                 Rotation.from_euler(seq, ang, degrees=True)
                 if seq
@@ -557,24 +729,27 @@ def _format_bvh(motion: Motion, precision: int) -> str:
     def vec(v) -> str:
         return " ".join(fmt % x for x in v)
 
-    def emit(j: int, depth: int) -> None:
-        ind = "\t" * depth
-        out.append(f"{ind}{'ROOT' if depth == 0 else 'JOINT'} {motion.joint_names[j]}")
-        out.append(f"{ind}{{")
-        out.append(f"{ind}\tOFFSET {vec(motion.offsets[j])}")
-        chans = motion.channels[j]
-        out.append(f"{ind}\tCHANNELS {len(chans)}" + "".join(" " + c for c in chans))
-        for c in children[j]:
-            emit(c, depth + 1)
-        for e in ends[j]:
-            out.append(f"{ind}\tEnd Site")
-            out.append(f"{ind}\t{{")
-            out.append(f"{ind}\t\tOFFSET {vec(motion.end_site_offsets[e])}")
-            out.append(f"{ind}\t}}")
-        out.append(f"{ind}}}")
-
-    # iterative DFS would only matter for absurdly deep skeletons; BVH trees are shallow
-    emit(0, 0)
+    # iterative depth-first walk (no recursion limit for deep chains); ``~j`` closes joint j
+    stack: list[tuple[int, int]] = [(0, 0)]
+    while stack:
+        j, depth = stack.pop()
+        ind = "\t" * min(depth, _MAX_INDENT)  # capped: the text stays linear in the depth
+        if j >= 0:
+            out.append(f"{ind}{'ROOT' if depth == 0 else 'JOINT'} {motion.joint_names[j]}")
+            out.append(f"{ind}{{")
+            out.append(f"{ind}\tOFFSET {vec(motion.offsets[j])}")
+            chans = motion.channels[j]
+            out.append(f"{ind}\tCHANNELS {len(chans)}" + "".join(" " + c for c in chans))
+            stack.append((~j, depth))
+            stack.extend((c, depth + 1) for c in reversed(children[j]))
+        else:
+            j = ~j
+            for e in ends[j]:
+                out.append(f"{ind}\tEnd Site")
+                out.append(f"{ind}\t{{")
+                out.append(f"{ind}\t\tOFFSET {vec(motion.end_site_offsets[e])}")
+                out.append(f"{ind}\t}}")
+            out.append(f"{ind}}}")
     out.append("MOTION")
     out.append(f"Frames: {motion.n_frames}")
     out.append(f"Frame Time: {fmt % motion.frame_time}")

@@ -74,6 +74,14 @@ ROTATION_CHANNELS: tuple[str, str, str] = ("Xrotation", "Yrotation", "Zrotation"
 
 _AXIS = {"X": 0, "Y": 1, "Z": 2}
 
+#: Below this sum of all local translation lengths, world positions cannot overflow
+#: (a rotated vector's intermediate terms stay under 5 times its length).
+_SAFE_LENGTH_SUM = 1e300
+#: Trees deeper than this use pointer doubling in forward kinematics (log(depth)
+#: vectorised rounds) instead of one round per depth level; real skeletons are far
+#: shallower and keep the level loop (and its exact arithmetic).
+_LEVEL_LOOP_MAX_DEPTH = 64
+
 
 def finite_vector3(value, name: str, error=None) -> np.ndarray:
     """``value`` as a finite float 3-vector, or ``error`` (default :class:`MotionError`) naming ``name``.
@@ -294,12 +302,14 @@ class Motion:
                 raise BVHError(f"joint {name!r}: repeated channel in {list(ch)}")
         _channel_layout(channels)
         ft = float(self.frame_time)
-        if not np.isfinite(ft) or ft <= 0:
-            raise BVHError(f"frame_time must be finite and > 0, got {self.frame_time!r}")
+        if not np.isfinite(ft) or ft <= 0 or not np.isfinite(1.0 / ft):
+            raise BVHError(f"frame_time must be finite and > 0 with a finite frame rate, got {self.frame_time!r}")
         rot = np.asarray(self.rotations, dtype=float)
         if rot.ndim != 3 or rot.shape[1:] != (J, 4):
             raise BVHError(f"rotations must be (F, {J}, 4), got shape {rot.shape}")
         F = rot.shape[0]
+        if not np.isfinite(F * ft):
+            raise BVHError(f"{F} frames of {ft!r} s: the duration overflows")
         if not np.all(np.isfinite(rot)):
             raise BVHError("rotations contain NaN or inf")
         norm = np.linalg.norm(rot, axis=-1, keepdims=True)
@@ -332,6 +342,40 @@ class Motion:
         set_(self, "end_site_parents", _readonly(esp.astype(np.intp)))
         set_(self, "end_site_offsets", _readonly(eso))
         set_(self, "unit_m", None if self.unit_m is None else float(self.unit_m))
+        self._check_finite_kinematics()
+
+    def _check_finite_kinematics(self) -> None:
+        """Raise BVHError when finite lengths add up to infinite world positions.
+
+        Rotations are unit quaternions, so no world position (joint or End Site) is
+        larger than the sum over joints of the largest local translation, plus the End
+        Site offsets: when that bound is below :data:`_SAFE_LENGTH_SUM` nothing can
+        overflow and the check costs one pass over the positions.  Only above it is
+        forward kinematics run, to name the first joint and frame that overflow.
+        """
+        with np.errstate(over="ignore", invalid="ignore"):
+            local = np.abs(self.offsets)
+            if self.n_frames:
+                local = np.where(self.position_mask, np.abs(self.positions).max(axis=0), local)
+            bound = float(local.sum()) + float(np.abs(self.end_site_offsets).sum())
+            if bound < _SAFE_LENGTH_SUM:
+                return
+            gq, gp = self.global_transforms()
+            bad = ~np.isfinite(gp).all(axis=-1)
+            where = "world position"
+            if not bad.any() and self.end_site_parents.size:
+                par = self.end_site_parents
+                ends = gp[:, par] + quat_rotate(gq[:, par], self.end_site_offsets[None])
+                bad = ~np.isfinite(ends).all(axis=-1)
+                where = "End Site position"
+        if bad.any():
+            f, j = (int(v[0]) for v in np.nonzero(bad))
+            name = self.joint_names[j if where == "world position" else int(self.end_site_parents[j])]
+            raise BVHError(
+                f"joint {name!r}, frame {f}: {where} overflows to infinity (offsets and position values "
+                f"are finite but too large: largest {float(local.max()):.3g}, sum {bound:.3g}; expected "
+                "lengths whose sum stays far below 1.8e308)"
+            )
 
     # ------------------------------------------------------------------ basics
     @property
@@ -397,14 +441,16 @@ class Motion:
 
     @cached_property
     def _depth_levels(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        depth = np.zeros(self.n_joints, dtype=np.intp)
+        # linear in the number of joints (a scan per depth level would be quadratic for chains)
+        parents = self.parents.tolist()
+        depth = [0] * self.n_joints
         for j in range(1, self.n_joints):
-            depth[j] = depth[self.parents[j]] + 1
-        levels = []
-        for d in range(1, int(depth.max()) + 1):
-            idx = np.flatnonzero(depth == d)
-            levels.append((idx, self.parents[idx]))
-        return levels
+            depth[j] = depth[parents[j]] + 1
+        depth = np.array(depth, dtype=np.intp)
+        order = np.argsort(depth, kind="stable")  # joints by depth, index order within a level
+        bounds = np.cumsum(np.bincount(depth))
+        par = self.parents[order]
+        return [(order[a:b], par[a:b]) for a, b in zip(bounds[:-1], bounds[1:])]
 
     # ---------------------------------------------------------- kinematics
     def local_translations(self) -> np.ndarray:
@@ -428,6 +474,8 @@ class Motion:
             World position of each joint, file units, in :attr:`joint_names` order.
         """
         q = self.rotations
+        if len(self._depth_levels) > _LEVEL_LOOP_MAX_DEPTH:
+            return self._global_transforms_doubling()
         gq = np.empty_like(q)
         gp = self.local_translations()  # fresh array, filled level by level in place
         gq[:, 0] = q[:, 0]
@@ -436,6 +484,27 @@ class Motion:
             gp[:, idx] = gp[:, par] + quat_rotate(pq, gp[:, idx])
             gq[:, idx] = quat_multiply(pq, q[:, idx])
         return gq, gp
+
+    def _global_transforms_doubling(self) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`global_transforms` for deep trees, by pointer doubling (no loop over levels).
+
+        Each joint holds the transform from an ancestor ``anc[j]`` to itself (at first
+        its local one, from its parent); every round composes it with the transform held
+        by ``anc[j]`` and jumps to that joint's ancestor, so after ``ceil(log2(depth))``
+        vectorised rounds every joint holds its world transform.
+        """
+        gq = self.rotations.copy()
+        gp = self.local_translations()
+        anc = self.parents.copy()
+        while True:
+            live = np.flatnonzero(anc >= 0)
+            if not live.size:
+                return gq, gp
+            a = anc[live]
+            pq = gq[:, a]
+            gp[:, live] = gp[:, a] + quat_rotate(pq, gp[:, live])
+            gq[:, live] = quat_multiply(pq, gq[:, live])
+            anc[live] = anc[a]
 
     def global_positions(self) -> np.ndarray:
         """(F, J, 3) world positions of the joints, file units, in :attr:`joint_names` order."""
