@@ -80,7 +80,7 @@ def message_head(msg: str, n: int = 70) -> str:
 
 # ------------------------------------------------------------------ the worker
 class Worker:
-    """One long-lived worker process (any target); restarted after a crash, a timeout or a MemoryError."""
+    """One long-lived worker process (any target); restarted after a crash or a timeout."""
 
     def __init__(self, ctx: dict | None = None, *, rlimit_as: int = RLIMIT_AS,
                  time_limit: float = TIME_LIMIT, log_dir: str | None = None):
@@ -156,6 +156,11 @@ class Worker:
         return self._reply(self.time_limit if timeout is None else timeout)
 
     def run(self, target: str, path: str, extra: dict | None = None) -> Outcome:
+        if self.proc is None or self.proc.poll() is not None:  # (re)start outside the input's time
+            if self.proc is not None:
+                self.stop()
+                self.restarts += 1
+            self.start()
         t0 = time.monotonic()
         rep = self.request(dict(extra or {}, target=target, path=str(path)))
         dt = time.monotonic() - t0
@@ -172,9 +177,6 @@ class Worker:
             return Outcome("crash", "WorkerDied", f"worker {kind}", traceback=tail, seconds=dt)
         out = Outcome(rep["outcome"], rep.get("type", ""), rep.get("message", ""), rep.get("traceback", ""), dt,
                       rep.get("stage", ""))
-        if rep.get("memory"):
-            self.stop()  # a clean process for the next input
-            self.restarts += 1
         return out
 
     def __enter__(self):
@@ -456,6 +458,27 @@ def seeds(target: str, work: Path, worker: Worker | None = None) -> list[Seed]:
     return out
 
 
+def special_inputs(target: str, work: Path, seed: Seed) -> list[tuple]:
+    """Paths that are not a good file: missing, a folder, empty (and for the manifest, ``--out`` a file).
+
+    Items as the campaign loop takes them, the path in place of the data, numbers ``-2, -3, ...``.
+    """
+    suffix = FORMATS[TARGETS[target]]["suffix"]
+    folder = work / f"a-folder{suffix}"
+    folder.mkdir(exist_ok=True)
+    (work / f"empty{suffix}").write_bytes(b"")
+    items = [(seed, -2, work / f"does-not-exist{suffix}", suffix, "special: a path that does not exist"),
+             (seed, -3, folder, suffix, "special: a folder"),
+             (seed, -4, work / f"empty{suffix}", suffix, "special: an empty file")]
+    if FORMATS[TARGETS[target]]["gz"]:
+        (work / f"empty{suffix}.gz").write_bytes(b"")
+        items.append((seed, -5, work / f"empty{suffix}.gz", suffix + ".gz", "special: an empty .gz file"))
+    if target == "manifest":
+        items.append((dataclasses.replace(seed, extra={"out_is_file": True}), -6, work / "unused.json", suffix,
+                      "special: the output folder is a file"))
+    return items
+
+
 def worker_context(work: Path) -> dict:
     """What the worker's targets need besides the input (written into ``work``)."""
     work.mkdir(parents=True, exist_ok=True)
@@ -511,9 +534,11 @@ def run_target(target: str, n_mutants: int, save_dir: Path, *, worker: Worker | 
     try:
         sds = seeds(target, work, w)
         inputs = [(s, -1, s.data, FORMATS[fmt]["suffix"], "unmutated seed") for s in sds]
+        specials = special_inputs(target, work, sds[0])
+        stats["specials"] = len(specials)
         jobs = iter(range(n_mutants))
-        for kind in ("seeds", "mutants"):
-            for item in (inputs if kind == "seeds" else jobs):
+        for kind in ("seeds", "specials", "mutants"):
+            for item in {"seeds": inputs, "specials": specials, "mutants": jobs}[kind]:
                 if kind == "mutants":
                     i = item
                     s = sds[i % len(sds)]
@@ -523,8 +548,11 @@ def run_target(target: str, n_mutants: int, save_dir: Path, *, worker: Worker | 
                         stats["stopped_at_budget"] = i
                         break
                 s, n, data, suffix, desc = item
-                p = work / f"input{suffix}"
-                p.write_bytes(data)
+                if kind == "specials":
+                    p, data = data, b""
+                else:
+                    p = work / f"input{suffix}"
+                    p.write_bytes(data)
                 o = w.run(target, str(p), s.extra)
                 stats["n"] += 1
                 slow.append((round(o.seconds, 3), n, desc[:120]))
@@ -532,16 +560,17 @@ def run_target(target: str, n_mutants: int, save_dir: Path, *, worker: Worker | 
                 del slow[3:]
                 if not o.bad:
                     stats[o.outcome] += 1
-                    if n < 0 and o.outcome != "ok":  # a seed must load
+                    if n == -1 and o.outcome != "ok":  # a seed must load
                         raise RuntimeError(f"seed {s.name} of {target} does not load: {o.type}: {o.message}")
                     continue
                 stats["bad"] += 1
                 d = save_dir / target
                 d.mkdir(parents=True, exist_ok=True)
                 saved = d / f"{target}-n{n}{suffix}"
-                saved.write_bytes(data)
+                saved.write_bytes(data)  # (empty for a special path: see the description)
                 f = Failure(target, s.name, n, desc, o, saved, s.extra)
-                saved.with_name(saved.name + ".txt").write_text(f.report() + "\n\n" + o.traceback + "\n")
+                saved.with_name(saved.name + ".txt").write_text(f.report() + "\n\n" + o.traceback + "\n", encoding="utf-8",
+                                                                errors="backslashreplace")
                 failures.append(f)
                 if progress:
                     progress(f)
@@ -664,7 +693,8 @@ def _main(argv=None) -> int:
                 print("minimise failed:", exc)
         name = f"{k + 1:02d}-{f.target}{suffix}"
         (out / name).write_bytes(data)
-        (out / (name + ".txt")).write_text(f.report() + "\n\n" + f.outcome.traceback + "\n")
+        (out / (name + ".txt")).write_text(f.report() + "\n\n" + f.outcome.traceback + "\n", encoding="utf-8",
+                                           errors="backslashreplace")
         rows.append((name, sig, counts[sig], f))
         print(name, sig, counts[sig], flush=True)
     (out / "signatures.json").write_text(json.dumps(

@@ -206,6 +206,17 @@ def _bvh_counts(r: random.Random, d: bytes) -> tuple[bytes, str]:
     return d[:a] + b"CHANNELS " + new.encode() + d[b:], f"CHANNELS at byte {a} -> {new}"
 
 
+def _bvh_no_channels(r: random.Random, d: bytes) -> tuple[bytes, str]:
+    """Every joint ``CHANNELS 0``, no frame lines, a large ``Frames:`` (nothing to read, much to allocate)."""
+    head, sep, _ = d.partition(b"MOTION")
+    if not sep:
+        return d, "bvh_no_channels(no MOTION)"
+    head = re.sub(rb"CHANNELS[^\n]*", b"CHANNELS 0", head)
+    frames = r.choice(["10000000", "9999999", "1000000", "5000000"])
+    return head + b"MOTION\nFrames: " + frames.encode() + b"\nFrame Time: 0.0083333\n", \
+        f"all CHANNELS 0, no frame lines, Frames: {frames}"
+
+
 def deep_asf(depth: int = DEPTH) -> tuple[bytes, bytes]:
     """(bonedata blocks, hierarchy lines) of a chain of ``depth`` dof-less bones under root."""
     bones = "".join(f"  begin\n     id {1000 + i}\n     name fz{i}\n     direction 0 1 0\n     length 1\n"
@@ -269,7 +280,7 @@ def _json_value(r: random.Random, d: bytes) -> tuple[bytes, str]:
 _TEXT_OPS = [(_flip, 2), (_byte_set, 2), (_truncate, 2), (_non_utf8, 1), (_line_endings, 1),
              (_token_delete, 3), (_token_duplicate, 2), (_line_op, 3), (_number_swap, 6)]
 _FORMAT_OPS = {
-    "bvh": [(_bvh_deep, 1), (_bvh_counts, 3)],
+    "bvh": [(_bvh_deep, 1), (_bvh_counts, 3), (_bvh_no_channels, 1)],
     "asf": [(_asf_deep, 1)],
     "amc": [],
     "obj": [],
