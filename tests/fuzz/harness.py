@@ -516,11 +516,14 @@ class Failure:
 
 
 def run_target(target: str, n_mutants: int, save_dir: Path, *, worker: Worker | None = None, start: int = 0,
-               time_budget: float | None = None, progress=None) -> tuple[list[Failure], dict]:
+               time_budget: float | None = None, max_timeouts: int | None = None,
+               progress=None) -> tuple[list[Failure], dict]:
     """Run the seeds and ``n_mutants`` mutants of ``target``; every bad outcome saved under ``save_dir``.
 
     Returns the failures and statistics (counts per outcome, seconds, worker restarts).
     Mutant ``i`` is ``mutant(seed[i % len(seeds)], fmt, start + i)``: deterministic.
+    ``max_timeouts``: stop after that many timeouts or crashes (each costs the time limit
+    and a worker restart; the target has failed already), noted as ``stats["stopped_after"]``.
     """
     fmt = TARGETS[target]
     work = Path(tempfile.mkdtemp(prefix=f"repro-fuzz-{target}-"))
@@ -571,9 +574,19 @@ def run_target(target: str, n_mutants: int, save_dir: Path, *, worker: Worker | 
                 f = Failure(target, s.name, n, desc, o, saved, s.extra)
                 saved.with_name(saved.name + ".txt").write_text(f.report() + "\n\n" + o.traceback + "\n", encoding="utf-8",
                                                                 errors="backslashreplace")
+                saved.with_name(saved.name + ".json").write_text(json.dumps(
+                    {"target": target, "seed": s.name, "n": n, "mutation": desc, "extra": s.extra,
+                     "suffix": suffix, "outcome": dataclasses.asdict(o)}, indent=1))
                 failures.append(f)
                 if progress:
                     progress(f)
+                if max_timeouts is not None and o.outcome in ("timeout", "crash"):
+                    stats["timeouts"] = stats.get("timeouts", 0) + 1
+                    if stats["timeouts"] >= max_timeouts:
+                        stats["stopped_after"] = n
+                        break
+            if "stopped_after" in stats:
+                break
         stats["restarts"] = w.restarts - restarts0
     finally:
         if own:
@@ -639,6 +652,63 @@ def minimise(target: str, data: bytes, suffix: str, extra: dict, signature: str,
     return gzip.compress(data, mtime=0) if gz else data
 
 
+def _saved_failures(raw: Path) -> list[Failure]:
+    """Every failure saved under ``raw`` (``.json`` sidecars; ``.txt`` reports of older runs parsed)."""
+    out = []
+    for p in sorted(raw.glob("*/*")):
+        if p.suffix in (".txt", ".json"):
+            continue
+        js, txt = p.with_name(p.name + ".json"), p.with_name(p.name + ".txt")
+        if js.is_file():
+            d = json.loads(js.read_text())
+            out.append(Failure(d["target"], d["seed"], d["n"], d["mutation"], Outcome(**d["outcome"]), p,
+                               d["extra"]))
+        elif txt.is_file():
+            t = txt.read_text(errors="replace")
+            head, second = t.splitlines()[:2]
+            m = re.match(r"\[(\w+)\] (\w+) in (.*?): ([\w.]+): (.*)", head)
+            m2 = re.match(r"\s*seed '(.*?)', mutant n=(-?\d+): (.*)", second)
+            if not m or not m2:
+                continue
+            extra = dict(re.findall(r" --(asf|amc) (\S+)", t.split("\n\n")[0]))
+            tb = t.split("\n\n", 1)[1] if "\n\n" in t else ""
+            out.append(Failure(m[1], m2[1], int(m2[2]), m2[3],
+                               Outcome(m[2], m[4], m[5], tb, 0.0, "" if m[3] == "?" else m[3]), p, extra))
+    return out
+
+
+def summarise(out: Path, *, minimise_inputs: bool = True) -> list[tuple]:
+    """One (minimised) input per distinct failure signature of ``out/raw``, and ``out/signatures.json``."""
+    found: dict[str, Failure] = {}
+    counts: dict[str, int] = {}
+    for f in _saved_failures(out / "raw"):
+        sig = f.outcome.signature(f.target)
+        counts[sig] = counts.get(sig, 0) + 1
+        if sig not in found or f.path.stat().st_size < found[sig].path.stat().st_size:
+            found[sig] = f
+    rows = []
+    for k, (sig, f) in enumerate(sorted(found.items())):
+        data = f.path.read_bytes()
+        suffix = "".join(f.path.suffixes[-2:]) if f.path.name.endswith(".gz") else f.path.suffix
+        special = f.n <= -2
+        if minimise_inputs and not special and f.outcome.outcome != "timeout":
+            try:
+                data = minimise(f.target, data, suffix, f.extra, sig)
+            except Exception as exc:  # noqa: BLE001
+                print("minimise failed:", exc)
+        name = f"{k + 1:02d}-{f.target}{suffix}"
+        (out / name).write_bytes(data)
+        (out / (name + ".txt")).write_text(f.report() + "\n\n" + f.outcome.traceback + "\n", encoding="utf-8",
+                                           errors="backslashreplace")
+        rows.append((name, sig, counts[sig], f))
+        print(name, sig, counts[sig], flush=True)
+    (out / "signatures.json").write_text(json.dumps(
+        [{"file": n, "signature": s, "count": c, "seed": f.seed, "n": f.n, "mutation": f.description,
+          "stage": f.outcome.stage, "type": f.outcome.type, "message": f.outcome.message[:500], "extra": f.extra}
+         for n, s, c, f in rows], indent=1))
+    return rows
+
+
 # ------------------------------------------------------------------ command line
 def _main(argv=None) -> int:
     import argparse
@@ -651,6 +721,10 @@ def _main(argv=None) -> int:
     r.add_argument("--targets", nargs="*", default=list(TARGETS))
     r.add_argument("--out", required=True)
     r.add_argument("--no-minimise", action="store_true")
+    r.add_argument("--raw-only", action="store_true", help="only save the failing inputs (summarise later)")
+    sm = sub.add_parser("summarise", help="one minimised input per signature of OUT/raw, and signatures.json")
+    sm.add_argument("--out", required=True)
+    sm.add_argument("--no-minimise", action="store_true")
     rp = sub.add_parser("replay")
     rp.add_argument("target", choices=list(TARGETS))
     rp.add_argument("file")
@@ -665,42 +739,21 @@ def _main(argv=None) -> int:
         print(json.dumps(dataclasses.asdict(o), indent=1))
         return 1 if o.bad else 0
     out = Path(a.out)
+    if a.cmd == "summarise":
+        summarise(out, minimise_inputs=not a.no_minimise)
+        return 0
     raw = out / "raw"
-    found: dict[str, Failure] = {}
-    counts: dict[str, int] = {}
     all_stats = {}
     shared = new_worker()
     for t in a.targets:
-        fails, stats = run_target(t, a.n, raw, worker=shared, start=a.start,
-                                  progress=lambda f: print(f.report().splitlines()[0][:160], flush=True))
+        _, stats = run_target(t, a.n, raw, worker=shared, start=a.start,
+                              progress=lambda f: print(f.report().splitlines()[0][:160], flush=True))
         all_stats[t] = stats
         print(t, stats, flush=True)
-        for f in fails:
-            sig = f.outcome.signature(t)
-            counts[sig] = counts.get(sig, 0) + 1
-            if sig not in found or len(f.path.read_bytes()) < len(found[sig].path.read_bytes()):
-                found[sig] = f
+        (out / f"stats-{t}-{a.start}.json").write_text(json.dumps(stats, indent=1))
     shared.stop()
-    (out / "stats.json").write_text(json.dumps(all_stats, indent=1))
-    rows = []
-    for k, (sig, f) in enumerate(sorted(found.items())):
-        data = f.path.read_bytes()
-        suffix = "".join(f.path.suffixes[-2:]) if f.path.name.endswith(".gz") else f.path.suffix
-        if not a.no_minimise and f.outcome.outcome != "timeout":
-            try:
-                data = minimise(f.target, data, suffix, f.extra, sig)
-            except Exception as exc:  # noqa: BLE001
-                print("minimise failed:", exc)
-        name = f"{k + 1:02d}-{f.target}{suffix}"
-        (out / name).write_bytes(data)
-        (out / (name + ".txt")).write_text(f.report() + "\n\n" + f.outcome.traceback + "\n", encoding="utf-8",
-                                           errors="backslashreplace")
-        rows.append((name, sig, counts[sig], f))
-        print(name, sig, counts[sig], flush=True)
-    (out / "signatures.json").write_text(json.dumps(
-        [{"file": n, "signature": s, "count": c, "seed": f.seed, "n": f.n, "mutation": f.description,
-          "type": f.outcome.type, "message": f.outcome.message[:500], "extra": f.extra}
-         for n, s, c, f in rows], indent=1))
+    if not a.raw_only:
+        summarise(out, minimise_inputs=not a.no_minimise)
     return 0
 
 

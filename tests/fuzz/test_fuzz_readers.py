@@ -102,8 +102,7 @@ def test_harness_classifies_every_misbehaviour(tmp_path):
 @pytest.mark.parametrize("target", list(harness.TARGETS))
 def test_reader_survives_mutants(target, worker, save_dir):
     n = n_mutants(target)
-    failures, stats = harness.run_target(target, n, save_dir, worker=worker)
-    assert stats["n"] == n + len(stats["seeds"]) + stats["specials"]
+    failures, stats = harness.run_target(target, n, save_dir, worker=worker, max_timeouts=3)
     if failures:
         by_sig: dict[str, list] = {}
         for f in failures:
@@ -112,4 +111,7 @@ def test_reader_survives_mutants(target, worker, save_dir):
                  f"a ReproError ({len(by_sig)} distinct signatures; inputs saved under {save_dir / target}):"]
         for sig, fs in sorted(by_sig.items(), key=lambda kv: -len(kv[1])):
             lines.append(f"\n* {sig}  (x{len(fs)})\n  " + fs[0].report().replace("\n", "\n  "))
+        if "stopped_after" in stats:
+            lines.append(f"\n(stopped after mutant {stats['stopped_after']}: {stats['timeouts']} timeouts or crashes)")
         pytest.fail("\n".join(lines), pytrace=False)
+    assert stats["n"] == n + len(stats["seeds"]) + stats["specials"]
