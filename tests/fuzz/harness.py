@@ -52,7 +52,7 @@ class Seed:
 
 @dataclasses.dataclass
 class Outcome:
-    outcome: str  # ok | repro_error | error | nonfinite | timeout | crash
+    outcome: str  # ok | repro_error | error | nonfinite | wrong | timeout | crash
     type: str = ""
     message: str = ""
     traceback: str = ""
@@ -66,14 +66,20 @@ class Outcome:
     def signature(self, target: str) -> str:
         return f"{target} | {self.stage} | {self.outcome} | {self.type} | {message_head(self.message)}"
 
+    def kind(self, target: str) -> str:
+        """The coarse signature: target, stage, outcome, exception type (what one defect usually is)."""
+        return f"{target} | {self.stage} | {self.outcome} | {self.type}"
 
-def message_head(msg: str, n: int = 70) -> str:
+
+def message_head(msg: str, n: int = 60) -> str:
     """The first line of a message with file names, quoted values and numbers generalised."""
     s = (msg or "").splitlines()[0] if msg else ""
     s = re.sub(r"(/[^\s:,'\"]+)+", "<path>", s)
     s = re.sub(r"'[^']*'|\"[^\"]*\"", "'…'", s)
     s = re.sub(r"b'…'", "'…'", s)
+    s = re.sub(r"0x[0-9a-f]+", "0x…", s)
     s = re.sub(r"[-+]?\d[\d.eE+\-_]*", "N", s)
+    s = re.sub(r"N [KMGT]iB", "N <size>", s)
     s = re.sub(r"\bline N\b", "line N", s)
     return s[:n]
 
@@ -598,8 +604,7 @@ def run_target(target: str, n_mutants: int, save_dir: Path, *, worker: Worker | 
 
 
 # ------------------------------------------------------------------ minimising
-def minimise(target: str, data: bytes, suffix: str, extra: dict, signature: str, *, max_tries: int = 400,
-             time_limit: float = TIME_LIMIT) -> bytes:
+def minimise(target: str, data: bytes, suffix: str, extra: dict, kind: str, *, worker: Worker, max_tries: int = 150) -> bytes:
     """A smaller input with the same failure signature (line, then token, then byte ddmin)."""
     work = Path(tempfile.mkdtemp(prefix="repro-fuzz-min-"))
     p = work / f"input{suffix}"
@@ -616,9 +621,10 @@ def minimise(target: str, data: bytes, suffix: str, extra: dict, signature: str,
         tries += 1
         p.write_bytes(gzip.compress(candidate, mtime=0) if gz else candidate)
         o = w.run(target, str(p), extra)
-        return o.bad and o.signature(target) == signature
+        return o.bad and o.kind(target) == kind
 
-    with new_worker(work, time_limit=time_limit) as w:
+    w = worker
+    if True:
         if suffix == ".npz":
             return data
         for unit in ("line", "token", "byte"):
@@ -656,9 +662,9 @@ def _saved_failures(raw: Path) -> list[Failure]:
     """Every failure saved under ``raw`` (``.json`` sidecars; ``.txt`` reports of older runs parsed)."""
     out = []
     for p in sorted(raw.glob("*/*")):
-        if p.suffix in (".txt", ".json"):
-            continue
         js, txt = p.with_name(p.name + ".json"), p.with_name(p.name + ".txt")
+        if not (js.is_file() or txt.is_file()):
+            continue  # a sidecar itself
         if js.is_file():
             d = json.loads(js.read_text())
             out.append(Failure(d["target"], d["seed"], d["n"], d["mutation"], Outcome(**d["outcome"]), p,
@@ -677,35 +683,52 @@ def _saved_failures(raw: Path) -> list[Failure]:
     return out
 
 
-def summarise(out: Path, *, minimise_inputs: bool = True) -> list[tuple]:
-    """One (minimised) input per distinct failure signature of ``out/raw``, and ``out/signatures.json``."""
-    found: dict[str, Failure] = {}
-    counts: dict[str, int] = {}
+def _slug(kind: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.]+", "-", kind.replace(" | ", "--")).strip("-")[:120]
+
+
+def summarise(out: Path, *, minimise_inputs: bool = True, targets=None) -> list[dict]:
+    """One (minimised) input per failure kind of ``out/raw``, and ``out/signatures.json``.
+
+    A kind is (target, stage, outcome, exception type); the distinct message heads of
+    each kind are listed with their counts.
+    """
+    kinds: dict[str, list[Failure]] = {}
     for f in _saved_failures(out / "raw"):
-        sig = f.outcome.signature(f.target)
-        counts[sig] = counts.get(sig, 0) + 1
-        if sig not in found or f.path.stat().st_size < found[sig].path.stat().st_size:
-            found[sig] = f
+        if targets is None or f.target in targets:
+            kinds.setdefault(f.outcome.kind(f.target), []).append(f)
     rows = []
-    for k, (sig, f) in enumerate(sorted(found.items())):
+    w = new_worker(time_limit=TIME_LIMIT) if minimise_inputs else None
+    for kind, fs in sorted(kinds.items()):
+        f = min(fs, key=lambda f: (f.n <= -2, f.path.stat().st_size))
         data = f.path.read_bytes()
         suffix = "".join(f.path.suffixes[-2:]) if f.path.name.endswith(".gz") else f.path.suffix
         special = f.n <= -2
-        if minimise_inputs and not special and f.outcome.outcome != "timeout":
+        if w is not None and not special and f.outcome.outcome != "timeout":
             try:
-                data = minimise(f.target, data, suffix, f.extra, sig)
+                data = minimise(f.target, data, suffix, f.extra, kind, worker=w)
             except Exception as exc:  # noqa: BLE001
                 print("minimise failed:", exc)
-        name = f"{k + 1:02d}-{f.target}{suffix}"
+        name = _slug(kind) + suffix
         (out / name).write_bytes(data)
         (out / (name + ".txt")).write_text(f.report() + "\n\n" + f.outcome.traceback + "\n", encoding="utf-8",
                                            errors="backslashreplace")
-        rows.append((name, sig, counts[sig], f))
-        print(name, sig, counts[sig], flush=True)
-    (out / "signatures.json").write_text(json.dumps(
-        [{"file": n, "signature": s, "count": c, "seed": f.seed, "n": f.n, "mutation": f.description,
-          "stage": f.outcome.stage, "type": f.outcome.type, "message": f.outcome.message[:500], "extra": f.extra}
-         for n, s, c, f in rows], indent=1))
+        heads: dict[str, int] = {}
+        for g in fs:
+            h = message_head(g.outcome.message)
+            heads[h] = heads.get(h, 0) + 1
+        rows.append({"file": name, "kind": kind, "count": len(fs), "seed": f.seed, "n": f.n,
+                     "mutation": f.description, "stage": f.outcome.stage, "type": f.outcome.type,
+                     "message": f.outcome.message[:500], "extra": f.extra,
+                     "messages": dict(sorted(heads.items(), key=lambda kv: -kv[1]))})
+        print(name, kind, len(fs), flush=True)
+    if w is not None:
+        w.stop()
+    index = out / "signatures.json"
+    if targets is not None and index.is_file():  # keep the other targets' rows
+        rows = [r for r in json.loads(index.read_text()) if r["kind"].split(" | ")[0] not in targets] + rows
+    rows.sort(key=lambda r: r["kind"])
+    index.write_text(json.dumps(rows, indent=1, ensure_ascii=False))
     return rows
 
 
@@ -725,6 +748,7 @@ def _main(argv=None) -> int:
     sm = sub.add_parser("summarise", help="one minimised input per signature of OUT/raw, and signatures.json")
     sm.add_argument("--out", required=True)
     sm.add_argument("--no-minimise", action="store_true")
+    sm.add_argument("--targets", nargs="*", default=None)
     rp = sub.add_parser("replay")
     rp.add_argument("target", choices=list(TARGETS))
     rp.add_argument("file")
@@ -740,7 +764,7 @@ def _main(argv=None) -> int:
         return 1 if o.bad else 0
     out = Path(a.out)
     if a.cmd == "summarise":
-        summarise(out, minimise_inputs=not a.no_minimise)
+        summarise(out, minimise_inputs=not a.no_minimise, targets=a.targets)
         return 0
     raw = out / "raw"
     all_stats = {}

@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
 import resource
 import sys
 import tempfile
@@ -84,6 +85,33 @@ def _registry_module():
     import importlib
 
     return importlib.import_module("repro.experiments.registry")  # the package re-exports a registry() function
+
+
+class WrongResult(Exception):
+    """The input loaded, but it should not have (a malformed number taken as a value ...)."""
+
+
+_STRICT_FLOAT = re.compile(rb"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+_STRICT_FACE = re.compile(rb"[-+]?\d+(?:/[-+]?\d*){0,2}")
+
+
+def _strict_obj_numbers(path) -> None:
+    """An oracle for read_obj: every coordinate of a ``v`` line and corner of an ``f`` line it accepted is a
+    plain ASCII number (Python's float()/int() also take ``1_0``, ``\u0661`` (Arabic-Indic one), ...)."""
+    import gzip
+
+    with (gzip.open if str(path).endswith(".gz") else open)(path, "rb") as fh:
+        raw = fh.read()
+    for i, ln in enumerate(raw.replace(b"\r\n", b"\n").replace(b"\r", b"\n").split(b"\n")):
+        tok = ln.split(b"#", 1)[0].split()
+        if tok[:1] == [b"v"]:
+            bad = [t for t in tok[1:4] if not _STRICT_FLOAT.fullmatch(t)]
+        elif tok[:1] == [b"f"]:
+            bad = [t for t in tok[1:] if not _STRICT_FACE.fullmatch(t)]
+        else:
+            continue
+        if bad:
+            raise WrongResult(f"line {i + 1}: accepted the malformed number {bad[0][:40]!r} in {ln[:80]!r}")
 
 
 class RoundTripError(Exception):
@@ -171,6 +199,8 @@ class Targets:
             raise NonFinite(f"face index outside 0..{len(v) - 1}: {f.min()}..{f.max()}")
         if not np.issubdtype(f.dtype, np.integer):
             raise NonFinite(f"faces of dtype {f.dtype}")
+        self.stage = "read_obj (strict number check)"
+        _strict_obj_numbers(path)
 
     def db(self, path, req=None):
         from repro.motion.database import MotionDatabase
@@ -335,6 +365,8 @@ def main() -> None:
             reply(outcome="repro_error", type=type(exc).__name__, message=str(exc)[:2000], stage=targets.stage)
         except NonFinite as exc:
             reply(outcome="nonfinite", type="NonFinite", message=str(exc)[:2000], stage=targets.stage)
+        except WrongResult as exc:
+            reply(outcome="wrong", type="WrongResult", message=str(exc)[:2000], stage=targets.stage)
         except BaseException as exc:  # noqa: BLE001 - the point: anything else is a defect
             tb = "".join(traceback.format_exception(exc))
             if len(tb) > 6000:
