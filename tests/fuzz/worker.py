@@ -92,12 +92,12 @@ class WrongResult(Exception):
 
 
 _STRICT_FLOAT = re.compile(rb"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
-_STRICT_FACE = re.compile(rb"[-+]?\d+(?:/[-+]?\d*){0,2}")
+_STRICT_INDEX = re.compile(rb"[-+]?\d+")
 
 
 def _strict_obj_numbers(path) -> None:
-    """An oracle for read_obj: every coordinate of a ``v`` line and corner of an ``f`` line it accepted is a
-    plain ASCII number (Python's float()/int() also take ``1_0``, ``\u0661`` (Arabic-Indic one), ...)."""
+    """An oracle for read_obj: every coordinate of a ``v`` line and vertex index of an ``f`` line it accepted
+    is a plain ASCII number (Python's float()/int() also take ``1_0``, ``\u0661`` (Arabic-Indic one), ...)."""
     import gzip
 
     with (gzip.open if str(path).endswith(".gz") else open)(path, "rb") as fh:
@@ -107,7 +107,8 @@ def _strict_obj_numbers(path) -> None:
         if tok[:1] == [b"v"]:
             bad = [t for t in tok[1:4] if not _STRICT_FLOAT.fullmatch(t)]
         elif tok[:1] == [b"f"]:
-            bad = [t for t in tok[1:] if not _STRICT_FACE.fullmatch(t)]
+            # only the vertex index is used (``v/vt/vn``: the texture and normal parts are ignored)
+            bad = [t for t in tok[1:] if not _STRICT_INDEX.fullmatch(t.split(b"/", 1)[0])]
         else:
             continue
         if bad:
