@@ -518,7 +518,8 @@ class Failure:
                 f"  seed {self.seed!r}, mutant n={self.n}: {self.description[:400]}\n"
                 f"  input saved as {self.path}\n"
                 f"  replay: python -m tests.fuzz.harness replay {self.target} {self.path}"
-                + "".join(f" --{k} {v}" for k, v in self.extra.items()))
+                + "".join(f" --{k} {v}" for k, v in self.extra.items() if k in ("asf", "amc"))
+                + ("" if "out_is_file" not in self.extra else "  (with the output folder a file)"))
 
 
 def run_target(target: str, n_mutants: int, save_dir: Path, *, worker: Worker | None = None, start: int = 0,

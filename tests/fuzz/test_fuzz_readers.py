@@ -9,10 +9,15 @@ mutants of small real and hand-made seed files (:mod:`tests.fuzz.mutate`).  Each
 runs in a worker process with an address-space limit (``RLIMIT_AS``, 2 GiB) and a
 10 s time limit (:mod:`tests.fuzz.harness`).  What is asserted, for every input:
 
-* it loads, and every float of the result (and of the forward kinematics) is finite,
+* it loads, and every float of the result (and of the forward kinematics) is finite
+  (for OBJ also: every coordinate / vertex index it took is a plain ASCII number, not
+  ``1_0``; for BVH also: what ``write_bvh`` wrote of it reads back),
 * or it raises a :class:`repro.errors.ReproError`;
 * never another exception (``MemoryError``, ``RecursionError``, ``KeyError`` ...), never a
   killed worker, never a timeout.
+
+Also: a missing path, a folder, an empty file (and for the manifest, an output folder
+that is a file).  A target stops after 3 timeouts (each costs 10 s and a restart).
 
 The unmutated seeds must load (otherwise the fuzzer would only test error paths).
 Deterministic: mutant ``n`` of a target is a function of ``n`` only.  About 1,100 mutants
