@@ -533,7 +533,8 @@ def run_target(target: str, n_mutants: int, save_dir: Path, *, worker: Worker | 
     and a worker restart; the target has failed already), noted as ``stats["stopped_after"]``.
     """
     fmt = TARGETS[target]
-    work = Path(tempfile.mkdtemp(prefix=f"repro-fuzz-{target}-"))
+    work = save_dir / "_work" / target  # seeds' partner files stay beside the saved failures (replay)
+    work.mkdir(parents=True, exist_ok=True)
     stats: dict = {"ok": 0, "repro_error": 0, "bad": 0, "n": 0}
     failures: list[Failure] = []
     slow: list = []

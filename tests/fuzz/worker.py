@@ -124,6 +124,10 @@ class Targets:
     def __init__(self, ctx: dict):
         self.ctx = ctx
         self.tmp = tempfile.mkdtemp(prefix="repro-fuzz-worker-")
+        import atexit
+        import shutil
+
+        atexit.register(shutil.rmtree, self.tmp, True)  # (not after a kill: under the system temp folder)
         self._skels = {}
         self.stage = ""
 
