@@ -14,11 +14,9 @@ from hypothesis import strategies as st
 from repro import data
 from repro.errors import MotionError
 from repro.motion import BANDAI_UNIT_M, CMU_UNIT_M, read_bvh
+from repro.motion.roles import REQUIRED_ROLES, ROLES, find_roles
 from repro.motion.skeleton import (
-    REQUIRED_ROLES,
-    ROLES,
     Skeleton,
-    find_roles,
     rescale_constraint,
     scale_skeleton,
     skeleton_of,
