@@ -13,7 +13,7 @@ from repro.errors import MotionError
 from repro.motion.adaptation.ccd_solver import DEFAULT_HINGE_RANGE_DEG, ccd_spec, ccd_sweeps
 from repro.motion.adaptation.limb import limb_dmax, solve_limb
 from repro.motion.adaptation.offset import offset_curve
-from repro.motion.adaptation.rig import check_extension, check_int, default_tol, rig_of, vec3
+from repro.motion.adaptation.rig import Chain, Rig, check_extension, check_int, default_tol, rig_of, vec3
 from repro.motion.kinematics import fk_arrays, qrot
 from repro.motion.motion import Motion
 
@@ -155,74 +155,23 @@ def adapt(
     hit_point: str = "joint",
     roles=None,
 ) -> Adaptation:
-    """Adapt a selected motion so that its hit point reaches a target at the contact (Section 3.4.2).
+    """Adapt a selected motion so that its hit point reaches ``target`` at the contact ``tc`` (Section 3.4.2).
 
-    Steps: ``d(t)`` = :func:`offset_curve` from ``t_start`` (``t0``, see below) to
-    ``tc`` with ``d(tc) = X - p(tc)``; on every frame where ``d(t) != 0`` the hit point's
-    goal is ``p(t) + d(t)``; the limb step (:func:`reach_limb`, all those frames at once)
-    is tried first, and on the frames where the limb cannot reach, :func:`ccd` over the
-    longer chain (then the limb step again).  Finally the feet (``feet="pin"``): each
-    ankle other than the effector's that is planted in the original motion
-    (:func:`repro.motion.morphology.foot_contacts`) in a contact phase overlapping the
-    edited frames is pinned, for the whole phase from ``max(phase start, t0)``, at its
-    position at that frame, by two-bone leg IK with the foot's original world
-    orientation; after the phase the pin is released over ``foot_blend`` seconds.  A
-    non-planted non-effector foot follows its original world trajectory where CCD moved
-    the pelvis.  ``feet="track"`` keeps every non-effector ankle on its original world
-    trajectory instead (the edit adds no slide but removes none of the actor's own);
-    ``feet=None`` leaves the legs alone.
+    ``d(t)`` (:func:`offset_curve`, eased by ``kind``) grows from ``t_start`` (``t0``, or
+    a planted kicking foot's lift-off) to ``X - p(tc)`` at ``tc`` and is released over
+    ``release`` seconds (None: held); every frame with ``d(t) != 0`` is solved for the goal
+    ``p(t) + d(t)`` by the limb step (at most ``max_extension`` of the limb length), then
+    by :func:`ccd` (``chain``, ``limits``, ``hinge_range_deg``, ``max_iter``) and the limb
+    step again where the limb cannot reach.  ``feet="pin"`` pins each other ankle planted
+    in the original motion, for every contact phase overlapping the edited frames, at its
+    position at ``max(phase start, t0)`` (released over ``foot_blend`` seconds);
+    ``"track"`` keeps the other ankles on their original trajectories; ``None`` leaves the
+    legs alone.  Frames ``<= t0`` never change (but ``tc`` when ``t0 == tc``).  Lengths in
+    the motion's units; ``tol`` defaults to 1e-4 of the limb length.  The package
+    docstring (:mod:`repro.motion.adaptation`) tells the whole method and its limits.
 
-    On CCD frames the hand / foot keeps its original world orientation.  For a foot
-    effector that is planted at some frames of ``[t0, tc)`` (a kick that has not left the
-    ground yet), ``d(t)`` starts at its last planted frame (``t_start``), so the kicking
-    foot does not slide before lift-off.  Pinned contact phases are pinned to their end,
-    so frames after the edited stretch (``stop``) can change too (only the legs).
-
-    Parameters
-    ----------
-    motion : Motion
-        Any skeleton :func:`~repro.motion.skeleton.find_roles` understands; lengths in
-        its units (use :meth:`~repro.motion.Motion.to_metres`).
-    effector : str
-        ``"right_fist"``, ``"left_foot"``, ... (:data:`EFFECTOR_STEMS`).
-    target : (3,) array
-        The target X, world coordinates, motion units.
-    t0, tc : int
-        Current frame and contact frame, ``0 <= t0 <= tc < F``.  Frames ``<= t0`` are
-        never changed (continuity with what was already played), except the contact
-        frame itself when ``t0 == tc`` (then the pose jumps).
-    kind : str
-        Easing of ``d(t)`` (:func:`offset_curve`).
-    release : float or None
-        Seconds after ``tc`` over which ``d`` returns to 0 (default 0.25 s); None holds
-        it to the end of the clip.
-    chain, limits, hinge_range_deg, max_iter
-        CCD settings (:func:`ccd`).
-    tol : float, optional
-        Reach tolerance, motion units (default 1e-4 of the limb length).
-    max_extension : float, default 0.98
-        The limb step straightens the limb at most to this fraction of its length (or
-        to the motion's own extension on that frame if larger); beyond, CCD moves the
-        trunk.  Two-bone IK is singular at full extension: letting the limb take the
-        last 2 % makes the elbow / knee snap straight over a frame or two (measured on
-        CMU 135_09: ~50 degrees in 2 frames at 120 fps) and then stay locked.  Frames
-        that stay out of reach after CCD get the full reach (best effort).  1 = the
-        plain limb-first rule of the paper.
-    feet : {"pin", "track", None}
-    foot_blend : float
-        Seconds over which a released foot pin blends back to the original trajectory.
-    hit_point : {"joint", "end_site"}
-    roles : mapping, optional
-
-    Returns
-    -------
-    Adaptation
-
-    Raises
-    ------
-    repro.errors.MotionError
-        NaN / non-3-vector target, unknown effector, ``t0 > tc``, frames out of range,
-        bad options.
+    Raises :class:`repro.errors.MotionError` for a NaN / non-3-vector target, an unknown
+    effector, ``t0 > tc``, frames out of range or bad options.
     """
     t_total = time.perf_counter()
     rig = rig_of(motion, roles)
@@ -235,13 +184,7 @@ def adapt(
         raise MotionError(f"t0={t0} is after the contact frame tc={tc}")
     if feet not in ("pin", "track", None):
         raise MotionError(f"feet must be 'pin', 'track' or None, got {feet!r}")
-    if release is not None:
-        release = float(release)
-        if not np.isfinite(release) or release < 0:
-            raise MotionError(f"release must be None or a finite number of seconds >= 0, got {release!r}")
-        n_release = int(round(release / motion.frame_time))
-    else:
-        n_release = None
+    n_release = _release_frames(release, motion.frame_time)
     foot_blend = float(foot_blend)
     if not np.isfinite(foot_blend) or foot_blend < 0:
         raise MotionError(f"foot_blend must be a finite number of seconds >= 0, got {foot_blend!r}")
@@ -254,13 +197,7 @@ def adapt(
 
     gq, gp = rig.globals
     p = gp[:, ch.hit] + qrot(gq[:, ch.hit], ch.hit_offset)
-    contacts = rig.contacts
-    side_i = {"left": 0, "right": 1}
-    t_start = t0
-    if ch.kind == "leg":
-        planted = np.flatnonzero(contacts[t0:tc, side_i[ch.side]]) + t0
-        if planted.size:
-            t_start = int(planted.max())
+    t_start = _start_frame(rig.contacts, ch, t0, tc)
     d = offset_curve(t_start, tc, X - p[tc], F, kind=kind, release=n_release)
     goals = p + d
     edit = np.flatnonzero(np.any(d != 0.0, axis=1))
@@ -272,91 +209,17 @@ def adapt(
     iters = np.zeros(F, dtype=np.intp)
     timings = {"limb": 0.0, "ccd": 0.0, "feet": 0.0}
     if edit.size:
-        t1 = time.perf_counter()
-        r = rot[edit]
-        trans = rig.trans[edit]
-        dmax = limb_dmax(ch, r, trans, ext)
-        hit, res = solve_limb(ch, r, trans, goals[edit], dmax=dmax)
-        timings["limb"] = time.perf_counter() - t1
-        solver[edit] = "limb"
-        bad = res > tol
-        if bad.any():
-            t1 = time.perf_counter()
-            fb = edit[bad]
-            rb = r[bad]
-            tb = trans[bad]
-            it, _ = ccd_sweeps(
-                rig, ch, rb, tb, goals[fb], np.asarray(motion.rotations[fb]), spec, max_iter, tol, True, dmax[bad]
-            )
-            dw = gq[fb, ch.dist]  # the hand / foot keeps its original world orientation
-            _, res_b = solve_limb(ch, rb, tb, goals[fb], distal_world=dw, dmax=dmax[bad])
-            far = res_b > tol
-            if ext < 1.0 and far.any():  # best effort: full reach
-                rf = rb[far]
-                solve_limb(ch, rf, tb[far], goals[fb[far]], distal_world=dw[far])
-                rb[far] = rf
-            r[bad] = rb
-            iters[fb] = it
-            solver[fb] = "ccd"
-            timings["ccd"] = time.perf_counter() - t1
-        rot[edit] = r
-
-    # ------------------------------------------------------------- feet
+        _solve_hit(rig, ch, motion, rot, edit, goals, spec, max_iter, tol, ext, solver, iters, timings)
     t1 = time.perf_counter()
     pinned = np.zeros((F, 2), dtype=bool)
-    foot_err = 0.0
     anchors: list[tuple[int, int, int]] = []  # (side, first pinned frame, stop)
-    n_feet = 0
+    foot_err, n_feet = 0.0, 0
     if feet is not None:
-        n_blend = int(round(foot_blend / motion.frame_time))
-        for side in ("left", "right"):
-            if ch.kind == "leg" and side == ch.side:
-                continue
-            s = side_i[side]
-            leg = rig.chain(f"{side}_ankle")
-            ank = leg.dist
-            anc = [int(j) for j in leg.path[: leg.k_prox]]  # root .. hip's parent
-            orig = gp[:, ank]
-            goal = orig.copy()
-            w = np.zeros(F)
-            need = np.zeros(F, dtype=bool)
-            if feet == "pin":
-                for a, b in _phases(contacts[:, s]):
-                    if b <= t0 + 1 or a >= stop:
-                        continue
-                    a = max(a, t0)
-                    anchors.append((s, a, b))
-                    goal[a:b] = orig[a]
-                    pinned[a:b, s] = True
-                    w[a:b] = 1.0
-                    delta = orig[a] - orig[b - 1]
-                    for k in range(1, n_blend + 1):
-                        f = b - 1 + k
-                        if f >= F or pinned[f, s]:
-                            break
-                        wk = 1.0 - k / (n_blend + 1.0)
-                        goal[f] = orig[f] + wk * delta
-                        w[f] = max(w[f], wk)
-                need |= w > 0
-            moved = np.any(rot[:, anc] != np.asarray(motion.rotations)[:, anc], axis=(1, 2))
-            need |= moved
-            need[: t0 + 1] = False
-            fr = np.flatnonzero(need)
-            if fr.size:
-                n_feet += fr.size
-                rf = rot[fr]
-                hit, res = solve_limb(leg, rf, rig.trans[fr], goal[fr], distal_world=gq[fr, ank])
-                rot[fr] = rf
-                foot_err = max(foot_err, float(res.max(initial=0.0)))
+        foot_err, n_feet = _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors)
     timings["feet"] = time.perf_counter() - t1
 
     changed = np.any(rot != np.asarray(motion.rotations), axis=(1, 2))
-    out = dataclasses.replace(motion, rotations=rot, source=motion.source)
-    # the constructor re-normalises every quaternion, which can move unchanged frames by
-    # one ulp; keep the input's exact values there (frames <= t0 are bit-identical)
-    exact = np.where(changed[:, None, None], out.rotations, motion.rotations)
-    exact.flags.writeable = False
-    object.__setattr__(out, "rotations", exact)
+    out = _adapted_motion(motion, rot, changed)
     cf = np.flatnonzero(changed)
     gq2, gp2 = gq.copy(), gp.copy()  # forward kinematics only where the pose changed
     if cf.size:
@@ -367,15 +230,7 @@ def adapt(
     bone_err = float(
         np.max(np.abs(_bone_lengths(gp2[cf], motion.parents) - _bone_lengths(gp[cf], motion.parents)), initial=0.0)
     )
-    slide = {"left": 0.0, "right": 0.0}
-    slide_o = {"left": 0.0, "right": 0.0}
-    horiz = [0, 2]
-    for s, a, b in anchors:
-        side = ("left", "right")[s]
-        ank = rig.sk.index(f"{side}_ankle")
-        for g, dct in ((gp2, slide), (gp, slide_o)):
-            dd = np.linalg.norm(g[a:b, ank][:, horiz] - g[a, ank][horiz], axis=-1).max()
-            dct[side] = max(dct[side], float(dd))
+    slide, slide_o = _foot_slides(rig, anchors, gp2, gp)
     timings["total"] = time.perf_counter() - t_total
     timings.update(frames_limb=int(edit.size), frames_ccd=int(np.sum(solver == "ccd")), frames_feet=int(n_feet))
     return Adaptation(
@@ -405,3 +260,134 @@ def adapt(
         timings=timings,
         tol=tol,
     )
+
+
+_SIDE_INDEX = {"left": 0, "right": 1}
+
+
+def _release_frames(release, frame_time: float) -> int | None:
+    if release is None:
+        return None
+    release = float(release)
+    if not np.isfinite(release) or release < 0:
+        raise MotionError(f"release must be None or a finite number of seconds >= 0, got {release!r}")
+    return int(round(release / frame_time))
+
+
+def _start_frame(contacts: np.ndarray, ch: Chain, t0: int, tc: int) -> int:
+    """``t0``, or for a foot effector planted in ``[t0, tc)`` its last planted frame (lift-off)."""
+    if ch.kind == "leg":
+        planted = np.flatnonzero(contacts[t0:tc, _SIDE_INDEX[ch.side]]) + t0
+        if planted.size:
+            return int(planted.max())
+    return t0
+
+
+def _solve_hit(rig, ch, motion, rot, edit, goals, spec, max_iter, tol, ext, solver, iters, timings) -> None:
+    """The limb step on the edited frames, then CCD and the limb again where it cannot reach (in place)."""
+    gq = rig.globals[0]
+    t1 = time.perf_counter()
+    r = rot[edit]
+    trans = rig.trans[edit]
+    dmax = limb_dmax(ch, r, trans, ext)
+    hit, res = solve_limb(ch, r, trans, goals[edit], dmax=dmax)
+    timings["limb"] = time.perf_counter() - t1
+    solver[edit] = "limb"
+    bad = res > tol
+    if bad.any():
+        t1 = time.perf_counter()
+        fb = edit[bad]
+        rb = r[bad]
+        tb = trans[bad]
+        it, _ = ccd_sweeps(
+            rig, ch, rb, tb, goals[fb], np.asarray(motion.rotations[fb]), spec, max_iter, tol, True, dmax[bad]
+        )
+        dw = gq[fb, ch.dist]  # the hand / foot keeps its original world orientation
+        _, res_b = solve_limb(ch, rb, tb, goals[fb], distal_world=dw, dmax=dmax[bad])
+        far = res_b > tol
+        if ext < 1.0 and far.any():  # best effort: full reach
+            rf = rb[far]
+            solve_limb(ch, rf, tb[far], goals[fb[far]], distal_world=dw[far])
+            rb[far] = rf
+        r[bad] = rb
+        iters[fb] = it
+        solver[fb] = "ccd"
+        timings["ccd"] = time.perf_counter() - t1
+    rot[edit] = r
+
+
+def _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors) -> tuple[float, int]:
+    """Keep the other feet planted (``"pin"``) or on their trajectories (in place).
+
+    Returns the largest ankle error and the number of solved frames.
+    """
+    gq, gp = rig.globals
+    contacts = rig.contacts
+    F = motion.n_frames
+    foot_err = 0.0
+    n_feet = 0
+    n_blend = int(round(foot_blend / motion.frame_time))
+    for side in ("left", "right"):
+        if ch.kind == "leg" and side == ch.side:
+            continue
+        s = _SIDE_INDEX[side]
+        leg = rig.chain(f"{side}_ankle")
+        ank = leg.dist
+        anc = [int(j) for j in leg.path[: leg.k_prox]]  # root .. hip's parent
+        orig = gp[:, ank]
+        goal = orig.copy()
+        w = np.zeros(F)
+        need = np.zeros(F, dtype=bool)
+        if feet == "pin":
+            for a, b in _phases(contacts[:, s]):
+                if b <= t0 + 1 or a >= stop:
+                    continue
+                a = max(a, t0)
+                anchors.append((s, a, b))
+                goal[a:b] = orig[a]
+                pinned[a:b, s] = True
+                w[a:b] = 1.0
+                delta = orig[a] - orig[b - 1]
+                for k in range(1, n_blend + 1):
+                    f = b - 1 + k
+                    if f >= F or pinned[f, s]:
+                        break
+                    wk = 1.0 - k / (n_blend + 1.0)
+                    goal[f] = orig[f] + wk * delta
+                    w[f] = max(w[f], wk)
+            need |= w > 0
+        moved = np.any(rot[:, anc] != np.asarray(motion.rotations)[:, anc], axis=(1, 2))
+        need |= moved
+        need[: t0 + 1] = False
+        fr = np.flatnonzero(need)
+        if fr.size:
+            n_feet += fr.size
+            rf = rot[fr]
+            hit, res = solve_limb(leg, rf, rig.trans[fr], goal[fr], distal_world=gq[fr, ank])
+            rot[fr] = rf
+            foot_err = max(foot_err, float(res.max(initial=0.0)))
+    return foot_err, n_feet
+
+
+def _adapted_motion(motion: Motion, rot: np.ndarray, changed: np.ndarray) -> Motion:
+    out = dataclasses.replace(motion, rotations=rot, source=motion.source)
+    # the constructor re-normalises every quaternion, which can move unchanged frames by
+    # one ulp; keep the input's exact values there (frames <= t0 are bit-identical)
+    exact = np.where(changed[:, None, None], out.rotations, motion.rotations)
+    exact.flags.writeable = False
+    object.__setattr__(out, "rotations", exact)
+    return out
+
+
+def _foot_slides(rig: Rig, anchors, gp2: np.ndarray, gp: np.ndarray) -> tuple[dict, dict]:
+    """Largest horizontal ankle distance from its anchor over the pinned frames: adapted, original."""
+    slide = {"left": 0.0, "right": 0.0}
+    slide_o = {"left": 0.0, "right": 0.0}
+    horiz = [0, 2]
+    for s, a, b in anchors:
+        side = ("left", "right")[s]
+        ank = rig.sk.index(f"{side}_ankle")
+        for g, dct in ((gp2, slide), (gp, slide_o)):
+            dd = np.linalg.norm(g[a:b, ank][:, horiz] - g[a, ank][horiz], axis=-1).max()
+            dct[side] = max(dct[side], float(dd))
+    return slide, slide_o

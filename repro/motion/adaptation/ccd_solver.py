@@ -287,41 +287,50 @@ def ccd_sweeps(
                 e = hit - pj
                 g = goal - pj
             if kind == "hinge":
-                h = matvec(rw[:, k - 1], h_loc)
-                ep = e - dot(e, h)[:, None] * h
-                gp = g - dot(g, h)[:, None] * h
-                theta = np.arctan2(dot(h, cross(ep, gp)), dot(ep, gp))
-                up = tl[:, k]
-                lw = matvec(ml[:, k], tl[:, k + 1])
-                up = up - (up @ h_loc)[:, None] * h_loc
-                lw = lw - (lw @ h_loc)[:, None] * h_loc
-                phi = np.arctan2(cross(up, lw) @ h_loc, dot(up, lw))
-                lo = np.minimum(lim[0], phi)
-                hi = np.maximum(lim[1], phi)
-                th = np.where(active, np.clip(phi + theta, lo, hi) - phi, 0.0)
-                dq = np.concatenate([np.sin(0.5 * th)[:, None] * h_loc, np.cos(0.5 * th)[:, None]], axis=-1)
-                qn = quat_multiply(dq, ql[:, k])
+                qn = _hinge_step(e, g, rw[:, k - 1], ml[:, k], tl[:, k], tl[:, k + 1], h_loc, lim, active, ql[:, k])
             else:
-                q = min_rotation(e, g)
-                v = q[:, :3] if k == 0 else matvec_t(rw[:, k - 1], q[:, :3])
-                qn = quat_multiply(np.concatenate([v, q[:, 3:]], axis=-1), ql[:, k])
-                dev = quat_multiply(qn, qinv(q0[:, k]))
-                dev = np.where(dev[:, 3:] < 0, -dev, dev)
-                s = np.linalg.norm(dev[:, :3], axis=-1)
-                ang = 2.0 * np.arctan2(s, dev[:, 3])
-                over = ang > lim
-                if over.any():
-                    axis = dev[over, :3] / s[over, None]
-                    cos_half = np.full((axis.shape[0], 1), np.cos(0.5 * lim))
-                    dl = np.concatenate([axis * np.sin(0.5 * lim), cos_half], axis=-1)
-                    qn[over] = quat_multiply(dl, q0[over, k])
-                qn = np.where(active[:, None], qn, ql[:, k])
+                qn = _ball_step(e, g, None if k == 0 else rw[:, k - 1], ql[:, k], q0[:, k], lim, active)
             qn = qn / np.linalg.norm(qn, axis=-1, keepdims=True)
             ql[:, k] = qn
             ml[:, k] = quat_to_matrix(qn)
             path_fk_from(ml, tl, rw, pw, k)
     rot[:, P] = ql
     return iters, hitpos()
+
+
+def _hinge_step(e, g, r_parent, m_joint, up, low, h_loc, lim, active, q):
+    """Turn a hinge about its axis to point ``e`` at ``g``, flexion kept within ``lim``."""
+    h = matvec(r_parent, h_loc)
+    ep = e - dot(e, h)[:, None] * h
+    gp = g - dot(g, h)[:, None] * h
+    theta = np.arctan2(dot(h, cross(ep, gp)), dot(ep, gp))
+    lw = matvec(m_joint, low)
+    up = up - (up @ h_loc)[:, None] * h_loc
+    lw = lw - (lw @ h_loc)[:, None] * h_loc
+    phi = np.arctan2(cross(up, lw) @ h_loc, dot(up, lw))
+    lo = np.minimum(lim[0], phi)
+    hi = np.maximum(lim[1], phi)
+    th = np.where(active, np.clip(phi + theta, lo, hi) - phi, 0.0)
+    dq = np.concatenate([np.sin(0.5 * th)[:, None] * h_loc, np.cos(0.5 * th)[:, None]], axis=-1)
+    return quat_multiply(dq, q)
+
+
+def _ball_step(e, g, r_parent, q, q_orig, lim, active):
+    """Smallest rotation pointing ``e`` at ``g``, clamped to a cone of ``lim`` about ``q_orig``."""
+    qm = min_rotation(e, g)
+    v = qm[:, :3] if r_parent is None else matvec_t(r_parent, qm[:, :3])
+    qn = quat_multiply(np.concatenate([v, qm[:, 3:]], axis=-1), q)
+    dev = quat_multiply(qn, qinv(q_orig))
+    dev = np.where(dev[:, 3:] < 0, -dev, dev)
+    s = np.linalg.norm(dev[:, :3], axis=-1)
+    ang = 2.0 * np.arctan2(s, dev[:, 3])
+    over = ang > lim
+    if over.any():
+        axis = dev[over, :3] / s[over, None]
+        cos_half = np.full((axis.shape[0], 1), np.cos(0.5 * lim))
+        dl = np.concatenate([axis * np.sin(0.5 * lim), cos_half], axis=-1)
+        qn[over] = quat_multiply(dl, q_orig[over])
+    return np.where(active[:, None], qn, q)
 
 
 def ccd(
@@ -343,72 +352,22 @@ def ccd(
 ) -> CCDSolution:
     """Cyclic Coordinate Descent over a longer chain (Section 3.4.2, after Welman 1993).
 
-    Used "when the constraint is not reachable by only using the corresponding limb".
-    Each sweep visits the joints of ``chain`` from distal to proximal and turns each by
-    the smallest rotation that points it at its goal; ball joints are then clamped to a
-    cone of ``limits`` around their *original* local rotation (the motion's, not
-    ``rotations``); the middle joint of the limb (elbow / knee) is a hinge: it turns
-    only about its clip-wide bending axis and its flexion stays within
-    ``hinge_range_deg`` (0 = straight), so it bends one way and never hyperextends.
+    For frames "where the constraint is not reachable by only using the corresponding
+    limb".  Sweeps visit ``chain`` (joint names or roles, ancestors of the wrist / ankle;
+    default :func:`default_chain`) distal to proximal; ball joints stay within a cone of
+    ``limits`` degrees (by joint, role or kind; :data:`DEFAULT_LIMITS_DEG`) about the
+    motion's own rotation, the elbow / knee is a hinge within ``hinge_range_deg``.  With
+    ``finish_with_limb`` the trunk brings the goal within the limb's reach (``max_extension``
+    of its length, see :func:`reach_limb`) and the limb step places the hit point;
+    without it, plain CCD on the hit point.  A sweep that makes a frame worse is undone; a
+    frame stops when reached, when a sweep gains less than 5 % or after ``max_iter``
+    sweeps.  ``targets`` (3,) or (n, 3) and ``tol`` (default 1e-4 of the limb length) are
+    in motion units; ``rotations`` (n, J, 4) is the start pose (default the motion's).
+    The package docstring (:mod:`repro.motion.adaptation`) tells the method.
 
-    With ``finish_with_limb`` (default) the joints above the limb aim the limb's root
-    (shoulder / hip) at the nearest point from which the limb reaches the goal, the
-    objective being the distance of the goal beyond the limb's reach with the hand /
-    foot keeping its start world orientation; the limb's own joints are left to the
-    analytic limb step (:func:`reach_limb`), which then places the hit point exactly when
-    it can.  Without it, plain CCD: every chain joint aims the hit point at the goal.
-
-    A sweep that makes a frame's objective worse is undone.  Sweeps stop, per frame, when
-    the goal is reached, when a sweep gains less than 5 % of the remaining objective
-    (creeping along joint limits), or after ``max_iter`` sweeps -- so it always
-    terminates.
-    Frames are solved independently but together (vectorised over frames).
-
-    Parameters
-    ----------
-    motion : Motion
-    frames : int or sequence of int
-    effector : str
-        Effector role, e.g. ``"right_fist"``.
-    targets : (3,) or (n, 3) array
-        Goals of the hit point, motion units.
-    rotations : (n, J, 4), optional
-        Start pose (e.g. the :func:`reach_limb` result); default the motion's.
-    chain : sequence of str, optional
-        Joint names or roles, each an ancestor of the wrist / ankle (default
-        :func:`default_chain`).
-    limits : mapping, optional
-        Degrees, keyed by joint name, role, or kind (``"shoulder"``, ``"hip"``,
-        ``"clavicle"``, ``"spine"``, ``"pelvis"``, ``"other"``); defaults
-        :data:`DEFAULT_LIMITS_DEG`.
-    hinge_range_deg : (float, float)
-        Flexion range of the elbow / knee (a pose already outside is not pushed
-        further out).
-    max_iter : int
-        Maximum sweeps (>= 0).
-    tol : float, optional
-        Motion units; default 1e-4 of the limb length.
-    finish_with_limb : bool
-        With it, CCD works until the goal is within the limb's reach (the objective is
-        the distance beyond it) and the limb step finishes; without it, CCD alone works
-        on the hit point's distance to the goal.
-    max_extension : float, default 1
-        Reach allowed to the limb step, fraction of the limb length, never less than the
-        motion's own extension on the frame (see :func:`reach_limb`).  Frames still out
-        of reach after CCD are finished with the full reach (best effort).
-    hit_point : {"joint", "end_site"}
-    roles : mapping, optional
-
-    Returns
-    -------
-    CCDSolution
-        Unreachable goals give the best effort, ``reached=False`` and the residual.
-
-    Raises
-    ------
-    repro.errors.MotionError
-        Unknown effector, frames out of range, NaN targets, a chain joint that is not an
-        ancestor of the limb's distal joint, bad limits.
+    Returns a :class:`CCDSolution` (unreachable goals: best effort, ``reached=False``).
+    Raises :class:`repro.errors.MotionError` for an unknown effector, frames out of
+    range, NaN targets, a chain joint that is not an ancestor of the limb, bad limits.
     """
     rig = rig_of(motion, roles)
     ch = rig.chain(effector, hit_point)
