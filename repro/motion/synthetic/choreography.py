@@ -215,7 +215,15 @@ class _Builder:
         self.target_x = self.center0[0]
 
     def design_kick(self) -> None:
-        r, s, sg, lv, kind = self.rng, self.s, self.sg, self.level, self.kind
+        keys, li = self.kick_timeline()
+        self.kick_trunk(keys, li)
+        self.kick_arms(keys)
+        self.kick_shapes(li)
+        self.legs_planted(kick=True)
+
+    def kick_timeline(self) -> tuple[list[float], int]:
+        """Key frames of a kick (weight shift, lift-off, chamber, hit, rechamber, touch-down, recovery)."""
+        lv, kind = self.level, self.kind
         f_ws = self.sec(0.15, 0.30)  # weight starts moving onto the support foot
         shift = self.sec(0.28, 0.36)  # duration of the weight shift (mirrored at the landing)
         heel_lag = self.sec(0.08, 0.14)  # the heel rises that long after the shift starts
@@ -234,8 +242,13 @@ class _Builder:
         self.hit_frame = int(f_h)
         self.phases = {"weight_shift": f_ws, "heel_off": f_ho, "lift_off": f_l, "chamber": f_c, "hit": f_h,
                        "rechamber": f_r, "touch_down": f_d, "heel_down": f_hd, "recovered": f_e}  # fmt: skip
-        t = self.t
         keys = [0.0, f_ws, f_l, f_c, f_h, f_r, f_d, f_e, end]
+        return keys, li
+
+    def kick_trunk(self, keys: list[float], li: int) -> None:
+        """Yaw, pitch, roll, spine, root and clavicle tracks of a kick."""
+        r, s, sg, kind = self.rng, self.s, self.sg, self.kind
+        t = self.t
         ez = ["smooth"] * 8
         y0, p0 = self.yaw0, self.pitch0
         if kind == "kick_front":
@@ -280,7 +293,11 @@ class _Builder:
         rise = [0, 0, 0.01, 0.03, 0.04, 0.03, 0.01, 0, 0]
         self.dy = track(t, list(zip(keys, np.array(rise) * s)), ez)
         self.clav = {self.hit_side: np.zeros((self.F, 2)), self.lead_side: np.zeros((self.F, 2))}
-        # arms stay in guard; the kicking side's arm swings down and back for balance
+
+    def kick_arms(self, keys: list[float]) -> None:
+        """Arms stay in guard; the kicking side's arm swings down and back for balance."""
+        r, s, sg = self.rng, self.s, self.sg
+        ez = ["smooth"] * 8
         g, gp = self.guard[self.hit_side]
         low = np.array([sg * r.uniform(0.20, 0.26), r.uniform(-0.14, -0.08), r.uniform(-0.04, 0.02)]) * s
         mid = 0.5 * (g + low) + np.array([sg * 0.04, 0, 0]) * s
@@ -294,6 +311,13 @@ class _Builder:
         lg2 = lg + np.array([sg * 0.03, 0.02, -0.06]) * s
         self.arm_keys[self.lead_side] = (list(zip(keys, [lg, lg, lg, lg2, lg2, lg2, lg, lg, lg])),
                                          list(zip(keys, [lgp] * 9)), ez)  # fmt: skip
+
+    def kick_shapes(self, li: int) -> None:
+        """Hit flexion, target height, heel, toe, chamber and ankle designs of a kick."""
+        r, sg, lv, kind = self.rng, self.sg, self.level, self.kind
+        ph = self.phases
+        f_ho, f_l, f_c, f_h = ph["heel_off"], ph["lift_off"], ph["chamber"], ph["hit"]
+        f_r, f_d, f_hd = ph["rechamber"], ph["touch_down"], ph["heel_down"]
         self.flex_hit = rad(r.uniform(5, 10))
         self.target_height = (TARGET_HEIGHT_FRACTION["kick"][lv] + r.uniform(-0.02, 0.02)) * self.height
         self.target_x = self.center0[0]
@@ -309,7 +333,6 @@ class _Builder:
         }
         self.ankle_design = {"kick_front": r.uniform(35, 45), "kick_round": r.uniform(40, 50),
                              "kick_side": -r.uniform(5, 15)}[kind]  # fmt: skip
-        self.legs_planted(kick=True)
 
     def design_stance(self) -> None:
         r, s = self.rng, self.s
@@ -731,8 +754,15 @@ def synthetic_clip(
         b.design_stance()
     else:
         b.design_kick()
-    motion, hit = b.solve()
+    motion, _ = b.solve()
     motion = _replace(motion, source=f"synthetic:{kind}:{side}:{b.level}:{float(actor_height):g}m")
+    return motion, _annotation(b, motion, kind, side, fps, actor_height)
+
+
+
+
+def _annotation(b: _Builder, motion: Motion, kind: str, side: str, fps: float, actor_height: float) -> dict:
+    """The annotation :func:`synthetic_clip` returns (see its docstring)."""
     ann = {
         "kind": kind,
         "semantics": SEMANTICS[kind],
@@ -768,8 +798,7 @@ def synthetic_clip(
         )
         if kind != "punch":
             ann["support_foot"] = b.lead_side + "Foot"
-    return motion, ann
-
+    return ann
 
 
 def hit_point_trajectory(motion: Motion, joint: str, where: str = "joint") -> np.ndarray:

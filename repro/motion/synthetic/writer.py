@@ -166,46 +166,60 @@ def synthetic_database(
     out_dir.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=".synthetic-", dir=out_dir))
     try:
-        rows = []
-        for p, (motion, ann) in zip(plan, clips):
-            staged = write_bvh(motion, stage / p["file"])
-            hp = ann["hit_position"]
-            rows.append({
-                "file": p["file"], "kind": ann["kind"], "semantics": ann["semantics"], "side": ann["side"],
-                "level": ann["level"], "hit_joint": ann["hit_joint"], "hit_frame": ann["hit_frame"],
-                "actor_height_m": f"{ann['actor_height_m']:.6g}", "frames": motion.n_frames,
-                "frame_time": f"{motion.frame_time:.12g}", "sha256": _sha256(staged),
-                "hit_point": ann["hit_point"],
-                "hit_x_m": "" if hp is None else f"{hp[0]:.6f}",
-                "hit_y_m": "" if hp is None else f"{hp[1]:.6f}",
-                "hit_z_m": "" if hp is None else f"{hp[2]:.6f}",
-                "clip_seed": p["seed"],
-                "unit_m": "1",
-            })  # fmt: skip
-        (stage / MANIFEST_NAME).write_text(_manifest_text(rows), encoding="utf-8", newline="")
-        names = [p["file"] for p in plan] + [MANIFEST_NAME]
-        same, conflicts = set(), []
-        for name in names:
-            target = out_dir / name
-            if target.is_file() and _sha256(target) == _sha256(stage / name):
-                same.add(name)
-            elif target.exists() or target.is_symlink():
-                conflicts.append(name)
-        if conflicts and not overwrite:
-            raise FileExistsError(
-                errno.EEXIST,
-                f"{len(conflicts)} file(s) of the synthetic database already exist with other content "
-                f"(e.g. {conflicts[0]!r}); nothing was written; pass overwrite=True to replace them",
-                str(out_dir / conflicts[0]),
-            )
-        for name in names:  # the manifest last: it is complete only once every clip is in place
-            if name not in same:
-                os.chmod(stage / name, 0o644)
-                os.replace(stage / name, out_dir / name)
+        _stage(stage, plan, clips)
+        _commit(stage, out_dir, [p["file"] for p in plan] + [MANIFEST_NAME], overwrite)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
     manifest_path = out_dir / MANIFEST_NAME
     return SyntheticDatabase([out_dir / p["file"] for p in plan], manifest_path, read_manifest(manifest_path))
+
+
+
+def _manifest_row(p: dict, motion, ann: dict, sha256: str) -> dict:
+    hp = ann["hit_position"]
+    return {
+        "file": p["file"], "kind": ann["kind"], "semantics": ann["semantics"], "side": ann["side"],
+        "level": ann["level"], "hit_joint": ann["hit_joint"], "hit_frame": ann["hit_frame"],
+        "actor_height_m": f"{ann['actor_height_m']:.6g}", "frames": motion.n_frames,
+        "frame_time": f"{motion.frame_time:.12g}", "sha256": sha256,
+        "hit_point": ann["hit_point"],
+        "hit_x_m": "" if hp is None else f"{hp[0]:.6f}",
+        "hit_y_m": "" if hp is None else f"{hp[1]:.6f}",
+        "hit_z_m": "" if hp is None else f"{hp[2]:.6f}",
+        "clip_seed": p["seed"],
+        "unit_m": "1",
+    }  # fmt: skip
+
+
+def _stage(stage: Path, plan: list[dict], clips) -> None:
+    """Write every clip and the manifest into the staging folder."""
+    rows = []
+    for p, (motion, ann) in zip(plan, clips):
+        staged = write_bvh(motion, stage / p["file"])
+        rows.append(_manifest_row(p, motion, ann, _sha256(staged)))
+    (stage / MANIFEST_NAME).write_text(_manifest_text(rows), encoding="utf-8", newline="")
+
+
+def _commit(stage: Path, out_dir: Path, names: list[str], overwrite: bool) -> None:
+    """Move the staged files into ``out_dir`` (identical ones kept; conflicts refused unless ``overwrite``)."""
+    same, conflicts = set(), []
+    for name in names:
+        target = out_dir / name
+        if target.is_file() and _sha256(target) == _sha256(stage / name):
+            same.add(name)
+        elif target.exists() or target.is_symlink():
+            conflicts.append(name)
+    if conflicts and not overwrite:
+        raise FileExistsError(
+            errno.EEXIST,
+            f"{len(conflicts)} file(s) of the synthetic database already exist with other content "
+            f"(e.g. {conflicts[0]!r}); nothing was written; pass overwrite=True to replace them",
+            str(out_dir / conflicts[0]),
+        )
+    for name in names:  # the manifest last: it is complete only once every clip is in place
+        if name not in same:
+            os.chmod(stage / name, 0o644)
+            os.replace(stage / name, out_dir / name)
 
 
 _INT_COLUMNS = ("hit_frame", "frames", "clip_seed")
