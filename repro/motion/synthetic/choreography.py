@@ -112,7 +112,6 @@ class _Leg(NamedTuple):
     w_pos: np.ndarray  # (F,) 0 = on the ground, 1 = following the flight design
 
 
-
 class _Builder:
     """Designs one clip: trunk tracks, then root height, trunk FK, hit target, limb IK."""
 
@@ -659,13 +658,11 @@ class _Builder:
         return target, pole, design
 
 
-
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     """Half-open ``[start, stop)`` frame ranges where ``mask`` is true."""
     m = np.concatenate([[False], mask, [False]]).astype(int)
     d = np.diff(m)
     return [(int(a), int(b)) for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1))]
-
 
 
 def _replace(m: Motion, **kw) -> Motion:
@@ -677,7 +674,6 @@ def _check_choice(name: str, value, allowed) -> str:
     if value not in allowed:
         raise MotionError(f"{name} must be one of {list(allowed)}, got {value!r}")
     return value
-
 
 
 def synthetic_clip(
@@ -757,8 +753,6 @@ def synthetic_clip(
     motion, _ = b.solve()
     motion = _replace(motion, source=f"synthetic:{kind}:{side}:{b.level}:{float(actor_height):g}m")
     return motion, _annotation(b, motion, kind, side, fps, actor_height)
-
-
 
 
 def _annotation(b: _Builder, motion: Motion, kind: str, side: str, fps: float, actor_height: float) -> dict:

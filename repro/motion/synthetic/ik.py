@@ -35,7 +35,6 @@ class Limb(NamedTuple):
     limits: tuple[float, float]  # flexion range, radians
 
 
-
 def limb_of(prefix: str, kind: str, s: float) -> Limb:
     if kind == "arm":
         names = (prefix + "Arm", prefix + "ForeArm", prefix + "Hand")
@@ -51,18 +50,15 @@ def limb_of(prefix: str, kind: str, s: float) -> Limb:
     return Limb(*names, l1, l2, u, h, (math.radians(lim[0]), math.radians(lim[1])))
 
 
-
 def limb_reach(limb: Limb, flexion: float) -> float:
     """Distance from the upper joint to the end joint at a given flexion (radians)."""
     return math.sqrt(limb.l1**2 + limb.l2**2 + 2 * limb.l1 * limb.l2 * math.cos(flexion))
-
 
 
 def flexion_at(limb: Limb, distance: float) -> float:
     """Flexion (radians) at which the limb's end is ``distance`` from its root (clamped)."""
     c = (distance**2 - limb.l1**2 - limb.l2**2) / (2 * limb.l1 * limb.l2)
     return float(np.clip(math.acos(float(np.clip(c, -1.0, 1.0))), *limb.limits))
-
 
 
 class IKSolution(NamedTuple):
@@ -72,7 +68,6 @@ class IKSolution(NamedTuple):
     end: np.ndarray  # (F, 3) position reached by the end joint
     flexion: np.ndarray  # (F,) radians
     miss: np.ndarray  # (F,) distance between target and reached end
-
 
 
 def two_bone(limb: Limb, root: np.ndarray, target: np.ndarray, pole: np.ndarray) -> IKSolution:

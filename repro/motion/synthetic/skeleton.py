@@ -98,7 +98,6 @@ _REF_END_SITES = {
 }
 
 
-
 def _ref_offset(table: dict, name: str) -> np.ndarray:
     if name in table:
         return np.array(table[name], dtype=float)
@@ -106,7 +105,6 @@ def _ref_offset(table: dict, name: str) -> np.ndarray:
     v = np.array(table[left], dtype=float)
     v[0] = -v[0]
     return v
-
 
 
 def synthetic_skeleton(actor_height: float = REFERENCE_HEIGHT_M) -> Motion:
@@ -150,7 +148,6 @@ def synthetic_skeleton(actor_height: float = REFERENCE_HEIGHT_M) -> Motion:
         unit_m=1.0,
         source=f"synthetic rest pose (height {actor_height:g} m)",
     )
-
 
 
 def scale_of(actor_height: float) -> float:

@@ -41,10 +41,8 @@ __all__ = [
 UNIT_X, UNIT_Y, UNIT_Z = np.eye(3)
 
 
-
 def ease_smooth(u):
     return u * u * u * (10.0 + u * (-15.0 + 6.0 * u))
-
 
 
 def ease_strike(u):  # speed 20 u^3 (1 - u): peaks at u = 0.75, zero at both ends
@@ -53,6 +51,21 @@ def ease_strike(u):  # speed 20 u^3 (1 - u): peaks at u = 0.75, zero at both end
 
 EASES = {"smooth": ease_smooth, "strike": ease_strike}
 
+
+def _piecewise(t: np.ndarray, kt: np.ndarray, kv: np.ndarray, segment) -> np.ndarray:
+    """Keys ``kv`` at frames ``kt``; ``segment(i, u)`` between keys ``i`` and ``i + 1``.
+
+    Constant before the first and after the last key, exact at the keys themselves.
+    """
+    out = np.empty((len(t),) + kv.shape[1:])
+    out[t <= kt[0]] = kv[0]
+    out[t >= kt[-1]] = kv[-1]
+    for i in range(len(kt) - 1):
+        m = (t > kt[i]) & (t < kt[i + 1])
+        out[m] = segment(i, (t[m] - kt[i]) / (kt[i + 1] - kt[i]))
+    for i in range(1, len(kt) - 1):  # interior keys: t == kt[i]
+        out[t == kt[i]] = kv[i]
+    return out
 
 
 def track(t: np.ndarray, keys: Sequence[tuple[float, object]], eases: Sequence[str] | None = None) -> np.ndarray:
@@ -66,24 +79,16 @@ def track(t: np.ndarray, keys: Sequence[tuple[float, object]], eases: Sequence[s
     if np.any(np.diff(kt) <= 0):
         raise MotionError(f"internal error: key frames not increasing: {kt}")
     eases = eases or ["smooth"] * (len(keys) - 1)
-    out = np.empty((len(t),) + kv.shape[1:])
-    out[t <= kt[0]] = kv[0]
-    out[t >= kt[-1]] = kv[-1]
-    for i in range(len(kt) - 1):
-        m = (t > kt[i]) & (t < kt[i + 1])
-        u = (t[m] - kt[i]) / (kt[i + 1] - kt[i])
-        s = EASES[eases[i]](u).reshape((-1,) + (1,) * (kv.ndim - 1))
-        out[m] = kv[i] + (kv[i + 1] - kv[i]) * s
-    # exact values at the keys themselves (t == kt[i] for interior keys)
-    for i in range(1, len(kt) - 1):
-        out[t == kt[i]] = kv[i]
-    return out
 
+    def segment(i, u):
+        s = EASES[eases[i]](u).reshape((-1,) + (1,) * (kv.ndim - 1))
+        return kv[i] + (kv[i + 1] - kv[i]) * s
+
+    return _piecewise(t, kt, kv, segment)
 
 
 def unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
 
 
 def slerp_vec(d0: np.ndarray, d1: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -99,22 +104,11 @@ def slerp_vec(d0: np.ndarray, d1: np.ndarray, s: np.ndarray) -> np.ndarray:
     return unit(a * d0 + b * d1)
 
 
-
 def dir_track(t: np.ndarray, keys: Sequence[tuple[float, np.ndarray]], eases: Sequence[str]) -> np.ndarray:
     """Keyframed unit vectors, slerped per segment with the given eases."""
     kt = np.array([k[0] for k in keys], dtype=float)
     kv = unit(np.array([k[1] for k in keys], dtype=float))
-    out = np.empty((len(t), 3))
-    out[t <= kt[0]] = kv[0]
-    out[t >= kt[-1]] = kv[-1]
-    for i in range(len(kt) - 1):
-        m = (t > kt[i]) & (t < kt[i + 1])
-        u = (t[m] - kt[i]) / (kt[i + 1] - kt[i])
-        out[m] = slerp_vec(kv[i][None], kv[i + 1][None], EASES[eases[i]](u)[:, None])
-    for i in range(1, len(kt) - 1):
-        out[t == kt[i]] = kv[i]
-    return out
-
+    return _piecewise(t, kt, kv, lambda i, u: slerp_vec(kv[i][None], kv[i + 1][None], EASES[eases[i]](u)[:, None]))
 
 
 def axis_angle_quat(axis, angle) -> np.ndarray:
@@ -125,7 +119,6 @@ def axis_angle_quat(axis, angle) -> np.ndarray:
     return np.concatenate([np.sin(h) * axis, np.cos(h)], axis=-1)
 
 
-
 def quat_slerp(q0: np.ndarray, q1: np.ndarray, s) -> np.ndarray:
     """Per-row quaternion slerp (shorter arc), ``s`` in [0, 1] broadcast over rows."""
     d = np.sum(q0 * q1, axis=-1, keepdims=True)
@@ -133,18 +126,15 @@ def quat_slerp(q0: np.ndarray, q1: np.ndarray, s) -> np.ndarray:
     return slerp_vec(unit(q0), unit(q1), np.asarray(s, float).reshape(-1, 1) if np.ndim(s) else s)
 
 
-
 def quat_power(q: np.ndarray, k: float) -> np.ndarray:
     r = Rotation.from_quat(q)
     return Rotation.from_rotvec(r.as_rotvec() * k).as_quat()
-
 
 
 def spherical(az, el) -> np.ndarray:
     """Unit vector with azimuth ``az`` (from +Z towards +X) and elevation ``el`` (radians)."""
     az, el = np.asarray(az, float), np.asarray(el, float)
     return np.stack([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)], axis=-1)
-
 
 
 def rad(deg) -> float:

@@ -60,7 +60,6 @@ class SyntheticDatabase(NamedTuple):
     records: list[dict]
 
 
-
 def database_actor_heights(n_actors: int) -> list[float]:
     """Actor heights of a database with ``n_actors`` actors: evenly spaced in [1.60, 1.90] m.
 
@@ -72,12 +71,10 @@ def database_actor_heights(n_actors: int) -> list[float]:
     return [round(float(h), 4) for h in np.linspace(1.60, 1.90, n)]
 
 
-
 def _positive_int(name: str, value, minimum: int = 1) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
         raise MotionError(f"{name} must be an integer >= {minimum}, got {value!r}")
     return int(value)
-
 
 
 def _plan(n_actors: int, seed: int) -> list[dict]:
@@ -94,7 +91,6 @@ def _plan(n_actors: int, seed: int) -> list[dict]:
     return plan
 
 
-
 def _manifest_text(rows: list[dict]) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
@@ -104,10 +100,8 @@ def _manifest_text(rows: list[dict]) -> str:
     return buf.getvalue()
 
 
-
 def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
-
 
 
 def synthetic_database(
@@ -174,7 +168,6 @@ def synthetic_database(
     return SyntheticDatabase([out_dir / p["file"] for p in plan], manifest_path, read_manifest(manifest_path))
 
 
-
 def _manifest_row(p: dict, motion, ann: dict, sha256: str) -> dict:
     hp = ann["hit_position"]
     return {
@@ -224,7 +217,6 @@ def _commit(stage: Path, out_dir: Path, names: list[str], overwrite: bool) -> No
 
 _INT_COLUMNS = ("hit_frame", "frames", "clip_seed")
 _FLOAT_COLUMNS = ("actor_height_m", "frame_time", "hit_x_m", "hit_y_m", "hit_z_m", "unit_m")
-
 
 
 def read_manifest(path, *, verify: bool = False) -> list[dict]:
