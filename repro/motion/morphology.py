@@ -406,6 +406,34 @@ class DecodeReport:
     max_root_drop: float = 0.0
 
 
+def _pin_planted_feet(mi, tgt, want, S, Rp, L, local_t, gp, prox, root_moves_up: bool, blend_time: float):
+    """Leg goals of ``fix_feet``: planted ankles pinned, the root lowered where out of reach.
+
+    ``local_t`` and ``gp`` are lowered in place; returns the new limb vectors ``want``,
+    proximal positions ``S`` and the largest root drop.
+    """
+    lowered = 0.0
+    legs = [LIMB_NAMES.index("left_leg"), LIMB_NAMES.index("right_leg")]
+    A = S[:, legs] + qrot(Rp[:, legs], want[:, legs])
+    n_blend = int(round(blend_time / mi.frame_time))
+    goal, w = foot_goals(A, mi.contacts, mi.ankle_heights * foot_scale(tgt), n_blend)
+    goal = A + w[..., None] * (goal - A)
+    if root_moves_up:
+        # lower the root where a planted foot is out of the leg's reach
+        r = goal - S[:, legs]
+        ry = r[..., UP_AXIS]
+        rh2 = np.sum(r * r, axis=-1) - ry**2
+        drop = np.maximum(0.0, -ry - np.sqrt(np.maximum(L[legs][None] ** 2 - rh2, 0.0)))
+        drop = drop.max(axis=1)
+        lowered = float(drop.max(initial=0.0))
+        local_t[:, 0, UP_AXIS] -= drop
+        gp[..., UP_AXIS] -= drop[:, None]
+        S = gp[:, prox]
+    want = want.copy()
+    want[:, legs] = qrot(qinv(Rp[:, legs]), goal - S[:, legs])
+    return want, S, lowered
+
+
 def decode_with_report(
     mi: MorphologyIndependentMotion,
     target,
@@ -436,24 +464,7 @@ def decode_with_report(
     want = mi.limb_vectors * L[None, :, None]
     lowered = 0.0
     if fix_feet:
-        legs = [LIMB_NAMES.index("left_leg"), LIMB_NAMES.index("right_leg")]
-        A = S[:, legs] + qrot(Rp[:, legs], want[:, legs])
-        n_blend = int(round(blend_time / mi.frame_time))
-        goal, w = foot_goals(A, mi.contacts, mi.ankle_heights * foot_scale(tgt), n_blend)
-        goal = A + w[..., None] * (goal - A)
-        if mask[0, UP_AXIS]:
-            # lower the root where a planted foot is out of the leg's reach
-            r = goal - S[:, legs]
-            ry = r[..., UP_AXIS]
-            rh2 = np.sum(r * r, axis=-1) - ry**2
-            drop = np.maximum(0.0, -ry - np.sqrt(np.maximum(L[legs][None] ** 2 - rh2, 0.0)))
-            drop = drop.max(axis=1)
-            lowered = float(drop.max(initial=0.0))
-            local_t[:, 0, UP_AXIS] -= drop
-            gp[..., UP_AXIS] -= drop[:, None]
-            S = gp[:, prox]
-        want = want.copy()
-        want[:, legs] = qrot(qinv(Rp[:, legs]), goal - S[:, legs])
+        want, S, lowered = _pin_planted_feet(mi, tgt, want, S, Rp, L, local_t, gp, prox, mask[0, UP_AXIS], blend_time)
     a, dn = normalize(want)
     a0, r0 = mi.swivel_axes, mi.swivel_refs
     a = np.where((dn > 1e-12 * L[None])[..., None], a, a0[None])
