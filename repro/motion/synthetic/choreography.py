@@ -18,7 +18,7 @@ from typing import NamedTuple
 import numpy as np
 
 from repro.errors import MotionError
-from repro.motion.kinematics import qinv
+from repro.motion.kinematics import qinv, slerp
 from repro.motion.motion import Motion, euler_to_quat, quat_multiply, quat_rotate
 from repro.motion.synthetic.ik import IKSolution, Limb, flexion_at, limb_of, limb_reach, two_bone
 from repro.motion.synthetic.skeleton import (
@@ -38,7 +38,6 @@ from repro.motion.synthetic.tracks import (
     dir_track,
     ease_smooth,
     quat_power,
-    quat_slerp,
     rad,
     spherical,
     track,
@@ -511,7 +510,7 @@ class _Builder:
                 q[:, JOINT_INDEX[limb.end]] = ground_local
             else:
                 w_foot = leg.w_pos**3  # the foot turns only once it is off the ground
-                q[:, JOINT_INDEX[limb.end]] = quat_slerp(ground_local, ankle_local, w_foot)
+                q[:, JOINT_INDEX[limb.end]] = slerp(ground_local, ankle_local, w_foot[:, None])
                 toe = toe * (1.0 - w_foot) + w_foot * rad(self.toe_design)
             q[:, JOINT_INDEX[side + "ToeBase"]] = axis_angle_quat(UNIT_X, toe)
             on_ground = leg.w_pos == 0.0
