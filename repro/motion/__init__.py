@@ -36,12 +36,11 @@ __all__ = [
     "BANDAI_UNIT_M",
 ]
 
-# Skeletons, roles, sizes (Eq. 1) and the morphology-independent representation of
-# Kulpa et al. 2005 used for retargeting (Section 3.4.1).
+# Roles, skeletons, sizes (Eq. 1), the morphology-independent representation of
+# Kulpa et al. 2005 used for retargeting (Section 3.4.1) and the feet.
+from repro.motion.roles import ROLES, find_roles  # noqa: E402
 from repro.motion.skeleton import (  # noqa: E402
-    ROLES,
     Skeleton,
-    find_roles,
     rescale_constraint,
     scale_skeleton,
     skeleton_of,
@@ -50,11 +49,10 @@ from repro.motion.morphology import (  # noqa: E402
     MorphologyIndependentMotion,
     decode,
     encode,
-    foot_contacts,
-    foot_metrics,
     naive_retarget,
     retarget,
 )
+from repro.motion.feet import foot_contacts, foot_metrics  # noqa: E402
 
 __all__ += [
     "ROLES",

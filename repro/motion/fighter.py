@@ -93,7 +93,7 @@ from repro.errors import MotionError, RetrievalError
 from repro.motion.adaptation import Adaptation, adapt
 from repro.motion.clustering import root_frames, rotate_y, to_root_frame
 from repro.motion.database import SEMANTICS, MotionDatabase, cut, effector_role
-from repro.motion.kinematics import slerp as _slerp
+from repro.motion.kinematics import slerp
 from repro.motion.morphology import retarget
 from repro.motion.motion import Motion, finite_vector3, quat_multiply
 from repro.motion.retrieval import MotionRetriever, RetrievalResult
@@ -665,7 +665,7 @@ class KungFuFighter:
         nb = max(1, min(int(round(BLEND_S * self.db.fps)), tc, F - 1))
         w = _smooth(np.arange(F) / nb)  # 0 at frame 0, 1 from frame nb
         r0 = np.broadcast_to(pose.rotations[0], placed.rotations.shape)
-        rot = _slerp(r0, placed.rotations, w[:, None, None])
+        rot = slerp(r0, placed.rotations, w[:, None, None])
         pos = np.array(placed.positions)
         pos[:, 0] += (1.0 - w)[:, None] * (pose.positions[0, 0] - placed.positions[0, 0])[None, :]
         return dataclasses.replace(placed, rotations=rot, positions=pos)

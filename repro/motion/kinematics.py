@@ -15,7 +15,22 @@ import numpy as np
 
 from repro.motion.motion import quat_multiply
 
-__all__ = ["cross", "qrot", "qinv", "normalize", "min_rotation", "transport", "fk_arrays", "depth_levels", "slerp"]
+__all__ = [
+    "cross",
+    "dot",
+    "qrot",
+    "qinv",
+    "normalize",
+    "min_rotation",
+    "transport",
+    "fk_arrays",
+    "depth_levels",
+    "slerp",
+    "quat_to_matrix",
+    "matrix_to_quat",
+    "matvec",
+    "matvec_t",
+]
 
 
 # Component-wise versions of np.cross / quat_rotate: same results, but
@@ -24,6 +39,11 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Dot product over the last axis, broadcast."""
+    return np.einsum("...i,...i->...", a, b)
 
 
 def qrot(q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -109,7 +129,6 @@ def depth_levels(parents: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
     return [(np.flatnonzero(depth == d), parents[depth == d]) for d in range(1, int(depth.max(initial=0)) + 1)]
 
 
-
 def slerp(q0: np.ndarray, q1: np.ndarray, a: np.ndarray) -> np.ndarray:
     """Vectorised slerp of unit quaternions (..., 4) with weights a (..., 1)."""
     dot = np.sum(q0 * q1, axis=-1, keepdims=True)
@@ -123,3 +142,43 @@ def slerp(q0: np.ndarray, q1: np.ndarray, a: np.ndarray) -> np.ndarray:
     w1 = np.where(small, a, np.sin(a * omega) / so_safe)
     q = w0 * q0 + w1 * q1
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+# Rotation matrices: the limb and CCD solvers of repro.motion.adaptation chain many
+# rotations along one path, which is cheaper with 3x3 matrices than with quaternions.
+def quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices of unit quaternions ``(x, y, z, w)``, (..., 4) -> (..., 3, 3)."""
+    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    x2, y2, z2 = x + x, y + y, z + z
+    xx, yy, zz = x * x2, y * y2, z * z2
+    xy, xz, yz = x * y2, x * z2, y * z2
+    wx, wy, wz = w * x2, w * y2, w * z2
+    m = np.empty(q.shape[:-1] + (3, 3))
+    m[..., 0, 0] = 1.0 - (yy + zz)
+    m[..., 0, 1] = xy - wz
+    m[..., 0, 2] = xz + wy
+    m[..., 1, 0] = xy + wz
+    m[..., 1, 1] = 1.0 - (xx + zz)
+    m[..., 1, 2] = yz - wx
+    m[..., 2, 0] = xz - wy
+    m[..., 2, 1] = yz + wx
+    m[..., 2, 2] = 1.0 - (xx + yy)
+    return m
+
+
+def matrix_to_quat(m: np.ndarray) -> np.ndarray:
+    """Unit quaternions ``(x, y, z, w)`` of rotation matrices, (..., 3, 3) -> (..., 4) (scipy)."""
+    from scipy.spatial.transform import Rotation
+
+    shape = m.shape[:-2]
+    return Rotation.from_matrix(m.reshape(-1, 3, 3)).as_quat().reshape(shape + (4,))
+
+
+def matvec(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Matrix-vector product ``m v`` broadcast over leading axes."""
+    return np.matmul(m, v[..., None])[..., 0]
+
+
+def matvec_t(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Transposed-matrix-vector product ``m^T v`` broadcast over leading axes."""
+    return np.matmul(v[..., None, :], m)[..., 0, :]

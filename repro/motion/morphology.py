@@ -94,8 +94,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from repro.errors import MotionError
+from repro.motion.feet import UP_AXIS, foot_contacts, foot_goals, foot_scale
+from repro.motion.kinematics import cross, depth_levels, fk_arrays, min_rotation, normalize, qinv, qrot, transport
 from repro.motion.motion import POSITION_CHANNELS, Motion, quat_multiply
-from repro.motion.skeleton import LIMBS, Skeleton, skeleton_of
+from repro.motion.roles import LIMBS
+from repro.motion.skeleton import Skeleton, skeleton_of
 
 __all__ = [
     "MorphologyIndependentMotion",
@@ -104,31 +107,12 @@ __all__ = [
     "decode_with_report",
     "DecodeReport",
     "LIMB_NAMES",
-    "UP_AXIS",
     "retarget",
     "naive_retarget",
-    "foot_contacts",
-    "foot_metrics",
     "time_retarget",
 ]
 
 LIMB_NAMES: tuple[str, ...] = tuple(LIMBS)  # left_arm, right_arm, left_leg, right_leg
-#: Vertical axis of the world (BVH files are Y-up; the floor is the plane y = 0).
-UP_AXIS: int = 1
-
-
-# ----------------------------------------------------------- quaternion helpers
-# (shared with repro.motion.adaptation; public in repro.motion.kinematics)
-from repro.motion.kinematics import cross as _cross  # noqa: E402
-from repro.motion.kinematics import depth_levels as _levels  # noqa: E402
-from repro.motion.kinematics import fk_arrays as _fk  # noqa: E402
-from repro.motion.kinematics import min_rotation as _min_rotation  # noqa: E402
-from repro.motion.kinematics import normalize as _normalize  # noqa: E402
-from repro.motion.kinematics import qinv as _qinv  # noqa: E402
-from repro.motion.kinematics import qrot as _qrot  # noqa: E402
-from repro.motion.kinematics import transport as _transport  # noqa: E402
-
-_qmul = quat_multiply
 
 
 def _position_mask(channels) -> np.ndarray:
@@ -151,7 +135,7 @@ class MorphologyIndependentMotion:
         Topology and channel layout of the source (the target must have the same names
         and parents).
     roles : dict
-        Role -> joint name (:func:`repro.motion.skeleton.find_roles`).
+        Role -> joint name (:func:`repro.motion.roles.find_roles`).
     frame_time : float
     rotations : (F, J, 4)
         Local rotations of the source, unit quaternions ``(x, y, z, w)``.  Used as is for
@@ -252,7 +236,7 @@ def _swivel_frames(sk: Skeleton) -> tuple[np.ndarray, np.ndarray]:
         if n <= 1e-9 * max(sk.height, 1e-300):
             raise MotionError(f"left and right {prox_role}s coincide in the rest pose; cannot tell left from right")
         lat /= n
-        fwd = _cross(lat, up)
+        fwd = cross(lat, up)
         out = lat if side == "left" else -lat
         if kind == "arm":
             a0, r0 = (out + fwd) / np.sqrt(2.0), -up
@@ -276,58 +260,6 @@ def _fill_undefined(angle: np.ndarray, valid: np.ndarray) -> np.ndarray:
     return np.where(valid.any(axis=0)[None], out, 0.0)
 
 
-def _foot_scale(sk: Skeleton) -> float:
-    """Mean foot length (ankle -> toe bone), or the leg length without toe joints."""
-    ft = [sk.limb_lengths[f"{s}_foot"] for s in ("left", "right")]
-    f = float(np.mean(ft))
-    return f if min(ft) > 1e-9 * sk.height else sk.leg_length
-
-
-def _nearest_true(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per column of bool (F, K): index of the nearest True frame and the distance to it.
-
-    Columns without any True get index 0 and distance F.
-    """
-    F = c.shape[0]
-    t = np.arange(F)[:, None]
-    prev = np.maximum.accumulate(np.where(c, t, -1), axis=0)
-    nxt = np.minimum.accumulate(np.where(c, t, 2 * F + 1)[::-1], axis=0)[::-1]
-    dprev = np.where(prev >= 0, t - prev, 10 * F)
-    dnext = np.where(nxt <= F, nxt - t, 10 * F)
-    idx = np.where(dprev <= dnext, prev, nxt)
-    dist = np.minimum(dprev, dnext)
-    none = ~c.any(axis=0)
-    return np.where(none[None], 0, idx), np.where(none[None], F, dist)
-
-
-def _foot_goals(A: np.ndarray, contacts: np.ndarray, heights: np.ndarray, n_blend: int) -> tuple[np.ndarray, np.ndarray]:
-    """Planted-foot goals: per contact phase the mean horizontal position of ``A``, at ``heights``.
-
-    Returns the goals (F, 2, 3) and blend weights (F, 2): 1 on contact frames, falling
-    linearly to 0 over ``n_blend`` frames on each side.
-    """
-    F = A.shape[0]
-    goal = np.array(A, copy=True)
-    w = np.zeros((F, 2))
-    if F == 0:
-        return goal, w
-    idx, dist = _nearest_true(contacts)
-    for s in range(2):
-        c = contacts[:, s]
-        if not c.any():
-            continue
-        start = c & ~np.concatenate([[False], c[:-1]])
-        phase = np.cumsum(start) * c  # 1.. on contact frames, 0 elsewhere
-        n = np.bincount(phase, minlength=phase.max() + 1).astype(float)
-        anchor = np.empty((phase.max() + 1, 3))
-        for k in range(3):
-            vals = heights[:, s] if k == UP_AXIS else A[:, s, k]
-            anchor[:, k] = np.bincount(phase, weights=vals, minlength=phase.max() + 1) / np.maximum(n, 1)
-        goal[:, s] = anchor[phase[idx[:, s]]]
-        w[:, s] = np.clip(1.0 - dist[:, s] / (n_blend + 1.0), 0.0, 1.0)
-    return goal, w
-
-
 def _root_path(sk: Skeleton) -> np.ndarray:
     return np.array([0] + sk.path(sk.joint_names[0], "pelvis"), dtype=np.intp)
 
@@ -338,7 +270,7 @@ def encode(motion: Motion, roles=None) -> MorphologyIndependentMotion:
     Parameters
     ----------
     motion : Motion
-        Any skeleton :func:`~repro.motion.skeleton.find_roles` understands.
+        Any skeleton :func:`~repro.motion.roles.find_roles` understands.
     roles : mapping role -> joint, optional
         Complete role table (default: found from the names and the tree).
 
@@ -356,22 +288,22 @@ def encode(motion: Motion, roles=None) -> MorphologyIndependentMotion:
     bl = sk.bone_lengths
     l1, l2 = bl[mid], bl[dist]
     L = l1 + l2
-    gq, gp = _fk(_levels(sk.parents), motion.rotations, motion.local_translations())
-    rp_inv = _qinv(gq[:, par])  # (F, 4, 4)
+    gq, gp = fk_arrays(depth_levels(sk.parents), motion.rotations, motion.local_translations())
+    rp_inv = qinv(gq[:, par])  # (F, 4, 4)
     S = gp[:, prox]
-    d = _qrot(rp_inv, gp[:, dist] - S)  # (F, 4, 3) in the limb parent frame
-    e = _qrot(rp_inv, gp[:, mid] - S)
+    d = qrot(rp_inv, gp[:, dist] - S)  # (F, 4, 3) in the limb parent frame
+    e = qrot(rp_inv, gp[:, mid] - S)
     n = d / L[None, :, None]
     a0, r0 = _swivel_frames(sk)
-    a, dn = _normalize(d)
+    a, dn = normalize(d)
     a = np.where((dn > 1e-12 * L[None])[..., None], a, a0[None])
-    u = _transport(a0[None], r0[None], a)
-    v = _cross(a, u)
+    u = transport(a0[None], r0[None], a)
+    v = cross(a, u)
     ep = e - np.sum(e * a, axis=-1, keepdims=True) * a
     radius = np.linalg.norm(ep, axis=-1)
     ang = np.arctan2(np.sum(ep * v, axis=-1), np.sum(ep * u, axis=-1))
     ang = _fill_undefined(ang, radius > 1e-9 * l1[None])
-    end_rot = _qmul(rp_inv, gq[:, dist])
+    end_rot = quat_multiply(rp_inv, gq[:, dist])
 
     H = sk.hip_height
     if not np.isfinite(H) or H <= 0:
@@ -383,8 +315,8 @@ def encode(motion: Motion, roles=None) -> MorphologyIndependentMotion:
     div[root_path] = H
     trans = t / div[None, :, None]
     rest_dir = np.where(nonzero[:, None], sk.offsets / np.maximum(bl, 1e-300)[:, None], 0.0)
-    contacts = foot_contacts(motion, _globals=gp, _skeleton=sk)
-    ankle_h = gp[:, [sk.index("left_ankle"), sk.index("right_ankle")], UP_AXIS] / _foot_scale(sk)
+    contacts = foot_contacts(motion, global_positions=gp, skeleton=sk)
+    ankle_h = gp[:, [sk.index("left_ankle"), sk.index("right_ankle")], UP_AXIS] / foot_scale(sk)
     return MorphologyIndependentMotion(
         joint_names=list(motion.joint_names),
         parents=np.array(motion.parents),
@@ -474,6 +406,34 @@ class DecodeReport:
     max_root_drop: float = 0.0
 
 
+def _pin_planted_feet(mi, tgt, want, S, Rp, L, local_t, gp, prox, root_moves_up: bool, blend_time: float):
+    """Leg goals of ``fix_feet``: planted ankles pinned, the root lowered where out of reach.
+
+    ``local_t`` and ``gp`` are lowered in place; returns the new limb vectors ``want``,
+    proximal positions ``S`` and the largest root drop.
+    """
+    lowered = 0.0
+    legs = [LIMB_NAMES.index("left_leg"), LIMB_NAMES.index("right_leg")]
+    A = S[:, legs] + qrot(Rp[:, legs], want[:, legs])
+    n_blend = int(round(blend_time / mi.frame_time))
+    goal, w = foot_goals(A, mi.contacts, mi.ankle_heights * foot_scale(tgt), n_blend)
+    goal = A + w[..., None] * (goal - A)
+    if root_moves_up:
+        # lower the root where a planted foot is out of the leg's reach
+        r = goal - S[:, legs]
+        ry = r[..., UP_AXIS]
+        rh2 = np.sum(r * r, axis=-1) - ry**2
+        drop = np.maximum(0.0, -ry - np.sqrt(np.maximum(L[legs][None] ** 2 - rh2, 0.0)))
+        drop = drop.max(axis=1)
+        lowered = float(drop.max(initial=0.0))
+        local_t[:, 0, UP_AXIS] -= drop
+        gp[..., UP_AXIS] -= drop[:, None]
+        S = gp[:, prox]
+    want = want.copy()
+    want[:, legs] = qrot(qinv(Rp[:, legs]), goal - S[:, legs])
+    return want, S, lowered
+
+
 def decode_with_report(
     mi: MorphologyIndependentMotion,
     target,
@@ -494,7 +454,7 @@ def decode_with_report(
     trans = mi.translations * mul[None, :, None]
     local_t = np.where(mask[None], trans, tgt.offsets[None])
     rot = np.array(mi.rotations, dtype=float)
-    gq, gp = _fk(_levels(tgt.parents), rot, local_t)
+    gq, gp = fk_arrays(depth_levels(tgt.parents), rot, local_t)
 
     prox, mid, dist, par = _limb_indices(tgt)
     l1, l2 = bl[mid], bl[dist]
@@ -504,25 +464,8 @@ def decode_with_report(
     want = mi.limb_vectors * L[None, :, None]
     lowered = 0.0
     if fix_feet:
-        legs = [LIMB_NAMES.index("left_leg"), LIMB_NAMES.index("right_leg")]
-        A = S[:, legs] + _qrot(Rp[:, legs], want[:, legs])
-        n_blend = int(round(blend_time / mi.frame_time))
-        goal, w = _foot_goals(A, mi.contacts, mi.ankle_heights * _foot_scale(tgt), n_blend)
-        goal = A + w[..., None] * (goal - A)
-        if mask[0, UP_AXIS]:
-            # lower the root where a planted foot is out of the leg's reach
-            r = goal - S[:, legs]
-            ry = r[..., UP_AXIS]
-            rh2 = np.sum(r * r, axis=-1) - ry**2
-            drop = np.maximum(0.0, -ry - np.sqrt(np.maximum(L[legs][None] ** 2 - rh2, 0.0)))
-            drop = drop.max(axis=1)
-            lowered = float(drop.max(initial=0.0))
-            local_t[:, 0, UP_AXIS] -= drop
-            gp[..., UP_AXIS] -= drop[:, None]
-            S = gp[:, prox]
-        want = want.copy()
-        want[:, legs] = _qrot(_qinv(Rp[:, legs]), goal - S[:, legs])
-    a, dn = _normalize(want)
+        want, S, lowered = _pin_planted_feet(mi, tgt, want, S, Rp, L, local_t, gp, prox, mask[0, UP_AXIS], blend_time)
+    a, dn = normalize(want)
     a0, r0 = mi.swivel_axes, mi.swivel_refs
     a = np.where((dn > 1e-12 * L[None])[..., None], a, a0[None])
     lo, hi = np.abs(l1 - l2), L
@@ -530,26 +473,26 @@ def decode_with_report(
     clamped = (dn < lo[None] * (1 - 1e-9)) | (dn > hi[None] * (1 + 1e-9))
     cosb = np.clip((l1[None] ** 2 + dc**2 - l2[None] ** 2) / (2 * l1[None] * np.maximum(dc, 1e-300)), -1.0, 1.0)
     sinb = np.sqrt(1.0 - cosb**2)
-    u = _transport(a0[None], r0[None], a)
-    v = _cross(a, u)
+    u = transport(a0[None], r0[None], a)
+    v = cross(a, u)
     phi = mi.limb_swivel[..., None]
     e_loc = a * (l1[None] * cosb)[..., None] + (u * np.cos(phi) + v * np.sin(phi)) * (l1[None] * sinb)[..., None]
     w_loc = a * dc[..., None]
-    E_star = S + _qrot(Rp, e_loc)
-    W_star = S + _qrot(Rp, w_loc)
+    E_star = S + qrot(Rp, e_loc)
+    W_star = S + qrot(Rp, w_loc)
     E0, W0 = gp[:, mid], gp[:, dist]
-    q1 = _min_rotation(E0 - S, E_star - S)
-    Gs = _qmul(q1, gq[:, prox])
-    E1 = S + _qrot(q1, E0 - S)
-    W1 = S + _qrot(q1, W0 - S)
-    q2 = _min_rotation(W1 - E1, W_star - E1)
-    Ge = _qmul(q2, _qmul(q1, gq[:, mid]))
-    Gw = _qmul(Rp, mi.limb_end_rotations)
-    rot[:, prox] = _qmul(_qinv(Rp), Gs)
-    rot[:, mid] = _qmul(_qinv(Gs), Ge)
-    rot[:, dist] = _qmul(_qinv(Ge), Gw)
-    W_final = E1 + _qrot(q2, W1 - E1)
-    err = float(np.max(np.linalg.norm(W_final - S - _qrot(Rp, want), axis=-1), initial=0.0))
+    q1 = min_rotation(E0 - S, E_star - S)
+    Gs = quat_multiply(q1, gq[:, prox])
+    E1 = S + qrot(q1, E0 - S)
+    W1 = S + qrot(q1, W0 - S)
+    q2 = min_rotation(W1 - E1, W_star - E1)
+    Ge = quat_multiply(q2, quat_multiply(q1, gq[:, mid]))
+    Gw = quat_multiply(Rp, mi.limb_end_rotations)
+    rot[:, prox] = quat_multiply(qinv(Rp), Gs)
+    rot[:, mid] = quat_multiply(qinv(Gs), Ge)
+    rot[:, dist] = quat_multiply(qinv(Ge), Gw)
+    W_final = E1 + qrot(q2, W1 - E1)
+    err = float(np.max(np.linalg.norm(W_final - S - qrot(Rp, want), axis=-1), initial=0.0))
 
     out = Motion(
         joint_names=list(tgt.joint_names),
@@ -700,92 +643,6 @@ def naive_retarget(motion: Motion, target, *, scale_root: bool = False) -> Motio
     )
 
 
-# ------------------------------------------------------------------ feet metrics
-def foot_contacts(
-    motion: Motion,
-    *,
-    height_tol: float = 0.04,
-    speed_tol: float = 0.5,
-    up_axis: int = 1,
-    roles=None,
-    _globals: np.ndarray | None = None,
-    _skeleton: Skeleton | None = None,
-) -> np.ndarray:
-    """(F, 2) bool: frames where the left / right ankle is planted.
-
-    An ankle is planted when it is within ``height_tol * leg_length`` of its lowest
-    height in the clip and its horizontal speed is below ``speed_tol * leg_length`` per
-    second (defaults: about 3.5 cm and 0.4 m/s for a 0.85 m leg).  Thresholds are relative
-    to the leg length, so the same call works in any unit.
-    """
-    sk = Skeleton.from_motion(motion, roles=roles) if _skeleton is None else _skeleton
-    ank = [sk.index("left_ankle"), sk.index("right_ankle")]
-    g = (motion.global_positions() if _globals is None else _globals)[:, ank]
-    h = g[..., up_axis]
-    horiz = np.delete(g, up_axis, axis=-1)
-    vel = np.zeros(h.shape)
-    if motion.n_frames > 1:
-        sp = np.linalg.norm(np.diff(horiz, axis=0), axis=-1) / motion.frame_time
-        vel[1:-1] = 0.5 * (sp[1:] + sp[:-1])
-        vel[0], vel[-1] = sp[0], sp[-1]
-    L = sk.leg_length
-    return (h <= h.min(axis=0) + height_tol * L) & (vel <= speed_tol * L)
-
-
-def foot_metrics(motion: Motion, contacts: np.ndarray, *, up_axis: int = 1, roles=None) -> dict[str, float]:
-    """Foot-skating and floor measures of a motion over given contact frames, in metres.
-
-    Parameters
-    ----------
-    motion : Motion
-        Needs ``unit_m``.
-    contacts : (F, 2) bool
-        Planted frames (left, right ankle), usually :func:`foot_contacts` of the *source*
-        motion, so a retargeted motion is judged on the frames where the actor's foot was
-        planted.
-
-    Returns
-    -------
-    dict
-        ``slide_speed``: mean horizontal ankle speed (m/s) over consecutive planted frame
-        pairs; ``slide_per_contact``: mean over contact phases of the horizontal distance
-        between the ankle's first and last position in the phase (m);
-        ``planted_height_mean`` / ``planted_height_std``: ankle height above the floor
-        plane ``y = 0`` on planted frames (m); ``min_ankle_height``: lowest ankle height
-        in the clip (m; negative = below the floor); ``min_toe_height`` likewise for the
-        foot effector (toe).
-    """
-    sk = Skeleton.from_motion(motion, roles=roles)
-    u = sk.to_metres(1.0)
-    contacts = np.asarray(contacts, dtype=bool)
-    if contacts.shape != (motion.n_frames, 2):
-        raise MotionError(f"contacts must be ({motion.n_frames}, 2), got {contacts.shape}")
-    gp = motion.global_positions() * u
-    ank = gp[:, [sk.index("left_ankle"), sk.index("right_ankle")]]
-    toe = gp[:, [sk.index("left_foot"), sk.index("right_foot")]]
-    h = ank[..., up_axis]
-    horiz = np.delete(ank, up_axis, axis=-1)
-    both = contacts[1:] & contacts[:-1]
-    step = np.linalg.norm(np.diff(horiz, axis=0), axis=-1)
-    slide_speed = float(step[both].sum() / max(both.sum(), 1) / motion.frame_time)
-    drifts = []
-    for s in range(2):
-        c = contacts[:, s].astype(int)
-        edges = np.diff(np.concatenate([[0], c, [0]]))
-        starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-        for a, b in zip(starts, ends):
-            if b - a >= 2:
-                drifts.append(float(np.linalg.norm(horiz[b - 1, s] - horiz[a, s])))
-    return {
-        "slide_speed": slide_speed,
-        "slide_per_contact": float(np.mean(drifts)) if drifts else 0.0,
-        "planted_height_mean": float(h[contacts].mean()) if contacts.any() else float("nan"),
-        "planted_height_std": float(h[contacts].std()) if contacts.any() else float("nan"),
-        "min_ankle_height": float(h.min()),
-        "min_toe_height": float(toe[..., up_axis].min()),
-    }
-
-
 def time_retarget(motion: Motion, target, *, repeats: int = 5) -> dict[str, float]:
     """Best-of-``repeats`` wall time of :func:`encode` and :func:`decode`, per frame (seconds).
 
@@ -809,3 +666,4 @@ def time_retarget(motion: Motion, target, *, repeats: int = 5) -> dict[str, floa
         "decode_per_frame": min(dec) / F,
         "total_per_frame": (min(enc) + min(dec)) / F,
     }
+

@@ -59,3 +59,14 @@ def test_fk_arrays_matches_an_explicit_chain():
             p = parents[j]
             np.testing.assert_allclose(gp[f, j], gp[f, p] + Rotation.from_quat(gq[f, p]).apply(tr[f, j]), atol=1e-12)
             np.testing.assert_allclose(gq[f, j], quat_multiply(gq[f, p], rot[f, j]), atol=1e-12)
+
+
+def test_matrix_helpers_match_scipy():
+    M = Rotation.from_quat(Q).as_matrix()
+    np.testing.assert_allclose(K.quat_to_matrix(Q), M, atol=1e-12)
+    back = K.matrix_to_quat(M.reshape(5, 10, 3, 3)).reshape(50, 4)
+    same_sign = np.sign(np.sum(back * Q, axis=-1))[:, None]
+    np.testing.assert_allclose(back * same_sign, Q / np.linalg.norm(Q, axis=-1, keepdims=True), atol=1e-12)
+    np.testing.assert_allclose(K.matvec(M, V), Rotation.from_quat(Q).apply(V), atol=1e-12)
+    np.testing.assert_allclose(K.matvec_t(M, V), Rotation.from_quat(Q).inv().apply(V), atol=1e-12)
+    np.testing.assert_allclose(K.dot(V, V[::-1]), np.sum(V * V[::-1], axis=-1), atol=1e-12)

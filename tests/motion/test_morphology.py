@@ -37,13 +37,13 @@ from repro.motion.morphology import (
     decode,
     decode_with_report,
     encode,
-    foot_contacts,
-    foot_metrics,
     naive_retarget,
     retarget,
     time_retarget,
 )
-from repro.motion.skeleton import LIMBS, Skeleton, scale_skeleton
+from repro.motion.feet import foot_contacts, foot_metrics
+from repro.motion.roles import LIMBS
+from repro.motion.skeleton import Skeleton, scale_skeleton
 
 # Mixamo / cgspeed naming (the synthetic kung-fu database's), T-pose, metres, Y up, facing +Z.
 from tests.motion_fixtures import MIXAMO, MIXAMO_NAMES as NAMES  # noqa: E402

@@ -1,4 +1,4 @@
-"""Roles, sizes and characters of other morphologies (repro.motion.skeleton).
+"""Sizes and characters of other morphologies (repro.motion.skeleton); roles: test_roles.py.
 
 Pronost et al., Section 3.3 (Eq. 1: ``c_r = c * size_a / size_c``) and Section 3.4.1
 (limb lengths for the morphology-independent representation).
@@ -15,31 +15,12 @@ from repro import data
 from repro.errors import MotionError
 from repro.motion import BANDAI_UNIT_M, CMU_UNIT_M, read_bvh
 from repro.motion.skeleton import (
-    REQUIRED_ROLES,
-    ROLES,
     Skeleton,
-    find_roles,
     rescale_constraint,
     scale_skeleton,
     skeleton_of,
 )
-
-CMU_NAMES = (
-    "root lhipjoint lfemur ltibia lfoot ltoes rhipjoint rfemur rtibia rfoot rtoes lowerback upperback "
-    "thorax lowerneck upperneck head lclavicle lhumerus lradius lwrist lhand lfingers lthumb rclavicle "
-    "rhumerus rradius rwrist rhand rfingers rthumb"
-).split()
-CMU_PARENTS = [-1, 0, 1, 2, 3, 4, 0, 6, 7, 8, 9, 0, 11, 12, 13, 14, 15, 13, 17, 18, 19, 20, 21, 20, 13, 24, 25, 26, 27, 28, 27]
-BANDAI_NAMES = (
-    "joint_Root Hips Spine Chest Neck Head Shoulder_L UpperArm_L LowerArm_L Hand_L Shoulder_R UpperArm_R "
-    "LowerArm_R Hand_R UpperLeg_L LowerLeg_L Foot_L Toes_L UpperLeg_R LowerLeg_R Foot_R Toes_R"
-).split()
-BANDAI_PARENTS = [-1, 0, 1, 2, 3, 4, 3, 6, 7, 8, 3, 10, 11, 12, 1, 14, 15, 16, 1, 18, 19, 20]
-
-# Mixamo / cgspeed style (the synthetic kung-fu database's naming), T-pose, metres, Y up,
-# facing +Z, the character's left on +X.
-from tests.motion_fixtures import MIXAMO, MIXAMO_NAMES  # noqa: E402
-MIXAMO_PARENTS = [-1 if p is None else MIXAMO_NAMES.index(p) for _, p, _ in MIXAMO]
+from tests.motion.role_tables import BANDAI_EXPECTED, CMU_EXPECTED, MIXAMO, MIXAMO_NAMES, MIXAMO_PARENTS
 
 
 def mixamo_skeleton(**kw) -> Skeleton:
@@ -58,93 +39,6 @@ def mixamo_skeleton(**kw) -> Skeleton:
     )
     args.update(kw)
     return Skeleton(**args)
-
-
-# ------------------------------------------------------------------ find_roles
-CMU_EXPECTED = {
-    "pelvis": "root", "spine": "lowerback", "chest": "thorax", "neck": "lowerneck", "head": "head",
-    "left_clavicle": "lclavicle", "left_shoulder": "lhumerus", "left_elbow": "lradius",
-    "left_wrist": "lwrist", "left_hand": "lhand", "left_hip": "lfemur", "left_knee": "ltibia",
-    "left_ankle": "lfoot", "left_toe": "ltoes", "left_fist": "lhand", "left_foot": "ltoes",
-    "right_clavicle": "rclavicle", "right_shoulder": "rhumerus", "right_elbow": "rradius",
-    "right_wrist": "rwrist", "right_hand": "rhand", "right_hip": "rfemur", "right_knee": "rtibia",
-    "right_ankle": "rfoot", "right_toe": "rtoes", "right_fist": "rhand", "right_foot": "rtoes",
-}  # fmt: skip
-BANDAI_EXPECTED = {
-    "pelvis": "Hips", "spine": "Spine", "chest": "Chest", "neck": "Neck", "head": "Head",
-    "left_clavicle": "Shoulder_L", "left_shoulder": "UpperArm_L", "left_elbow": "LowerArm_L",
-    "left_wrist": "Hand_L", "left_hip": "UpperLeg_L", "left_knee": "LowerLeg_L", "left_ankle": "Foot_L",
-    "left_toe": "Toes_L", "left_fist": "Hand_L", "left_foot": "Toes_L",
-    "right_clavicle": "Shoulder_R", "right_shoulder": "UpperArm_R", "right_elbow": "LowerArm_R",
-    "right_wrist": "Hand_R", "right_hip": "UpperLeg_R", "right_knee": "LowerLeg_R", "right_ankle": "Foot_R",
-    "right_toe": "Toes_R", "right_fist": "Hand_R", "right_foot": "Toes_R",
-}  # fmt: skip
-MIXAMO_EXPECTED = {
-    "pelvis": "Hips", "spine": "Spine", "chest": "Spine1", "neck": "Neck", "head": "Head",
-    "left_clavicle": "LeftShoulder", "left_shoulder": "LeftArm", "left_elbow": "LeftForeArm",
-    "left_wrist": "LeftHand", "left_hip": "LeftUpLeg", "left_knee": "LeftLeg", "left_ankle": "LeftFoot",
-    "left_toe": "LeftToeBase", "left_fist": "LeftHand", "left_foot": "LeftToeBase",
-    "right_clavicle": "RightShoulder", "right_shoulder": "RightArm", "right_elbow": "RightForeArm",
-    "right_wrist": "RightHand", "right_hip": "RightUpLeg", "right_knee": "RightLeg", "right_ankle": "RightFoot",
-    "right_toe": "RightToeBase", "right_fist": "RightHand", "right_foot": "RightToeBase",
-}  # fmt: skip
-
-
-@pytest.mark.parametrize(
-    "names, parents, expected",
-    [
-        (CMU_NAMES, CMU_PARENTS, CMU_EXPECTED),
-        (BANDAI_NAMES, BANDAI_PARENTS, BANDAI_EXPECTED),
-        (MIXAMO_NAMES, MIXAMO_PARENTS, MIXAMO_EXPECTED),
-    ],
-    ids=["cmu", "bandai", "mixamo"],
-)
-def test_find_roles_three_conventions(names, parents, expected):
-    # with the tree (trunk from the tree) and from the names alone: same table
-    assert find_roles(names, parents) == expected
-    assert find_roles(names) == expected
-    assert set(expected) <= set(ROLES)
-
-
-def test_find_roles_namespace_case_and_separators():
-    names = ["mixamorig:" + n for n in MIXAMO_NAMES]
-    roles = find_roles(names, MIXAMO_PARENTS)
-    assert roles["left_elbow"] == "mixamorig:LeftForeArm" and roles["pelvis"] == "mixamorig:Hips"
-    # upper-case CMU names, "Left_"/"_R" spellings
-    upper = [n.upper() for n in CMU_NAMES]
-    assert find_roles(upper, CMU_PARENTS)["right_knee"] == "RTIBIA"
-    alt = [n.replace("Left", "Left_").replace("Right", "R_") for n in MIXAMO_NAMES]
-    roles = find_roles(alt, MIXAMO_PARENTS)
-    assert roles["left_knee"] == "Left_Leg" and roles["right_ankle"] == "R_Foot"
-
-
-def test_find_roles_missing_role_is_named():
-    names = [n for n in MIXAMO_NAMES if n not in ("LeftLeg", "LeftFoot", "LeftToeBase")]
-    with pytest.raises(MotionError, match="left_knee") as e:
-        find_roles(names)
-    assert "left_ankle" in str(e.value) and "overrides" in str(e.value)
-
-
-def test_find_roles_overrides():
-    names = list(MIXAMO_NAMES)
-    i = names.index("LeftForeArm")
-    names[i] = "L_elbow_jnt_custom"
-    with pytest.raises(MotionError, match="left_elbow"):
-        find_roles(names, MIXAMO_PARENTS)
-    roles = find_roles(names, MIXAMO_PARENTS, overrides={"left_elbow": "L_elbow_jnt_custom"})
-    assert roles["left_elbow"] == "L_elbow_jnt_custom"
-    with pytest.raises(MotionError, match="no such joint"):
-        find_roles(names, MIXAMO_PARENTS, overrides={"left_elbow": "nope"})
-    with pytest.raises(MotionError, match="unknown role"):
-        find_roles(names, MIXAMO_PARENTS, overrides={"left_pinky": "Hips"})
-
-
-def test_find_roles_rejects_broken_limb_chain():
-    # knee not the child of the hip: two-bone IK impossible
-    parents = list(MIXAMO_PARENTS)
-    parents[MIXAMO_NAMES.index("LeftLeg")] = MIXAMO_NAMES.index("Hips")
-    with pytest.raises(MotionError, match="parent-child chain"):
-        find_roles(MIXAMO_NAMES, parents)
 
 
 # ------------------------------------------------------------------- sizes
@@ -302,7 +196,3 @@ def test_bandai_sizes():
     assert sk.head_top == 0.0 and sk.ankle_height == 0.0
     # stature up to the head joint; the Head joint stands 1.34-1.41 m above the lowest joint
     assert 1.25 < sk.size < 1.45
-
-
-def test_required_roles_are_roles():
-    assert set(REQUIRED_ROLES) <= set(ROLES)

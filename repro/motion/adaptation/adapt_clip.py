@@ -1,0 +1,393 @@
+"""The whole Section 3.4.2 edit of a clip: :func:`adapt` and its result :class:`Adaptation`."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from repro.errors import MotionError
+from repro.motion.adaptation.ccd_solver import DEFAULT_HINGE_RANGE_DEG, ccd_spec, ccd_sweeps
+from repro.motion.adaptation.limb import limb_dmax, solve_limb
+from repro.motion.adaptation.offset import offset_curve
+from repro.motion.adaptation.rig import Chain, Rig, check_extension, check_int, default_tol, rig_of, vec3
+from repro.motion.kinematics import fk_arrays, qrot
+from repro.motion.motion import Motion
+
+__all__ = ["Adaptation", "adapt"]
+
+
+@dataclass(frozen=True, eq=False)
+class Adaptation:
+    """Result of :func:`adapt` (Section 3.4.2).
+
+    Attributes
+    ----------
+    motion : Motion
+        The adapted motion: same skeleton, channels and root trajectory; only local
+        rotations differ from the input.
+    effector, hit_joint : str
+        Effector role and the joint name of its hit point.
+    target : (3,) array
+        The target X.
+    t0, tc : int
+        Current frame and contact frame.
+    t_start : int
+        Frame where ``d(t)`` starts growing: ``t0``, or for a foot effector planted after
+        ``t0`` its last planted frame before ``tc`` (lift-off), so a planted kicking foot
+        does not slide.
+    stop : int
+        First frame after the stretch where ``d(t) != 0`` (``tc + release + 1``, or F).
+    offsets : (F, 3)
+        ``d(t)`` (:func:`offset_curve`).
+    original_hit, goals, hit_positions : (F, 3)
+        ``p(t)``, ``p(t) + d(t)``, and the adapted hit point.
+    hit_error : (F,)
+        ``|hit_positions - goals|`` (0 on frames that were not edited).
+    solver : (F,) str
+        ``""`` (frame not edited for the hit), ``"limb"`` or ``"ccd"``.
+    ccd_iterations : (F,) int
+    reached : bool
+        Whether the hit point is within ``tol`` of the target at ``tc``.
+    residual : float
+        ``hit_error[tc]``: distance to the target at the contact.
+    foot_pinned : (F, 2) bool
+        Frames where the left / right ankle was pinned (planted in the original motion,
+        in a contact phase overlapping the edited frames).
+    foot_slide, foot_slide_original : dict
+        ``{"left": s, "right": s}``: per side, the largest horizontal distance of the
+        ankle from its anchor (position at the start of the pinned part of the phase),
+        over the pinned frames, in the adapted and in the original motion; 0 when the
+        side was never pinned.
+    foot_error : float
+        Largest distance between a pinned ankle and its goal (0 unless out of reach).
+    bone_length_error : float
+        Largest change of a joint-to-parent distance over all frames (0 to rounding:
+        only rotations change).
+    changed : (F,) bool
+        Frames whose pose differs from the input.
+    timings : dict
+        Wall-clock seconds of the steps (``limb``, ``ccd``, ``feet``, ``total``) and the
+        frame counts ``frames_limb``, ``frames_ccd``, ``frames_feet``.
+    tol : float
+        The reach tolerance used.
+    """
+
+    motion: Motion
+    effector: str
+    hit_joint: str
+    target: np.ndarray
+    t0: int
+    tc: int
+    t_start: int
+    stop: int
+    offsets: np.ndarray
+    original_hit: np.ndarray
+    goals: np.ndarray
+    hit_positions: np.ndarray
+    hit_error: np.ndarray
+    solver: np.ndarray
+    ccd_iterations: np.ndarray
+    reached: bool
+    residual: float
+    foot_pinned: np.ndarray
+    foot_slide: dict
+    foot_slide_original: dict
+    foot_error: float
+    bone_length_error: float
+    changed: np.ndarray
+    timings: dict
+    tol: float
+
+    @property
+    def error_at_tc(self) -> float:
+        """Hit-point error at the contact frame (same as :attr:`residual`)."""
+        return self.residual
+
+    def summary(self) -> dict:
+        """Summary numbers (motion units, seconds) for reports."""
+        w = slice(self.t_start + 1, self.stop)
+        return {
+            "reached": self.reached,
+            "error_at_tc": self.residual,
+            "max_hit_error": float(self.hit_error[w].max(initial=0.0)),
+            "frames_limb": int(np.sum(self.solver == "limb")),
+            "frames_ccd": int(np.sum(self.solver == "ccd")),
+            "max_foot_slide": max(self.foot_slide.values()),
+            "max_foot_slide_original": max(self.foot_slide_original.values()),
+            "foot_error": self.foot_error,
+            "bone_length_error": self.bone_length_error,
+            "d_tc": float(np.linalg.norm(self.offsets[self.tc])),
+            **{f"time_{k}": v for k, v in self.timings.items()},
+        }
+
+
+def _phases(c: np.ndarray) -> list[tuple[int, int]]:
+    m = np.concatenate([[0], c.astype(int), [0]])
+    d = np.diff(m)
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
+
+
+def _bone_lengths(gp: np.ndarray, parents: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(gp[:, 1:] - gp[:, parents[1:]], axis=-1)
+
+
+def adapt(
+    motion: Motion,
+    effector: str,
+    target,
+    t0: int,
+    tc: int,
+    *,
+    kind: str = "smoothstep",
+    release: float | None = 0.25,
+    chain: Sequence[str] | None = None,
+    limits: Mapping[str, float] | None = None,
+    hinge_range_deg: tuple[float, float] = DEFAULT_HINGE_RANGE_DEG,
+    max_iter: int = 50,
+    tol: float | None = None,
+    max_extension: float = 0.98,
+    feet: str | None = "pin",
+    foot_blend: float = 0.1,
+    hit_point: str = "joint",
+    roles=None,
+) -> Adaptation:
+    """Adapt a selected motion so that its hit point reaches ``target`` at the contact ``tc`` (Section 3.4.2).
+
+    ``d(t)`` (:func:`offset_curve`, eased by ``kind``) grows from ``t_start`` (``t0``, or
+    a planted kicking foot's lift-off) to ``X - p(tc)`` at ``tc`` and is released over
+    ``release`` seconds (None: held); every frame with ``d(t) != 0`` is solved for the goal
+    ``p(t) + d(t)`` by the limb step (at most ``max_extension`` of the limb length), then
+    by :func:`ccd` (``chain``, ``limits``, ``hinge_range_deg``, ``max_iter``) and the limb
+    step again where the limb cannot reach.  ``feet="pin"`` pins each other ankle planted
+    in the original motion, for every contact phase overlapping the edited frames, at its
+    position at ``max(phase start, t0)`` (released over ``foot_blend`` seconds);
+    ``"track"`` keeps the other ankles on their original trajectories; ``None`` leaves the
+    legs alone.  Frames ``<= t0`` never change (but ``tc`` when ``t0 == tc``).  Lengths in
+    the motion's units; ``tol`` defaults to 1e-4 of the limb length.  The package
+    docstring (:mod:`repro.motion.adaptation`) tells the whole method and its limits.
+
+    Raises :class:`repro.errors.MotionError` for a NaN / non-3-vector target, an unknown
+    effector, ``t0 > tc``, frames out of range or bad options.
+    """
+    t_total = time.perf_counter()
+    rig = rig_of(motion, roles)
+    ch = rig.chain(effector, hit_point)
+    F = motion.n_frames
+    X = vec3("target", target)
+    t0 = check_int("t0", t0, 0, F - 1)
+    tc = check_int("tc", tc, 0, F - 1)
+    if t0 > tc:
+        raise MotionError(f"t0={t0} is after the contact frame tc={tc}")
+    if feet not in ("pin", "track", None):
+        raise MotionError(f"feet must be 'pin', 'track' or None, got {feet!r}")
+    n_release = _release_frames(release, motion.frame_time)
+    foot_blend = float(foot_blend)
+    if not np.isfinite(foot_blend) or foot_blend < 0:
+        raise MotionError(f"foot_blend must be a finite number of seconds >= 0, got {foot_blend!r}")
+    tol = default_tol(rig, ch) if tol is None else float(tol)
+    if not np.isfinite(tol) or tol <= 0:
+        raise MotionError(f"tol must be finite and > 0, got {tol!r}")
+    ext = check_extension(max_extension)
+    spec = ccd_spec(rig, ch, chain, limits, hinge_range_deg)
+    max_iter = check_int("max_iter", max_iter, 0, 10**6)
+
+    gq, gp = rig.globals
+    p = gp[:, ch.hit] + qrot(gq[:, ch.hit], ch.hit_offset)
+    t_start = _start_frame(rig.contacts, ch, t0, tc)
+    d = offset_curve(t_start, tc, X - p[tc], F, kind=kind, release=n_release)
+    goals = p + d
+    edit = np.flatnonzero(np.any(d != 0.0, axis=1))
+    edit = edit[edit > t0] if tc > t0 else edit[edit >= t0]
+    stop = int(edit.max()) + 1 if edit.size else t_start + 1
+
+    rot = np.array(motion.rotations)
+    solver = np.full(F, "", dtype="<U4")
+    iters = np.zeros(F, dtype=np.intp)
+    timings = {"limb": 0.0, "ccd": 0.0, "feet": 0.0}
+    if edit.size:
+        _solve_hit(rig, ch, motion, rot, edit, goals, spec, max_iter, tol, ext, solver, iters, timings)
+    t1 = time.perf_counter()
+    pinned = np.zeros((F, 2), dtype=bool)
+    anchors: list[tuple[int, int, int]] = []  # (side, first pinned frame, stop)
+    foot_err, n_feet = 0.0, 0
+    if feet is not None:
+        foot_err, n_feet = _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors)
+    timings["feet"] = time.perf_counter() - t1
+
+    changed = np.any(rot != np.asarray(motion.rotations), axis=(1, 2))
+    out = _adapted_motion(motion, rot, changed)
+    cf = np.flatnonzero(changed)
+    gq2, gp2 = gq.copy(), gp.copy()  # forward kinematics only where the pose changed
+    if cf.size:
+        gq2[cf], gp2[cf] = fk_arrays(rig.levels, rot[cf], rig.trans[cf])
+    hit_new = p.copy()
+    hit_new[cf] = gp2[cf, ch.hit] + qrot(gq2[cf, ch.hit], ch.hit_offset)
+    err = np.linalg.norm(hit_new - goals, axis=-1)
+    bone_err = float(
+        np.max(np.abs(_bone_lengths(gp2[cf], motion.parents) - _bone_lengths(gp[cf], motion.parents)), initial=0.0)
+    )
+    slide, slide_o = _foot_slides(rig, anchors, gp2, gp)
+    timings["total"] = time.perf_counter() - t_total
+    timings.update(frames_limb=int(edit.size), frames_ccd=int(np.sum(solver == "ccd")), frames_feet=int(n_feet))
+    return Adaptation(
+        motion=out,
+        effector=effector,
+        hit_joint=rig.sk.joint_names[ch.hit],
+        target=X,
+        t0=t0,
+        tc=tc,
+        t_start=t_start,
+        stop=stop,
+        offsets=d,
+        original_hit=p,
+        goals=goals,
+        hit_positions=hit_new,
+        hit_error=err,
+        solver=solver,
+        ccd_iterations=iters,
+        reached=bool(err[tc] <= tol),
+        residual=float(err[tc]),
+        foot_pinned=pinned,
+        foot_slide=slide,
+        foot_slide_original=slide_o,
+        foot_error=foot_err,
+        bone_length_error=bone_err,
+        changed=changed,
+        timings=timings,
+        tol=tol,
+    )
+
+
+_SIDE_INDEX = {"left": 0, "right": 1}
+
+
+def _release_frames(release, frame_time: float) -> int | None:
+    if release is None:
+        return None
+    release = float(release)
+    if not np.isfinite(release) or release < 0:
+        raise MotionError(f"release must be None or a finite number of seconds >= 0, got {release!r}")
+    return int(round(release / frame_time))
+
+
+def _start_frame(contacts: np.ndarray, ch: Chain, t0: int, tc: int) -> int:
+    """``t0``, or for a foot effector planted in ``[t0, tc)`` its last planted frame (lift-off)."""
+    if ch.kind == "leg":
+        planted = np.flatnonzero(contacts[t0:tc, _SIDE_INDEX[ch.side]]) + t0
+        if planted.size:
+            return int(planted.max())
+    return t0
+
+
+def _solve_hit(rig, ch, motion, rot, edit, goals, spec, max_iter, tol, ext, solver, iters, timings) -> None:
+    """The limb step on the edited frames, then CCD and the limb again where it cannot reach (in place)."""
+    gq = rig.globals[0]
+    t1 = time.perf_counter()
+    r = rot[edit]
+    trans = rig.trans[edit]
+    dmax = limb_dmax(ch, r, trans, ext)
+    hit, res = solve_limb(ch, r, trans, goals[edit], dmax=dmax)
+    timings["limb"] = time.perf_counter() - t1
+    solver[edit] = "limb"
+    bad = res > tol
+    if bad.any():
+        t1 = time.perf_counter()
+        fb = edit[bad]
+        rb = r[bad]
+        tb = trans[bad]
+        it, _ = ccd_sweeps(
+            rig, ch, rb, tb, goals[fb], np.asarray(motion.rotations[fb]), spec, max_iter, tol, True, dmax[bad]
+        )
+        dw = gq[fb, ch.dist]  # the hand / foot keeps its original world orientation
+        _, res_b = solve_limb(ch, rb, tb, goals[fb], distal_world=dw, dmax=dmax[bad])
+        far = res_b > tol
+        if ext < 1.0 and far.any():  # best effort: full reach
+            rf = rb[far]
+            solve_limb(ch, rf, tb[far], goals[fb[far]], distal_world=dw[far])
+            rb[far] = rf
+        r[bad] = rb
+        iters[fb] = it
+        solver[fb] = "ccd"
+        timings["ccd"] = time.perf_counter() - t1
+    rot[edit] = r
+
+
+def _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors) -> tuple[float, int]:
+    """Keep the other feet planted (``"pin"``) or on their trajectories (in place).
+
+    Returns the largest ankle error and the number of solved frames.
+    """
+    gq, gp = rig.globals
+    contacts = rig.contacts
+    F = motion.n_frames
+    foot_err = 0.0
+    n_feet = 0
+    n_blend = int(round(foot_blend / motion.frame_time))
+    for side in ("left", "right"):
+        if ch.kind == "leg" and side == ch.side:
+            continue
+        s = _SIDE_INDEX[side]
+        leg = rig.chain(f"{side}_ankle")
+        ank = leg.dist
+        anc = [int(j) for j in leg.path[: leg.k_prox]]  # root .. hip's parent
+        orig = gp[:, ank]
+        goal = orig.copy()
+        w = np.zeros(F)
+        need = np.zeros(F, dtype=bool)
+        if feet == "pin":
+            for a, b in _phases(contacts[:, s]):
+                if b <= t0 + 1 or a >= stop:
+                    continue
+                a = max(a, t0)
+                anchors.append((s, a, b))
+                goal[a:b] = orig[a]
+                pinned[a:b, s] = True
+                w[a:b] = 1.0
+                delta = orig[a] - orig[b - 1]
+                for k in range(1, n_blend + 1):
+                    f = b - 1 + k
+                    if f >= F or pinned[f, s]:
+                        break
+                    wk = 1.0 - k / (n_blend + 1.0)
+                    goal[f] = orig[f] + wk * delta
+                    w[f] = max(w[f], wk)
+            need |= w > 0
+        moved = np.any(rot[:, anc] != np.asarray(motion.rotations)[:, anc], axis=(1, 2))
+        need |= moved
+        need[: t0 + 1] = False
+        fr = np.flatnonzero(need)
+        if fr.size:
+            n_feet += fr.size
+            rf = rot[fr]
+            hit, res = solve_limb(leg, rf, rig.trans[fr], goal[fr], distal_world=gq[fr, ank])
+            rot[fr] = rf
+            foot_err = max(foot_err, float(res.max(initial=0.0)))
+    return foot_err, n_feet
+
+
+def _adapted_motion(motion: Motion, rot: np.ndarray, changed: np.ndarray) -> Motion:
+    out = dataclasses.replace(motion, rotations=rot, source=motion.source)
+    # the constructor re-normalises every quaternion, which can move unchanged frames by
+    # one ulp; keep the input's exact values there (frames <= t0 are bit-identical)
+    exact = np.where(changed[:, None, None], out.rotations, motion.rotations)
+    exact.flags.writeable = False
+    object.__setattr__(out, "rotations", exact)
+    return out
+
+
+def _foot_slides(rig: Rig, anchors, gp2: np.ndarray, gp: np.ndarray) -> tuple[dict, dict]:
+    """Largest horizontal ankle distance from its anchor over the pinned frames: adapted, original."""
+    slide = {"left": 0.0, "right": 0.0}
+    slide_o = {"left": 0.0, "right": 0.0}
+    horiz = [0, 2]
+    for s, a, b in anchors:
+        side = ("left", "right")[s]
+        ank = rig.sk.index(f"{side}_ankle")
+        for g, dct in ((gp2, slide), (gp, slide_o)):
+            dd = np.linalg.norm(g[a:b, ank][:, horiz] - g[a, ank][horiz], axis=-1).max()
+            dct[side] = max(dct[side], float(dd))
+    return slide, slide_o

@@ -1,0 +1,402 @@
+"""Cyclic Coordinate Descent over a longer chain (Section 3.4.2, after Welman 1993): :func:`ccd`."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from repro.errors import MotionError
+from repro.motion.adaptation.limb import limb_dmax, solve_limb
+from repro.motion.adaptation.rig import (
+    Chain,
+    Rig,
+    check_extension,
+    check_frames,
+    check_int,
+    check_targets,
+    default_tol,
+    path_fk,
+    path_fk_from,
+    rig_of,
+    start_rotations,
+)
+from repro.motion.kinematics import (
+    cross,
+    dot,
+    matrix_to_quat,
+    matvec,
+    matvec_t,
+    min_rotation,
+    qinv,
+    quat_to_matrix,
+)
+from repro.motion.motion import Motion, quat_multiply
+
+__all__ = [
+    "DEFAULT_LIMITS_DEG",
+    "DEFAULT_HINGE_RANGE_DEG",
+    "CCDSolution",
+    "default_chain",
+    "chain_joints",
+    "ccd_spec",
+    "ccd_sweeps",
+    "ccd",
+]
+
+#: Default CCD joint limits: largest rotation (degrees) of a joint's local rotation away
+#: from its original value, by kind of joint.  ``spine`` covers every joint between the
+#: pelvis and the chest (chest included).
+DEFAULT_LIMITS_DEG: dict[str, float] = {
+    "shoulder": 100.0,
+    "hip": 60.0,
+    "clavicle": 20.0,
+    "spine": 15.0,
+    "pelvis": 25.0,
+    "other": 15.0,
+}
+
+#: Default flexion range (degrees) of the elbow / knee hinge in :func:`ccd`; 0 is straight.
+DEFAULT_HINGE_RANGE_DEG: tuple[float, float] = (0.0, 160.0)
+
+
+@dataclass(frozen=True, eq=False)
+class CCDSolution:
+    """Result of :func:`ccd`.
+
+    Attributes
+    ----------
+    frames, rotations, hit_positions, residual, reached
+        As in :class:`LimbSolution`.
+    iterations : (n,) int
+        CCD sweeps used per frame (0 when the limb alone could reach).
+    chain : list of str
+        The joints CCD rotated, distal to proximal.
+    """
+
+    frames: np.ndarray
+    rotations: np.ndarray
+    hit_positions: np.ndarray
+    residual: np.ndarray
+    reached: np.ndarray
+    iterations: np.ndarray
+    chain: list = field(default_factory=list)
+
+
+# ------------------------------------------------------------------------ CCD
+def default_chain(motion: Motion, effector: str, *, include_pelvis: bool | None = None, roles=None) -> list[str]:
+    """Default CCD chain of an effector, distal to proximal, as joint names.
+
+    Arm: elbow, shoulder, clavicle, then every joint between the pelvis and the clavicle
+    (CMU: ``rradius, rhumerus, rclavicle, thorax, upperback, lowerback``).  Leg: knee,
+    hip, pelvis (CMU: ``rtibia, rfemur, root``; the fixed ``rhipjoint`` bone between them
+    is skipped).  ``include_pelvis`` (default: False for arms, True for legs) adds or
+    removes the pelvis: rotating it moves the other leg, which :func:`adapt` repairs with
+    its foot step.  Joints without three rotation channels are skipped.
+    """
+    rig = rig_of(motion, roles)
+    return chain_joints(rig, rig.chain(effector), include_pelvis)
+
+
+def chain_joints(rig: Rig, ch: Chain, include_pelvis: bool | None = None) -> list[str]:
+    sk = rig.sk
+    pelvis = sk.index("pelvis")
+    if include_pelvis is None:
+        include_pelvis = ch.kind == "leg"
+    out = [ch.mid, ch.prox]
+    anc = [int(j) for j in ch.path[: ch.k_prox][::-1]]  # prox's parent .. root
+    if pelvis not in anc:
+        raise MotionError("the pelvis is not an ancestor of the limb")
+    if ch.kind == "arm":
+        out += anc[: anc.index(pelvis)]
+    if include_pelvis:
+        out.append(pelvis)
+    return [sk.joint_names[j] for j in out if rig.full_rotation[j]]
+
+
+def _check_limits(rig: Rig, limits: Mapping[str, float] | None) -> dict[str, float]:
+    """Validated limits in radians: defaults by kind, overridden by kind, role or joint name."""
+    lim = {k: float(np.radians(v)) for k, v in DEFAULT_LIMITS_DEG.items()}
+    if limits is None:
+        return lim
+    if not isinstance(limits, Mapping):
+        raise MotionError(f"limits must be a mapping of joint / role / kind -> degrees, got {type(limits).__name__}")
+    for k, v in limits.items():
+        if k not in DEFAULT_LIMITS_DEG and k not in rig.sk.roles and k not in rig.sk.joint_names:
+            raise MotionError(
+                f"limits: {k!r} is neither a kind {sorted(DEFAULT_LIMITS_DEG)}, a role nor a joint name"
+            )
+        try:
+            v = float(v)
+        except (TypeError, ValueError):
+            raise MotionError(f"limit for {k!r} must be a number of degrees, got {v!r}") from None
+        if not (np.isfinite(v) and 0 <= v <= 180):
+            raise MotionError(f"limit for {k!r} must be in [0, 180] degrees, got {v!r}")
+        lim[k] = float(np.radians(v))
+    return lim
+
+
+def _limit_of(rig: Rig, j: int, lim: dict[str, float]) -> float:
+    """Cone limit (radians) of joint ``j``: by joint name, else role, else kind."""
+    sk = rig.sk
+    name = sk.joint_names[j]
+    aliases = ("left_fist", "right_fist", "left_foot", "right_foot")
+    roles = [r for r, n in sk.roles.items() if n == name and r not in aliases]
+    for key in [name] + roles:
+        if key in lim and key not in DEFAULT_LIMITS_DEG:
+            return lim[key]
+    for r in roles:
+        stem = r.split("_", 1)[1] if r.startswith(("left_", "right_")) else r
+        if stem in ("shoulder", "hip", "clavicle", "pelvis"):
+            return lim[stem]
+    if any(r in ("spine", "chest") for r in roles) or j in _spine_joints(rig):
+        return lim["spine"]
+    return lim["other"]
+
+
+def _spine_joints(rig: Rig) -> set[int]:
+    sk = rig.sk
+    try:
+        return set(sk.path("pelvis", "chest"))
+    except MotionError:
+        return set()
+
+
+def ccd_spec(rig: Rig, ch: Chain, chain, limits, hinge_range_deg):
+    sk = rig.sk
+    if isinstance(chain, str):
+        raise MotionError(f"chain must be a sequence of joint names or roles, got the string {chain!r}")
+    names = chain_joints(rig, ch) if chain is None else list(chain)
+    if not names:
+        raise MotionError("the CCD chain is empty")
+    pl = [int(j) for j in ch.path]
+    lim = _check_limits(rig, limits)
+    spec = []
+    try:
+        lo, hi = (float(np.radians(float(x))) for x in hinge_range_deg)
+    except (TypeError, ValueError):
+        raise MotionError(f"hinge_range_deg must be two numbers (lo, hi) in degrees, got {hinge_range_deg!r}") from None
+    if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+        raise MotionError(f"hinge_range_deg must be two finite numbers lo < hi, got {hinge_range_deg!r}")
+    for nm in names:
+        try:
+            j = sk.index(nm)
+        except MotionError:
+            raise MotionError(f"CCD chain: no joint or role {nm!r}") from None
+        if j not in pl[: ch.k_dist]:
+            raise MotionError(
+                f"CCD chain: {sk.joint_names[j]!r} is not an ancestor of the {ch.effector} above the "
+                f"{'wrist' if ch.kind == 'arm' else 'ankle'} (path: {[sk.joint_names[i] for i in pl]})"
+            )
+        if not rig.full_rotation[j]:
+            raise MotionError(f"CCD chain: {sk.joint_names[j]!r} has no 3-axis rotation channels")
+        k = pl.index(j)
+        if j == ch.mid:
+            spec.append((k, "hinge", (lo, hi)))
+        else:
+            spec.append((k, "ball", _limit_of(rig, j, lim)))
+    if len({k for k, _, _ in spec}) != len(spec):
+        raise MotionError("CCD chain lists a joint twice")
+    spec.sort(key=lambda s: -s[0])  # distal first
+    return spec
+
+
+def _distal_world(ch: Chain, rot: np.ndarray, trans: np.ndarray) -> np.ndarray:
+    """(n, 4) world orientation of the limb's distal joint in the pose ``rot``."""
+    P = ch.path[: ch.k_dist + 1]
+    rw, _ = path_fk(quat_to_matrix(rot[:, P]), trans[:, P])
+    return matrix_to_quat(rw[:, -1])
+
+
+def ccd_sweeps(
+    rig: Rig, ch: Chain, rot, trans, goal, ref, spec, max_iter: int, tol: float, finish: bool = True, dmax=None
+):
+    """Vectorised CCD; ``rot`` (n, J, 4) modified in place.  Returns (iterations, hit).
+
+    ``dmax`` (n,): largest proximal->distal distance the limb step may use (default the
+    limb length); with ``finish`` the objective is the distance of the goal beyond it.
+    """
+    P = ch.path
+    n = goal.shape[0]
+    ql = rot[:, P].copy()
+    q0 = ref[:, P]
+    ml = quat_to_matrix(ql)
+    tl = trans[:, P]
+    rw, pw = path_fk(ml, tl)
+    kp, km, kd = ch.k_prox, ch.k_mid, ch.k_dist
+    l1 = np.linalg.norm(tl[:, km], axis=-1)
+    l2 = np.linalg.norm(tl[:, kd], axis=-1)
+    L = l1 + l2
+    reach_max = L if dmax is None else np.minimum(dmax, L)
+    tiny = 1e-9 * L
+    active = np.ones(n, dtype=bool)
+    iters = np.zeros(n, dtype=np.intp)
+    best_err = np.full(n, np.inf)
+    best_ql = ql.copy()
+    h_loc = ch.hinge_loc
+    # with the analytic finish, the limb's own joints are left to the limb step: only
+    # the joints above the limb change how far the goal is out of the limb's reach
+    sweep = [s for s in spec if not (finish and s[0] >= kp)]
+
+    def hitpos():
+        return pw[:, -1] + matvec(rw[:, -1], ch.hit_offset)
+
+    # with the finish, the hand / foot keeps its start world orientation (the limb step
+    # restores it), so the distal joint's goal does not move while the trunk turns
+    Wg_fixed = goal - (hitpos() - pw[:, kd])
+    for it in range(max_iter + 1):
+        hit = hitpos()
+        if finish:
+            # objective: how far the goal is out of the limb's reach (the analytic limb
+            # step then places the hit point exactly)
+            dW = np.linalg.norm(Wg_fixed - pw[:, kp], axis=-1)
+            err = np.maximum(np.maximum(dW - reach_max, np.abs(l1 - l2) - dW), 0.0)
+            done = err <= 0.0
+        else:
+            err = np.linalg.norm(hit - goal, axis=-1)
+            done = err <= tol
+        better = err < best_err
+        worse = active & ~better
+        if worse.any():  # a sweep that made things worse is undone, and the frame stops
+            ql[worse] = best_ql[worse]
+            ml[worse] = quat_to_matrix(ql[worse])
+            rw[worse], pw[worse] = path_fk(ml[worse], tl[worse])
+        # a sweep that gains less than 5 % of the remaining objective is creeping along
+        # joint limits (a converging sweep gains a constant, large fraction)
+        creeping = better & (best_err - err < np.maximum(0.05 * np.where(np.isfinite(best_err), best_err, 0.0), tiny))
+        best_ql[better] = ql[better]
+        best_err = np.minimum(best_err, err)
+        active &= better & ~done & ~creeping
+        if not active.any() or it == max_iter or not sweep:
+            break
+        iters += active
+        for k, kind, lim in sweep:
+            hit = hitpos()
+            pj = pw[:, k]
+            if finish and k < kp:
+                # above the limb: bring the proximal joint (shoulder / hip) to the nearest
+                # point from which the limb reaches the goal
+                S = pw[:, kp]
+                sw = S - Wg_fixed
+                dist = np.linalg.norm(sw, axis=-1)
+                want = np.clip(dist, np.abs(l1 - l2), np.maximum(reach_max, np.abs(l1 - l2)))
+                e = S - pj
+                g = Wg_fixed + (want / np.maximum(dist, 1e-300))[:, None] * sw - pj
+            else:
+                e = hit - pj
+                g = goal - pj
+            if kind == "hinge":
+                qn = _hinge_step(e, g, rw[:, k - 1], ml[:, k], tl[:, k], tl[:, k + 1], h_loc, lim, active, ql[:, k])
+            else:
+                qn = _ball_step(e, g, None if k == 0 else rw[:, k - 1], ql[:, k], q0[:, k], lim, active)
+            qn = qn / np.linalg.norm(qn, axis=-1, keepdims=True)
+            ql[:, k] = qn
+            ml[:, k] = quat_to_matrix(qn)
+            path_fk_from(ml, tl, rw, pw, k)
+    rot[:, P] = ql
+    return iters, hitpos()
+
+
+def _hinge_step(e, g, r_parent, m_joint, up, low, h_loc, lim, active, q):
+    """Turn a hinge about its axis to point ``e`` at ``g``, flexion kept within ``lim``."""
+    h = matvec(r_parent, h_loc)
+    ep = e - dot(e, h)[:, None] * h
+    gp = g - dot(g, h)[:, None] * h
+    theta = np.arctan2(dot(h, cross(ep, gp)), dot(ep, gp))
+    lw = matvec(m_joint, low)
+    up = up - (up @ h_loc)[:, None] * h_loc
+    lw = lw - (lw @ h_loc)[:, None] * h_loc
+    phi = np.arctan2(cross(up, lw) @ h_loc, dot(up, lw))
+    lo = np.minimum(lim[0], phi)
+    hi = np.maximum(lim[1], phi)
+    th = np.where(active, np.clip(phi + theta, lo, hi) - phi, 0.0)
+    dq = np.concatenate([np.sin(0.5 * th)[:, None] * h_loc, np.cos(0.5 * th)[:, None]], axis=-1)
+    return quat_multiply(dq, q)
+
+
+def _ball_step(e, g, r_parent, q, q_orig, lim, active):
+    """Smallest rotation pointing ``e`` at ``g``, clamped to a cone of ``lim`` about ``q_orig``."""
+    qm = min_rotation(e, g)
+    v = qm[:, :3] if r_parent is None else matvec_t(r_parent, qm[:, :3])
+    qn = quat_multiply(np.concatenate([v, qm[:, 3:]], axis=-1), q)
+    dev = quat_multiply(qn, qinv(q_orig))
+    dev = np.where(dev[:, 3:] < 0, -dev, dev)
+    s = np.linalg.norm(dev[:, :3], axis=-1)
+    ang = 2.0 * np.arctan2(s, dev[:, 3])
+    over = ang > lim
+    if over.any():
+        axis = dev[over, :3] / s[over, None]
+        cos_half = np.full((axis.shape[0], 1), np.cos(0.5 * lim))
+        dl = np.concatenate([axis * np.sin(0.5 * lim), cos_half], axis=-1)
+        qn[over] = quat_multiply(dl, q_orig[over])
+    return np.where(active[:, None], qn, q)
+
+
+def ccd(
+    motion: Motion,
+    frames,
+    effector: str,
+    targets,
+    *,
+    rotations=None,
+    chain: Sequence[str] | None = None,
+    limits: Mapping[str, float] | None = None,
+    hinge_range_deg: tuple[float, float] = DEFAULT_HINGE_RANGE_DEG,
+    max_iter: int = 50,
+    tol: float | None = None,
+    finish_with_limb: bool = True,
+    max_extension: float = 1.0,
+    hit_point: str = "joint",
+    roles=None,
+) -> CCDSolution:
+    """Cyclic Coordinate Descent over a longer chain (Section 3.4.2, after Welman 1993).
+
+    For frames "where the constraint is not reachable by only using the corresponding
+    limb".  Sweeps visit ``chain`` (joint names or roles, ancestors of the wrist / ankle;
+    default :func:`default_chain`) distal to proximal; ball joints stay within a cone of
+    ``limits`` degrees (by joint, role or kind; :data:`DEFAULT_LIMITS_DEG`) about the
+    motion's own rotation, the elbow / knee is a hinge within ``hinge_range_deg``.  With
+    ``finish_with_limb`` the trunk brings the goal within the limb's reach (``max_extension``
+    of its length, see :func:`reach_limb`) and the limb step places the hit point;
+    without it, plain CCD on the hit point.  A sweep that makes a frame worse is undone; a
+    frame stops when reached, when a sweep gains less than 5 % or after ``max_iter``
+    sweeps.  ``targets`` (3,) or (n, 3) and ``tol`` (default 1e-4 of the limb length) are
+    in motion units; ``rotations`` (n, J, 4) is the start pose (default the motion's).
+    The package docstring (:mod:`repro.motion.adaptation`) tells the method.
+
+    Returns a :class:`CCDSolution` (unreachable goals: best effort, ``reached=False``).
+    Raises :class:`repro.errors.MotionError` for an unknown effector, frames out of
+    range, NaN targets, a chain joint that is not an ancestor of the limb, bad limits.
+    """
+    rig = rig_of(motion, roles)
+    ch = rig.chain(effector, hit_point)
+    idx, _ = check_frames(frames, motion.n_frames)
+    goal = np.array(check_targets(targets, len(idx)))
+    tol = default_tol(rig, ch) if tol is None else float(tol)
+    max_iter = check_int("max_iter", max_iter, 0, 10**6)
+    ext = check_extension(max_extension)
+    rot = start_rotations(motion, idx, rotations)
+    spec = ccd_spec(rig, ch, chain, limits, hinge_range_deg)
+    trans = rig.trans[idx]
+    ref = np.asarray(motion.rotations[idx])
+    dmax = limb_dmax(ch, ref, trans, ext)
+    dw = _distal_world(ch, rot, trans) if finish_with_limb else None
+    iters, hit = ccd_sweeps(rig, ch, rot, trans, goal, ref, spec, max_iter, tol, finish_with_limb, dmax)
+    if finish_with_limb:
+        hit, res = solve_limb(ch, rot, trans, goal, distal_world=dw, dmax=dmax)
+        far = res > tol
+        if ext < 1.0 and far.any():
+            r = rot[far]
+            hit[far], _ = solve_limb(ch, r, trans[far], goal[far], distal_world=dw[far])
+            rot[far] = r
+    res = np.linalg.norm(hit - goal, axis=-1)
+    return CCDSolution(
+        frames=idx,
+        rotations=rot,
+        hit_positions=hit,
+        residual=res,
+        reached=res <= tol,
+        iterations=iters,
+        chain=[rig.sk.joint_names[int(ch.path[k])] for k, _, _ in spec],
+    )

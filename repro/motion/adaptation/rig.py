@@ -1,0 +1,299 @@
+"""The per-motion rig the solvers share: effector chains, cached globals, argument checks.
+
+A :class:`Rig` caches, per :class:`~repro.motion.motion.Motion` (weakly), the skeleton
+roles, local translations, global transforms, foot contacts and one :class:`Chain` per
+effector (the path root -> hit point, the limb's proximal / middle / distal joints and
+the clip-wide bending axis of the middle joint).  :func:`path_fk` is forward kinematics
+along such a path with rotation matrices.
+"""
+
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+
+from repro.errors import MotionError
+from repro.motion.feet import foot_contacts
+from repro.motion.kinematics import cross, depth_levels, matvec, qrot
+from repro.motion.motion import Motion, finite_vector3
+from repro.motion.skeleton import Skeleton
+
+__all__ = [
+    "EFFECTOR_STEMS",
+    "Chain",
+    "Rig",
+    "rig_of",
+    "path_fk",
+    "path_fk_from",
+    "check_int",
+    "vec3",
+    "check_frames",
+    "check_targets",
+    "start_rotations",
+    "check_extension",
+    "default_tol",
+]
+
+#: Effector role stems and the limb they belong to (``"right_fist"`` -> right arm).
+EFFECTOR_STEMS: dict[str, str] = {
+    "fist": "arm",
+    "hand": "arm",
+    "wrist": "arm",
+    "foot": "leg",
+    "toe": "leg",
+    "ankle": "leg",
+}
+
+
+def check_int(name: str, v, lo: int, hi: int) -> int:
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)):
+        raise MotionError(f"{name} must be an integer frame index, got {v!r}")
+    v = int(v)
+    if not lo <= v <= hi:
+        raise MotionError(f"{name}={v} is out of range [{lo}, {hi}]")
+    return v
+
+
+def vec3(name: str, v) -> np.ndarray:
+    return finite_vector3(v, name, MotionError)
+
+
+def path_fk(ml: np.ndarray, tl: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World rotations (n, P, 3, 3) and positions (n, P, 3) along a root->joint chain."""
+    rw = np.empty_like(ml)
+    pw = np.empty_like(tl)
+    rw[:, 0] = ml[:, 0]
+    pw[:, 0] = tl[:, 0]
+    path_fk_from(ml, tl, rw, pw, 1)
+    return rw, pw
+
+
+def path_fk_from(ml, tl, rw, pw, k: int) -> None:
+    """Recompute world transforms of chain positions ``>= k`` in place."""
+    if k == 0:
+        rw[:, 0] = ml[:, 0]
+        pw[:, 0] = tl[:, 0]
+        k = 1
+    for i in range(k, ml.shape[1]):
+        pw[:, i] = pw[:, i - 1] + matvec(rw[:, i - 1], tl[:, i])
+        rw[:, i] = rw[:, i - 1] @ ml[:, i]
+
+
+# --------------------------------------------------------------- the rig
+@dataclass(eq=False)
+class Chain:
+    """Kinematic facts about one effector of one motion."""
+
+    effector: str  # role
+    limb: str  # e.g. "right_arm"
+    side: str
+    kind: str  # "arm" | "leg"
+    hit: int  # effector joint index
+    hit_offset: np.ndarray  # (3,) in the hit joint's frame (0 for the joint itself)
+    path: np.ndarray  # joint indices root .. hit
+    k_prox: int  # positions in path
+    k_mid: int
+    k_dist: int
+    prox: int
+    mid: int
+    dist: int
+    hinge_loc: np.ndarray  # (3,) bending axis of the middle joint, in the proximal frame
+    bend_loc: np.ndarray  # (3,) side of the middle joint w.r.t. the limb axis, proximal frame
+
+    @property
+    def k_hit(self) -> int:
+        return len(self.path) - 1
+
+
+class Rig:
+    """Per-motion cache: skeleton roles, local translations, effector chains."""
+
+    def __init__(self, motion: Motion, roles=None):
+        # a weak reference: the rig is the value of a WeakKeyDictionary keyed by the motion
+        self._motion = weakref.ref(motion)
+        self.sk = Skeleton.from_motion(motion, roles=roles)
+        self.trans = motion.local_translations()
+        self.trans.flags.writeable = False
+        self.chains: dict[tuple[str, str], Chain] = {}
+        self.levels = depth_levels(self.sk.parents)
+        self._globals = None
+        self._contacts = None
+        orders = motion.rotation_orders
+        self.full_rotation = np.array([len(set(o)) == 3 for o in orders])
+
+    @property
+    def motion(self) -> Motion:
+        return self._motion()
+
+    @property
+    def globals(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._globals is None:
+            self._globals = self.motion.global_transforms()
+        return self._globals
+
+    @property
+    def contacts(self) -> np.ndarray:
+        if self._contacts is None:
+            self._contacts = foot_contacts(self.motion, global_positions=self.globals[1], skeleton=self.sk)
+        return self._contacts
+
+    def path_to(self, j: int) -> np.ndarray:
+        out = [j]
+        par = self.sk.parents
+        while par[out[-1]] >= 0:
+            out.append(int(par[out[-1]]))
+        return np.array(out[::-1], dtype=np.intp)
+
+    def chain(self, effector: str, hit_point: str = "joint") -> Chain:
+        key = (effector, hit_point)
+        ch = self.chains.get(key)
+        if ch is None:
+            ch = self._make_chain(effector, hit_point)
+            self.chains[key] = ch
+        return ch
+
+    def _make_chain(self, effector: str, hit_point: str) -> Chain:
+        sk = self.sk
+        if not isinstance(effector, str):
+            raise MotionError(f"effector must be a role name such as 'right_fist', got {effector!r}")
+        side, _, stem = effector.partition("_")
+        valid = [f"{s}_{t}" for s in ("left", "right") for t in EFFECTOR_STEMS]
+        if side not in ("left", "right") or stem not in EFFECTOR_STEMS:
+            raise MotionError(f"unknown effector {effector!r}; effectors are {valid}")
+        if effector not in sk.roles:
+            raise MotionError(
+                f"effector {effector!r} is not found on this skeleton (roles found: {sorted(sk.roles)})"
+            )
+        kind = EFFECTOR_STEMS[stem]
+        names = ("shoulder", "elbow", "wrist") if kind == "arm" else ("hip", "knee", "ankle")
+        prox, mid, dist = (sk.index(f"{side}_{n}") for n in names)
+        hit = sk.index(effector)
+        path = self.path_to(hit)
+        pl = list(path)
+        if dist not in pl:
+            raise MotionError(f"effector {effector!r} ({sk.joint_names[hit]}) is not the {names[2]} or below it")
+        k_dist = pl.index(dist)
+        k_mid, k_prox = k_dist - 1, k_dist - 2
+        if k_prox < 1 or pl[k_mid] != mid or pl[k_prox] != prox:
+            raise MotionError(f"{side} {kind}: {names} are not a parent-child chain below the root")
+        for j in (prox, mid, dist):
+            if not self.full_rotation[j]:
+                raise MotionError(
+                    f"joint {sk.joint_names[j]!r} has no 3-axis rotation channels; the limb cannot be adapted"
+                )
+        if hit_point == "joint":
+            off = np.zeros(3)
+        elif hit_point == "end_site":
+            es = [o for p, o in zip(sk.end_site_parents, sk.end_site_offsets) if p == hit]
+            if not es:
+                raise MotionError(f"hit_point='end_site' but joint {sk.joint_names[hit]!r} has no End Site")
+            off = np.array(es[0], dtype=float)
+        else:
+            raise MotionError(f"hit_point must be 'joint' or 'end_site', got {hit_point!r}")
+        hinge, bend = self._hinge(prox, mid, dist)
+        return Chain(
+            effector=effector,
+            limb=f"{side}_{kind}",
+            side=side,
+            kind=kind,
+            hit=hit,
+            hit_offset=off,
+            path=path,
+            k_prox=k_prox,
+            k_mid=k_mid,
+            k_dist=k_dist,
+            prox=prox,
+            mid=mid,
+            dist=dist,
+            hinge_loc=hinge,
+            bend_loc=bend,
+        )
+
+    def _hinge(self, prox: int, mid: int, dist: int) -> tuple[np.ndarray, np.ndarray]:
+        """Clip-wide bending axis of the middle joint and bend side, in the proximal frame."""
+        u = self.trans[:, mid]  # upper bone, proximal frame
+        lower = qrot(self.motion.rotations[:, mid], self.trans[:, dist])  # lower bone, proximal frame
+        c = cross(u, lower)
+        nu = np.linalg.norm(u, axis=-1) * np.linalg.norm(lower, axis=-1)
+        s = np.linalg.norm(c, axis=-1) / np.maximum(nu, 1e-300)
+        good = s > np.sin(np.radians(10.0))
+        u0 = np.mean(u, axis=0)
+        u0 = u0 / np.linalg.norm(u0)
+        h = np.sum(c[good] / np.linalg.norm(c[good], axis=-1, keepdims=True), axis=0) if good.any() else np.zeros(3)
+        h = h - (h @ u0) * u0
+        if np.linalg.norm(h) < 1e-9:
+            k = int(np.argmin(np.abs(u0)))
+            e = np.zeros(3)
+            e[k] = 1.0
+            h = np.cross(u0, e)
+        h = h / np.linalg.norm(h)
+        bend = -np.cross(h, u0)
+        return h, bend / np.linalg.norm(bend)
+
+
+_RIGS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def rig_of(motion: Motion, roles=None) -> Rig:
+    if not isinstance(motion, Motion):
+        raise MotionError(f"expected a Motion, got {type(motion).__name__}")
+    if roles is not None:
+        return Rig(motion, roles)
+    r = _RIGS.get(motion)
+    if r is None:
+        r = Rig(motion)
+        _RIGS[motion] = r
+    return r
+
+
+def check_frames(frames, F: int) -> tuple[np.ndarray, bool]:
+    scalar = isinstance(frames, (int, np.integer)) and not isinstance(frames, (bool, np.bool_))
+    arr = np.atleast_1d(np.asarray(frames))
+    if arr.ndim != 1 or arr.size == 0 or not (np.issubdtype(arr.dtype, np.integer)):
+        raise MotionError(f"frames must be an integer frame index or a non-empty 1-D sequence of them, got {frames!r}")
+    if np.any((arr < 0) | (arr >= F)):
+        bad = arr[(arr < 0) | (arr >= F)]
+        raise MotionError(f"frames {bad.tolist()[:5]} out of range [0, {F - 1}]")
+    return arr.astype(np.intp), scalar
+
+
+def check_targets(targets, n: int) -> np.ndarray:
+    try:
+        t = np.asarray(targets, dtype=float)
+    except (TypeError, ValueError):
+        raise MotionError(f"targets must be numbers, got {targets!r}") from None
+    if t.shape == (3,):
+        t = np.broadcast_to(t, (n, 3))
+    if t.shape != (n, 3):
+        raise MotionError(f"targets must be (3,) or ({n}, 3), got shape {t.shape}")
+    if not np.all(np.isfinite(t)):
+        raise MotionError("targets contain NaN or inf")
+    return t
+
+
+def start_rotations(motion: Motion, idx: np.ndarray, rotations) -> np.ndarray:
+    if rotations is None:
+        return np.array(motion.rotations[idx])
+    r = np.array(rotations, dtype=float)
+    if r.shape != (len(idx), motion.n_joints, 4):
+        raise MotionError(f"rotations must be ({len(idx)}, {motion.n_joints}, 4), got {r.shape}")
+    if not np.all(np.isfinite(r)):
+        raise MotionError("rotations contain NaN or inf")
+    return r / np.linalg.norm(r, axis=-1, keepdims=True)
+
+
+def check_extension(v) -> float:
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        raise MotionError(f"max_extension must be a number in (0, 1], got {v!r}") from None
+    if not (0.0 < v <= 1.0):
+        raise MotionError(f"max_extension must be in (0, 1], got {v!r}")
+    return v
+
+
+def default_tol(rig: Rig, ch: Chain) -> float:
+    L = rig.sk.limb_lengths[ch.limb]
+    return 1e-4 * L

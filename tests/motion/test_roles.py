@@ -1,0 +1,80 @@
+"""Body-part roles of any skeleton (repro.motion.roles.find_roles)."""
+
+from __future__ import annotations
+
+import pytest
+
+from repro.errors import MotionError
+from repro.motion.roles import REQUIRED_ROLES, ROLES, find_roles
+from tests.motion.role_tables import (
+    BANDAI_EXPECTED,
+    BANDAI_NAMES,
+    BANDAI_PARENTS,
+    CMU_EXPECTED,
+    CMU_NAMES,
+    CMU_PARENTS,
+    MIXAMO_EXPECTED,
+    MIXAMO_NAMES,
+    MIXAMO_PARENTS,
+)
+
+
+@pytest.mark.parametrize(
+    "names, parents, expected",
+    [
+        (CMU_NAMES, CMU_PARENTS, CMU_EXPECTED),
+        (BANDAI_NAMES, BANDAI_PARENTS, BANDAI_EXPECTED),
+        (MIXAMO_NAMES, MIXAMO_PARENTS, MIXAMO_EXPECTED),
+    ],
+    ids=["cmu", "bandai", "mixamo"],
+)
+def test_find_roles_three_conventions(names, parents, expected):
+    # with the tree (trunk from the tree) and from the names alone: same table
+    assert find_roles(names, parents) == expected
+    assert find_roles(names) == expected
+    assert set(expected) <= set(ROLES)
+
+
+def test_find_roles_namespace_case_and_separators():
+    names = ["mixamorig:" + n for n in MIXAMO_NAMES]
+    roles = find_roles(names, MIXAMO_PARENTS)
+    assert roles["left_elbow"] == "mixamorig:LeftForeArm" and roles["pelvis"] == "mixamorig:Hips"
+    # upper-case CMU names, "Left_"/"_R" spellings
+    upper = [n.upper() for n in CMU_NAMES]
+    assert find_roles(upper, CMU_PARENTS)["right_knee"] == "RTIBIA"
+    alt = [n.replace("Left", "Left_").replace("Right", "R_") for n in MIXAMO_NAMES]
+    roles = find_roles(alt, MIXAMO_PARENTS)
+    assert roles["left_knee"] == "Left_Leg" and roles["right_ankle"] == "R_Foot"
+
+
+def test_find_roles_missing_role_is_named():
+    names = [n for n in MIXAMO_NAMES if n not in ("LeftLeg", "LeftFoot", "LeftToeBase")]
+    with pytest.raises(MotionError, match="left_knee") as e:
+        find_roles(names)
+    assert "left_ankle" in str(e.value) and "overrides" in str(e.value)
+
+
+def test_find_roles_overrides():
+    names = list(MIXAMO_NAMES)
+    i = names.index("LeftForeArm")
+    names[i] = "L_elbow_jnt_custom"
+    with pytest.raises(MotionError, match="left_elbow"):
+        find_roles(names, MIXAMO_PARENTS)
+    roles = find_roles(names, MIXAMO_PARENTS, overrides={"left_elbow": "L_elbow_jnt_custom"})
+    assert roles["left_elbow"] == "L_elbow_jnt_custom"
+    with pytest.raises(MotionError, match="no such joint"):
+        find_roles(names, MIXAMO_PARENTS, overrides={"left_elbow": "nope"})
+    with pytest.raises(MotionError, match="unknown role"):
+        find_roles(names, MIXAMO_PARENTS, overrides={"left_pinky": "Hips"})
+
+
+def test_find_roles_rejects_broken_limb_chain():
+    # knee not the child of the hip: two-bone IK impossible
+    parents = list(MIXAMO_PARENTS)
+    parents[MIXAMO_NAMES.index("LeftLeg")] = MIXAMO_NAMES.index("Hips")
+    with pytest.raises(MotionError, match="parent-child chain"):
+        find_roles(MIXAMO_NAMES, parents)
+
+
+def test_required_roles_are_roles():
+    assert set(REQUIRED_ROLES) <= set(ROLES)
