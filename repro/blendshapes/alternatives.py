@@ -23,14 +23,14 @@ from __future__ import annotations
 import numpy as np
 
 from repro.blendshapes.attenuation import (
-    _check_D,
-    _check_w,
-    _finite_result,
-    _scale_exponent,
-    _scaled,
+    check_D,
+    check_w,
+    finite_result,
+    scale_exponent,
+    scaled,
     check_selection,
 )
-from repro.blendshapes.model import _as_real_array
+from repro.blendshapes.checks import as_real_array
 from repro.errors import AttenuationError
 
 __all__ = ["zero_rows", "edit_zeroed", "orthogonal_lock", "edit_orthogonal"]
@@ -38,7 +38,7 @@ __all__ = ["zero_rows", "edit_zeroed", "orthogonal_lock", "edit_orthogonal"]
 
 def zero_rows(D, selected) -> np.ndarray:
     """``D`` with the selected rows set to zero (Section 3, first rejected idea)."""
-    D = _check_D(D)
+    D = check_D(D)
     sel = check_selection(selected, D.shape[0])
     Dz = D.copy()
     Dz[sel] = 0.0
@@ -51,18 +51,18 @@ def edit_zeroed(D, w_base, w_target, selected) -> np.ndarray:
     The pose reached so far is kept (``D w_base``); the further change acts
     through the zeroed basis: ``D w_base + D_0 (w_target - w_base)``.
     """
-    D = _check_D(D)
-    w_base = _check_w(w_base, D.shape[1], "w_base")
-    w_target = _check_w(w_target, D.shape[1], "w_target")
+    D = check_D(D)
+    w_base = check_w(w_base, D.shape[1], "w_base")
+    w_target = check_w(w_target, D.shape[1], "w_target")
     with np.errstate(over="ignore", invalid="ignore"):
-        dw = _finite_result(w_target - w_base, "w_target - w_base")
+        dw = finite_result(w_target - w_base, "w_target - w_base")
     with np.errstate(over="ignore", invalid="ignore"):
         d = D @ w_base + zero_rows(D, selected) @ dw
-    return _finite_result(d, "the displacement")
+    return finite_result(d, "the displacement")
 
 
 def _locked_columns(locked, m: int) -> np.ndarray:
-    L = _as_real_array(locked, "locked (shape indices)", error=AttenuationError, integer=True)
+    L = as_real_array(locked, "locked (shape indices)", error=AttenuationError, integer=True)
     if L.ndim != 1 or L.size == 0:
         raise AttenuationError(f"locked must be a non-empty 1-D array of shape (column) indices, got {locked!r}")
     if L.min() < 0 or L.max() >= m or np.unique(L).size != L.size:
@@ -81,10 +81,10 @@ def orthogonal_lock(D, locked) -> np.ndarray:
     power of two when ``D`` is very large or very small (the projection does not
     depend on the scale of ``D``).
     """
-    D = _check_D(D)
+    D = check_D(D)
     L = _locked_columns(locked, D.shape[1])
     try:
-        Ql, R = np.linalg.qr(_scaled(D[:, L], _scale_exponent(D)))
+        Ql, R = np.linalg.qr(scaled(D[:, L], scale_exponent(D)))
     except np.linalg.LinAlgError as e:  # pragma: no cover - QR of a finite matrix does not fail
         raise AttenuationError(f"QR factorisation of the locked shapes failed: {e}") from None
     keep = np.abs(np.diag(R)) > 1e-12 * max(np.abs(np.diag(R)).max(initial=0.0), 1e-300)
@@ -92,7 +92,7 @@ def orthogonal_lock(D, locked) -> np.ndarray:
     free = np.setdiff1d(np.arange(D.shape[1]), L)
     Do = D.copy()
     Do[:, free] -= Ql @ (Ql.T @ D[:, free])
-    return _finite_result(Do, "the projected basis")
+    return finite_result(Do, "the projected basis")
 
 
 def edit_orthogonal(D, w_base, w_target, locked) -> np.ndarray:
@@ -102,14 +102,14 @@ def edit_orthogonal(D, w_base, w_target, locked) -> np.ndarray:
     of the others acts through the projected basis:
     ``D w_base + D_perp (w_target - w_base)`` restricted to unlocked columns.
     """
-    D = _check_D(D)
+    D = check_D(D)
     m = D.shape[1]
     L = _locked_columns(locked, m)
-    w_base = _check_w(w_base, m, "w_base")
-    w_target = _check_w(w_target, m, "w_target")
+    w_base = check_w(w_base, m, "w_base")
+    w_target = check_w(w_target, m, "w_target")
     with np.errstate(over="ignore", invalid="ignore"):
-        dw = _finite_result(w_target - w_base, "w_target - w_base")
+        dw = finite_result(w_target - w_base, "w_target - w_base")
     dw[L] = 0.0
     with np.errstate(over="ignore", invalid="ignore"):
         d = D @ w_base + orthogonal_lock(D, L) @ dw
-    return _finite_result(d, "the displacement")
+    return finite_result(d, "the displacement")

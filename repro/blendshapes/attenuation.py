@@ -54,7 +54,7 @@ gives the same ``w2``, to about 1e-14, from 1e-300 to 1e300; any sensibly
 scaled ``D`` is used as it is).  ``Attenuator.G`` is then the Gram matrix of the
 scaled ``D`` (``Attenuator.scale_exponent`` tells the power of two).
 
-Arguments are checked (:func:`repro.blendshapes.model._as_real_array`):
+Arguments are checked (:func:`repro.blendshapes.model.as_real_array`):
 strings, ``None``, objects, booleans, complex or non-finite values, floats where
 indices are meant and wrong shapes raise :class:`~repro.errors.AttenuationError`
 or :class:`~repro.errors.SelectionError` naming the argument.
@@ -70,15 +70,8 @@ import math
 import numpy as np
 import scipy.linalg
 
-from repro.blendshapes.model import (
-    AXES,
-    BlendshapeModel,
-    _abs_max,
-    _as_int,
-    _as_real,
-    _as_real_array,
-    _describe,
-)
+from repro.blendshapes.checks import abs_max, as_int, as_real, as_real_array, describe
+from repro.blendshapes.model import AXES, BlendshapeModel
 from repro.errors import AttenuationError, SelectionError
 
 __all__ = [
@@ -108,7 +101,7 @@ def _axes(axes) -> list[int]:
     if isinstance(axes, str):
         axes = list(axes)
     elif not isinstance(axes, (list, tuple, np.ndarray, range)):
-        raise SelectionError(f"axes must be a string like 'xy' or a list of axes, got {_describe(axes)}")
+        raise SelectionError(f"axes must be a string like 'xy' or a list of axes, got {describe(axes)}")
     idx = [_axis_index(a) for a in axes]
     if not idx:
         raise SelectionError("no axis given; expected some of 'x', 'y', 'z'")
@@ -124,12 +117,12 @@ MAX_VERTICES = 100_000_000
 def _n_vertices(n_vertices, *, optional: bool = True) -> int | None:
     if n_vertices is None and optional:
         return None
-    return _as_int(n_vertices, "n_vertices", error=SelectionError, lo=1, hi=MAX_VERTICES)
+    return as_int(n_vertices, "n_vertices", error=SelectionError, lo=1, hi=MAX_VERTICES)
 
 
 def _vertex_ids(vertices, n_vertices: int | None) -> np.ndarray:
     n_vertices = _n_vertices(n_vertices)
-    v = _as_real_array(vertices, "vertex ids", error=SelectionError, integer=True)
+    v = as_real_array(vertices, "vertex ids", error=SelectionError, integer=True)
     if v.ndim == 0:
         v = v.reshape(1)
     if v.ndim != 1:
@@ -161,7 +154,7 @@ def select_pairs(pairs: Iterable[tuple[int, int | str]], n_vertices: int | None 
     """Rows of ``D`` from ``(vertex, axis)`` pairs, e.g. ``[(12, "y"), (40, "x")]``."""
     n_vertices = _n_vertices(n_vertices)
     if isinstance(pairs, (str, bytes)) or not isinstance(pairs, Iterable):
-        raise SelectionError(f"expected an iterable of (vertex, axis) pairs, got {_describe(pairs)}")
+        raise SelectionError(f"expected an iterable of (vertex, axis) pairs, got {describe(pairs)}")
     rows = []
     for p in pairs:
         try:
@@ -196,8 +189,8 @@ def check_selection(selected, n_rows: int) -> np.ndarray:
     out-of-range, non-integer or multi-dimensional selection, and for one that
     selects every row (then nothing may move and ``P = 0``).
     """
-    n_rows = _as_int(n_rows, "n_rows", error=SelectionError, lo=1)
-    s = _as_real_array(selected, "selected (row indices of D)", error=SelectionError, integer=True)
+    n_rows = as_int(n_rows, "n_rows", error=SelectionError, lo=1)
+    s = as_real_array(selected, "selected (row indices of D)", error=SelectionError, integer=True)
     if s.ndim != 1:
         raise SelectionError(f"selected must be a 1-D array of row indices of D, got shape {s.shape}")
     if s.size == 0:
@@ -219,27 +212,27 @@ def check_selection(selected, n_rows: int) -> np.ndarray:
 
 def default_alpha(n_selected: int, n_rows: int) -> float:
     """Section 5's default: ``#unselected / #selected`` (rows; = vertices for whole vertices)."""
-    n_selected = _as_int(n_selected, "n_selected", error=SelectionError)
-    n_rows = _as_int(n_rows, "n_rows", error=SelectionError)
+    n_selected = as_int(n_selected, "n_selected", error=SelectionError)
+    n_rows = as_int(n_rows, "n_rows", error=SelectionError)
     if n_selected <= 0 or n_selected >= n_rows:
         raise SelectionError(f"cannot form the default alpha with {n_selected} of {n_rows} rows selected")
     return (n_rows - n_selected) / n_selected
 
 
-def _check_alpha(alpha, n_selected: int, n_rows: int) -> float:
+def check_alpha(alpha, n_selected: int, n_rows: int) -> float:
     if alpha is None:
         return default_alpha(n_selected, n_rows)
     try:
-        a = _as_real(alpha, "alpha", error=AttenuationError, finite=False)
+        a = as_real(alpha, "alpha", error=AttenuationError, finite=False)
     except AttenuationError:
         a = float("nan")
     if not math.isfinite(a) or a <= 0:
-        raise AttenuationError(f"alpha must be a finite number > 0 (Eq. 2), got {_describe(alpha)}")
+        raise AttenuationError(f"alpha must be a finite number > 0 (Eq. 2), got {describe(alpha)}")
     return a
 
 
-def _check_D(D) -> np.ndarray:
-    D = _as_real_array(D, "D", error=AttenuationError, finite=False)
+def check_D(D) -> np.ndarray:
+    D = as_real_array(D, "D", error=AttenuationError, finite=False)
     if D.ndim != 2 or D.shape[0] == 0 or D.shape[1] == 0:
         raise AttenuationError(f"D must be a non-empty 3n x m matrix, got shape {D.shape}")
     if D.shape[0] % 3:
@@ -251,12 +244,12 @@ def _check_D(D) -> np.ndarray:
     return D
 
 
-def _check_w_max(w1, m: int, name: str = "w1") -> tuple[np.ndarray, float]:
+def check_w_max(w1, m: int, name: str = "w1") -> tuple[np.ndarray, float]:
     """``w1`` as a finite float vector of length ``m``, and ``max |w1|`` (one reduction checks both)."""
     if type(w1) is np.ndarray and w1.dtype == np.float64:  # the slider-move hot path
         w = w1
     else:
-        w = _as_real_array(w1, name, error=AttenuationError, finite=False)
+        w = as_real_array(w1, name, error=AttenuationError, finite=False)
     if w.shape != (m,):
         raise AttenuationError(f"{name} must have shape ({m},) for D with {m} shapes, got {w.shape}")
     wmax = float(np.abs(w).max(initial=0.0))
@@ -265,8 +258,8 @@ def _check_w_max(w1, m: int, name: str = "w1") -> tuple[np.ndarray, float]:
     return w, wmax
 
 
-def _check_w(w1, m: int, name: str = "w1") -> np.ndarray:
-    return _check_w_max(w1, m, name)[0]
+def check_w(w1, m: int, name: str = "w1") -> np.ndarray:
+    return check_w_max(w1, m, name)[0]
 
 
 _FMAX = float(np.finfo(np.float64).max)
@@ -278,10 +271,10 @@ def _matvec(A: np.ndarray, amax: float, x: np.ndarray, xmax: float, what: str) -
         return A @ x
     with np.errstate(over="ignore", invalid="ignore"):
         y = A @ x
-    return _finite_result(y, what)
+    return finite_result(y, what)
 
 
-def _finite_result(x: np.ndarray, what: str) -> np.ndarray:
+def finite_result(x: np.ndarray, what: str) -> np.ndarray:
     if not np.isfinite(x).all():
         raise AttenuationError(f"{what} overflows float64 (the weights or D are too large)")
     return x
@@ -295,16 +288,16 @@ _SAFE_EXP = 100
 _GRAM_BLOCK = 1 << 16  # rows per block when a scaled Gram matrix is accumulated (bounded extra memory)
 
 
-def _scale_exponent(D: np.ndarray, top: float | None = None) -> int:
+def scale_exponent(D: np.ndarray, top: float | None = None) -> int:
     """``e`` such that ``D * 2**-e`` is well scaled for Eq. (3): 0 when ``D`` already is (``top`` = max |D|)."""
-    top = _abs_max(D) if top is None else top
+    top = abs_max(D) if top is None else top
     if top == 0.0:
         return 0
     e = int(np.frexp(top)[1])
     return 0 if -_SAFE_EXP <= e <= _SAFE_EXP else e
 
 
-def _scaled(X: np.ndarray, e: int) -> np.ndarray:
+def scaled(X: np.ndarray, e: int) -> np.ndarray:
     return X if e == 0 else np.ldexp(X, -e)
 
 
@@ -372,15 +365,15 @@ def attenuate(D, w1, selected, alpha=None) -> np.ndarray:
     This slices ``S`` and ``Sbar`` from ``D`` on every call (O(n m^2)); use
     :class:`Attenuator` for interactive use.
     """
-    D = _check_D(D)
+    D = check_D(D)
     n_rows, m = D.shape
-    w1 = _check_w(w1, m)
+    w1 = check_w(w1, m)
     sel = check_selection(selected, n_rows)
-    a = _check_alpha(alpha, sel.size, n_rows)
+    a = check_alpha(alpha, sel.size, n_rows)
     mask = np.zeros(n_rows, dtype=bool)
     mask[sel] = True
-    e = _scale_exponent(D)  # Eq. (3) does not depend on the scale of D; the arithmetic does
-    S, Sbar = _scaled(D[mask], e), _scaled(D[~mask], e)
+    e = scale_exponent(D)  # Eq. (3) does not depend on the scale of D; the arithmetic does
+    S, Sbar = scaled(D[mask], e), scaled(D[~mask], e)
     P = Sbar.T @ Sbar
     Q = S.T @ S
     with np.errstate(over="ignore", invalid="ignore"):
@@ -417,18 +410,18 @@ class Attenuator:
     """
 
     def __init__(self, model_or_D, *, cache_size: int = 64):
-        self._cache_size = _as_int(cache_size, "cache_size", error=AttenuationError, lo=0, hi=MAX_CACHE_SIZE)
+        self._cache_size = as_int(cache_size, "cache_size", error=AttenuationError, lo=0, hi=MAX_CACHE_SIZE)
         if isinstance(model_or_D, BlendshapeModel):
             self.model: BlendshapeModel | None = model_or_D
             D = model_or_D.D
         else:
             self.model = None
-            D = _check_D(model_or_D)
+            D = check_D(model_or_D)
         self.D = D
         self.n_rows, self.m = D.shape
-        self._abs_max = model_or_D._abs_max[0] if self.model is not None else _abs_max(D)
+        self.abs_max = model_or_D.abs_max[0] if self.model is not None else abs_max(D)
         #: ``D`` is used as ``D * 2**-scale_exponent`` in the Gram matrices (0 for any sensibly scaled D)
-        self.scale_exponent = _scale_exponent(D, self._abs_max)
+        self.scale_exponent = scale_exponent(D, self.abs_max)
         self.G = _gram(D, self.scale_exponent)  #: ``(D 2^-e)^T (D 2^-e)``; = ``D^T D`` when ``e = 0``
         self.G.flags.writeable = False
         self._q: OrderedDict[bytes, np.ndarray] = OrderedDict()
@@ -453,7 +446,7 @@ class Attenuator:
     def _Q(self, sel: np.ndarray, key: bytes) -> np.ndarray:
         Q = self._q.get(key)
         if Q is None:
-            S = _scaled(self.D[sel], self.scale_exponent)
+            S = scaled(self.D[sel], self.scale_exponent)
             Q = self._remember(self._q, key, S.T @ S, self._cache_size)
         else:
             self._q.move_to_end(key)
@@ -471,7 +464,7 @@ class Attenuator:
     def _matrix(self, selected, alpha) -> tuple[np.ndarray, int, float]:
         """``(M, rank, max |M|)`` for a selection and alpha, from the cache or solved."""
         sel, key = self._selection(selected)
-        a = _check_alpha(alpha, sel.size, self.n_rows)
+        a = check_alpha(alpha, sel.size, self.n_rows)
         hit = self._M.get((key, a))
         if hit is not None:
             self._M.move_to_end((key, a))
@@ -481,7 +474,7 @@ class Attenuator:
         if 2 * sel.size <= self.n_rows:
             P = self.G - Q  # O(m^2): the point of precomputing G
         else:  # most rows selected: the unselected slice is the smaller (and avoids cancellation)
-            Sbar = _scaled(np.delete(self.D, sel, axis=0), self.scale_exponent)
+            Sbar = scaled(np.delete(self.D, sel, axis=0), self.scale_exponent)
             P = Sbar.T @ Sbar
         with np.errstate(over="ignore", invalid="ignore"):
             A = P + a * Q  # an inf here (alpha ~ 1e300) is refused by _solve_matrix
@@ -495,7 +488,7 @@ class Attenuator:
     def attenuate(self, w1, selected, alpha=None) -> np.ndarray:
         """``w2`` for slider values (or a slider change) ``w1``: Eq. (3)."""
         M, _, mmax = self._matrix(selected, alpha)
-        w, wmax = _check_w_max(w1, self.m)
+        w, wmax = check_w_max(w1, self.m)
         return _matvec(M, mmax, w, wmax, "w2 = M w1")
 
     __call__ = attenuate
@@ -507,20 +500,20 @@ class Attenuator:
         keep); the change ``w_target - w_base`` is attenuated (Section 5's
         workflow: select, adjust sliders, release): ``w_base + M (w_target - w_base)``.
         """
-        w_base, bmax = _check_w_max(w_base, self.m, "w_base")
-        w_target, tmax = _check_w_max(w_target, self.m, "w_target")
+        w_base, bmax = check_w_max(w_base, self.m, "w_base")
+        w_target, tmax = check_w_max(w_target, self.m, "w_target")
         M, _, mmax = self._matrix(selected, alpha)
         dmax = bmax + tmax  # bounds max |w_target - w_base|
         if dmax < 1e300 and mmax * dmax * self.m + bmax < 1e300:  # nothing can overflow: the hot path
             return w_base + M @ (w_target - w_base)
         with np.errstate(over="ignore", invalid="ignore"):
-            dw = _finite_result(w_target - w_base, "w_target - w_base")
-            return _finite_result(w_base + M @ dw, "w_base + w2")
+            dw = finite_result(w_target - w_base, "w_target - w_base")
+            return finite_result(w_base + M @ dw, "w_base + w2")
 
     def displacement(self, w) -> np.ndarray:
         """``D w`` as a flat (3n,) vector."""
-        w, wmax = _check_w_max(w, self.m, "w")
-        return _matvec(self.D, self._abs_max, w, wmax, "the displacement D w")
+        w, wmax = check_w_max(w, self.m, "w")
+        return _matvec(self.D, self.abs_max, w, wmax, "the displacement D w")
 
     def pose(self, w) -> np.ndarray:
         """Posed vertices ``f0 + D w`` (needs a model)."""
@@ -529,5 +522,5 @@ class Attenuator:
         d = self.displacement(w).reshape(-1, 3)
         with np.errstate(over="ignore", invalid="ignore"):
             f = self.model.f0 + d
-        return _finite_result(f, "the pose f0 + D w")
+        return finite_result(f, "the pose f0 + D w")
 

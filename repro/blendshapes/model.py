@@ -13,7 +13,7 @@ available through :meth:`BlendshapeModel.to_whole_face` and
 are "identical in power" is what the round-trip tests check.
 
 Every argument of the blendshape package is checked by the helpers of this
-module (:func:`_as_real_array`, :func:`_as_int`, :func:`_as_real`): real arrays
+package (:mod:`repro.blendshapes.checks`): real arrays
 must hold real numbers (no strings, ``None``, objects, booleans, complex values,
 NaN/inf), indices and counts must be integers (numpy integers accepted; bools,
 floats and strings refused) in range, and the error names the argument.
@@ -22,15 +22,13 @@ floats and strings refused) in range, and the error names the argument.
 from __future__ import annotations
 
 import math
-import numbers
-import operator
-import reprlib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
+from repro.blendshapes.checks import abs_max, as_int, as_real, as_real_array, as_str, describe
 from repro.errors import ModelError
 
 __all__ = ["BlendshapeModel", "AXES"]
@@ -43,133 +41,6 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     a = np.array(a, copy=True)
     a.flags.writeable = False
     return a
-
-
-# ------------------------------------------------------------- validation
-# One place for the argument checks of the whole blendshape package (model,
-# attenuation, alternatives, metrics, scenarios): numbers must be real numbers
-# (not strings, None, objects, booleans or complex values), integers must be
-# integers, and the error is the caller's ReproError subclass naming the argument.
-
-_INT64_MAX = np.iinfo(np.int64).max
-
-
-_REPR = reprlib.Repr()
-_REPR.maxstring = _REPR.maxother = 60
-
-
-def _describe(x) -> str:
-    """A short repr of a bad argument and its type, for error messages (bounded for big inputs)."""
-    return f"{_REPR.repr(x)} ({type(x).__name__})"
-
-
-def _as_real_array(
-    x,
-    name: str,
-    *,
-    error: type[Exception] = ModelError,
-    integer: bool = False,
-    ndim: int | None = None,
-    shape: tuple[int | None, ...] | None = None,
-    finite: bool = True,
-) -> np.ndarray:
-    """``x`` as a float64 (or, with ``integer=True``, int64) array, or ``error`` naming ``name``.
-
-    Refused: strings, ``None`` and other objects, ragged nesting, booleans,
-    complex values (their imaginary part is never silently dropped), floats
-    where integers are meant (an empty array of any numeric dtype is accepted
-    as an empty integer array), integers beyond int64, and, when ``finite``,
-    NaN/inf (and values that overflow float64, e.g. large ``longdouble``s).
-    ``ndim`` / ``shape`` (``None`` entries match any length) check the result.
-    """
-    what = "integer indices" if integer else "real numbers"
-    if isinstance(x, (str, bytes)):
-        raise error(f"{name} must be an array of {what}, got the string {_describe(x)}")
-    try:
-        a = np.asarray(x)
-    except (ValueError, TypeError, OverflowError) as e:
-        raise error(f"{name} must be an array of {what}, got {_describe(x)} ({e})") from None
-    kind = a.dtype.kind
-    if kind == "b":
-        hint = "; for a boolean mask use np.flatnonzero(mask)" if integer else ""
-        raise error(f"{name} must hold {what}, not booleans{hint}")
-    if kind == "c":
-        raise error(f"{name} must hold {what}, got complex values (dtype {a.dtype})")
-    if kind not in "iuf":
-        got = "None" if x is None else f"dtype {a.dtype} from {_describe(x)}"
-        raise error(f"{name} must be an array of {what}, got {got}")
-    if ndim is not None and a.ndim != ndim:
-        raise error(f"{name} must be a {ndim}-D array, got shape {a.shape}")
-    if shape is not None and (
-        a.ndim != len(shape) or any(s is not None and s != t for s, t in zip(shape, a.shape))
-    ):
-        want = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
-        raise error(f"{name} must have shape {want}, got {a.shape}")
-    if integer:
-        if kind == "f":
-            if a.size:
-                raise error(f"{name} must hold integer indices, got dtype {a.dtype}")
-            return np.zeros(a.shape, dtype=np.int64)
-        if kind == "u" and a.size and a.max() > _INT64_MAX:
-            raise error(f"{name} holds integers too large for an index (max {a.max()})")
-        return a.astype(np.int64, copy=False)
-    if a.dtype != np.float64:
-        with np.errstate(over="ignore"):
-            a = a.astype(np.float64)
-    if finite and not np.isfinite(a).all():
-        raise error(f"{name} has {np.count_nonzero(~np.isfinite(a))} NaN/inf values (or values beyond float64)")
-    return a
-
-
-def _abs_max(X: np.ndarray) -> float:
-    """``max |X|`` of a finite float array without an |X|-sized temporary (0 for an empty one)."""
-    if X.size == 0:
-        return 0.0
-    return float(max(X.max(), -X.min()))
-
-
-def _as_int(
-    x, name: str, *, error: type[Exception] = ModelError, lo: int | None = None, hi: int | None = None
-) -> int:
-    """``x`` as a Python int (numpy integers accepted; bools, floats, strings refused) in ``lo..hi``."""
-    if isinstance(x, (bool, np.bool_)):
-        raise error(f"{name} must be an integer, got the bool {x!r}")
-    try:
-        v = operator.index(x)
-    except TypeError:
-        raise error(f"{name} must be an integer, got {_describe(x)}") from None
-    if (lo is not None and v < lo) or (hi is not None and v > hi):
-        lo_s = "-inf" if lo is None else str(lo)
-        hi_s = "inf" if hi is None else str(hi)
-        raise error(f"{name} must be an integer in {lo_s}..{hi_s}, got {v}")
-    return v
-
-
-def _as_real(x, name: str, *, error: type[Exception] = ModelError, finite: bool = True) -> float:
-    """``x`` as a finite Python float: an int/float/numpy number or a 0-d real array.
-
-    Strings (even ``"5"``), ``None``, booleans, complex numbers and objects are refused.
-    """
-    if isinstance(x, (bool, np.bool_, str, bytes)) or x is None:
-        raise error(f"{name} must be a real number, got {_describe(x)}")
-    if isinstance(x, numbers.Real):
-        try:
-            v = float(x)
-        except (OverflowError, ValueError, TypeError):
-            raise error(f"{name} must be a real number within float64 range, got {_describe(x)}") from None
-    elif isinstance(x, np.ndarray) and x.ndim == 0 and x.dtype.kind in "iuf":
-        v = float(x)
-    else:
-        raise error(f"{name} must be a real number, got {_describe(x)}")
-    if finite and not math.isfinite(v):
-        raise error(f"{name} must be finite, got {v}")
-    return v
-
-
-def _as_str(x, name: str, *, error: type[Exception] = ModelError) -> str:
-    if not isinstance(x, str):
-        raise error(f"{name} must be a string, got {_describe(x)}")
-    return x
 
 
 @dataclass(frozen=True, eq=False)
@@ -221,8 +92,8 @@ class BlendshapeModel:
     regions: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        f0 = _as_real_array(self.f0, "f0", finite=False)
-        D = _as_real_array(self.D, "D", finite=False)
+        f0 = as_real_array(self.f0, "f0", finite=False)
+        D = as_real_array(self.D, "D", finite=False)
         if f0.ndim != 2 or f0.shape[1] != 3 or f0.shape[0] == 0:
             raise ModelError(f"f0 must have shape (n, 3) with n >= 1, got {f0.shape}")
         n = f0.shape[0]
@@ -232,11 +103,11 @@ class BlendshapeModel:
                 f"(xyz packing, row 3*v + axis), got {D.shape}"
             )
         if isinstance(self.names, (str, bytes)) or not isinstance(self.names, Iterable):
-            raise ModelError(f"names must be a sequence of strings, got {_describe(self.names)}")
+            raise ModelError(f"names must be a sequence of strings, got {describe(self.names)}")
         names = tuple(self.names)
         bad = [s for s in names if not isinstance(s, str)]
         if bad:
-            raise ModelError(f"shape names must be strings, got {_describe(bad[0])}")
+            raise ModelError(f"shape names must be strings, got {describe(bad[0])}")
         names = tuple(str(s) for s in names)  # np.str_ -> str
         if len(names) != D.shape[1]:
             raise ModelError(f"{len(names)} shape names for {D.shape[1]} columns of D")
@@ -248,9 +119,9 @@ class BlendshapeModel:
         if not np.isfinite(D).all():
             bad = np.unique(np.nonzero(~np.isfinite(D))[1])
             raise ModelError(f"D has NaN/inf values in shapes {[names[i] for i in bad]}")
-        _as_str(self.name, "name")
-        _as_str(self.units, "units")
-        faces = _as_real_array(self.faces, "faces", integer=True)
+        as_str(self.name, "name")
+        as_str(self.units, "units")
+        faces = as_real_array(self.faces, "faces", integer=True)
         if faces.size == 0:
             faces = np.zeros((0, 3), dtype=np.int64)
         if faces.ndim != 2 or faces.shape[1] != 3:
@@ -260,26 +131,26 @@ class BlendshapeModel:
                 f"faces index vertices {faces.min()}..{faces.max()}, outside 0..{n - 1}"
             )
         if not isinstance(self.sliders, Mapping):
-            raise ModelError(f"sliders must be a mapping of name to {{shape: coefficient}}, got {_describe(self.sliders)}")
+            raise ModelError(f"sliders must be a mapping of name to {{shape: coefficient}}, got {describe(self.sliders)}")
         sliders = {}
         for slider, combo in self.sliders.items():
-            _as_str(slider, "a slider name")
+            as_str(slider, "a slider name")
             if slider in names:
                 raise ModelError(f"slider {slider!r} has the name of a shape")
             if not isinstance(combo, Mapping):
-                raise ModelError(f"slider {slider!r} must map shape names to coefficients, got {_describe(combo)}")
+                raise ModelError(f"slider {slider!r} must map shape names to coefficients, got {describe(combo)}")
             unknown = [s for s in combo if not isinstance(s, str) or s not in names]
             if unknown:
                 raise ModelError(f"slider {slider!r} combines unknown shapes {unknown}")
             sliders[str(slider)] = {
-                str(s): _as_real(c, f"coefficient of {s!r} in slider {slider!r}") for s, c in combo.items()
+                str(s): as_real(c, f"coefficient of {s!r} in slider {slider!r}") for s, c in combo.items()
             }
         if not isinstance(self.regions, Mapping):
-            raise ModelError(f"regions must be a mapping of name to vertex ids, got {_describe(self.regions)}")
+            raise ModelError(f"regions must be a mapping of name to vertex ids, got {describe(self.regions)}")
         regions = {}
         for region, verts in self.regions.items():
-            _as_str(region, "a region name")
-            v = _as_real_array(verts, f"region {region!r}", integer=True)
+            as_str(region, "a region name")
+            v = as_real_array(verts, f"region {region!r}", integer=True)
             if v.ndim > 1:
                 raise ModelError(f"region {region!r} must be a 1-D array of vertex ids, got shape {v.shape}")
             v = v.ravel()
@@ -338,7 +209,7 @@ class BlendshapeModel:
         elif isinstance(values, Mapping):
             items = dict(values)
         else:
-            raise ModelError(f"slider values must be a mapping of name to value, got {_describe(values)}")
+            raise ModelError(f"slider values must be a mapping of name to value, got {describe(values)}")
         items.update(kw)
         w = np.zeros(self.n_shapes)
         with np.errstate(over="ignore", invalid="ignore"):
@@ -352,11 +223,11 @@ class BlendshapeModel:
 
     def _accumulate(self, w: np.ndarray, items: dict) -> None:
         for key, value in items.items():
-            value = _as_real(value, f"slider {key!r}", finite=False)
+            value = as_real(value, f"slider {key!r}", finite=False)
             if not math.isfinite(value):
                 raise ModelError(f"slider {key!r} has a non-finite value {value}")
             if not isinstance(key, str):
-                raise ModelError(f"slider names must be strings, got {_describe(key)}")
+                raise ModelError(f"slider names must be strings, got {describe(key)}")
             if key in self.sliders:
                 for shape, coef in self.sliders[key].items():
                     w[self.names.index(shape)] += coef * value
@@ -372,21 +243,21 @@ class BlendshapeModel:
         """``w`` as a finite float vector of length m, or a :class:`ModelError`."""
         if isinstance(w, Mapping):
             return self.weights(w)
-        w = _as_real_array(w, "weights", shape=(self.n_shapes,), finite=False)
+        w = as_real_array(w, "weights", shape=(self.n_shapes,), finite=False)
         if not np.isfinite(w).all():
             raise ModelError(f"weights contain NaN/inf at shapes {list(np.flatnonzero(~np.isfinite(w)))}")
         return w
 
     # ------------------------------------------------------------------ poses
     @cached_property
-    def _abs_max(self) -> tuple[float, float]:
+    def abs_max(self) -> tuple[float, float]:
         """``(max |D|, max |f0|)``: bounds that tell cheaply when ``f0 + D w`` cannot overflow."""
-        return _abs_max(self.D), _abs_max(self.f0)
+        return abs_max(self.D), abs_max(self.f0)
 
     def _posed(self, w, with_f0: bool) -> np.ndarray:
         """``D w`` (or ``f0 + D w``) as (n, 3); refuses a result that overflows float64."""
         w = self.check_weights(w)
-        dmax, fmax = self._abs_max
+        dmax, fmax = self.abs_max
         if dmax * float(np.abs(w).max(initial=0.0)) * w.size + fmax < 1e300:  # cannot overflow
             d = (self.D @ w).reshape(-1, 3)
             return self.f0 + d if with_f0 else d
@@ -417,14 +288,14 @@ class BlendshapeModel:
         f = self.f0.reshape(-1, 1)
         with np.errstate(over="ignore", invalid="ignore"):
             B = np.hstack([f, f + self.D])
-        if sum(self._abs_max) >= 1e300 and not np.isfinite(B).all():
+        if sum(self.abs_max) >= 1e300 and not np.isfinite(B).all():
             raise ModelError("the whole-face basis f0 + d_k overflows float64")
         return B
 
     @staticmethod
     def whole_face_weights(w) -> np.ndarray:
         """Whole-face weights ``(1 - sum(w), w_1, w_2, ...)`` of a delta pose (Section 3)."""
-        w = _as_real_array(w, "delta weights", ndim=1)
+        w = as_real_array(w, "delta weights", ndim=1)
         return np.concatenate([[1.0 - w.sum()], w])
 
     @staticmethod
@@ -434,7 +305,7 @@ class BlendshapeModel:
         Whole-face weights must sum to one (the "barycentric" constraint of
         Section 3), otherwise the pose scales the face and has no delta form.
         """
-        c = _as_real_array(c, "whole-face weights", finite=False)
+        c = as_real_array(c, "whole-face weights", finite=False)
         if c.ndim != 1 or c.size < 1:
             raise ModelError(f"whole-face weights must be a non-empty vector, got shape {c.shape}")
         if not np.isfinite(c).all():
@@ -453,10 +324,10 @@ class BlendshapeModel:
 
         ``names`` names the ``M - 1`` non-neutral columns, in order.
         """
-        B = _as_real_array(B, "B")
+        B = as_real_array(B, "B")
         if B.ndim != 2 or B.shape[0] % 3 or B.shape[0] == 0 or B.shape[1] < 1:
             raise ModelError(f"B must have shape (3n, M) with n >= 1 and M >= 1, got {B.shape}")
-        neutral = _as_int(neutral, "neutral (column of B)", lo=0, hi=B.shape[1] - 1)
+        neutral = as_int(neutral, "neutral (column of B)", lo=0, hi=B.shape[1] - 1)
         f0 = B[:, neutral]
         with np.errstate(over="ignore", invalid="ignore"):
             D = np.delete(B, neutral, axis=1) - f0[:, None]
@@ -504,12 +375,12 @@ class BlendshapeModel:
         Triangles with a vertex outside the subset are dropped and the rest
         re-indexed; shapes that become all-zero are kept (their columns are zero).
         """
-        v = _as_real_array(vertices, "restrict() vertices", integer=True)
+        v = as_real_array(vertices, "restrict() vertices", integer=True)
         if v.ndim > 1:
             raise ModelError(f"restrict() needs a 1-D array of vertex ids, got shape {v.shape}")
         v = v.ravel()
         if name is not None:
-            _as_str(name, "name")
+            as_str(name, "name")
         if v.size == 0 or v.min() < 0 or v.max() >= self.n_vertices or np.unique(v).size != v.size:
             raise ModelError(
                 f"restrict() needs distinct vertex ids in 0..{self.n_vertices - 1}, got {v.size} ids"

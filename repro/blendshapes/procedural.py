@@ -98,7 +98,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from repro.blendshapes.model import BlendshapeModel, _as_int
+from repro.blendshapes.checks import as_int
+from repro.blendshapes.model import BlendshapeModel
 from repro.errors import ModelError
 
 __all__ = [
@@ -192,7 +193,7 @@ _SLIDERS = {
 
 # ---------------------------------------------------------------- the grid
 def _check_n(n_vertices) -> int:
-    n = _as_int(n_vertices, "n_vertices")
+    n = as_int(n_vertices, "n_vertices")
     if not MIN_N_VERTICES <= n <= MAX_N_VERTICES:
         raise ModelError(
             f"n_vertices must be in {MIN_N_VERTICES}..{MAX_N_VERTICES} "

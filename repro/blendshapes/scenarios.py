@@ -32,8 +32,9 @@ import numpy as np
 
 from repro.blendshapes import metrics
 from repro.blendshapes.alternatives import edit_orthogonal, edit_zeroed
-from repro.blendshapes.attenuation import Attenuator, _check_alpha, select_vertices
-from repro.blendshapes.model import AXES, BlendshapeModel, _as_int, _as_str, _describe
+from repro.blendshapes.attenuation import Attenuator, check_alpha, select_vertices
+from repro.blendshapes.checks import as_int, as_str, describe
+from repro.blendshapes.model import AXES, BlendshapeModel
 from repro.errors import ModelError
 
 __all__ = [
@@ -65,11 +66,11 @@ class Scenario:
 
     def __post_init__(self) -> None:
         for f in ("key", "figure", "description", "region", "axes"):
-            _as_str(getattr(self, f), f"Scenario.{f}")
+            as_str(getattr(self, f), f"Scenario.{f}")
         for f in ("moves", "base"):
             if not isinstance(getattr(self, f), Mapping):
-                raise ModelError(f"Scenario.{f} must be a mapping of slider name to value, got {_describe(getattr(self, f))}")
-        _as_int(self.top_moved, "Scenario.top_moved", lo=0)
+                raise ModelError(f"Scenario.{f} must be a mapping of slider name to value, got {describe(getattr(self, f))}")
+        as_int(self.top_moved, "Scenario.top_moved", lo=0)
 
     def vertices(self, model: BlendshapeModel) -> np.ndarray:
         """Vertex ids this scenario selects on ``model``."""
@@ -132,7 +133,7 @@ def scenario(key: str) -> Scenario:
     """The scenario named ``key`` (see :data:`SCENARIOS`)."""
     if isinstance(key, str) and key in SCENARIOS:
         return SCENARIOS[key]
-    raise ModelError(f"unknown scenario {_describe(key)}; known: {sorted(SCENARIOS)}")
+    raise ModelError(f"unknown scenario {describe(key)}; known: {sorted(SCENARIOS)}")
 
 
 def _scenario(sc) -> Scenario:
@@ -140,23 +141,23 @@ def _scenario(sc) -> Scenario:
         return sc
     if isinstance(sc, str):
         return scenario(sc)
-    raise ModelError(f"expected a Scenario or a scenario name, got {_describe(sc)}; known: {sorted(SCENARIOS)}")
+    raise ModelError(f"expected a Scenario or a scenario name, got {describe(sc)}; known: {sorted(SCENARIOS)}")
 
 
 def _check_model(model) -> BlendshapeModel:
     if not isinstance(model, BlendshapeModel):
-        raise ModelError(f"expected a BlendshapeModel, got {_describe(model)}")
+        raise ModelError(f"expected a BlendshapeModel, got {describe(model)}")
     return model
 
 
 def _alpha(att: Attenuator, sel: np.ndarray, alpha) -> float:
-    return att.default_alpha(sel) if alpha is None else _check_alpha(alpha, sel.size, att.n_rows)
+    return att.default_alpha(sel) if alpha is None else check_alpha(alpha, sel.size, att.n_rows)
 
 
 def _attenuator(model: BlendshapeModel, att: Attenuator | None) -> Attenuator:
     _check_model(model)
     if att is not None and not isinstance(att, Attenuator):
-        raise ModelError(f"attenuator must be an Attenuator or None, got {_describe(att)}")
+        raise ModelError(f"attenuator must be an Attenuator or None, got {describe(att)}")
     if att is None:
         return Attenuator(model)
     if att.model is not model:
@@ -271,7 +272,7 @@ def alpha_sweep(model: BlendshapeModel, sc: Scenario | str, alphas: Iterable[flo
     d_base, d_target = att.displacement(w_base), att.displacement(w_target)
     none = metrics.selected_motion(d_target, sel, d_base)
     if isinstance(alphas, (str, bytes)) or not isinstance(alphas, Iterable):
-        raise ModelError(f"alphas must be an iterable of numbers > 0, got {_describe(alphas)}")
+        raise ModelError(f"alphas must be an iterable of numbers > 0, got {describe(alphas)}")
     w1_norm = float(np.linalg.norm(w1))
     rows = []
     for a in alphas:
