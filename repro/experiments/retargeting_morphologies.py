@@ -30,9 +30,9 @@ that work, and this experiment measures each of them on a sweep of characters (h
   to the actor's hit position scaled to the character by Eq. 1 read backwards
   (``c = c_a * size_c / size_a``: where this character should hit); the **foot slide**
   on the frames where the *actor's* ankle is planted
-  (:func:`~repro.motion.morphology.foot_contacts` of the source): the largest horizontal
+  (:func:`~repro.motion.feet.foot_contacts` of the source): the largest horizontal
   drift of the ankle from its position at the start of each contact phase, and the mean
-  sliding speed (:func:`~repro.motion.morphology.foot_metrics`); the lowest toe height
+  sliding speed (:func:`~repro.motion.feet.foot_metrics`); the lowest toe height
   (negative = through the floor); and the **bone-length error** (largest change of a
   joint-to-parent distance from the character's bone length).
 
@@ -175,7 +175,7 @@ def foot_slide(motion, contacts: np.ndarray, *, skeleton=None, globals_=None) ->
     """Largest horizontal drift (m) of a planted ankle from its position at the start of its contact phase.
 
     ``contacts`` (F, 2): planted frames of the left / right ankle (usually those of the
-    *source* motion, :func:`~repro.motion.morphology.foot_contacts`).
+    *source* motion, :func:`~repro.motion.feet.foot_contacts`).
     """
     from repro.motion.skeleton import Skeleton
 
@@ -223,7 +223,7 @@ def _measure(mo, ch, db, i: int, c: np.ndarray, contacts: np.ndarray) -> dict:
     return {
         "hit_error_m": float(np.linalg.norm(hp - c)),
         "foot_slide_m": foot_slide(mo, contacts, skeleton=ch, globals_=g),
-        # as repro.motion.morphology.foot_metrics: mean horizontal ankle speed over planted frame pairs
+        # as repro.motion.feet.foot_metrics: mean horizontal ankle speed over planted frame pairs
         "slide_speed_mps": float(step[both].sum() / max(both.sum(), 1) / mo.frame_time),
         "min_toe_height_m": float(toe.min()),
         "bone_length_error_m": bone_length_error(mo, ch, globals_=g),
@@ -261,7 +261,7 @@ def _methods(motion, ch, i, db, c):
 
 
 def _sweep_rows(name: str, db, quick: bool) -> list[dict]:
-    from repro.motion.morphology import foot_contacts
+    from repro.motion.feet import foot_contacts
 
     heights = HEIGHTS_QUICK if quick else HEIGHTS
     props = PROPORTIONS_QUICK if quick else tuple(PROPORTIONS)

@@ -103,7 +103,7 @@ __all__ = [
 #: Vertical axis of the world (BVH is Y-up; the floor is y = 0).
 UP_AXIS: int = 1
 
-#: Roles whose positions make a pose (see :func:`repro.motion.skeleton.find_roles`).
+#: Roles whose positions make a pose (see :func:`repro.motion.roles.find_roles`).
 POSE_ROLES: tuple[str, ...] = (
     "pelvis", "chest", "head",
     "left_shoulder", "left_elbow", "left_wrist",

@@ -18,7 +18,7 @@ Here the "user" is replaced by :func:`detect_hits` (overridable by a manifest):
 
 * :class:`Clip` -- one annotated subsequence: the motion (metres, resampled to the
   database rate, 30 Hz by default), the hit segment (a role such as ``"right_fist"`` or
-  ``"left_foot"`` of :func:`repro.motion.skeleton.find_roles`, the joint, and whether
+  ``"left_foot"`` of :func:`repro.motion.roles.find_roles`, the joint, and whether
   the hit point is the joint or its End Site), the semantics (``"punch"`` or
   ``"kick"``), the hit frame/time, the source take and where it was cut.
 * :class:`MotionDatabase` -- the clips plus everything the retrieval
