@@ -58,6 +58,9 @@ _REGISTRY: dict[str, Experiment] = {}
 def experiment(name: str, caption: str, *, paper: str, data: tuple | None = None, timing: bool | None = None):
     """Register ``func(quick: bool = False) -> Result`` as figure/measurement ``name``.
 
+    ``func`` may also take ``progress: bool = False`` (progress bars on stderr,
+    passed only when asked for, as the CLI does; see :func:`call_experiment`).
+
     ``data``: datasets the figure uses when present (default: its paper's real
     data).  ``timing``: whether its table holds wall-clock measurements (default:
     guessed from the name: ``speed``, ``latency``, ``bench``).
