@@ -17,6 +17,7 @@ performed at interactive speeds"):
 from __future__ import annotations
 
 import platform
+import sys
 import time
 
 import numpy as np
@@ -53,10 +54,10 @@ def _models(quick: bool):
         yield load_model("procedural", n_vertices=26_712)
 
 
-def bench_attenuation(*, quick: bool = False, seed: int = 0, progress: bool = True):
+def bench_attenuation(*, quick: bool = False, seed: int = 0, progress: bool = False):
     """Measure (a) and (b) above on the 2,016-vertex face and a ~26k-vertex one; a DataFrame."""
     import pandas as pd
-    from tqdm.auto import tqdm
+    from tqdm import tqdm  # plain bar on stderr, never a notebook widget
 
     from repro.blendshapes import Attenuator, attenuate, select_vertices
 
@@ -65,7 +66,7 @@ def bench_attenuation(*, quick: bool = False, seed: int = 0, progress: bool = Tr
     reps_fast = 50 if quick else 300
     rows = []
     models = list(_models(quick))
-    bar = tqdm(total=2 * len(models), desc="bench attenuation", delay=1.0, disable=not progress)
+    bar = tqdm(total=2 * len(models), desc="bench attenuation", delay=1.0, disable=not progress, file=sys.stderr)
     for model in models:
         D = np.ascontiguousarray(model.D)
         n, m = model.n_vertices, model.n_shapes
@@ -146,7 +147,7 @@ def _time_case(D, n_vertices, rng, reps_direct, reps_fast):
     return direct, fast, float(np.median(moved)), float(np.median(bare))
 
 
-def bench_attenuation_scaling(*, quick: bool = False, seed: int = 0, progress: bool = True):
+def bench_attenuation_scaling(*, quick: bool = False, seed: int = 0, progress: bool = False):
     """Cost of a selection change and of a slider move versus model size and number of shapes.
 
     Vertices: procedural faces of increasing size (all their shapes).  Shapes:
@@ -156,7 +157,7 @@ def bench_attenuation_scaling(*, quick: bool = False, seed: int = 0, progress: b
     the same process.
     """
     import pandas as pd
-    from tqdm.auto import tqdm
+    from tqdm import tqdm  # plain bar on stderr, never a notebook widget
 
     from repro import data
     from repro.blendshapes import load_model
@@ -168,12 +169,12 @@ def bench_attenuation_scaling(*, quick: bool = False, seed: int = 0, progress: b
     cases = [("vertices", load_model("procedural", n_vertices=n)) for n in sizes]
     reps_direct, reps_fast = (3, 30) if quick else (5, 200)
     rows = []
-    for sweep, model in tqdm(cases, desc="scaling: vertices", delay=1.0, disable=not progress):
+    for sweep, model in tqdm(cases, desc="scaling: vertices", delay=1.0, disable=not progress, file=sys.stderr):
         rows.append((sweep, model.name, model.n_vertices, model.D))
     for k in shape_counts:
         rows.append(("shapes", big.name, big.n_vertices, np.ascontiguousarray(big.D[:, :k])))
     out = []
-    for sweep, name, n, D in tqdm(rows, desc="bench attenuation scaling", delay=1.0, disable=not progress):
+    for sweep, name, n, D in tqdm(rows, desc="bench attenuation scaling", delay=1.0, disable=not progress, file=sys.stderr):
         direct, fast, move, bare = _time_case(np.ascontiguousarray(D), n, rng, reps_direct, reps_fast)
         out.append(dict(sweep=sweep, model=name, n_vertices=n, n_shapes=D.shape[1],
                         selection_direct_us=direct * 1e6, selection_attenuator_us=fast * 1e6,
@@ -193,7 +194,7 @@ REACTION_BUDGET_S = 1 / 30
 
 
 def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_queries: int = 200,
-                    seed: int = 0, progress: bool = True):
+                    seed: int = 0, progress: bool = False):
     """Latency of the paper's pruned search, the exhaustive scan and the kd-tree, vs database size.
 
     For each base database (the synthetic one always, the CMU one when its data is
@@ -206,7 +207,7 @@ def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_quer
     query-preparation cost (Eq. 1 and retargeting q to the actor, shared by all three).
     """
     import pandas as pd
-    from tqdm.auto import tqdm
+    from tqdm import tqdm  # plain bar on stderr, never a notebook widget
 
     from repro import data
     from repro.motion.database import augment, default_database
@@ -218,7 +219,7 @@ def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_quer
         factors = (1, 10) if quick else (1, 10, 100)
     rows = []
     work = [(name, f) for name in databases for f in factors]
-    for name, factor in tqdm(work, desc="bench retrieval", delay=1.0, disable=not progress):
+    for name, factor in tqdm(work, desc="bench retrieval", delay=1.0, disable=not progress, file=sys.stderr):
         base = default_database(name)
         db = base if factor == 1 else augment(base, factor, seed=seed)
         t = time_search(db, n_queries=n_queries if not quick else min(n_queries, 100), seed=seed)
@@ -265,7 +266,7 @@ def format_retrieval(table) -> str:
     return "\n".join(lines)
 
 
-def bench_adaptation(*, quick: bool = False, progress: bool = True):
+def bench_adaptation(*, quick: bool = False, progress: bool = False):
     """Per-frame cost of retargeting and adaptation, and BVH load + convert, against FK in-process.
 
     The in-process baseline is one forward-kinematics pass over the same frames

@@ -453,15 +453,21 @@ LEDGER.sort(key=lambda c: (c.paper != "lewis2005", int(c.id[1:])))
 
 
 # ----------------------------------------------------------------- evaluation
-def evaluate(*, quick: bool = True, claims=None) -> list[dict]:
-    """Run the figures the claims need (once each) and judge every claim; one row per claim."""
+def evaluate(*, quick: bool = True, claims=None, progress: bool = False) -> list[dict]:
+    """Run the figures the claims need (once each) and judge every claim; one row per claim.
+
+    ``progress``: progress bars (plain tqdm, on stderr) for the figures that have
+    them; off by default, so that a call from code or a notebook prints nothing
+    (a notebook cell's output must not depend on how fast the machine is).
+    """
     from repro.experiments import get as get_experiment
+    from repro.experiments.registry import call_experiment
 
     cache: dict = {}
 
     def get(name):
         if name not in cache:
-            cache[name] = get_experiment(name).func(quick=quick)
+            cache[name] = call_experiment(get_experiment(name), quick=quick, progress=progress)
         return cache[name]
 
     rows = []

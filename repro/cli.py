@@ -10,14 +10,17 @@
     repro data list                 each dataset: present? verified?
     repro data fetch NAME           download (and verify) a dataset into the data folder
 
-Exit status: 0 on success, 2 for an unknown name or bad usage, 1 when a run
-fails with one of repro's own errors (the message says why).
+Exit status: 0 on success, 2 for an unknown name or bad usage (e.g. ``--out``
+naming a file), 1 when a run fails with one of repro's own errors (the message
+says why).  Progress bars (plain tqdm, shown after a second) go to stderr; the
+library itself never shows one unless asked (``progress=True``).
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 
 from repro.errors import ReproError, UnknownFigureError
@@ -52,8 +55,19 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _bad_out(out: str) -> str | None:
+    """Why ``--out`` cannot be the output folder (it is created when missing), or None."""
+    from repro.experiments.registry import output_folder
+
+    try:
+        output_folder(out)
+    except ReproError as exc:
+        return f"--out: {exc}"
+    return None
+
+
 def _run(names, out: str, quick: bool, force: bool = False) -> int:
-    from tqdm.auto import tqdm
+    from tqdm import tqdm  # a plain bar on stderr (never a notebook widget)
 
     from repro.experiments import registry
     from repro.experiments.registry import run_many
@@ -63,7 +77,10 @@ def _run(names, out: str, quick: bool, force: bool = False) -> int:
     if unknown:
         print(f"repro: unknown figure {', '.join(map(repr, unknown))}; known: {', '.join(reg)}", file=sys.stderr)
         return 2
-    bar = tqdm(total=len(names), desc="figures", unit="fig", delay=1.0)
+    if why := _bad_out(out):
+        print(f"repro: {why}", file=sys.stderr)
+        return 2
+    bar = tqdm(total=len(names), desc="figures", unit="fig", delay=1.0, file=sys.stderr)
 
     def report(name, status, paths):
         if status == "cached":
@@ -75,7 +92,7 @@ def _run(names, out: str, quick: bool, force: bool = False) -> int:
             tqdm.write(f"repro: {name} {status}", file=sys.stderr)
         bar.update()
 
-    status = run_many(names, out, quick=quick, force=force, on_result=report)
+    status = run_many(names, out, quick=quick, force=force, on_result=report, progress=True)
     bar.close()
     failed = [n for n, s in status.items() if s not in ("ran", "cached")]
     if failed:
@@ -115,7 +132,10 @@ def _claims(args) -> int:
     from repro import claims
     from repro.io import write_csv, write_text
 
-    rows = claims.evaluate(quick=not args.full)
+    if why := _bad_out(args.out):
+        print(f"repro: {why}", file=sys.stderr)
+        return 2
+    rows = claims.evaluate(quick=not args.full, progress=True)
     for r in rows:
         print(f"{r['id']:4s} {r['embedded_verdict']:15s} {r['real_verdict']:15s} {r['statement'][:90]}")
     print(claims.summary_line(rows))
@@ -125,8 +145,24 @@ def _claims(args) -> int:
     return 0
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """repro's own warnings as one ``repro: warning: ...`` line on stderr (others as Python shows them)."""
+    from repro.errors import ReproWarning
+
+    if issubclass(category, ReproWarning):
+        print(f"repro: warning: {message}", file=sys.stderr)
+    else:
+        sys.stderr.write(warnings.formatwarning(message, category, filename, lineno, line))
+
+
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
+    with warnings.catch_warnings():
+        warnings.showwarning = _show_warning
+        return _main(args)
+
+
+def _main(args) -> int:
     try:
         if args.command == "list":
             from repro.experiments import registry
@@ -149,7 +185,10 @@ def main(argv=None) -> int:
                 "retrieval": (bench.bench_retrieval, bench.format_retrieval, "retrieval_latency.csv"),
                 "adaptation": (bench.bench_adaptation, bench.format_adaptation, "bench_adaptation.csv"),
             }[args.which]
-            table = run_(quick=args.quick)
+            if why := _bad_out(args.out):
+                print(f"repro: {why}", file=sys.stderr)
+                return 2
+            table = run_(quick=args.quick, progress=True)
             print(fmt(table))
             print(f"wrote {write_csv(Path(args.out) / csv_name, table)}")
             return 0
@@ -161,6 +200,9 @@ def main(argv=None) -> int:
         print(f"repro: {exc}", file=sys.stderr)
         return 2
     except ReproError as exc:
+        print(f"repro: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:  # e.g. no permission to write into --out: say so, no traceback
         print(f"repro: {exc}", file=sys.stderr)
         return 1
     return 2  # pragma: no cover - argparse enforces the commands

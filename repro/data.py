@@ -20,8 +20,10 @@ import csv
 import gzip
 import hashlib
 import io
+import logging
 import os
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
@@ -193,18 +195,52 @@ def _download(entry: DataFile, url: str, root: Path, *, progressbar: bool = Fals
     target = root / entry.path
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        got = pooch.retrieve(
-            url,
-            known_hash=f"sha256:{entry.sha256}",
-            fname=target.name,
-            path=target.parent,
-            progressbar=progressbar,
-        )
+        with _quiet_pooch(not progressbar):
+            got = pooch.retrieve(
+                url,
+                known_hash=f"sha256:{entry.sha256}",
+                fname=target.name,
+                path=target.parent,
+                progressbar=_plain_bar() if progressbar else False,
+            )
     except ValueError as exc:  # pooch's hash mismatch
         raise DataError(f"download of {entry.path} from {url} was rejected: {exc}") from exc
     except Exception as exc:  # network, HTTP status, permissions
         raise DataError(f"download of {entry.path} from {url} failed: {exc}") from exc
     return Path(got)
+
+
+@contextmanager
+def _quiet_pooch(quiet: bool):
+    """pooch logs "Downloading data from ..." on stderr at INFO: silent unless progress was asked for.
+
+    (A first-use download must not change what a notebook cell prints.)
+    """
+    if not quiet:
+        yield
+        return
+    import pooch
+
+    # a filter, not setLevel: pooch's logger lives outside logging's hierarchy, so a level
+    # change would stick in its isEnabledFor cache after being undone
+    def below_warning(record):
+        return record.levelno >= logging.WARNING
+
+    logger = pooch.get_logger()
+    logger.addFilter(below_warning)
+    try:
+        yield
+    finally:
+        logger.removeFilter(below_warning)
+
+
+def _plain_bar():
+    """A plain tqdm byte counter on stderr for pooch (pooch's own would be a notebook widget in Jupyter)."""
+    import sys
+
+    from tqdm import tqdm
+
+    return tqdm(total=1, ncols=79, ascii=True, unit="B", unit_scale=True, leave=True, file=sys.stderr)
 
 
 def open_file(path: str):
@@ -256,9 +292,11 @@ def require(dataset: str, *, download: bool | None = None, progressbar: bool = F
     entries = files(dataset)
     it: Iterator[DataFile] = iter(entries)
     if progressbar:
-        from tqdm.auto import tqdm
+        import sys
 
-        it = tqdm(entries, desc=f"data {dataset}", unit="file")
+        from tqdm import tqdm  # plain, on stderr (the CLI's bar; never a notebook widget)
+
+        it = tqdm(entries, desc=f"data {dataset}", unit="file", file=sys.stderr)
     for e in it:
         fetch(e.path, download=download)
     return data_dir() / _FOLDER[dataset]

@@ -12,11 +12,21 @@
 - ``@pytest.mark.render`` (and every notebook that uses pyvista) is probed once
   in a subprocess (VTK segfaults without an OpenGL, which would take pytest
   down); skipped with the reason, or an error with ``REPRO_REQUIRE_RENDER=1``.
+- ``REPRO_NBVAL_COLD_BUSY=1`` (CI sets it): every notebook's kernel starts with
+  cold caches (``HOME``, ``XDG_CACHE_HOME``, ``XDG_CONFIG_HOME``, ``MPLCONFIGDIR``,
+  ``REPRO_CACHE_DIR`` and ``IPYTHONDIR`` in a fresh empty folder per notebook) on
+  a busy machine (one CPU-bound child process per core while the notebooks run),
+  so outputs that depend on speed, cache state or first use fail CI on every
+  machine, not only on slow ones (issue 9).
 """
 
 from __future__ import annotations
 
 import os
+import shutil
+import subprocess
+import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -37,6 +47,8 @@ settings.load_profile("repro")
 
 
 def pytest_configure(config):
+    if COLD_BUSY:
+        config.pluginmanager.register(ColdBusyNotebooks(), "repro-cold-busy-notebooks")
     config.addinivalue_line("markers", "render: needs VTK off-screen rendering")
     config.addinivalue_line("markers", "data(name): needs staged dataset NAME")
 
@@ -83,3 +95,79 @@ def pytest_collection_modifyitems(config, items):
             for item in items:
                 if item.get_closest_marker("render"):
                     item.add_marker(pytest.mark.skip(reason=reason))
+
+
+# ------------------------------------------------------------------ notebooks cold and busy
+COLD_BUSY = os.environ.get("REPRO_NBVAL_COLD_BUSY") == "1"
+#: the variables pointed at an empty folder for each notebook's kernel (folder under the cold root)
+COLD_VARS = {"HOME": "home", "XDG_CACHE_HOME": "cache", "XDG_CONFIG_HOME": "config", "MPLCONFIGDIR": "mpl",
+             "REPRO_CACHE_DIR": "repro-cache", "IPYTHONDIR": "ipython"}
+#: spins until its parent (pytest) is gone, so no burner outlives an interrupted run
+_BURN = "import os, time\nppid = os.getppid()\nwhile os.getppid() == ppid:\n    t = time.time() + 0.5\n    while time.time() < t: pass\n"
+
+
+def start_burners(n: int | None = None) -> list[subprocess.Popen]:
+    """One CPU-bound child process per core (or ``n``), at normal priority."""
+    return [subprocess.Popen([sys.executable, "-c", _BURN], stdin=subprocess.DEVNULL,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            for _ in range(n or os.cpu_count() or 1)]
+
+
+def stop_burners(procs) -> None:
+    for p in procs:
+        p.kill()
+    for p in procs:
+        p.wait(timeout=30)
+
+
+def cold_environment(root: Path) -> dict[str, str]:
+    """The environment variables of a cold start, each pointing at a new empty folder under ``root``."""
+    env = {}
+    for var, sub in COLD_VARS.items():
+        (root / sub).mkdir(parents=True)
+        env[var] = str(root / sub)
+    return env
+
+
+class ColdBusyNotebooks:
+    """Registered as a plugin (global: conftest hooks would only see items under tests/, not notebooks/)."""
+
+    def __init__(self):
+        self.notebook = self.root = self.saved = None
+        self.burners: list[subprocess.Popen] = []
+        self.notebooks = 0
+
+    def _leave_cold(self) -> None:
+        if self.root is not None:
+            shutil.rmtree(self.root, ignore_errors=True)
+            self.root = None
+
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_runtest_setup(self, item):
+        """Before a notebook's kernel starts (nbval starts it when the notebook is set up)."""
+        if item.path.suffix != ".ipynb" or item.path == self.notebook:
+            return
+        if self.saved is None:
+            self.saved = {v: os.environ.get(v) for v in COLD_VARS}
+            self.burners = start_burners()
+        self._leave_cold()  # the previous notebook's kernel is shut down by now
+        self.notebook = item.path
+        self.root = Path(tempfile.mkdtemp(prefix="repro-cold-"))
+        self.notebooks += 1
+        os.environ.update(cold_environment(self.root))
+
+    def pytest_sessionfinish(self, session, exitstatus):
+        stop_burners(self.burners)
+        self.burners = []
+        self._leave_cold()
+        for var, value in (self.saved or {}).items():
+            if value is None:
+                os.environ.pop(var, None)
+            else:
+                os.environ[var] = value
+
+    def pytest_terminal_summary(self, terminalreporter):
+        if self.notebooks:
+            terminalreporter.write_line(
+                f"REPRO_NBVAL_COLD_BUSY: {self.notebooks} notebook(s) ran with cold caches "
+                f"({', '.join(COLD_VARS)} fresh per notebook) and {os.cpu_count()} CPU-bound processes running")

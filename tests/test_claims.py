@@ -39,7 +39,7 @@ def test_verdicts_match_the_ledger(rows):
 
 
 def test_repro_claims_writes_markdown_and_csv(tmp_path, capsys, monkeypatch, rows):
-    monkeypatch.setattr(claims, "evaluate", lambda quick=True: rows)
+    monkeypatch.setattr(claims, "evaluate", lambda quick=True, progress=False: rows)
     assert cli.main(["claims", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert claims.summary_line(rows) in out

@@ -14,11 +14,11 @@ from repro.experiments.registry import Result, experiment
     "Section 5 speed: new selection (direct vs cached Attenuator), slider move vs bare D@w, vs vertices and shapes",
     paper="lewis2005",
 )
-def attenuation_speed(quick: bool = False) -> Result:
+def attenuation_speed(quick: bool = False, progress: bool = False) -> Result:
     from repro.bench import bench_attenuation, bench_attenuation_scaling
 
-    table = bench_attenuation(quick=quick)
-    scaling = bench_attenuation_scaling(quick=quick)
+    table = bench_attenuation(quick=quick, progress=progress)
+    scaling = bench_attenuation_scaling(quick=quick, progress=progress)
     return Result(table=table, draw=lambda: draw(table, scaling), extra_tables={"scaling": scaling})
 
 

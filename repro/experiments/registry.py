@@ -11,13 +11,15 @@ with :class:`~repro.errors.RenderUnavailableError`, the CSV stays).
 from __future__ import annotations
 
 import inspect
+import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from repro.errors import UnknownFigureError
 
-__all__ = ["Experiment", "Result", "experiment", "registry", "get", "run", "run_many", "input_key", "MANIFEST"]
+__all__ = ["Experiment", "Result", "experiment", "registry", "get", "run", "run_many", "input_key", "call_experiment",
+           "output_folder", "MANIFEST"]
 
 #: The manifest of every figure written into an output folder (see :func:`run_many`).
 MANIFEST = "manifest.json"
@@ -56,6 +58,9 @@ _REGISTRY: dict[str, Experiment] = {}
 def experiment(name: str, caption: str, *, paper: str, data: tuple | None = None, timing: bool | None = None):
     """Register ``func(quick: bool = False) -> Result`` as figure/measurement ``name``.
 
+    ``func`` may also take ``progress: bool = False`` (progress bars on stderr,
+    passed only when asked for, as the CLI does; see :func:`call_experiment`).
+
     ``data``: datasets the figure uses when present (default: its paper's real
     data).  ``timing``: whether its table holds wall-clock measurements (default:
     guessed from the name: ``speed``, ``latency``, ``bench``).
@@ -88,13 +93,42 @@ def get(name: str) -> Experiment:
     return reg[name]
 
 
-def run(name: str, outdir="figures", *, quick: bool = False) -> list[Path]:
+def call_experiment(exp: Experiment, *, quick: bool = False, progress: bool = False) -> Result:
+    """``exp.func(quick=quick)``, with ``progress=progress`` when the function takes it.
+
+    Progress bars are off unless asked for (the CLI asks): computing a figure from
+    code or in a notebook prints nothing, however long a step takes.
+    """
+    if "progress" in inspect.signature(exp.func).parameters:
+        return exp.func(quick=quick, progress=bool(progress))
+    return exp.func(quick=quick)
+
+
+def output_folder(outdir) -> Path:
+    """``outdir`` as a Path, created if needed; a :class:`ReproError` when it cannot be a folder."""
+    from repro.errors import ReproError
+
+    out = Path(outdir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise ReproError(f"output folder {str(out)!r} exists and is a file, not a folder") from None
+    except NotADirectoryError:
+        raise ReproError(f"output folder {str(out)!r} cannot be made: part of its path is a file") from None
+    except OSError as exc:
+        raise ReproError(f"output folder {str(out)!r} cannot be made: {exc.strerror or exc}") from None
+    if not out.is_dir():
+        raise ReproError(f"output folder {str(out)!r} is not a folder")
+    return out
+
+
+def run(name: str, outdir="figures", *, quick: bool = False, progress: bool = False) -> list[Path]:
     """Run experiment ``name`` and write its CSV (and PNG) into ``outdir``; the paths written."""
     from repro.io import save_figure, write_csv
 
     exp = get(name)
-    result = exp.func(quick=quick)
-    out = Path(outdir)
+    out = output_folder(outdir)
+    result = call_experiment(exp, quick=quick, progress=progress)
     written = [write_csv(out / f"{name}.csv", result.table)]
     for suffix, table in result.extra_tables.items():
         written.append(write_csv(out / f"{name}-{suffix}.csv", table))
@@ -204,26 +238,96 @@ def input_key(exp: Experiment, *, quick: bool, code: str | None = None) -> dict:
     }
 
 
-def _load_manifest(outdir: Path) -> dict:
+def _read_manifest(outdir: Path) -> tuple[dict, str | None]:
+    """The manifest's valid entries, and what is wrong with the file (None when nothing is).
+
+    A valid entry is a JSON object under its figure's name.  A file that is not
+    JSON, or whose top level is not an object (``[]``, ``null``), has no valid
+    entry; entries that are not objects (``{"fig4...": 3}``) are left out.
+    """
     import json
 
+    path = outdir / MANIFEST
     try:
-        return json.loads((outdir / MANIFEST).read_text())
-    except (OSError, ValueError):
-        return {}
+        text = path.read_bytes().decode("utf-8")
+    except FileNotFoundError:
+        return {}, None
+    except (OSError, UnicodeDecodeError) as exc:
+        return {}, f"cannot be read ({exc})"
+    try:
+        doc = json.loads(text)
+    except ValueError as exc:
+        return {}, f"is not valid JSON ({exc})"
+    if not isinstance(doc, dict):
+        return {}, f"holds a JSON {type(doc).__name__ if doc is not None else 'null'}, not an object of figures"
+    valid = {k: v for k, v in doc.items() if isinstance(v, dict)}
+    bad = sorted(set(doc) - set(valid))
+    if bad:
+        return valid, f"has entries that are not objects: {', '.join(map(repr, bad[:5]))}{' ...' if len(bad) > 5 else ''}"
+    return valid, None
+
+
+def _load_manifest(outdir: Path) -> dict:
+    return _read_manifest(outdir)[0]
+
+
+def _update_manifest(outdir: Path, name: str, entry: dict) -> None:
+    """Merge ``entry`` into the manifest under a lock (read, merge, atomic write).
+
+    Several ``repro run`` processes writing into one folder each add their own
+    entries, none lost.  A damaged manifest is kept as ``manifest.json.damaged``
+    and rebuilt from its valid entries, with a :class:`~repro.errors.ReproWarning`.
+    """
+    import json
+    import warnings
+
+    from repro.errors import ReproWarning
+    from repro.io import file_lock, write_text
+
+    path = outdir / MANIFEST
+    with file_lock(_manifest_lock(outdir)):
+        manifest, damage = _read_manifest(outdir)
+        if damage is not None:
+            backup = path.with_name(MANIFEST + ".damaged")
+            try:
+                os.replace(path, backup)
+                kept = f"moved to {backup}"
+            except OSError as exc:
+                kept = f"could not be moved aside ({exc})"
+            warnings.warn(f"{path} {damage}; the damaged file was {kept} and the manifest rebuilt "
+                          f"with its {len(manifest)} valid entr{'y' if len(manifest) == 1 else 'ies'}",
+                          ReproWarning, stacklevel=3)
+        manifest[name] = entry
+        write_text(path, json.dumps(dict(sorted(manifest.items())), indent=1) + "\n")
+
+
+def _manifest_lock(outdir: Path) -> Path:
+    """Where the manifest's lock file lives: the temp folder, one per user and output folder.
+
+    (Not in the output folder, which holds only what the figures wrote and the manifest.)
+    """
+    import hashlib
+    import tempfile
+
+    key = hashlib.sha256(str(Path(outdir).resolve()).encode()).hexdigest()[:20]
+    return Path(tempfile.gettempdir()) / f"repro-{os.getuid()}" / f"manifest-{key}"
 
 
 def _up_to_date(entry: dict | None, key: dict, outdir: Path) -> bool:
-    if not entry or entry.get("inputs") != key:
+    if not isinstance(entry, dict) or entry.get("inputs") != key:
         return False
-    for f in entry.get("files", []):
-        p = outdir / f["file"]
-        if not p.is_file() or _sha256(p) != f["sha256"]:
-            return False
+    try:
+        for f in entry.get("files", []):
+            p = outdir / f["file"]
+            if not p.is_file() or _sha256(p) != f["sha256"]:
+                return False
+    except (TypeError, KeyError, AttributeError, OSError):  # a hand-edited entry: rerun
+        return False
     return True
 
 
-def run_many(names, outdir="figures", *, quick: bool = False, force: bool = False, on_result=None) -> dict:
+def run_many(names, outdir="figures", *, quick: bool = False, force: bool = False, on_result=None,
+             progress: bool = False) -> dict:
     """Run several figures, skipping those whose inputs and outputs are unchanged; update the manifest.
 
     The manifest (``outdir/manifest.json``) records for every figure: name,
@@ -232,15 +336,16 @@ def run_many(names, outdir="figures", *, quick: bool = False, force: bool = Fals
     commit, the files written with their sha256, and the input key used to
     decide whether a rerun is needed.  ``force`` reruns everything.  Returns
     ``{name: "ran" | "cached" | error message}``; ``on_result(name, status,
-    paths)`` is called after each.
+    paths)`` is called after each.  Each entry is merged into the manifest under
+    a lock, so concurrent runs into one folder keep each other's entries; a
+    damaged manifest is rebuilt from its valid entries, with a warning.
+    ``progress``: progress bars (stderr) for figures that have them.
     """
     import datetime
-    import json
 
     from repro.errors import ReproError
-    from repro.io import write_text
 
-    out = Path(outdir)
+    out = output_folder(outdir)
     manifest = _load_manifest(out)
     code = _code_fingerprint()
     status = {}
@@ -253,13 +358,13 @@ def run_many(names, outdir="figures", *, quick: bool = False, force: bool = Fals
                 on_result(name, "cached", [])
             continue
         try:
-            paths = run(name, out, quick=quick)
+            paths = run(name, out, quick=quick, progress=progress)
         except ReproError as exc:
             status[name] = f"failed: {exc}"
             if on_result:
                 on_result(name, status[name], [])
             continue
-        manifest[name] = {
+        entry = {
             "name": name,
             "caption": exp.caption,
             "paper": exp.paper,
@@ -272,7 +377,8 @@ def run_many(names, outdir="figures", *, quick: bool = False, force: bool = Fals
             "inputs": key,
             "files": [{"file": p.name, "sha256": _sha256(p)} for p in paths],
         }
-        write_text(out / MANIFEST, json.dumps(dict(sorted(manifest.items())), indent=1) + "\n")
+        _update_manifest(out, name, entry)
+        manifest[name] = entry
         status[name] = "ran"
         if on_result:
             on_result(name, "ran", paths)
