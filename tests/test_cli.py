@@ -67,7 +67,7 @@ def test_manifest_records_provenance_and_reruns_only_what_changed(tmp_path, caps
     out = str(tmp_path)
     assert cli.main(["run", "fig4_axis_selection", "--quick", "--out", out]) == 0
     entry = json.loads((tmp_path / "manifest.json").read_text())["fig4_axis_selection"]
-    assert entry["function"] == "repro.experiments.fig4_axis_selection.fig4_axis_selection"
+    assert entry["function"] == "repro.experiments.lewis.fig4_axis_selection.fig4_axis_selection"
     assert "notebooks/01_blendshape_interference.ipynb" in entry["notebooks"]
     assert {f["file"] for f in entry["files"]} >= {"fig4_axis_selection.csv"}
     assert entry["inputs"]["versions"]["numpy"] and len(entry["inputs"]["code_sha256"]) == 64

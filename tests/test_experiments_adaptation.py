@@ -188,7 +188,7 @@ def test_skeleton_images_draw_bones_and_the_target_with_one_camera():
 
 @pytest.mark.render
 def test_adapted_motions_figure_is_rendered_with_pyvista(results):
-    from repro.experiments.adapted_motions import TARGET_COLOR
+    from repro.experiments.pronost.adapted_motions import TARGET_COLOR
 
     fig = results["adapted_motions"].draw()
     try:

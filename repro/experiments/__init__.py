@@ -1,17 +1,13 @@
-"""Every figure and measurement, one module each; importing this registers them all.
+"""Every figure and measurement, one module each, by paper: ``lewis/`` and ``pronost/``.
 
-Each public module of this package (not starting with ``_``) registers its
-experiment with :func:`repro.experiments.registry.experiment` when imported; they
-are discovered here, so adding a figure is adding a module.  See ``repro list``.
+Each figure module registers its experiment with
+:func:`repro.experiments.registry.experiment` when imported; importing this package
+discovers and imports them all (:func:`repro.experiments.registry.discover`), so adding
+a figure is adding a module.  See ``repro list``.
 """
 
-import importlib
-import pkgutil
+from repro.experiments.registry import Result, discover, experiment, get, registry, run
 
-from repro.experiments.registry import Result, experiment, get, registry, run
-
-for _info in sorted(pkgutil.iter_modules(__path__), key=lambda i: i.name):
-    if not _info.name.startswith("_") and _info.name != "registry":
-        importlib.import_module(f"{__name__}.{_info.name}")
+discover()
 
 __all__ = ["Result", "experiment", "get", "registry", "run"]

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from repro.errors import UnknownFigureError
 
-__all__ = ["Experiment", "Result", "experiment", "registry", "get", "run", "run_many", "input_key", "call_experiment",
+__all__ = ["Experiment", "Result", "experiment", "discover", "registry", "get", "run", "run_many", "input_key", "call_experiment",
            "output_folder", "MANIFEST"]
 
 #: The manifest of every figure written into an output folder (see :func:`run_many`).
@@ -79,10 +79,24 @@ def experiment(name: str, caption: str, *, paper: str, data: tuple | None = None
     return deco
 
 
+def discover() -> None:
+    """Import every figure module below this package (``lewis/``, ``pronost/``): each registers itself.
+
+    Modules are found by walking the package folder and imported by name, so adding a figure
+    is adding a module, and the registry imports no figure module statically (no import cycle).
+    """
+    import importlib
+    import pkgutil
+
+    package = __name__.rpartition(".")[0]
+    for info in pkgutil.walk_packages([str(Path(__file__).parent)], prefix=package + "."):
+        if not info.ispkg and not info.name.rpartition(".")[2].startswith("_") and info.name != __name__:
+            importlib.import_module(info.name)
+
+
 def registry() -> dict[str, Experiment]:
     """All registered experiments, by name (importing the experiment modules)."""
-    import repro.experiments  # noqa: F401  (registers)
-
+    discover()
     return dict(sorted(_REGISTRY.items()))
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import pandas as pd
 
 from repro.blendshapes import scenarios as S
-from repro.experiments import _lewis
+from repro.experiments.lewis import common
 from repro.experiments.registry import Result, experiment
 
 KEY = "smirk_corners_y"
@@ -19,7 +19,7 @@ KEY = "smirk_corners_y"
 
 @experiment("fig4_axis_selection", "Fig. 4: y of the mouth corners selected; SmirkLeft/Right 0.7 move them in x only", paper="lewis2005")
 def fig4_axis_selection(quick: bool = False) -> Result:
-    pairs = _lewis.attenuators()
+    pairs = common.attenuators()
     table = pd.DataFrame([r for m, att in pairs for r in S.axis_table(m, KEY, attenuator=att)])
     return Result(table=table, draw=lambda: draw(pairs, table))
 
@@ -38,7 +38,7 @@ def draw(pairs, table):
         d_att = att.displacement(att.edit(w_base, w_target, sel))
         d_none = att.displacement(w_target)
         imgs = face_images(model, [0 * d_att, d_att, d_none],
-                           [np.zeros(model.n_vertices), _lewis.motion(d_att), _lewis.motion(d_none)],
+                           [np.zeros(model.n_vertices), common.motion(d_att), common.motion(d_none)],
                            selected=sc.vertices(model), clim=(0.0, 1.0))
         for ax, img, title in zip(row, imgs, ["a) y of 2 corners selected", "b) attenuated", "c) no attenuation"]):
             ax.imshow(img)

@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from repro.experiments.registry import Result, experiment
-from repro.experiments.retargeting_morphologies import effector, frame_of, hit_points, target_in_motion
+from repro.experiments.pronost.retargeting_morphologies import effector, frame_of, hit_points, target_in_motion
 
 #: Fighter statures (m).
 HEIGHTS = (1.5, 2.0)

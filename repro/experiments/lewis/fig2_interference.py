@@ -12,7 +12,7 @@ from __future__ import annotations
 import pandas as pd
 
 from repro.blendshapes import scenarios as S
-from repro.experiments import _lewis
+from repro.experiments.lewis import common
 from repro.experiments.registry import Result, experiment
 
 SCENARIOS = ("furrow_then_mouth", "eyelid_then_brow")
@@ -20,7 +20,7 @@ SCENARIOS = ("furrow_then_mouth", "eyelid_then_brow")
 
 @experiment("fig2_interference", "Figs. 1-2: further slider moves drag a region an earlier move positioned", paper="lewis2005")
 def fig2_interference(quick: bool = False) -> Result:
-    models = _lewis.models()
+    models = common.models()
     rows = []
     for model in models:
         for key in SCENARIOS:
@@ -40,14 +40,14 @@ def draw(models):
             sc = S.scenario(key)
             w_base, w_target = sc.weights(model)
             d_base, d_target = model.D @ w_base, model.D @ w_target
-            first, drift = _lewis.motion(d_base), _lewis.motion(d_target, d_base)
+            first, drift = common.motion(d_base), common.motion(d_target, d_base)
             values += [first, drift]
             images += face_images(
-                model, [_lewis.zeros(model), d_base, d_target], [0 * first, first, drift],
+                model, [common.zeros(model), d_base, d_target], [0 * first, first, drift],
                 selected=sc.vertices(model), clim=(0.0, 0.5),
             )
             base = ", ".join(f"{k} {v}" for k, v in sc.base.items())
             titles += [f"{model.name}: neutral", f"{sc.figure} first move: {base}",
                        f"further moves; colour = drift since\n(selected drift {drift[sc.vertices(model)].mean():.3g})"]
-    return panel_figure(images, titles, clim=(0.0, 0.5), label=_lewis.MOTION_LABEL, ncols=3,
+    return panel_figure(images, titles, clim=(0.0, 0.5), label=common.MOTION_LABEL, ncols=3,
                         suptitle="Interference: cyan = vertices the first move positioned")

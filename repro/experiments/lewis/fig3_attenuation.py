@@ -11,7 +11,7 @@ from __future__ import annotations
 import pandas as pd
 
 from repro.blendshapes import scenarios as S
-from repro.experiments import _lewis
+from repro.experiments.lewis import common
 from repro.experiments.registry import Result, experiment
 
 SCENARIOS = ("furrow_then_mouth", "eyelid_then_brow")
@@ -19,7 +19,7 @@ SCENARIOS = ("furrow_then_mouth", "eyelid_then_brow")
 
 @experiment("fig3_attenuation", "Fig. 3: the same moves with the drifting vertices selected, with and without attenuation", paper="lewis2005")
 def fig3_attenuation(quick: bool = False) -> Result:
-    pairs = _lewis.attenuators()
+    pairs = common.attenuators()
     table = pd.DataFrame([S.evaluate(m, key, attenuator=att) for m, att in pairs for key in SCENARIOS])
     return Result(table=table, draw=lambda: draw(pairs))
 
@@ -36,7 +36,7 @@ def draw(pairs):
             d_base = att.displacement(w_base)
             d_att = att.displacement(att.edit(w_base, w_target, sel))
             d_none = att.displacement(w_target)
-            m_att, m_none = _lewis.motion(d_att, d_base), _lewis.motion(d_none, d_base)
+            m_att, m_none = common.motion(d_att, d_base), common.motion(d_none, d_base)
             images += face_images(model, [d_base, d_att, d_none], [0 * m_att, m_att, m_none],
                                   selected=sc.vertices(model), clim=(0.0, 0.5))
             v = sc.vertices(model)

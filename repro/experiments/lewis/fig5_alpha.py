@@ -15,7 +15,7 @@ from __future__ import annotations
 import pandas as pd
 
 from repro.blendshapes import scenarios as S
-from repro.experiments import _lewis
+from repro.experiments.lewis import common
 from repro.experiments.registry import Result, experiment
 
 KEY = "wince_sneer_under_eye"
@@ -24,7 +24,7 @@ ALPHAS = (25.0, None, 3000.0)  # None: the default
 
 @experiment("fig5_alpha", "Fig. 5: six vertices under the eye held at alpha = 25, default (335), 3000, and none", paper="lewis2005")
 def fig5_alpha(quick: bool = False) -> Result:
-    pairs = _lewis.attenuators()
+    pairs = common.attenuators()
     rows = []
     for model, att in pairs:
         for a in ALPHAS:
@@ -48,8 +48,8 @@ def draw(pairs):
             poses.append((f"{label} alpha {a_val:.4g}", att.displacement(att.edit(w_base, w_target, sel, a))))
         v = sc.vertices(model)
         ds = [d for _, d in poses]
-        ms = [_lewis.motion(d) for d in ds]
+        ms = [common.motion(d) for d in ds]
         images += face_images(model, ds, ms, selected=v, clim=(0.0, 1.0))
         titles += [f"{model.name} {t}\nselected motion {m[v].mean():.3g}" for (t, _), m in zip(poses, ms)]
-    return panel_figure(images, titles, clim=(0.0, 1.0), label=_lewis.MOTION_LABEL, ncols=4,
+    return panel_figure(images, titles, clim=(0.0, 1.0), label=common.MOTION_LABEL, ncols=4,
                         suptitle="Fig. 5: alpha trades selected stillness against unselected freedom (cyan: selected)")

@@ -14,13 +14,13 @@ from __future__ import annotations
 import pandas as pd
 
 from repro.blendshapes import scenarios as S
-from repro.experiments import _lewis
+from repro.experiments.lewis import common
 from repro.experiments.registry import Result, experiment
 
 
 @experiment("rejected_alternatives", "Section 3: zeroed rows of D and orthogonal locking vs attenuation (motion, fidelity, smoothness)", paper="lewis2005")
 def rejected_alternatives(quick: bool = False) -> Result:
-    pairs = _lewis.attenuators()
+    pairs = common.attenuators()
     table = pd.DataFrame([r for m, att in pairs for key in S.SCENARIOS
                           for r in S.compare_methods(m, key, attenuator=att)])
     return Result(table=table, draw=lambda: draw(pairs, table))

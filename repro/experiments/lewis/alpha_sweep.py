@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from repro.blendshapes import scenarios as S
-from repro.experiments import _lewis
+from repro.experiments.lewis import common
 from repro.experiments.registry import Result, experiment
 
 
@@ -51,7 +51,7 @@ def limits_table(limits: pd.DataFrame) -> pd.DataFrame:
 @experiment("alpha_sweep", "Section 5: selected motion and unselected fidelity for alpha 1e-3..1e6; limits; trade-off", paper="lewis2005")
 def alpha_sweep(quick: bool = False) -> Result:
     alphas = np.logspace(-3, 6, 19 if quick else 73)
-    pairs = _lewis.attenuators()
+    pairs = common.attenuators()
     sweep = pd.DataFrame([r for m, att in pairs for key in S.SCENARIOS
                           for r in S.alpha_sweep(m, key, alphas, attenuator=att)])
     ends = pd.DataFrame([r for m, att in pairs for key in S.SCENARIOS
