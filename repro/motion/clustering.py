@@ -75,13 +75,15 @@ heading-estimation error), which is why the bound is tight in practice.
 
 from __future__ import annotations
 
+import operator
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.cluster.vq import kmeans2
 
-from repro.errors import MotionError
+from repro.errors import MotionError, ReproWarning
 
 __all__ = [
     "POSE_ROLES",
@@ -98,6 +100,9 @@ __all__ = [
     "PoseClusters",
     "cluster_poses",
     "default_k",
+    "check_int",
+    "real_array",
+    "MAX_ITERATIONS",
 ]
 
 #: Vertical axis of the world (BVH is Y-up; the floor is y = 0).
@@ -111,6 +116,60 @@ POSE_ROLES: tuple[str, ...] = (
     "left_hip", "left_knee", "left_ankle", "left_foot",
     "right_hip", "right_knee", "right_ankle", "right_foot",
 )  # fmt: skip
+
+
+#: Most k-means iterations :func:`cluster_poses` accepts (each is one pass over the poses).
+MAX_ITERATIONS: int = 10_000
+
+
+# ------------------------------------------------------------- argument checks
+def check_int(value, name: str, lo: int | None = None, hi: int | None = None, error=MotionError) -> int:
+    """``value`` as a Python int in ``[lo, hi]``, or ``error`` naming ``name`` and the range.
+
+    Integers only (Python or numpy ints): a float such as ``2.5`` (or ``2.0``), a bool, a
+    string or None is refused rather than truncated.
+    """
+    if isinstance(value, (bool, np.bool_)):
+        raise error(f"{name} must be an integer, got {value!r}")
+    try:
+        v = operator.index(value)
+    except TypeError:
+        raise error(f"{name} must be an integer, got {value!r} ({type(value).__name__})") from None
+    if (lo is not None and v < lo) or (hi is not None and v > hi):
+        if hi is None:
+            allowed = f">= {lo}"
+        elif lo is None:
+            allowed = f"<= {hi}"
+        else:
+            allowed = f"in [{lo}, {hi}]"
+        raise error(f"{name} must be an integer {allowed}, got {v}")
+    return int(v)
+
+
+def real_array(value, name: str, error=MotionError) -> np.ndarray:
+    """``value`` as a float array, or ``error`` if it is not made of real numbers.
+
+    Refuses strings, None, objects and complex numbers (whose imaginary part numpy would
+    otherwise drop); finiteness and shape are the caller's checks.
+    """
+    try:
+        a = np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        raise error(f"{name} must be an array of real numbers ({exc})") from None
+    if a.dtype.kind not in "biuf":
+        if a.dtype.kind == "O":
+            try:
+                a = a.astype(float)
+            except (TypeError, ValueError):
+                raise error(f"{name} must be an array of real numbers, got {_short(value)}") from None
+        else:
+            raise error(f"{name} must be an array of real numbers, got dtype {a.dtype} ({_short(value)})")
+    return a.astype(float, copy=False)
+
+
+def _short(value) -> str:
+    r = repr(value)
+    return r if len(r) <= 80 else r[:77] + "..."
 
 
 # ------------------------------------------------------------------ root frames
@@ -207,14 +266,17 @@ def pose_points(global_positions: np.ndarray, joints: Sequence[int], pelvis: int
     (F, window * P, 3) array
         Oldest frame first.
     """
-    g = np.asarray(global_positions, dtype=float)
+    g = real_array(global_positions, "global_positions")
     if g.ndim != 3 or g.shape[-1] != 3 or g.shape[0] == 0:
         raise MotionError(f"global_positions must be a non-empty (F, J, 3) array, got {g.shape}")
-    if window < 1 or step < 1:
-        raise MotionError(f"window and step must be >= 1, got {window}, {step}")
+    window = check_int(window, "window", 1)
+    step = check_int(step, "step", 1)
+    J = g.shape[1]
+    for name, j in (("pelvis", pelvis), ("left_hip", left_hip), ("right_hip", right_hip)):
+        check_int(j, name, 0, J - 1)
+    idx = np.array([check_int(j, "pose joint", 0, J - 1) for j in joints], dtype=np.intp)
     theta, origin = root_frames(g, pelvis, left_hip, right_hip)
     F = g.shape[0]
-    idx = np.asarray(joints, dtype=np.intp)
     offs = np.arange(-(window - 1) * step, 1, step)
     frames = np.clip(np.arange(F)[:, None] + offs[None, :], 0, F - 1)  # (F, window)
     pts = g[frames][:, :, idx]  # (F, window, P, 3)
@@ -227,7 +289,9 @@ def pose_weights(n_points: int, weights: Sequence[float] | Mapping | None = None
     if weights is None:
         w = np.ones(n_points)
     else:
-        w = np.asarray(weights, dtype=float).reshape(-1)
+        if isinstance(weights, Mapping):
+            raise MotionError("pose weights must be a sequence of numbers, one per pose point, not a mapping")
+        w = real_array(weights, "pose weights").reshape(-1)
         if w.size != n_points:
             raise MotionError(f"need {n_points} pose weights, got {w.size}")
     if not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
@@ -262,9 +326,9 @@ def aligned_distance(a, b, weights=None, *, return_transform: bool = False):
     theta, x0, z0 : (...) arrays, only with ``return_transform``
         ``T(p) = rotate_y(p, theta) + (x0, 0, z0)`` maps ``b`` onto ``a``.
     """
-    a = np.asarray(a, dtype=float)
-    b = np.asarray(b, dtype=float)
-    if a.shape[-1] != 3 or b.shape[-1] != 3 or a.shape[-2] != b.shape[-2]:
+    a = real_array(a, "pose cloud a")
+    b = real_array(b, "pose cloud b")
+    if a.ndim < 2 or b.ndim < 2 or a.shape[-1] != 3 or b.shape[-1] != 3 or a.shape[-2] != b.shape[-2]:
         raise MotionError(f"pose clouds must be (..., P, 3) with equal P, got {a.shape} and {b.shape}")
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
         raise MotionError("pose clouds contain NaN or inf")
@@ -305,7 +369,7 @@ class AlignedPoseIndex:
     weights: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        p = np.ascontiguousarray(self.points, dtype=float)
+        p = np.ascontiguousarray(real_array(self.points, "candidate poses"))
         if p.ndim != 3 or p.shape[-1] != 3:
             raise MotionError(f"candidate poses must be (N, P, 3), got {p.shape}")
         if not np.all(np.isfinite(p)):
@@ -339,7 +403,7 @@ class AlignedPoseIndex:
 
     def query_matrix(self, q: np.ndarray) -> tuple[np.ndarray, float, float, float, float]:
         """The query-dependent parts: ``(3P, 3)`` matrix and ``X, Z, H, sum w y^2`` of the query."""
-        q = np.asarray(q, dtype=float)
+        q = real_array(q, "query pose")
         P = self._P
         if q.shape != (P, 3):
             raise MotionError(f"query pose must be ({P}, 3), got {q.shape}")
@@ -453,12 +517,14 @@ def cluster_poses(points: np.ndarray, k: int | None = None, *, weights=None, see
     points : (N, P, 3) array
         Pose clouds in their canonical root frames (:func:`pose_points`).
     k : int, optional
-        Number of clusters (default :func:`default_k`); clipped to N.
+        Number of clusters, an int >= 1 (default :func:`default_k`); more than N is cut
+        to N with a :class:`~repro.errors.ReproWarning` saying so.
     weights : (P,) array, optional
         Point weights; default uniform.
     seed : int, default 0
-        Seed of the k-means++ initialisation (:func:`scipy.cluster.vq.kmeans2`).
+        Seed (an int >= 0) of the k-means++ initialisation (:func:`scipy.cluster.vq.kmeans2`).
     iterations : int, default 20
+        k-means iterations, in ``[1, MAX_ITERATIONS]`` (10,000).
     max_fit : int or None, default 50,000
         With more poses than this (the 10x / 100x augmented databases), the k-means
         iterations run on a random subset of ``max_fit`` poses (drawn with ``seed``), then
@@ -475,18 +541,23 @@ def cluster_poses(points: np.ndarray, k: int | None = None, *, weights=None, see
     Raises
     ------
     repro.errors.MotionError
-        Empty or non-finite input, ``k < 1``.
+        Empty, non-numeric or non-finite input; ``k``, ``seed``, ``iterations`` or
+        ``max_fit`` not an integer in range (``max_fit`` must be >= ``k``).
     """
-    p = np.asarray(points, dtype=float)
+    p = real_array(points, "poses")
     if p.ndim != 3 or p.shape[-1] != 3 or p.shape[0] == 0:
         raise MotionError(f"need a non-empty (N, P, 3) array of poses, got shape {p.shape}")
     if not np.all(np.isfinite(p)):
         raise MotionError("poses contain NaN or inf")
     N, P, _ = p.shape
-    k = default_k(N) if k is None else int(k)
-    if k < 1:
-        raise MotionError(f"k must be >= 1, got {k}")
-    k = min(k, N)
+    k = default_k(N) if k is None else check_int(k, "k (number of clusters)", 1)
+    seed = check_int(seed, "seed", 0)
+    iterations = check_int(iterations, "iterations", 1, MAX_ITERATIONS)
+    if k > N:
+        warnings.warn(f"k = {k} clusters asked for {N} poses; using k = {N}", ReproWarning, stacklevel=2)
+        k = N
+    if max_fit is not None:
+        max_fit = check_int(max_fit, "max_fit", k)
     w = pose_weights(P, weights)
     sw = np.sqrt(w)[None, :, None]
     X = (p * sw).reshape(N, 3 * P)

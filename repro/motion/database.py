@@ -50,9 +50,13 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import io
 import json
 import math
+import operator
 import re
+import zipfile
+import zlib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -60,8 +64,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from repro.errors import DataError, MotionError, RetrievalError
-from repro.io import atomic_path
+from repro.errors import DataError, MotionError, ReproError, RetrievalError
+from repro.io import MAX_READ_BYTES, atomic_path, read_bytes
 from repro.motion.clustering import (
     POSE_ROLES,
     heading_from_hips,
@@ -119,6 +123,8 @@ CMU_WINDOW: tuple[float, float] = (0.6, 0.3)
 
 _ROLE_OF = {("punch", "left"): "left_fist", ("punch", "right"): "right_fist",
             ("kick", "left"): "left_foot", ("kick", "right"): "right_foot"}
+#: The hit segments a clip may name (roles of :func:`repro.motion.skeleton.find_roles`).
+HIT_ROLES: tuple[str, ...] = tuple(_ROLE_OF.values())
 
 
 # ======================================================================= motions
@@ -488,12 +494,30 @@ class Clip:
     level: str = ""
 
     def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise MotionError(f"a clip name must be a non-empty string, got {self.name!r}")
+        if not isinstance(self.motion, Motion):
+            raise MotionError(f"{self.name}: motion must be a repro.motion.Motion, got {type(self.motion).__name__}")
         _check_semantics(self.semantics)
+        if self.hit_role not in HIT_ROLES:
+            raise MotionError(f"{self.name}: hit segment (hit_role) must be one of {list(HIT_ROLES)}, "
+                              f"got {self.hit_role!r}")
+        if self.side not in ("", "left", "right"):
+            raise MotionError(f"{self.name}: side must be 'left' or 'right', got {self.side!r}")
+        if not isinstance(self.hit_joint, str):
+            raise MotionError(f"{self.name}: hit_joint must be a joint name, got {self.hit_joint!r}")
+        if isinstance(self.hit_frame, (bool, np.bool_)):
+            raise MotionError(f"{self.name}: hit frame must be an integer, got {self.hit_frame!r}")
+        try:
+            operator.index(self.hit_frame)
+        except TypeError:
+            raise MotionError(f"{self.name}: hit frame must be an integer, got {self.hit_frame!r}") from None
         if self.hit_where not in ("joint", "end_site"):
             raise MotionError(f"hit_where must be 'joint' or 'end_site', got {self.hit_where!r}")
         if not 0 <= int(self.hit_frame) < self.motion.n_frames:
             raise MotionError(f"{self.name}: hit frame {self.hit_frame} outside the clip's {self.motion.n_frames} frames")
-        self.motion.joint_index(self.hit_joint)
+        if self.hit_joint not in self.motion.joint_names:
+            raise MotionError(f"{self.name}: hit joint {self.hit_joint!r} is not a joint of the motion")
         if self.hit_where == "end_site" and not np.any(self.motion.end_site_parents == self.motion.joint_index(self.hit_joint)):
             raise MotionError(f"{self.name}: joint {self.hit_joint!r} has no End Site")
         if self.motion.unit_m != 1.0:
@@ -763,9 +787,22 @@ class MotionDatabase:
 
         Arrays are stored as they are; strings and structure (joint names, channels,
         roles, metadata) as JSON strings.  :meth:`load` gives back an equal database
-        (:meth:`equals`).
+        (:meth:`equals`).  The file is written to a temporary file beside ``path`` and
+        moved into place only once complete (:func:`repro.io.atomic_path`), so saving
+        over the file a database was loaded from is safe, and a failed save leaves the
+        previous file as it was.
+
+        Raises
+        ------
+        repro.errors.MotionError
+            :attr:`meta` is not JSON-serialisable.
+        repro.errors.DataError
+            ``path`` cannot be written (a folder, no permission, disk full ...).
         """
-        path = Path(path)
+        try:
+            path = Path(path)
+        except TypeError:
+            raise DataError(f"expected a path to save the database to, got {type(path).__name__}") from None
         out: dict[str, np.ndarray] = {}
         for k in _CLIP_STR:
             out[k] = np.array(json.dumps(getattr(self, k).tolist()))
@@ -795,49 +832,46 @@ class MotionDatabase:
                          "frame_time": self._motions[i].frame_time, "unit_m": self._motions[i].unit_m,
                          "source": self._motions[i].source} for i in motion_ids],
         }
-        out["header"] = np.array(json.dumps(header))
+        try:
+            out["header"] = np.array(json.dumps(header))
+        except (TypeError, ValueError) as exc:
+            raise MotionError(f"the database's meta (or an actor's roles) cannot be saved as JSON: {exc}") from None
         if path.suffix != ".npz":
             path = path.with_name(path.name + ".npz")
-        with atomic_path(path) as tmp:
-            with open(tmp, "wb") as fh:
-                np.savez_compressed(fh, **out)
+        if path.is_dir():
+            raise DataError(f"{path}: is a folder; cannot save the database there")
+        try:
+            with atomic_path(path) as tmp:
+                with open(tmp, "wb") as fh:
+                    np.savez_compressed(fh, **out)
+        except OSError as exc:
+            raise DataError(f"{path}: cannot write the database: {exc}") from exc
         return path
 
     @classmethod
-    def load(cls, path) -> MotionDatabase:
-        """Read a database written by :meth:`save` (``allow_pickle=False``)."""
-        with np.load(Path(path), allow_pickle=False) as z:
-            header = json.loads(str(z["header"]))
-            if header.get("format") != "repro.motion.database/1":
-                raise MotionError(f"{path}: not a motion database file (format {header.get('format')!r})")
-            arrays = {k: np.array(json.loads(str(z[k])), dtype=str) for k in _CLIP_STR}
-            for k in _CLIP_NUM + _POSE_NUM:
-                arrays[k] = z[k]
-            actors = []
-            for a, h in enumerate(header["actors"]):
-                actors.append(Skeleton(joint_names=h["joint_names"], parents=z[f"actor{a}_parents"],
-                                       offsets=z[f"actor{a}_offsets"],
-                                       channels=[tuple(c) for c in h["channels"]] or None,
-                                       end_site_parents=z[f"actor{a}_end_site_parents"],
-                                       end_site_offsets=z[f"actor{a}_end_site_offsets"], unit_m=h["unit_m"],
-                                       roles=h["roles"]))
-            motions = {}
-            for h in header["motions"]:
-                i = h["clip"]
-                motions[i] = Motion(joint_names=h["joint_names"], parents=z[f"motion{i}_parents"],
-                                    offsets=z[f"motion{i}_offsets"], channels=[tuple(c) for c in h["channels"]],
-                                    frame_time=h["frame_time"], rotations=z[f"motion{i}_rotations"],
-                                    positions=z[f"motion{i}_positions"],
-                                    end_site_parents=z[f"motion{i}_end_site_parents"],
-                                    end_site_offsets=z[f"motion{i}_end_site_offsets"], unit_m=h["unit_m"],
-                                    source=h["source"])
-                # Motion() re-normalises quaternions, which may change their last bit; the
-                # stored ones are unit already, keep them bit for bit
-                rot = np.array(z[f"motion{i}_rotations"], dtype=float)
-                rot.flags.writeable = False
-                object.__setattr__(motions[i], "rotations", rot)
-        return cls(fps=header["fps"], pose_roles=header["pose_roles"], window=header["window"],
-                   step=header["step"], actors=actors, motions=motions, arrays=arrays, meta=header["meta"])
+    def load(cls, path, *, max_bytes: int = MAX_READ_BYTES) -> MotionDatabase:
+        """Read a database written by :meth:`save` (``allow_pickle=False``).
+
+        Everything is checked before use: the archive, every array's declared size
+        against its bytes (before allocating), dtypes (no object arrays), shapes,
+        finiteness, the JSON header and the consistency of the arrays (clip and pose
+        offsets, frame indices, actors, stored motions), so that a damaged file fails
+        here rather than later with an ``IndexError``.
+
+        Parameters
+        ----------
+        path : path-like or binary stream
+        max_bytes : int, default :data:`repro.io.MAX_READ_BYTES` (2 GiB)
+            Cap on the file's bytes and on the decompressed arrays.
+
+        Raises
+        ------
+        repro.errors.DataError
+            A missing, unreadable, truncated, corrupt or foreign file, or one whose
+            content is inconsistent; the message names the file and what is wrong.
+        """
+        arrays, where = _read_npz(path, max_bytes)
+        return _database_from_arrays(cls, arrays, where)
 
     def equals(self, other: MotionDatabase) -> bool:
         """Exact equality of every array, annotation, actor, stored motion and metadata."""
@@ -866,6 +900,295 @@ class MotionDatabase:
                             ("offsets", "rotations", "positions", "end_site_parents", "end_site_offsets"))):
                 return False
         return True
+
+
+# ================================================================ loading
+_DB_FORMAT = "repro.motion.database/1"
+
+
+def _read_npz(path, max_bytes: int) -> tuple[dict[str, np.ndarray], str]:
+    """Every ``.npy`` member of an ``.npz`` as an array, checked before allocation."""
+    data, name = read_bytes(path, error=DataError, max_bytes=max_bytes)
+    where = name or "<stream>"
+    if not data:
+        raise DataError(f"{where}: empty file; not a motion database")
+    try:
+        zf = zipfile.ZipFile(io.BytesIO(data))
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, ValueError, EOFError) as exc:
+        raise DataError(f"{where}: not a motion database (not a readable .npz archive: {exc})") from None
+    out: dict[str, np.ndarray] = {}
+    with zf:
+        try:
+            infos = zf.infolist()
+        except (zipfile.BadZipFile, OSError, ValueError) as exc:
+            raise DataError(f"{where}: damaged .npz archive ({exc})") from None
+        total = sum(i.file_size for i in infos)
+        if total > max_bytes:
+            raise DataError(f"{where}: the archive declares {total} bytes of arrays, more than the cap of "
+                            f"{max_bytes}; refusing to read it")
+        for info in infos:
+            if not info.filename.endswith(".npy"):
+                continue
+            key = info.filename[:-4]
+            try:
+                with zf.open(info) as fh:
+                    version = np.lib.format.read_magic(fh)
+                    if version == (1, 0):
+                        shape, fortran, dtype = np.lib.format.read_array_header_1_0(fh)
+                    else:
+                        shape, fortran, dtype = np.lib.format.read_array_header_2_0(fh)
+                    if dtype.hasobject:
+                        raise DataError(f"{where}: array {key!r} holds Python objects (pickles); refused")
+                    need = math.prod(shape) * dtype.itemsize
+                    if not 0 <= need <= info.file_size:
+                        raise DataError(f"{where}: array {key!r} declares shape {shape} of {dtype} ({need} bytes) "
+                                        f"but holds {info.file_size} bytes; the file is damaged")
+                    buf = bytearray(need)
+                    view, got = memoryview(buf), 0
+                    while got < need:
+                        n = fh.readinto(view[got:])
+                        if not n:
+                            break
+                        got += n
+                    if got != need:
+                        raise DataError(f"{where}: array {key!r} is truncated ({got} of {need} bytes)")
+                    if fh.read(1):
+                        raise DataError(f"{where}: array {key!r} has bytes after its data; the file is damaged")
+                a = np.frombuffer(buf, dtype=dtype)
+                a = a.reshape(shape[::-1]).T if fortran else a.reshape(shape)
+            except DataError:
+                raise
+            except (ValueError, TypeError, OSError, EOFError, zipfile.BadZipFile, zlib.error,
+                    NotImplementedError, RuntimeError, SyntaxError, OverflowError, MemoryError) as exc:
+                raise DataError(f"{where}: array {key!r} is damaged ({type(exc).__name__}: {exc})") from None
+            out[key] = a
+    if not out:
+        raise DataError(f"{where}: not a motion database (the archive holds no .npy arrays)")
+    return out, where
+
+
+class _Check:
+    """Schema checks of a loaded database, raising DataError naming the file."""
+
+    def __init__(self, arrays: dict, where: str):
+        self.arrays, self.where = arrays, where
+
+    def fail(self, msg: str):
+        raise DataError(f"{self.where}: {msg}")
+
+    def array(self, key: str) -> np.ndarray:
+        if key not in self.arrays:
+            shown = ", ".join(sorted(self.arrays)[:8]) + (", ..." if len(self.arrays) > 8 else "")
+            self.fail(f"no array {key!r}: not a complete motion database written by MotionDatabase.save "
+                      f"(holds: {shown})")
+        return self.arrays[key]
+
+    def json(self, key: str):
+        a = self.array(key)
+        if a.shape != () or a.dtype.kind != "U":
+            self.fail(f"{key!r} must be a JSON string, got a {a.dtype} array of shape {a.shape}")
+        try:
+            return json.loads(str(a))
+        except (ValueError, RecursionError) as exc:
+            self.fail(f"{key!r} is not valid JSON ({exc})")
+
+    def strings(self, key: str, n: int | None) -> np.ndarray:
+        v = self.json(key)
+        if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+            self.fail(f"{key!r} must be a JSON list of strings")
+        if n is not None and len(v) != n:
+            self.fail(f"{key!r} has {len(v)} entries, expected {n} (one per clip)")
+        return np.array(v, dtype=str) if v else np.zeros(0, dtype=str)
+
+    def numbers(self, key: str, shape: tuple, kind: str) -> np.ndarray:
+        """``kind``: "int", "float" or "bool"; ``shape`` entries None match any length."""
+        a = self.array(key)
+        ok = {"int": "iu", "float": "iuf", "bool": "biu"}[kind]
+        if a.dtype.kind not in ok:
+            self.fail(f"array {key!r} has dtype {a.dtype}, expected {kind}")
+        if a.ndim != len(shape) or any(s is not None and s != t for s, t in zip(shape, a.shape)):
+            want = "(" + ", ".join("any" if s is None else str(s) for s in shape) + ")"
+            self.fail(f"array {key!r} has shape {a.shape}, expected {want}")
+        if kind == "float":
+            a = a.astype(float, copy=False)
+            if not np.all(np.isfinite(a)):
+                self.fail(f"array {key!r} contains NaN or inf")
+        elif kind == "bool":
+            if a.dtype.kind != "b" and not np.all((a == 0) | (a == 1)):
+                self.fail(f"array {key!r} must hold booleans")
+            a = a.astype(bool)
+        else:
+            a = a.astype(np.int64)
+        return a
+
+    def ensure(self, cond, msg: str) -> None:
+        if not cond:
+            self.fail(msg)
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_num(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _check_skeleton_header(ck: _Check, h, what: str) -> None:
+    ck.ensure(isinstance(h, dict), f"{what} must be a JSON object")
+    names = h.get("joint_names")
+    ck.ensure(isinstance(names, list) and names and all(isinstance(n, str) for n in names),
+              f"{what}: joint_names must be a non-empty list of strings")
+    ch = h.get("channels")
+    ck.ensure(isinstance(ch, list) and all(isinstance(c, list) and all(isinstance(x, str) for x in c) for c in ch),
+              f"{what}: channels must be a list of lists of channel names")
+    u = h.get("unit_m")
+    ck.ensure(u is None or (_is_num(u) and u > 0), f"{what}: unit_m must be a finite number > 0 or null, got {u!r}")
+
+
+def _database_from_arrays(cls, z: dict, where: str) -> MotionDatabase:
+    ck = _Check(z, where)
+    header = ck.json("header")
+    ck.ensure(isinstance(header, dict), "not a motion database (header is not a JSON object)")
+    fmt = header.get("format")
+    ck.ensure(fmt == _DB_FORMAT, f"not a motion database file (format {fmt!r}, expected {_DB_FORMAT!r})")
+    fps = header.get("fps")
+    ck.ensure(_is_num(fps) and fps > 0, f"fps must be a finite number > 0, got {fps!r}")
+    roles = header.get("pose_roles")
+    ck.ensure(isinstance(roles, list) and roles and all(isinstance(r, str) for r in roles),
+              "pose_roles must be a non-empty list of role names")
+    window, step = header.get("window"), header.get("step")
+    ck.ensure(_is_int(window) and window >= 1 and _is_int(step) and step >= 1,
+              f"window and step must be integers >= 1, got {window!r}, {step!r}")
+    meta = header.get("meta")
+    ck.ensure(isinstance(meta, dict), "meta must be a JSON object")
+    ah, mh = header.get("actors"), header.get("motions")
+    ck.ensure(isinstance(ah, list) and ah, "the header lists no actor")
+    ck.ensure(isinstance(mh, list), "the header's motions must be a list")
+
+    # ------------------------------------------------- per-clip annotations
+    names = ck.strings("names", None)
+    C = names.size
+    ck.ensure(C >= 1, "the database has no clip")
+    ck.ensure(len(set(names.tolist())) == C, "clip names are not unique")
+    arrays: dict[str, np.ndarray] = {"names": names}
+    for k in _CLIP_STR[1:]:
+        arrays[k] = ck.strings(k, C)
+    bad = sorted(set(arrays["semantics"].tolist()) - set(SEMANTICS))
+    ck.ensure(not bad, f"unknown semantics {bad}; expected {list(SEMANTICS)}")
+    bad = sorted(set(arrays["hit_roles"].tolist()) - set(HIT_ROLES))
+    ck.ensure(not bad, f"unknown hit segments {bad}; expected {list(HIT_ROLES)}")
+    bad = sorted(set(arrays["hit_wheres"].tolist()) - {"joint", "end_site"})
+    ck.ensure(not bad, f"hit_wheres must be 'joint' or 'end_site', got {bad}")
+    for k in ("hit_frame", "n_frames", "actor", "source_clip"):
+        arrays[k] = ck.numbers(k, (C,), "int")
+    for k in ("scale", "size_a", "source_time", "warp", "noise"):
+        arrays[k] = ck.numbers(k, (C,), "float")
+    arrays["mirror"] = ck.numbers("mirror", (C,), "bool")
+    for k in ("box_min", "box_max", "hit_position"):
+        arrays[k] = ck.numbers(k, (C, 3), "float")
+    nf = arrays["n_frames"]
+    ck.ensure(np.all(nf >= 1), "n_frames must be >= 1 for every clip")
+    ck.ensure(np.all((arrays["hit_frame"] >= 0) & (arrays["hit_frame"] < nf)),
+              "a hit frame lies outside its clip (hit_frame not in [0, n_frames))")
+    ck.ensure(np.all((arrays["actor"] >= 0) & (arrays["actor"] < len(ah))),
+              f"a clip's actor index is outside the {len(ah)} stored actors")
+    ck.ensure(np.all((arrays["source_clip"] >= 0) & (arrays["source_clip"] < C)),
+              f"a source_clip index is outside [0, {C})")
+    ck.ensure(np.all(arrays["scale"] > 0) and np.all(arrays["size_a"] > 0) and np.all(arrays["warp"] > 0),
+              "scale, size_a and warp must be > 0")
+    ck.ensure(np.all(arrays["noise"] >= 0), "noise must be >= 0")
+    ck.ensure(np.all(arrays["box_min"] <= arrays["box_max"]), "a bounding box has box_min > box_max")
+
+    # --------------------------------------------------- trajectories, poses
+    for k in ("traj_start", "pose_start"):
+        arrays[k] = ck.numbers(k, (C + 1,), "int")
+    offsets = np.concatenate([[0], np.cumsum(nf)])
+    for k in ("traj_start", "pose_start"):
+        ck.ensure(np.array_equal(arrays[k], offsets),
+                  f"{k} does not match the clips' frame counts (offsets must be 0 and the running sum of n_frames)")
+    T = N = int(offsets[-1])
+    arrays["traj"] = ck.numbers("traj", (T, 3), "float")
+    arrays["pose_points"] = ck.numbers("pose_points", (N, window * len(roles), 3), "float")
+    arrays["pose_clip"] = ck.numbers("pose_clip", (N,), "int")
+    arrays["pose_frame"] = ck.numbers("pose_frame", (N,), "int")
+    arrays["pose_heading"] = ck.numbers("pose_heading", (N,), "float")
+    arrays["pose_origin"] = ck.numbers("pose_origin", (N, 3), "float")
+    pc = np.repeat(np.arange(C), nf)
+    ck.ensure(np.array_equal(arrays["pose_clip"], pc), "pose_clip does not match the clips' frame counts")
+    ck.ensure(np.array_equal(arrays["pose_frame"], np.arange(N) - offsets[pc]),
+              "pose_frame does not number the frames of each clip from 0")
+
+    # ----------------------------------------------------------- actors
+    actors = []
+    for a, h in enumerate(ah):
+        _check_skeleton_header(ck, h, f"actor {a}")
+        ck.ensure(isinstance(h.get("roles"), dict) and all(isinstance(k, str) and isinstance(v, str)
+                                                           for k, v in h["roles"].items()),
+                  f"actor {a}: roles must map role names to joint names")
+        J = len(h["joint_names"])
+        try:
+            sk = Skeleton(joint_names=h["joint_names"],
+                          parents=ck.numbers(f"actor{a}_parents", (J,), "int"),
+                          offsets=ck.numbers(f"actor{a}_offsets", (J, 3), "float"),
+                          channels=[tuple(c) for c in h["channels"]] or None,
+                          end_site_parents=ck.numbers(f"actor{a}_end_site_parents", (None,), "int"),
+                          end_site_offsets=ck.numbers(f"actor{a}_end_site_offsets", (None, 3), "float"),
+                          unit_m=h["unit_m"], roles=h["roles"])
+        except DataError:
+            raise
+        except (ReproError, ValueError, TypeError, KeyError, IndexError) as exc:
+            ck.fail(f"actor {a} is unusable: {exc}")
+        missing = [r for r in roles if r not in sk.roles]
+        ck.ensure(not missing, f"actor {a} lacks the pose roles {missing}")
+        actors.append(sk)
+    for i in range(C):
+        sk = actors[int(arrays["actor"][i])]
+        if str(arrays["hit_joints"][i]) not in sk.joint_names:
+            ck.fail(f"clip {i} ({names[i]}): hit joint {arrays['hit_joints'][i]!r} is not a joint of its actor")
+
+    # ---------------------------------------------------------- motions
+    motions = {}
+    for h in mh:
+        _check_skeleton_header(ck, h, "a stored motion")
+        i = h.get("clip")
+        ck.ensure(_is_int(i) and 0 <= i < C, f"a stored motion names clip {i!r}, not in [0, {C})")
+        ck.ensure(i not in motions, f"clip {i} has two stored motions")
+        ft = h.get("frame_time")
+        ck.ensure(_is_num(ft) and ft > 0 and abs(1.0 / ft - fps) <= 1e-6 * fps,
+                  f"motion of clip {i}: frame_time {ft!r} does not match the database's {fps:g} fps")
+        src = h.get("source")
+        ck.ensure(src is None or isinstance(src, str), f"motion of clip {i}: source must be a string or null")
+        J, F = len(h["joint_names"]), int(nf[i])
+        rot = ck.numbers(f"motion{i}_rotations", (F, J, 4), "float")
+        try:
+            m = Motion(joint_names=h["joint_names"], parents=ck.numbers(f"motion{i}_parents", (J,), "int"),
+                       offsets=ck.numbers(f"motion{i}_offsets", (J, 3), "float"),
+                       channels=[tuple(c) for c in h["channels"]], frame_time=ft, rotations=rot,
+                       positions=ck.numbers(f"motion{i}_positions", (F, J, 3), "float"),
+                       end_site_parents=ck.numbers(f"motion{i}_end_site_parents", (None,), "int"),
+                       end_site_offsets=ck.numbers(f"motion{i}_end_site_offsets", (None, 3), "float"),
+                       unit_m=h["unit_m"], source=src)
+        except DataError:
+            raise
+        except (ReproError, ValueError, TypeError, KeyError, IndexError) as exc:
+            ck.fail(f"the motion of clip {i} is unusable: {exc}")
+        # Motion() re-normalises quaternions, which may change their last bit; the
+        # stored ones are unit already, keep them bit for bit
+        ck.ensure(np.all(np.abs(np.linalg.norm(rot, axis=-1) - 1.0) < 1e-6),
+                  f"motion of clip {i}: rotations are not unit quaternions")
+        rot = np.array(rot, dtype=float)
+        rot.flags.writeable = False
+        object.__setattr__(m, "rotations", rot)
+        motions[i] = m
+    src = arrays["source_clip"]
+    lacking = [i for i in range(C) if i not in motions and int(src[i]) not in motions]
+    ck.ensure(not lacking, f"clips {lacking[:5]} have no stored motion, nor has their source clip")
+    try:
+        return cls(fps=fps, pose_roles=roles, window=window, step=step, actors=actors, motions=motions,
+                   arrays=arrays, meta=meta)
+    except (ReproError, ValueError, TypeError, KeyError, IndexError) as exc:
+        ck.fail(f"inconsistent database: {exc}")
 
 
 def _hit_trajectory(motion: Motion, g: np.ndarray, joint: str, where: str) -> np.ndarray:

@@ -55,6 +55,22 @@ optimum of ``d``); :meth:`MotionRetriever.search_kdtree` queries a
 frame and the hit position at the hit frame, both in units of the actor's size,
 weighted by ``w_q`` and ``w_c``) for its nearest neighbours and rescores them with
 ``d``.  :func:`time_search` measures the latency of the three.
+
+Arguments are checked, never silently cut or coerced (a
+:class:`~repro.errors.RetrievalError` names the value and what is allowed):
+
+* the target ``c`` is a finite 3-vector with every coordinate within
+  :data:`MAX_TARGET_M` (1,000 km) of the character's root: nothing a fighter can
+  reach, and far inside what float64 squared distances handle (beyond about 1e154 m
+  they overflow, and the searches would return ``d = inf`` or, in the k-d tree,
+  missing neighbours); a search whose distance still comes out non-finite (a
+  character of a tiny size making ``c_r`` enormous) is refused;
+* ``w_q`` and ``w_c`` are real numbers in ``[0, MAX_WEIGHT]`` (1e6), not both 0
+  (only their ratio matters for the selection);
+* ``k`` (clusters) is an int in ``[1, n_poses]``, ``seed`` an int >= 0,
+  ``kd_neighbours`` an int >= 1 (more than a semantics' startable poses means all of
+  them), ``frame`` an int inside the current pose, ``semantics`` one of
+  :data:`~repro.motion.database.SEMANTICS`, ``prune`` / ``scale_target`` booleans.
 """
 
 from __future__ import annotations
@@ -71,6 +87,7 @@ from repro.errors import MotionError, RetrievalError
 from repro.motion.clustering import (
     AlignedPoseIndex,
     PoseClusters,
+    check_int,
     cluster_poses,
     pose_points,
     root_frames,
@@ -83,6 +100,8 @@ from repro.motion.skeleton import Skeleton, rescale_constraint, skeleton_of
 
 __all__ = [
     "FALLBACKS",
+    "MAX_TARGET_M",
+    "MAX_WEIGHT",
     "Query",
     "RetrievalResult",
     "MotionRetriever",
@@ -93,6 +112,12 @@ __all__ = [
 
 #: Values of :attr:`RetrievalResult.fallback`.
 FALLBACKS: tuple[str, ...] = ("none", "neighbour_clusters", "no_box", "disabled")
+#: Largest |coordinate| (metres) of a target accepted by the searches (see the module docstring).
+MAX_TARGET_M: float = 1e6
+#: Largest accepted ``w_q`` / ``w_c`` (only their ratio matters).
+MAX_WEIGHT: float = 1e6
+#: The search methods of :func:`time_search`.
+METHODS: tuple[str, ...] = ("pruned", "exhaustive", "kdtree")
 
 
 @dataclass(frozen=True, eq=False)
@@ -226,7 +251,34 @@ class _Block:
 
 
 def _check_target(target) -> np.ndarray:
-    return finite_vector3(target, "target (x, y, z) in the character's root frame", RetrievalError)
+    if isinstance(target, (str, bytes)):
+        raise RetrievalError(f"target must be a 3-vector of numbers (metres), got {target!r}")
+    try:
+        a = np.asarray(target)
+    except (TypeError, ValueError):
+        a = None
+    if a is None or a.dtype.kind not in "biuf" and a.dtype.kind != "O":
+        raise RetrievalError(f"target must be a 3-vector of real numbers (metres), got {target!r}")
+    c = finite_vector3(target, "target (x, y, z) in the character's root frame", RetrievalError)
+    if np.abs(c).max() > MAX_TARGET_M:
+        raise RetrievalError(f"target {c.tolist()} is more than {MAX_TARGET_M:g} m from the character; "
+                             "expected metres in the character's root frame")
+    return c
+
+
+def _check_weight(name: str, w) -> float:
+    if isinstance(w, (bool, np.bool_)) or not isinstance(w, (int, float, np.integer, np.floating)):
+        raise RetrievalError(f"{name} must be a real number in [0, {MAX_WEIGHT:g}], got {w!r}")
+    w = float(w)
+    if not (np.isfinite(w) and 0.0 <= w <= MAX_WEIGHT):
+        raise RetrievalError(f"{name} must be finite and in [0, {MAX_WEIGHT:g}], got {w!r}")
+    return w
+
+
+def _check_flag(name: str, v) -> bool:
+    if not isinstance(v, (bool, np.bool_)):
+        raise RetrievalError(f"{name} must be True or False, got {v!r}")
+    return bool(v)
 
 
 class MotionRetriever:
@@ -247,14 +299,17 @@ class MotionRetriever:
     weights : (P',) array, optional
         Pose point weights (default uniform).
     w_q, w_c : float, default 1
-        Weights of ``d = w_q d_qr + w_c d_cr`` (both distances in metres).
+        Weights of ``d = w_q d_qr + w_c d_cr`` (both distances in metres), in
+        ``[0, MAX_WEIGHT]``, not both 0.
     kd_neighbours : int, default 32
-        Neighbours fetched by :meth:`search_kdtree` before rescoring.
+        Neighbours fetched by :meth:`search_kdtree` before rescoring (>= 1; at most the
+        startable poses of the semantics are fetched).
 
     Raises
     ------
     repro.errors.RetrievalError
-        Empty database, bad weights.
+        Empty database; ``k`` not an int in ``[1, n_poses]``; bad ``seed``, weights,
+        ``w_q``, ``w_c`` or ``kd_neighbours``.
     """
 
     def __init__(self, db: MotionDatabase, *, k: int | None = None, seed: int = 0, weights=None,
@@ -263,12 +318,15 @@ class MotionRetriever:
             raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
         if db.n_clips == 0 or db.n_poses == 0:
             raise RetrievalError("the motion database is empty")
-        for name, w in (("w_q", w_q), ("w_c", w_c)):
-            if not (np.isfinite(w) and w >= 0):
-                raise RetrievalError(f"{name} must be finite and >= 0, got {w!r}")
+        w_q, w_c = _check_weight("w_q", w_q), _check_weight("w_c", w_c)
+        if w_q == 0.0 and w_c == 0.0:
+            raise RetrievalError("w_q and w_c are both 0: every pose would score d = 0")
+        if k is not None:
+            k = check_int(k, "k (number of clusters)", 1, db.n_poses, RetrievalError)
+        seed = check_int(seed, "seed", 0, None, RetrievalError)
         self.db = db
-        self.w_q, self.w_c = float(w_q), float(w_c)
-        self.kd_neighbours = int(kd_neighbours)
+        self.w_q, self.w_c = w_q, w_c
+        self.kd_neighbours = check_int(kd_neighbours, "kd_neighbours", 1, None, RetrievalError)
         try:
             self.index = AlignedPoseIndex(db.pose_points, weights)
             self.clusters: PoseClusters = cluster_poses(db.pose_points, k, weights=weights, seed=seed)
@@ -328,9 +386,9 @@ class MotionRetriever:
             raise RetrievalError("current_pose is not on the character's skeleton (joint names / parents differ)")
         db = self.db
         F = current_pose.n_frames
-        f = F - 1 if frame is None else int(frame)
+        f = F - 1 if frame is None else check_int(frame, "frame", None, None, RetrievalError)
         if not 0 <= f < F:
-            raise RetrievalError(f"frame {frame} outside the current pose's {F} frames")
+            raise RetrievalError(f"frame {frame} outside the current pose's {F} frames (expected 0 to {F - 1})")
         need = (db.window - 1) * db.step + 1
         m = current_pose
         if need > 1 and abs(m.fps - db.fps) > 1e-6 * db.fps:
@@ -367,11 +425,39 @@ class MotionRetriever:
         return Query(q_n=q_n, size_c=float(size_c), heading=float(th[0]), origin=o[0], actors=tuple(q_n))
 
     def _semantics(self, semantics) -> str:
-        if semantics not in SEMANTICS:
+        if not isinstance(semantics, str) or semantics not in SEMANTICS:
             raise RetrievalError(f"unknown semantics {semantics!r}; expected one of {list(SEMANTICS)}")
         if self.sem_rows[semantics].size == 0:
             raise RetrievalError(f"the database has no {semantics!r} clip with a pose before its hit")
         return semantics
+
+    def _query(self, current_pose, character, frame) -> Query:
+        """A prepared :class:`Query` (checked), or :meth:`prepare` of the current pose."""
+        if not isinstance(current_pose, Query):
+            return self.prepare(current_pose, character, frame=frame)
+        q = current_pose
+        if not isinstance(q.q_n, dict) or not q.q_n:
+            raise RetrievalError("the Query has no retargeted pose (q_n); make it with MotionRetriever.prepare")
+        P = self.index._P
+        for a, qn in q.q_n.items():
+            if a not in set(self.actors_present.tolist()):
+                raise RetrievalError(f"the Query names actor {a!r}, not an actor of this database "
+                                     f"({self.actors_present.tolist()})")
+            try:
+                v = np.asarray(qn, dtype=float)
+            except (TypeError, ValueError):
+                v = None
+            if v is None or v.shape != (P, 3) or not np.all(np.isfinite(v)):
+                raise RetrievalError(f"the Query's pose for actor {a} must be a finite ({P}, 3) array")
+        try:
+            ok = np.isfinite(q.size_c) and q.size_c > 0
+        except TypeError:
+            ok = False
+        if not ok:
+            raise RetrievalError(f"the Query's size_c must be finite and > 0, got {q.size_c!r}")
+        if tuple(q.actors) != tuple(q.q_n):
+            raise RetrievalError("the Query's actors do not match its poses; make it with MotionRetriever.prepare")
+        return q
 
     def _c_r(self, c: np.ndarray, size_c: float, scale_target: bool) -> np.ndarray:
         """(C, 3) target of every clip's actor: Eq. 1 (or c itself without scaling)."""
@@ -379,7 +465,11 @@ class MotionRetriever:
             return np.broadcast_to(c, (self.db.n_clips, 3))
         # Eq. 1, c * size_a / size_c (rescale_constraint), for every clip's size_a at once
         rescale_constraint(c, 1.0, size_c)  # validates c and size_c
-        return c[None, :] * (self.db.size_a / size_c)[:, None]
+        c_r = c[None, :] * (self.db.size_a / size_c)[:, None]
+        if not np.all(np.abs(c_r) <= MAX_TARGET_M * 1e3):
+            raise RetrievalError(f"target {c.tolist()} rescaled from the character's size {size_c:g} m to the "
+                                 f"actors' (Eq. 1) is beyond {MAX_TARGET_M * 1e3:g} m")
+        return c_r
 
     def _block(self, rows: np.ndarray) -> _Block | None:
         """Contiguous precomputed data of a set of candidate poses (None if empty)."""
@@ -455,6 +545,9 @@ class MotionRetriever:
 
     def _result(self, q: Query, best, c_r, *, cluster, fallback, rank, method) -> RetrievalResult:
         row, d, dqr, dcr, n = best
+        if not np.isfinite(d):
+            raise RetrievalError(f"the weighted distance d is not finite (d = {d}) for clip "
+                                 f"{int(self.db.pose_clip[row])}: target or weights too large")
         db = self.db
         i = int(db.pose_clip[row])
         a = int(db.actor[i])
@@ -511,7 +604,8 @@ class MotionRetriever:
         """
         c = _check_target(target)
         sem = self._semantics(semantics)
-        q = current_pose if isinstance(current_pose, Query) else self.prepare(current_pose, character, frame=frame)
+        prune, scale_target = _check_flag("prune", prune), _check_flag("scale_target", scale_target)
+        q = self._query(current_pose, character, frame)
         return self._search_pruned(c, q, sem, prune=prune, scale_target=scale_target)
 
     def _search_pruned(self, c, q: Query, sem: str, *, prune: bool = True, scale_target: bool = True):
@@ -549,7 +643,8 @@ class MotionRetriever:
         """Baseline: score every startable pose of the semantics with the same ``d``."""
         c = _check_target(target)
         sem = self._semantics(semantics)
-        q = current_pose if isinstance(current_pose, Query) else self.prepare(current_pose, character, frame=frame)
+        scale_target = _check_flag("scale_target", scale_target)
+        q = self._query(current_pose, character, frame)
         c_r = self._c_r(c, q.size_c, scale_target)
         best = self._score_block(self.sem_block[sem], q, c_r)
         if best is None:
@@ -581,7 +676,7 @@ class MotionRetriever:
         """
         c = _check_target(target)
         sem = self._semantics(semantics)
-        q = current_pose if isinstance(current_pose, Query) else self.prepare(current_pose, character, frame=frame)
+        q = self._query(current_pose, character, frame)
         tree, rows_all = self._kdtree(sem)
         c_r = self._c_r(c, q.size_c, True)
         sw = np.sqrt(self.weights)[:, None]
@@ -589,8 +684,9 @@ class MotionRetriever:
         for a, qn in q.q_n.items():
             v = np.concatenate([(qn * sw).reshape(-1) * self.w_q, c / q.size_c * self.w_c])
             kk = min(self.kd_neighbours, rows_all.size)
-            _, nb = tree.query(v, k=kk)
-            rows = self._allowed(rows_all[np.atleast_1d(nb)], q)
+            dist, nb = tree.query(v, k=kk)
+            nb = np.atleast_1d(nb)[np.isfinite(np.atleast_1d(dist))]  # cKDTree marks missing ones with n
+            rows = self._allowed(rows_all[nb], q)
             if rows.size == 0:
                 continue
             cand = self._score(rows, q, c_r)
@@ -627,6 +723,13 @@ def _pose_motion(m: Motion, f: int) -> Motion:
     return dataclasses.replace(m, rotations=m.rotations[f:f + 1], positions=m.positions[f:f + 1])
 
 
+def _check_noise(noise) -> float:
+    if isinstance(noise, (bool, np.bool_)) or not isinstance(noise, (int, float, np.integer, np.floating)) \
+            or not (np.isfinite(noise) and 0 <= noise <= MAX_TARGET_M):
+        raise RetrievalError(f"noise must be a finite number of metres in [0, {MAX_TARGET_M:g}], got {noise!r}")
+    return float(noise)
+
+
 def make_queries(db: MotionDatabase, n: int, seed: int = 0, *, noise: float = 0.05):
     """Random queries for :func:`time_search`: (target, current pose, character, semantics).
 
@@ -635,7 +738,17 @@ def make_queries(db: MotionDatabase, n: int, seed: int = 0, *, noise: float = 0.
     its hit (within 3 frames), moved by Gaussian noise of ``noise`` metres, rescaled to
     the character (Eq. 1 inverted) -- so that most queries have clips whose box contains
     ``c_r``, as in the paper's use.
+
+    Raises
+    ------
+    repro.errors.RetrievalError
+        Not a database, ``n`` or ``seed`` not an int >= 0, ``noise`` not finite >= 0.
     """
+    if not isinstance(db, MotionDatabase):
+        raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
+    n = check_int(n, "n (number of queries)", 0, None, RetrievalError)
+    seed = check_int(seed, "seed", 0, None, RetrievalError)
+    noise = _check_noise(noise)
     rng = np.random.default_rng(seed)
     originals = np.flatnonzero(db.source_clip == np.arange(db.n_clips))
     out = []
@@ -675,7 +788,28 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
         ``kdtree``, the fraction of queries whose selection (clip, start frame) differs
         from the exhaustive optimum and the mean / max relative excess of ``d``; plus the
         fallback counts of the pruned search.
+
+    Raises
+    ------
+    repro.errors.RetrievalError
+        ``n_queries`` or ``repeats`` not an int >= 1, an unknown or no method, a
+        ``retriever`` of another database, and the errors of :func:`make_queries`.
     """
+    if not isinstance(db, MotionDatabase):
+        raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
+    n_queries = check_int(n_queries, "n_queries", 1, None, RetrievalError)
+    repeats = check_int(repeats, "repeats", 1, None, RetrievalError)
+    if isinstance(methods, str):
+        methods = (methods,)
+    try:
+        methods = tuple(methods)
+    except TypeError:
+        raise RetrievalError(f"methods must be a sequence of {list(METHODS)}, got {methods!r}") from None
+    bad = [m for m in methods if not isinstance(m, str) or m not in METHODS]
+    if bad or not methods:
+        raise RetrievalError(f"methods must be a non-empty sequence of {list(METHODS)}, got {list(methods)}")
+    if retriever is not None and (not isinstance(retriever, MotionRetriever) or retriever.db is not db):
+        raise RetrievalError("retriever must be a MotionRetriever built on this database")
     t0 = time.perf_counter()
     r = retriever if retriever is not None else MotionRetriever(db, **retriever_kw)
     precompute = time.perf_counter() - t0
@@ -695,7 +829,7 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
         ts, res = [], []
         for c, qq, sem in prepared:
             best = np.inf
-            for _ in range(max(1, int(repeats))):
+            for _ in range(repeats):
                 t = time.perf_counter()
                 out = fn(c, qq, None, sem)
                 best = min(best, time.perf_counter() - t)
