@@ -122,7 +122,7 @@ def read_npz(
     Parameters
     ----------
     src : str, os.PathLike or binary file object
-        The archive (a seekable stream is read from its current content).
+        The archive: a path, or a seekable binary stream (read from its start).
     error : ReproError subclass, default DataError
         The exception raised for every problem (e.g. ``MotionError``, ``ModelError``).
     allow : mapping of member name to dtype kinds, optional
