@@ -5,15 +5,23 @@ is moved into place with :func:`os.replace` only once it is complete.  Every
 file repro reads goes through :func:`read_bytes`, which names the path in its
 errors and caps what a file (or a gzip stream) may make the reader hold.
 Read-modify-write of a shared file is serialised with :func:`file_lock`.
+An ``.npz`` archive from outside the process (a cache, a saved database) is read
+with :func:`read_npz`, which checks every member's ``.npy`` header against the
+archive before allocating anything.
 """
 
 from __future__ import annotations
 
 import contextlib
 import gzip
+import math
 import os
+import struct
 import tempfile
+import tokenize
+import zipfile
 import zlib
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 from repro.errors import DataError, ReproError
@@ -25,6 +33,7 @@ __all__ = [
     "write_text",
     "save_figure",
     "read_bytes",
+    "read_npz",
     "file_lock",
     "MAX_READ_BYTES",
 ]
@@ -81,6 +90,202 @@ def read_bytes(src, *, error: type[ReproError] = DataError, max_bytes: int = MAX
     except OSError as exc:
         raise error(f"{p} cannot be read: {exc}") from exc
     return b"".join(chunks), str(p)
+
+
+#: dtype kinds :func:`read_npz` returns when ``allow`` is not given (no objects, no structured records).
+NPZ_KINDS = "biufcUS"
+#: Largest expansion deflate can achieve (1032:1), plus slack for a member's framing.
+_DEFLATE_RATIO = 1032
+_DEFLATE_SLACK = 1 << 12
+#: What zipfile, zlib and numpy's ``.npy`` header parser raise on a damaged archive.
+_NPZ_ERRORS = (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError, zlib.error, struct.error,
+               ValueError, TypeError, SyntaxError, KeyError, OverflowError, RecursionError,
+               NotImplementedError, RuntimeError, tokenize.TokenError, UnicodeDecodeError)
+
+
+def read_npz(
+    src,
+    *,
+    error: type[ReproError] = DataError,
+    allow: Mapping[str, str] | None = None,
+    required: Iterable[str] | None = None,
+    finite: bool = True,
+    max_bytes: int = MAX_READ_BYTES,
+) -> dict:
+    """The arrays of an ``.npz`` archive (``numpy.savez`` / ``savez_compressed``), checked before allocating.
+
+    A safe replacement for ``numpy.load(path, allow_pickle=False)`` on a file that
+    may be damaged, truncated, foreign or hostile: nothing is allocated that the
+    archive does not actually hold, and every failure is one ``error`` naming the
+    file (and the member).
+
+    Parameters
+    ----------
+    src : str, os.PathLike or binary file object
+        The archive: a path, or a seekable binary stream (read from its start).
+    error : ReproError subclass, default DataError
+        The exception raised for every problem (e.g. ``MotionError``, ``ModelError``).
+    allow : mapping of member name to dtype kinds, optional
+        E.g. ``{"f0": "f", "faces": "iu", "names": "U"}`` (``numpy.dtype.kind`` codes:
+        ``b`` bool, ``i``/``u`` integers, ``f`` float, ``c`` complex, ``U`` text, ``S``
+        bytes).  Only these members are read (others are skipped unread), and a member
+        of another kind is an error.  Default: every member, of any kind in
+        :data:`NPZ_KINDS`.
+    required : iterable of member names, optional
+        Members that must be present.  Default: every name of ``allow`` (none when
+        ``allow`` is not given); pass ``()`` to make them all optional.
+    finite : bool, default True
+        Float and complex members must hold no NaN or inf.
+    max_bytes : int
+        Cap on the sum of the members' decompressed sizes (default :data:`MAX_READ_BYTES`).
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        Member names without ``.npy``, in archive order; fresh, writable arrays
+        (not memory-mapped), in the byte order stored.
+
+    Raises
+    ------
+    ``error``
+        Naming the file (and member): no such file, a folder, no permission; not a
+        zip archive, truncated, a bad CRC, an encrypted member or one compressed
+        other than stored/deflate, duplicate names, a member that is not ``.npy``;
+        a ``.npy`` header that is unreadable, of an unsupported version, an object
+        (pickle) or structured dtype, or a shape whose size (``prod(shape) x
+        itemsize``) is not what the member holds (checked before anything is
+        allocated: a 200-byte lie claiming 10**10 items is refused); a member of a
+        kind ``allow`` does not list, a missing ``required`` member, NaN/inf
+        (``finite``), or more than ``max_bytes`` in all.
+
+    Notes
+    -----
+    Memory is bounded by what the archive holds: each member's declared size is
+    checked against its compressed size (deflate expands at most 1032:1; a stored
+    member holds exactly its size), and data is read in chunks, so a lying
+    ``ZipInfo.file_size`` ends in an error, not an allocation.  Cost: one pass over
+    the decompressed bytes, as ``numpy.load``.
+    """
+    import numpy as np
+    from numpy.lib import format as npy
+
+    if hasattr(src, "read"):
+        where = str(getattr(src, "name", "<stream>"))
+        fh, own = src, False
+    else:
+        try:
+            p = Path(src)
+        except TypeError:
+            raise error(f"expected a path or a binary stream, got {type(src).__name__}") from None
+        where = str(p)
+        try:
+            fh, own = open(p, "rb"), True
+        except FileNotFoundError:
+            raise error(f"{p}: no such file") from None
+        except IsADirectoryError:
+            raise error(f"{p}: is a folder, not a file") from None
+        except PermissionError:
+            raise error(f"{p}: permission denied") from None
+        except OSError as exc:
+            raise error(f"{p} cannot be read: {exc}") from exc
+    out: dict = {}
+    member = None
+    budget = max_bytes
+    try:
+        try:
+            disk = fh.seek(0, os.SEEK_END)
+            fh.seek(0)
+            with zipfile.ZipFile(fh) as z:
+                infos = z.infolist()
+                names = [i.filename for i in infos]
+                dup = sorted({n for n in names if names.count(n) > 1})
+                if dup:
+                    raise error(f"{where}: duplicate archive members {dup[:5]}")
+                for info in infos:
+                    member = info.filename
+                    if not member.endswith(".npy"):
+                        raise error(f"{where}: member {member!r} is not an .npy array (not a numpy .npz archive?)")
+                    key = member[:-4]
+                    if allow is not None and key not in allow:
+                        continue
+                    budget -= info.file_size  # (checked before the member is read)
+                    if budget < 0:
+                        raise error(f"{where}: more than {max_bytes} bytes of arrays; refusing to read it")
+                    out[key] = _npz_member(z, info, disk, where, error, allow, finite, np, npy)
+                member = None
+        except ReproError:
+            raise
+        except MemoryError:
+            raise error(f"{where}{_in(member)}: not enough memory to read it") from None
+        except _NPZ_ERRORS as exc:
+            msg = str(exc)[:200] if not isinstance(exc, RecursionError) else "nested too deeply"
+            raise error(f"{where}{_in(member)}: not a readable .npz archive ({type(exc).__name__}: {msg})") from None
+    finally:
+        if own:
+            fh.close()
+    need = list(allow or ()) if required is None else list(required)
+    missing = [k for k in need if k not in out]
+    if missing:
+        raise error(f"{where}: no {missing} in the archive (it has {sorted(out) or 'no arrays'})")
+    return out
+
+
+def _in(member) -> str:
+    return f", member {member!r}" if member else ""
+
+
+def _npz_member(z, info, disk, where, error, allow, finite, np, npy):
+    """One ``.npy`` member of an open archive, every size checked before it is read."""
+    name = info.filename
+    key = name[:-4]
+    at = f"{where}, member {name!r}"
+    if info.flag_bits & 0x1:
+        raise error(f"{at}: encrypted")
+    if info.compress_type == zipfile.ZIP_STORED:
+        if info.file_size != info.compress_size:
+            raise error(f"{at}: stored member of {info.file_size} bytes holds {info.compress_size}")
+    elif info.compress_type == zipfile.ZIP_DEFLATED:
+        if info.file_size > _DEFLATE_RATIO * info.compress_size + _DEFLATE_SLACK:
+            raise error(f"{at}: claims {info.file_size} bytes from {info.compress_size} compressed (not possible)")
+    else:
+        raise error(f"{at}: compression method {info.compress_type} (expected stored or deflate, as numpy writes)")
+    if info.header_offset + info.compress_size > disk:
+        raise error(f"{at}: extends past the end of the file ({disk} bytes; truncated?)")
+    with z.open(info) as fp:
+        version = npy.read_magic(fp)
+        if version == (1, 0):
+            shape, fortran, dtype = npy.read_array_header_1_0(fp)
+        elif version == (2, 0):
+            shape, fortran, dtype = npy.read_array_header_2_0(fp)
+        else:
+            raise error(f"{at}: .npy format version {version} (expected 1.0 or 2.0)")
+        if dtype.hasobject or dtype.fields is not None or dtype.subdtype is not None:
+            raise error(f"{at}: dtype {dtype} (objects, records and sub-arrays are refused)")
+        kinds = NPZ_KINDS if allow is None else allow[key]
+        if dtype.kind not in kinds:
+            raise error(f"{at}: dtype {dtype}, expected kind {' or '.join(repr(k) for k in kinds)}")
+        if not all(isinstance(n, int) and n >= 0 for n in shape) or len(shape) > 32:
+            raise error(f"{at}: bad shape {shape!r} in the .npy header")
+        nbytes = math.prod(shape) * dtype.itemsize
+        header = fp.tell()
+        if header + nbytes != info.file_size:
+            raise error(f"{at}: the .npy header claims shape {shape} of {dtype} ({nbytes} bytes), "
+                        f"the member holds {info.file_size - header} bytes of data")
+        buf = bytearray()
+        while len(buf) < nbytes:
+            chunk = fp.read(min(_CHUNK, nbytes - len(buf)))
+            if not chunk:
+                raise error(f"{at}: data ends after {len(buf)} of {nbytes} bytes (truncated?)")
+            buf += chunk
+        if fp.read(1):  # (also makes zipfile check the CRC)
+            raise error(f"{at}: more data than its .npy header says")
+    count = math.prod(shape)
+    a = np.frombuffer(buf, dtype=dtype, count=count) if count else np.empty(0, dtype=dtype)
+    a = a.reshape(shape[::-1]).T if fortran else a.reshape(shape)
+    if finite and dtype.kind in "fc" and not np.isfinite(a).all():
+        idx = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
+        raise error(f"{at}: NaN or inf at index {list(idx)} (value {a[idx]!r})")
+    return a
 
 
 @contextlib.contextmanager

@@ -563,3 +563,27 @@ def test_load_model_takes_paths_and_still_knows_its_names(tmp_path):
     assert load_model("procedural").name == "procedural"
     with pytest.raises(ModelError, match="unknown model 'bingo'"):
         load_model("bingo")
+
+
+@pytest.mark.parametrize("suffix", [".gltf", ".glb"])
+@pytest.mark.parametrize("kind", ["list", "dict"])
+def test_deeply_nested_json_is_a_model_error(tmp_path, suffix, kind):
+    # fuzz finding: a 2,000-deep JSON value in the document raised a bare RecursionError
+    import shutil
+
+    deep = "[" * 2000 + "1" + "]" * 2000 if kind == "list" else '{"a":' * 2000 + "1" + "}" * 2000
+    doc = json.loads((DATA / "face.gltf").read_text())
+    text = json.dumps(doc).replace('"asset": {', f'"extras": {deep}, "asset": {{', 1)
+    assert deep in text
+    if suffix == ".gltf":
+        shutil.copy(DATA / "face.bin", tmp_path / "face.bin")
+        path = tmp_path / "deep.gltf"
+        path.write_text(text)
+    else:  # the same document as the JSON chunk of a GLB (no BIN chunk: the buffer stays external)
+        shutil.copy(DATA / "face.bin", tmp_path / "face.bin")
+        js = text.encode() + b" " * (-len(text) % 4)
+        body = struct.pack("<II", len(js), 0x4E4F534A) + js
+        path = tmp_path / "deep.glb"
+        path.write_bytes(b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body)
+    with pytest.raises(ModelError, match=r"deep\.gl(tf|b): malformed glTF \(JSON nested too deeply\)"):
+        load_model(path)

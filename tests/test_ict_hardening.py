@@ -242,3 +242,71 @@ def test_unwritable_cache_is_not_a_warning(tmp_path, monkeypatch):
     assert ict._check_cache(blocker / "c" / "ict-x.npz", SHAPES) == (None, None)
     assert ict._check_cache(tmp_path / "absent.npz", SHAPES) == (None, None)
     assert not ict._save_cache(blocker / "c" / "x.npz", {"a": np.zeros(1)})
+
+
+# --------------------------------------------------------- the cache file read through repro.io.read_npz
+@pytest.fixture
+def tiny_cache(tmp_path, monkeypatch):
+    """A valid 6-vertex cache for two shapes (the ICT sizes patched to it): (path, shapes, arrays, write)."""
+    monkeypatch.setattr(ict, "ICT_N_VERTICES", 6)
+    monkeypatch.setattr(ict, "ICT_N_TRIANGLES", 3)
+    shapes = tuple(ict.ICT_SHAPES[:2])
+    rng = np.random.default_rng(0)
+    arrays = {
+        "f0": rng.normal(size=(6, 3)),
+        "D": rng.normal(size=(18, 2)),
+        "faces": np.array([[0, 1, 2], [0, 2, 3], [3, 4, 5]]),
+        "names": np.array(shapes),
+        "landmarks": rng.integers(0, 6, size=68),
+        "format": np.array(ict._CACHE_FORMAT),
+    }
+    path = tmp_path / "ict-tiny.npz"
+
+    def write(a):
+        assert ict._save_cache(path, a, ict._source_hashes(shapes))
+
+    write(arrays)
+    return path, shapes, arrays, write
+
+
+def test_read_cache_returns_a_good_cache_and_names_what_is_wrong(tiny_cache, tmp_path):
+    path, shapes, arrays, _ = tiny_cache
+    got = ict.read_cache(path, shapes)
+    for k, v in arrays.items():
+        np.testing.assert_array_equal(got[k], v)
+    with pytest.raises(DataError, match=r"^ICT cache .*absent\.npz: no such file"):
+        ict.read_cache(tmp_path / "absent.npz", shapes)
+    with pytest.raises(DataError, match=r"other shapes or shape names"):
+        ict.read_cache(path, shapes[::-1])
+
+
+@pytest.mark.parametrize("key", ["f0", "D"])
+@pytest.mark.parametrize("value", [np.nan, np.inf])
+def test_nan_in_a_cache_with_a_matching_content_hash_is_damage(tiny_cache, key, value):
+    # fuzz finding: NaN/inf in the cached arrays were used (the hash only says they were written so)
+    path, shapes, arrays, write = tiny_cache
+    bad = dict(arrays)
+    bad[key] = arrays[key].copy()
+    bad[key][1, 1] = value
+    write(bad)
+    got, damage = ict._check_cache(path, shapes)
+    assert got is None and f"member '{key}.npy': NaN or inf at index [1, 1]" in damage
+    with pytest.raises(DataError, match=rf"ICT cache .*: member '{key}\.npy': NaN or inf"):
+        ict.read_cache(path, shapes)
+
+
+def test_lying_npy_header_in_a_cache_is_damage_not_an_allocation(tiny_cache):
+    # fuzz finding: a member whose .npy header claims shape (10000000000,) made np.load allocate (MemoryError)
+    import re
+    import zipfile
+
+    path, shapes, _, _ = tiny_cache
+    with zipfile.ZipFile(path) as z:
+        members = [(i.filename, z.read(i)) for i in z.infolist()]
+    members = [(n, re.sub(rb"'shape': \([^)]*\)", b"'shape': (10000000000,)", d, count=1) if n == "D.npy" else d)
+               for n, d in members]
+    with zipfile.ZipFile(path, "w") as z:
+        for n, d in members:
+            z.writestr(n, d)
+    got, damage = ict._check_cache(path, shapes)
+    assert got is None and "member 'D.npy': the .npy header claims shape (10000000000,)" in damage, damage

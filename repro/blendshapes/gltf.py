@@ -578,6 +578,8 @@ def read_gltf(
         return _read(p, raw, mesh, primitive, max_bytes)
     except ModelError:
         raise
+    except RecursionError:  # json / pygltflib on a deeply nested document
+        raise ModelError(f"{p}: malformed glTF (JSON nested too deeply)") from None
     except (TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError, struct.error) as exc:
         # a field of an unexpected JSON type that no check above caught: still the file's fault
         raise ModelError(f"{p}: malformed glTF ({type(exc).__name__}: {exc})") from None

@@ -33,7 +33,10 @@ assembled arrays are cached in an ``.npz`` file in ``$REPRO_CACHE_DIR`` (else
 the files used; the data folder itself is never written to.  The file records
 those sha256s and a sha256 of its arrays, both checked when it is loaded; a
 damaged cache is rebuilt with a :class:`~repro.errors.CacheWarning`.  The model
-is also kept in memory per process (see :func:`load_ict`).
+is also kept in memory per process (see :func:`load_ict`).  :func:`read_cache`
+reads and checks one cache file (through :func:`repro.io.read_npz`: no member is
+allocated before its ``.npy`` header is checked against the archive) and says
+what is wrong with a damaged one.
 """
 
 from __future__ import annotations
@@ -52,13 +55,14 @@ import numpy as np
 from repro import data
 from repro.blendshapes.model import BlendshapeModel
 from repro.errors import CacheWarning, DataError, ModelError
-from repro.io import atomic_path, read_bytes
+from repro.io import atomic_path, read_bytes, read_npz
 
 __all__ = [
     "read_obj",
     "load_ict",
     "ict_regions",
     "cache_dir",
+    "read_cache",
     "ICT_SHAPES",
     "ICT_SLIDERS",
     "ICT_NEUTRAL",
@@ -560,42 +564,72 @@ def _content_hash(arrays: dict[str, np.ndarray]) -> str:
     return h.hexdigest()
 
 
+def read_cache(path, shapes: Sequence[str] | None = None) -> dict[str, np.ndarray]:
+    """The arrays of an ICT cache file, after every check :func:`load_ict` makes before using one.
+
+    Parameters
+    ----------
+    path : path
+        A cache file (:func:`cache_dir` holds them, named after the sources' sha256s).
+    shapes : sequence of str, optional
+        The expression shapes the cache must hold, in order (default all 57).
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        ``f0`` (n, 3), ``D`` (3n, m), ``faces`` (T, 3), ``names`` (m,), ``landmarks`` (68,),
+        ``format`` (the cache format, ``()``).
+
+    Raises
+    ------
+    DataError
+        ``"ICT cache <path>: <what is wrong>"`` for a missing file, and for any damage:
+        not a readable ``.npz`` (not a zip, truncated, a bad member CRC, a lying ``.npy``
+        header, an object dtype ... see :func:`repro.io.read_npz`), missing entries or
+        entries of another kind or shape, NaN/inf, another cache format, source hashes
+        other than the registry's, or arrays whose content hash is not the recorded
+        one.  :func:`load_ict` rebuilds such a cache with a :class:`CacheWarning`.
+    """
+    path = Path(path)
+    arrays, damage = _check_cache(path, _normalise_shapes(shapes))
+    if arrays is None:
+        raise DataError(f"ICT cache {path}: {damage or 'no such file'}")
+    return arrays
+
+
 def _check_cache(path: Path, shapes: tuple[str, ...]) -> tuple[dict[str, np.ndarray] | None, str | None]:
     """The cached arrays and None, or None and what is wrong with the file (None if it is absent).
 
-    Every kind of damage counts: not a zip, truncated, a bad member CRC, missing
-    keys, wrong types or shapes, another format, source hashes other than the
-    registry's, or arrays whose content hash is not the recorded one.
+    Every kind of damage counts: not a zip, truncated, a bad member CRC, a lying
+    ``.npy`` header, missing keys, wrong types or shapes, NaN/inf, another format,
+    source hashes other than the registry's, or arrays whose content hash is not
+    the recorded one.
     """
-    try:
-        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as z:
-            missing = [k for k in (*_CACHE_ARRAYS, "sources", "content") if k not in z.files]
-            if missing:
-                return None, f"no {missing} in it"
-            arrays = {k: z[k] for k in _CACHE_ARRAYS}
-            sources, content = z["sources"], z["content"]
-    except (FileNotFoundError, NotADirectoryError):  # no cache yet (or no cache folder)
+    if not path.exists():  # no cache yet (or no cache folder; also a cache folder below a file)
         return None, None
-    except Exception as exc:  # noqa: BLE001 - any failure to read the file is damage
-        return None, f"unreadable, {type(exc).__name__}: {str(exc)[:100]}"
-    for k, kind in _CACHE_ARRAYS.items():
-        if arrays[k].dtype.kind != kind and not (kind == "i" and arrays[k].dtype.kind == "u"):
-            return None, f"{k!r} has dtype {arrays[k].dtype}, expected kind {kind!r}"
+    allow = dict(_CACHE_ARRAYS, sources="U", content="U")
+    allow.update(faces="iu", landmarks="iu", format="iu")
+    try:
+        z = read_npz(path, allow=allow)
+    except DataError as exc:
+        return None, str(exc).removeprefix(str(path)).lstrip(":, ")
+    arrays = {k: z[k] for k in _CACHE_ARRAYS}
+    sources, content = z["sources"], z["content"]
     for k in ("sources", "content"):
-        v = sources if k == "sources" else content
-        if v.dtype.kind != "U" or v.shape != ():
+        if z[k].shape != ():
             return None, f"{k!r} is not a text entry"
     if arrays["format"].shape != () or int(arrays["format"]) != _CACHE_FORMAT:
         return None, f"format {arrays['format'].tolist()!r}, expected {_CACHE_FORMAT}"
     try:
         recorded = json.loads(str(sources))
-    except ValueError:
+    except (ValueError, RecursionError):
         recorded = None
     if recorded != _source_hashes(shapes):
         return None, "made from other source files (their sha256 differ from the registry's)"
     n = ICT_N_VERTICES
     shape_ok = (
-        tuple(arrays["names"].tolist()) == shapes
+        arrays["names"].shape == (len(shapes),)
+        and tuple(arrays["names"].tolist()) == shapes
         and arrays["f0"].shape == (n, 3)
         and arrays["D"].shape == (3 * n, len(shapes))
         and arrays["faces"].shape == (ICT_N_TRIANGLES, 3)

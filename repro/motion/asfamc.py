@@ -313,6 +313,14 @@ def read_asf(src) -> AsfSkeleton:
             )
         if bone["name"] in bones:
             raise BVHError(f"line {bone['line']}: duplicate bone name {bone['name']!r}")
+        with np.errstate(over="ignore", invalid="ignore"):
+            vector = bone["direction"] * bone["length"]
+        if not np.all(np.isfinite(vector)):
+            raise BVHError(
+                f"line {bone['line']}: bone {bone['name']!r}: direction x length overflows "
+                f"({bone['direction'].tolist()} x {bone['length']:.6g}); expected a finite bone vector "
+                "(values far below 1.8e308)"
+            )
         bones[bone["name"]] = AsfBone(
             name=bone["name"],
             id=bone.get("id"),

@@ -31,16 +31,36 @@ RLIMIT_AS = 2 << 30
 TIME_LIMIT = 10.0
 READY_LIMIT = 60.0
 
-#: target -> mutated format
+#: target -> mutated format (the readers' targets first; ``db`` and ``manifest`` last)
 TARGETS = {
     "bvh": "bvh",
     "asf": "asf",
     "amc": "amc",
     "obj": "obj",
-    "db": "npz",
+    "gltf": "gltf",
+    "glb": "glb",
     "ict_cache": "npz",
+    "db": "npz",
     "manifest": "json",
 }
+#: The code each target exercises (named in a failing test's message).
+READERS = {
+    "bvh": "repro/motion/bvh.py read_bvh / write_bvh, repro/motion/motion.py",
+    "asf": "repro/motion/asfamc.py read_asf, then read_amc",
+    "amc": "repro/motion/asfamc.py read_amc / read_asf_amc",
+    "obj": "repro/blendshapes/ict.py read_obj",
+    "gltf": "repro/blendshapes/gltf.py read_gltf",
+    "glb": "repro/blendshapes load_model -> gltf.py read_gltf",
+    "ict_cache": "repro/blendshapes/ict.py read_cache -> repro/io.py read_npz",
+    "db": "repro/motion/database.py MotionDatabase.load",
+    "manifest": "repro/experiments/registry.py run_many (figures/manifest.json)",
+}
+#: The glTF fixtures (made by scripts/make_gltf_fixtures.py); a .gltf's buffer file is its partner.
+GLTF_DIR = REPO / "tests" / "data" / "gltf"
+GLB_SEEDS = ("face.glb", "face_quantized.glb", "face_sparse.glb", "face_meshopt.glb", "face_node.glb",
+             "face_meshes.glb", "face_gltfpack.glb")
+#: Files a target's inputs refer to by name, copied beside the inputs and the saved failures.
+PARTNERS = {"gltf": ("face.bin",)}
 
 
 @dataclasses.dataclass
@@ -394,9 +414,8 @@ def tiny_database_npz() -> bytes:
 
 
 def tiny_ict_cache() -> tuple[bytes, dict]:
-    """A small npz laid out as the ICT cache, and the worker context that makes it valid."""
-    import io
-
+    """A small valid ICT cache (format, source and content hashes as ``ict._save_cache`` writes them),
+    and the worker context that makes its sizes the ICT mesh's."""
     import numpy as np
 
     from repro.blendshapes import ict
@@ -412,9 +431,11 @@ def tiny_ict_cache() -> tuple[bytes, dict]:
         "landmarks": rng.integers(0, 6, size=68),
         "format": np.array(ict._CACHE_FORMAT),
     }
-    buf = io.BytesIO()
-    np.savez(buf, **arrays)
-    return buf.getvalue(), {"ict_sizes": [6, 3], "ict_shapes": shapes}
+    with tempfile.TemporaryDirectory() as tmp:
+        p = Path(tmp) / "cache.npz"
+        if not ict._save_cache(p, arrays, ict._source_hashes(tuple(shapes))):
+            raise RuntimeError("could not write the tiny ICT cache")
+        return p.read_bytes(), {"ict_sizes": [6, 3], "ict_shapes": shapes}
 
 
 def seeds(target: str, work: Path, worker: Worker | None = None) -> list[Seed]:
@@ -452,6 +473,12 @@ def seeds(target: str, work: Path, worker: Worker | None = None) -> list[Seed]:
         p = data / "faces/ict/generic_neutral_mesh.obj.gz" if data else None
         if p and p.is_file():
             out.append(Seed("ict/generic_neutral_mesh.obj[:2000 lines]", obj_excerpt(_read(p))))
+    elif target == "gltf":
+        for name in PARTNERS["gltf"]:
+            (work / name).write_bytes((GLTF_DIR / name).read_bytes())
+        out.append(Seed("gltf/face.gltf", (GLTF_DIR / "face.gltf").read_bytes()))
+    elif target == "glb":
+        out.extend(Seed(f"gltf/{name}", (GLTF_DIR / name).read_bytes()) for name in GLB_SEEDS)
     elif target == "db":
         out.append(Seed("tiny_db.npz", tiny_database_npz()))
     elif target == "ict_cache":
@@ -577,6 +604,9 @@ def run_target(target: str, n_mutants: int, save_dir: Path, *, worker: Worker | 
                 stats["bad"] += 1
                 d = save_dir / target
                 d.mkdir(parents=True, exist_ok=True)
+                for name in PARTNERS.get(target, ()):  # (a saved .gltf replays with its buffer beside it)
+                    if not (d / name).exists():
+                        (d / name).write_bytes((work / name).read_bytes())
                 saved = d / f"{target}-n{n}{suffix}"
                 saved.write_bytes(data)  # (empty for a special path: see the description)
                 f = Failure(target, s.name, n, desc, o, saved, s.extra)
@@ -627,7 +657,7 @@ def minimise(target: str, data: bytes, suffix: str, extra: dict, kind: str, *, w
 
     w = worker
     if True:
-        if suffix == ".npz":
+        if suffix in (".npz", ".glb"):  # binary containers: lines and tokens mean nothing
             return data
         for unit in ("line", "token", "byte"):
             if unit == "line":

@@ -16,6 +16,10 @@ seeded with an int; no ``hash()``).  A mutant is 1-3 stacked operators:
   ``Frames:`` / ``CHANNELS`` counts; for ``.npz`` files, member-level mutations (a
   member deleted, replaced by NaN/inf/huge values, another dtype or shape, a lying
   ``.npy`` shape header, the JSON header mutated as text);
+* glTF: a ``.gltf`` is mutated as JSON text; a ``.glb`` either as raw bytes or chunk-aware
+  (its JSON chunk pretty-printed and mutated as JSON text, or values of its BIN chunk
+  overwritten with NaN / inf / 3.4e38 / huge indices), then framed again with correct
+  lengths so that the mutation reaches the reader past the GLB framing checks;
 * wrapping: ``.gz`` (also truncated, with trailing garbage).
 
 :func:`mutant` returns ``(data, suffix, description)``; ``description`` is what a
@@ -52,6 +56,8 @@ FORMATS = {
     "obj": {"suffix": ".obj", "gz": True},
     "json": {"suffix": ".json", "gz": False},
     "npz": {"suffix": ".npz", "gz": False},
+    "gltf": {"suffix": ".gltf", "gz": False},
+    "glb": {"suffix": ".glb", "gz": False},
 }
 
 _NUMBER_RE = re.compile(rb"(?<![\w.])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\w.])")
@@ -285,6 +291,7 @@ _FORMAT_OPS = {
     "amc": [],
     "obj": [],
     "json": [(_json_deep, 2), (_json_value, 4)],
+    "gltf": [(_json_deep, 1), (_json_value, 5)],
 }
 
 
@@ -419,6 +426,68 @@ def _npz_mutant(r: random.Random, d: bytes) -> tuple[bytes, list[str]]:
     return _zip(members), desc
 
 
+# ------------------------------------------------------------------ glb chunks
+#: 4-byte values written over BIN chunk data: float32 NaN, +-inf, 3.4e38, -0; uint32 / uint16 huge indices.
+_BIN_VALUES = [b"\x00\x00\xc0\x7f", b"\x00\x00\x80\x7f", b"\x00\x00\x80\xff", b"\x99\x76\x7f\x7f",
+               b"\x00\x00\x00\x80", b"\xff\xff\xff\xff", b"\xff\xff\x00\x00", b"\x00\x00\x00\x00"]
+
+
+def _glb_chunks(d: bytes):
+    """(JSON text, BIN bytes or None) of a well-framed GLB, else None."""
+    import struct
+
+    if len(d) < 20 or d[:4] != b"glTF":
+        return None
+    n, kind = struct.unpack_from("<II", d, 12)
+    if kind != 0x4E4F534A or 20 + n > len(d):
+        return None
+    js = d[20:20 + n]
+    rest = d[20 + n:]
+    if len(rest) >= 8:
+        m, kind = struct.unpack_from("<II", rest, 0)
+        if kind == 0x004E4942 and 8 + m <= len(rest):
+            return js, rest[8:8 + m]
+    return js, None
+
+
+def _glb_frame(js: bytes, bin_: bytes | None) -> bytes:
+    import struct
+
+    js = js + b" " * (-len(js) % 4)
+    out = struct.pack("<II", len(js), 0x4E4F534A) + js
+    if bin_ is not None:
+        bin_ = bin_ + b"\x00" * (-len(bin_) % 4)
+        out += struct.pack("<II", len(bin_), 0x004E4942) + bin_
+    return b"glTF" + struct.pack("<II", 2, 12 + len(out)) + out
+
+
+def _glb_mutant(r: random.Random, d: bytes) -> tuple[bytes, list[str]]:
+    chunks = _glb_chunks(d)
+    if chunks is None or r.random() < 0.25:
+        ops = [(_flip, 3), (_byte_set, 2), (_truncate, 2), (_non_utf8, 1)]
+        desc = []
+        for _ in range(r.choice([1, 1, 2])):
+            d, what = _pick(r, ops)(r, d)
+            desc.append("raw: " + what)
+        return d, desc
+    js, bin_ = chunks
+    if bin_ and r.random() < 0.3:
+        b = bytearray(bin_)
+        desc = []
+        for _ in range(r.choice([1, 1, 3, 20])):
+            i = r.randrange(max(1, len(b) // 4)) * 4
+            v = r.choice(_BIN_VALUES)
+            b[i:i + 4] = v
+            desc.append(f"{i}={v.hex()}")
+        return _glb_frame(js, bytes(b)), ["BIN chunk: " + ",".join(desc[:5]) + ("..." if len(desc) > 5 else "")]
+    try:
+        text = json.dumps(json.loads(js), indent=1).encode()  # ': ' separators for the JSON operators
+    except ValueError:
+        text = js
+    text, desc = _text_mutant(r, text, "gltf")
+    return _glb_frame(text, bin_), ["JSON chunk: " + x for x in desc]
+
+
 # ------------------------------------------------------------------ entry point
 def _gzip(r: random.Random, d: bytes) -> tuple[bytes, str]:
     g = gzip.compress(d, mtime=0)
@@ -438,6 +507,8 @@ def mutant(seed_data: bytes, fmt: str, n: int) -> tuple[bytes, str, str]:
     r = random.Random(n * 1_000_003 + sum(fmt.encode()))
     if fmt == "npz":
         d, desc = _npz_mutant(r, seed_data)
+    elif fmt == "glb":
+        d, desc = _glb_mutant(r, seed_data)
     else:
         d, desc = _text_mutant(r, seed_data, fmt)
     suffix = FORMATS[fmt]["suffix"]

@@ -2,29 +2,34 @@
 
 Every reader of a file a user may hand to repro -- :func:`repro.motion.read_bvh` (then
 forward kinematics, ``write_bvh`` and reading that back), ``read_asf`` / ``read_amc`` /
-``read_asf_amc``, :func:`repro.blendshapes.ict.read_obj`, :meth:`MotionDatabase.load`,
-the ICT ``.npz`` cache loader and the figure manifest (``figures/manifest.json`` as
-:func:`repro.experiments.registry.run_many` reads, merges and rewrites it) -- gets
-mutants of small real and hand-made seed files (:mod:`tests.fuzz.mutate`).  Each input
-runs in a worker process with an address-space limit (``RLIMIT_AS``, 2 GiB) and a
-10 s time limit (:mod:`tests.fuzz.harness`).  What is asserted, for every input:
+``read_asf_amc``, :func:`repro.blendshapes.ict.read_obj`, glTF faces
+(:func:`repro.blendshapes.gltf.read_gltf` on ``.gltf`` files beside their buffer,
+:func:`repro.blendshapes.load_model` on ``.glb`` files, then posing the model),
+the ICT ``.npz`` cache check (:func:`repro.blendshapes.ict.read_cache`, what ``load_ict``
+runs before using a cache), :meth:`MotionDatabase.load` and the figure manifest
+(``figures/manifest.json`` as :func:`repro.experiments.registry.run_many` reads, merges
+and rewrites it) -- gets mutants of small real and hand-made seed files
+(:mod:`tests.fuzz.mutate`).  Each input runs in a worker process with an address-space
+limit (``RLIMIT_AS``, 2 GiB) and a 10 s time limit (:mod:`tests.fuzz.harness`).  What is
+asserted, for every input:
 
-* it loads, and every float of the result (and of the forward kinematics) is finite
-  (for OBJ also: every coordinate / vertex index it took is a plain ASCII number, not
-  ``1_0``; for BVH also: what ``write_bvh`` wrote of it reads back),
+* it loads, and every float of the result (and of the forward kinematics / the posed
+  face) is finite (for OBJ also: every coordinate / vertex index it took is a plain ASCII
+  number, not ``1_0``; for BVH also: what ``write_bvh`` wrote of it reads back),
 * or it raises a :class:`repro.errors.ReproError`;
 * never another exception (``MemoryError``, ``RecursionError``, ``KeyError`` ...), never a
-  killed worker, never a timeout.
+  RuntimeWarning from repro, never a killed worker, never a timeout.
 
 Also: a missing path, a folder, an empty file (and for the manifest, an output folder
 that is a file).  A target stops after 3 timeouts (each costs 10 s and a restart).
 
 The unmutated seeds must load (otherwise the fuzzer would only test error paths).
-Deterministic: mutant ``n`` of a target is a function of ``n`` only.  About 1,100 mutants
-(~45 s) by default; ``REPRO_FUZZ_N=10000`` runs ~10,000 (split over the targets the same
-way).  A failure prints, per distinct signature, the seed, the mutation and where the
-offending input was saved (``REPRO_FUZZ_SAVE`` or a pytest temporary folder), with the
-command that replays it.
+Deterministic: mutant ``n`` of a target is a function of ``n`` only.  About 1,300 mutants
+by default (about 35 s of pytest on a loaded 2-core machine, load average 3; about 25 s
+idle); ``REPRO_FUZZ_N=10000`` runs ~10,000 (split over the targets the same way).  A
+failure names the code under test and prints, per distinct signature, the seed, the
+mutation and where the offending input was saved (``REPRO_FUZZ_SAVE`` or a pytest
+temporary folder), with the command that replays it.
 """
 
 from __future__ import annotations
@@ -40,7 +45,8 @@ from tests.fuzz.mutate import FORMATS, mutant
 pytestmark = pytest.mark.fuzz
 
 #: Share of the mutants per target (the BVH reader is the most used and the richest format).
-WEIGHTS = {"bvh": 250, "asf": 150, "amc": 150, "obj": 150, "db": 130, "ict_cache": 110, "manifest": 150}
+WEIGHTS = {"bvh": 250, "asf": 150, "amc": 150, "obj": 150, "gltf": 60, "glb": 120, "ict_cache": 110, "db": 130,
+           "manifest": 150}
 DEFAULT_TOTAL = sum(WEIGHTS.values())
 
 
@@ -112,8 +118,9 @@ def test_reader_survives_mutants(target, worker, save_dir):
         by_sig: dict[str, list] = {}
         for f in failures:
             by_sig.setdefault(f.outcome.signature(target), []).append(f)
-        lines = [f"{len(failures)} of {stats['n']} {target} inputs neither loaded with finite values nor raised "
-                 f"a ReproError ({len(by_sig)} distinct signatures; inputs saved under {save_dir / target}):"]
+        lines = [f"{len(failures)} of {stats['n']} {target} inputs ({harness.READERS[target]}) neither loaded with "
+                 f"finite values nor raised a ReproError ({len(by_sig)} distinct signatures; inputs saved under "
+                 f"{save_dir / target}):"]
         for sig, fs in sorted(by_sig.items(), key=lambda kv: -len(kv[1])):
             lines.append(f"\n* {sig}  (x{len(fs)})\n  " + fs[0].report().replace("\n", "\n  "))
         if "stopped_after" in stats:

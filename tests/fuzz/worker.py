@@ -221,20 +221,39 @@ class Targets:
             check_finite(db.motion(i).global_positions(), f"db.motion({i}).global_positions()")
 
     def ict_cache(self, path, req=None):
-        import inspect
-
         from repro.blendshapes import ict
 
-        params = [p for p in inspect.signature(ict._load_cache).parameters.values()
-                  if p.default is inspect.Parameter.empty]
-        if len(params) != 2:
-            raise RuntimeError(f"harness: ict._load_cache{inspect.signature(ict._load_cache)} is not (path, shapes)")
         # the small seed cache stands for the ICT mesh: sizes patched to its own
         ict.ICT_N_VERTICES, ict.ICT_N_TRIANGLES = self.ctx["ict_sizes"]
-        self.stage = "ict._load_cache"
-        arrays = ict._load_cache(__import__("pathlib").Path(path), tuple(self.ctx["ict_shapes"]))
-        if arrays is not None:
-            check_finite(arrays, "cache arrays")
+        self.stage = "ict.read_cache"
+        # the documented check load_ict makes before using a cache file: arrays, or a DataError saying
+        # what is wrong (load_ict then rebuilds with a CacheWarning)
+        arrays = ict.read_cache(path, tuple(self.ctx["ict_shapes"]))
+        check_finite(arrays, "cache arrays")
+
+    def _gltf_model(self, m):
+        import numpy as np
+
+        check_finite(m, "model")
+        self.stage = "use of the model"
+        check_finite(m.pose(np.ones(m.n_shapes)), "model.pose(ones)")
+        for name in list(m.slider_names)[:8]:
+            check_finite(m.weights({name: 1.0}), f"model.weights({{{name!r}: 1}})")
+
+    # glTF: a mutated .gltf (its .bin beside it) through read_gltf; a mutated .glb through load_model
+    def gltf(self, path, req=None):
+        from repro.blendshapes.gltf import read_gltf
+
+        self.stage = "read_gltf"
+        self._gltf_model(read_gltf(path))
+
+    def glb(self, path, req=None):
+        from pathlib import Path
+
+        from repro.blendshapes import load_model
+
+        self.stage = "load_model"
+        self._gltf_model(load_model(Path(path)))
 
     def manifest(self, path, req=None):
         import shutil
@@ -342,6 +361,9 @@ def main() -> None:
     try:
         import numpy  # noqa: F401
 
+        import pygltflib  # noqa: F401 - (2 s to import: before the first input's time limit)
+
+        import repro.blendshapes.gltf  # noqa: F401
         import repro.blendshapes.ict  # noqa: F401
         import repro.experiments.registry  # noqa: F401
         import repro.motion  # noqa: F401

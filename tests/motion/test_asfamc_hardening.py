@@ -260,3 +260,46 @@ def test_length_unit_must_be_a_plain_number(value):
     asf = SMALL_ASF.replace("  length 0.45\n", f"  length {value}\n")
     with pytest.raises(BVHError, match=rf"^line 5: :units length must be a number > 0, got '{value}'"):
         read_asf(io.StringIO(asf))
+
+
+# --------------------------------------------------------- finite input, infinite result (fuzz finding)
+_NUMBER = __import__("re").compile(r"(?<![\w.])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\w.])")
+
+
+@pytest.mark.parametrize(
+    "direction, length", [("0 1.7e308 0", "2"), ("0 2 0", "1.7e308"), ("1e200 0 0", "1e200")]
+)
+def test_bone_vector_that_overflows_is_a_bvherror_naming_the_bone(direction, length):
+    # finite values whose product direction x length is inf (read_asf warned 'overflow encountered in multiply')
+    asf = SMALL_ASF.replace(
+        "     name b1\n     direction 0 1 0\n     length 1\n",
+        f"     name b1\n     direction {direction}\n     length {length}\n",
+        1,
+    )
+    assert asf != SMALL_ASF
+    begin = asf.split("\n").index("     name b1") - 1  # 0-based index of 'name b1' - 2, plus 1: 'begin'
+    with pytest.raises(BVHError, match=rf"^line {begin}: bone 'b1': direction x length overflows"):
+        read_asf(io.StringIO(asf))
+
+
+def test_every_huge_finite_value_is_loaded_finite_or_a_bvherror():
+    """Each number of a small ASF and AMC in turn replaced by a huge finite value: never inf, never a warning.
+
+    (RuntimeWarnings from repro are errors in this suite, pyproject ``filterwarnings``.)
+    """
+    cases = 0
+    for which, text in (("asf", SMALL_ASF), ("amc", SMALL_AMC)):
+        spans = [m.span() for m in _NUMBER.finditer(text)]
+        for a, b in spans:
+            for value in ("1.7e308", "-1.7e308", "1e200"):
+                mutated = text[:a] + value + text[b:]
+                asf, amc = (mutated, SMALL_AMC) if which == "asf" else (SMALL_ASF, mutated)
+                try:
+                    m = read_asf_amc(io.StringIO(asf), io.StringIO(amc))
+                except BVHError:
+                    continue
+                finally:
+                    cases += 1
+                assert np.isfinite(m.global_positions()).all(), (which, a, value)
+                assert np.isfinite(m.offsets).all() and np.isfinite(m.end_site_offsets).all()
+    assert cases > 100
