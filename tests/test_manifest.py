@@ -88,6 +88,7 @@ def test_two_processes_writing_one_manifest_keep_every_entry(tmp_path, attempt):
     ('{"fig4_axis_selection": 3, "zz_other": {"name": "zz_other", "files": []}}', {"zz_other"}),
     ('{"half": {"name": ', set()),
     (b"\xff\xfe not utf-8", set()),
+    ('{"deep": ' + "[" * 5000 + "]" * 5000 + "}", set()),  # json recurses per level
 ])
 def test_a_damaged_manifest_is_kept_aside_and_rebuilt_with_a_warning(tmp_path, fake_figures, capsys, content, kept):
     path = tmp_path / MANIFEST

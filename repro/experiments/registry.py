@@ -272,6 +272,8 @@ def _read_manifest(outdir: Path) -> tuple[dict, str | None]:
         doc = json.loads(text)
     except ValueError as exc:
         return {}, f"is not valid JSON ({exc})"
+    except RecursionError:  # json's decoder recurses per nesting level: a 2,000-deep list
+        return {}, "nests JSON deeper than Python's recursion limit"
     if not isinstance(doc, dict):
         return {}, f"holds a JSON {type(doc).__name__ if doc is not None else 'null'}, not an object of figures"
     valid = {k: v for k, v in doc.items() if isinstance(v, dict)}
