@@ -50,13 +50,10 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import io
 import json
 import math
 import operator
 import re
-import zipfile
-import zlib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -65,7 +62,7 @@ from functools import lru_cache
 import numpy as np
 
 from repro.errors import DataError, MotionError, ReproError, RetrievalError
-from repro.io import MAX_READ_BYTES, atomic_path, read_bytes
+from repro.io import MAX_READ_BYTES, atomic_path, read_npz
 from repro.motion.clustering import (
     POSE_ROLES,
     heading_from_hips,
@@ -870,7 +867,12 @@ class MotionDatabase:
             A missing, unreadable, truncated, corrupt or foreign file, or one whose
             content is inconsistent; the message names the file and what is wrong.
         """
-        arrays, where = _read_npz(path, max_bytes)
+        where = str(path) if not hasattr(path, "read") else str(getattr(path, "name", "<stream>"))
+        # the archive, each array's declared size (before allocating) and dtypes: repro.io.read_npz;
+        # finiteness and the schema: _Check below, with messages about the database
+        arrays = read_npz(path, error=DataError, finite=False, max_bytes=max_bytes)
+        if not arrays:
+            raise DataError(f"{where}: not a motion database (the archive holds no .npy arrays)")
         return _database_from_arrays(cls, arrays, where)
 
     def equals(self, other: MotionDatabase) -> bool:
@@ -904,67 +906,6 @@ class MotionDatabase:
 
 # ================================================================ loading
 _DB_FORMAT = "repro.motion.database/1"
-
-
-def _read_npz(path, max_bytes: int) -> tuple[dict[str, np.ndarray], str]:
-    """Every ``.npy`` member of an ``.npz`` as an array, checked before allocation."""
-    data, name = read_bytes(path, error=DataError, max_bytes=max_bytes)
-    where = name or "<stream>"
-    if not data:
-        raise DataError(f"{where}: empty file; not a motion database")
-    try:
-        zf = zipfile.ZipFile(io.BytesIO(data))
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, ValueError, EOFError) as exc:
-        raise DataError(f"{where}: not a motion database (not a readable .npz archive: {exc})") from None
-    out: dict[str, np.ndarray] = {}
-    with zf:
-        try:
-            infos = zf.infolist()
-        except (zipfile.BadZipFile, OSError, ValueError) as exc:
-            raise DataError(f"{where}: damaged .npz archive ({exc})") from None
-        total = sum(i.file_size for i in infos)
-        if total > max_bytes:
-            raise DataError(f"{where}: the archive declares {total} bytes of arrays, more than the cap of "
-                            f"{max_bytes}; refusing to read it")
-        for info in infos:
-            if not info.filename.endswith(".npy"):
-                continue
-            key = info.filename[:-4]
-            try:
-                with zf.open(info) as fh:
-                    version = np.lib.format.read_magic(fh)
-                    if version == (1, 0):
-                        shape, fortran, dtype = np.lib.format.read_array_header_1_0(fh)
-                    else:
-                        shape, fortran, dtype = np.lib.format.read_array_header_2_0(fh)
-                    if dtype.hasobject:
-                        raise DataError(f"{where}: array {key!r} holds Python objects (pickles); refused")
-                    need = math.prod(shape) * dtype.itemsize
-                    if not 0 <= need <= info.file_size:
-                        raise DataError(f"{where}: array {key!r} declares shape {shape} of {dtype} ({need} bytes) "
-                                        f"but holds {info.file_size} bytes; the file is damaged")
-                    buf = bytearray(need)
-                    view, got = memoryview(buf), 0
-                    while got < need:
-                        n = fh.readinto(view[got:])
-                        if not n:
-                            break
-                        got += n
-                    if got != need:
-                        raise DataError(f"{where}: array {key!r} is truncated ({got} of {need} bytes)")
-                    if fh.read(1):
-                        raise DataError(f"{where}: array {key!r} has bytes after its data; the file is damaged")
-                a = np.frombuffer(buf, dtype=dtype)
-                a = a.reshape(shape[::-1]).T if fortran else a.reshape(shape)
-            except DataError:
-                raise
-            except (ValueError, TypeError, OSError, EOFError, zipfile.BadZipFile, zlib.error,
-                    NotImplementedError, RuntimeError, SyntaxError, OverflowError, MemoryError) as exc:
-                raise DataError(f"{where}: array {key!r} is damaged ({type(exc).__name__}: {exc})") from None
-            out[key] = a
-    if not out:
-        raise DataError(f"{where}: not a motion database (the archive holds no .npy arrays)")
-    return out, where
 
 
 class _Check:

@@ -136,7 +136,7 @@ def test_member_declaring_more_than_it_holds(saved, tmp_path):
     b = io.BytesIO()
     np.lib.format.write_array_header_1_0(b, {"descr": "<f8", "fortran_order": False, "shape": (10**12, 3)})
     p = variant(saved, tmp_path, traj=b.getvalue() + b"\0" * 64)
-    assert_data_error(p, "declares")
+    assert_data_error(p, "claims shape")
     b = io.BytesIO()
     np.lib.format.write_array_header_1_0(b, {"descr": "<f8", "fortran_order": False, "shape": (100,)})
     p = variant(saved, tmp_path, traj=b.getvalue() + b"\0" * 80)  # 80 of 800 bytes
