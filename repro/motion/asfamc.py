@@ -42,7 +42,8 @@ import numpy as np
 
 from repro.errors import BVHError
 from repro.io import read_bytes
-from repro.motion.motion import Motion, euler_to_quat, quat_multiply
+from repro.motion.motion import Motion
+from repro.motion.quaternion import euler_to_quat, quat_multiply
 
 __all__ = [
     "AsfBone",

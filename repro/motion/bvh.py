@@ -31,7 +31,7 @@ in the tests):
 * rotation channels are Euler angles in degrees, applied in the listed order as
   *intrinsic* rotations: ``Zrotation Xrotation Yrotation`` is ``R = Rz Rx Ry``, i.e.
   ``scipy.spatial.transform.Rotation.from_euler("ZXY", ...)`` (uppercase = intrinsic;
-  computed by :func:`repro.motion.motion.euler_to_quat`, equal to scipy's to 1e-12 and
+  computed by :func:`repro.motion.quaternion.euler_to_quat`, equal to scipy's to 1e-12 and
   about 20 times faster here);
 * position channels *replace* the matching components of the joint's OFFSET (for the
   CMU root the offset is zero; the Bandai Namco files give every joint position
@@ -60,11 +60,12 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from repro.errors import BVHError, BVHWarning
 from repro.io import read_bytes
-from repro.motion.motion import POSITION_CHANNELS, ROTATION_CHANNELS, Motion, euler_to_quat
+from repro.motion.channels import POSITION_CHANNELS, ROTATION_CHANNELS, joint_columns
+from repro.motion.motion import Motion
+from repro.motion.quaternion import euler_to_quat
 
 __all__ = ["read_bvh", "write_bvh", "MAX_FRAMES"]
 
@@ -635,72 +636,6 @@ def _motion_from_table(h: _Hierarchy, values: np.ndarray, frame_time: float, *, 
 
 
 # ---------------------------------------------------------------------- output
-def _joint_columns(motion: Motion) -> list[np.ndarray]:
-    """Per joint, its (F, n_channels_j) block of channel values (degrees for angles)."""
-    F, J = motion.n_frames, motion.n_joints
-    blocks: list[np.ndarray] = [np.zeros((F, len(c))) for c in motion.channels]
-    quats = motion.rotations
-    groups: dict[str, list[int]] = {}
-    for j, seq in enumerate(motion.rotation_orders):
-        groups.setdefault(seq, []).append(j)
-    eulers: dict[int, np.ndarray] = {}
-    for seq, joints in groups.items():
-        q = quats[:, joints].reshape(-1, 4)
-        if F == 0:
-            for j in joints:
-                eulers[j] = np.zeros((0, len(seq)))
-            continue
-        r = Rotation.from_quat(q)
-        if len(seq) == 3:
-            with warnings.catch_warnings():
-                warnings.filterwarnings("ignore", message="Gimbal lock")
-                ang = r.as_euler(seq, degrees=True)
-        else:
-            full = seq + "".join(a for a in "XYZ" if a not in seq)
-            with warnings.catch_warnings():
-                warnings.filterwarnings("ignore", message="Gimbal lock")
-                ang = r.as_euler(full, degrees=True)
-            if len(seq) == 2:
-                # scipy keeps the middle angle within +-90 deg, so a rotation of the two
-                # axes whose second angle is beyond 90 comes out with a third angle of
-                # 180: switch to the equivalent triple (a + 180, 180 - b, c + 180)
-                flip = np.abs(ang[:, 2]) > 90
-                ang[flip, 0] += 180.0
-                ang[flip, 1] = 180.0 - ang[flip, 1]
-                ang[:, :2] = (ang[:, :2] + 180.0) % 360.0 - 180.0
-            ang = ang[:, : len(seq)]
-            back = (
-                Rotation.from_euler(seq, ang, degrees=True)
-                if seq
-                else Rotation.identity(len(q))
-            )
-            err = (back.inv() * r).magnitude()
-            if np.any(err > 1e-6):
-                i = int(np.argmax(err))
-                j = joints[i % len(joints)]
-                raise BVHError(
-                    f"joint {motion.joint_names[j]!r}: frame {i // len(joints)} has a rotation that its "
-                    f"rotation channels ({seq or 'none'}) cannot express (error {np.degrees(err[i]):.3g} deg)"
-                )
-        ang = ang.reshape(F, len(joints), len(seq))
-        for k, j in enumerate(joints):
-            eulers[j] = ang[:, k]
-    for j, chans in enumerate(motion.channels):
-        r = 0
-        for c, name in enumerate(chans):
-            if name in POSITION_CHANNELS:
-                blocks[j][:, c] = motion.positions[:, j, POSITION_CHANNELS.index(name)]
-            else:
-                blocks[j][:, c] = eulers[j][:, r]
-                r += 1
-    return blocks
-
-
-def _channel_table(motion: Motion) -> np.ndarray:
-    blocks = _joint_columns(motion)
-    return np.concatenate(blocks, axis=1) if blocks else np.zeros((motion.n_frames, 0))
-
-
 def _dfs_order(parents: np.ndarray) -> tuple[list[int], list[list[int]]]:
     children: list[list[int]] = [[] for _ in parents]
     for j in range(1, len(parents)):
@@ -722,7 +657,7 @@ def _format_bvh(motion: Motion, precision: int) -> str:
     ends: list[list[int]] = [[] for _ in motion.joint_names]
     for e, p in enumerate(motion.end_site_parents):
         ends[p].append(e)
-    blocks = _joint_columns(motion)
+    blocks = joint_columns(motion)
 
     out: list[str] = ["HIERARCHY"]
 

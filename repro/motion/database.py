@@ -1797,7 +1797,7 @@ def match_rest_pose(motion: Motion, reference, *, return_error: bool = False):
     repro.errors.MotionError
         Different joint trees.
     """
-    from repro.motion.motion import quat_multiply
+    from repro.motion.quaternion import quat_multiply
     from repro.motion.skeleton import skeleton_of
 
     ref = skeleton_of(reference)
@@ -1874,7 +1874,7 @@ def match_rest_pose(motion: Motion, reference, *, return_error: bool = False):
 
 
 def _qrot_np(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    from repro.motion.motion import quat_rotate
+    from repro.motion.quaternion import quat_rotate
 
     return quat_rotate(np.asarray(q, dtype=float), np.asarray(v, dtype=float))
 

@@ -95,7 +95,8 @@ from repro.motion.clustering import root_frames, rotate_y, to_root_frame
 from repro.motion.database import SEMANTICS, MotionDatabase, cut, effector_role
 from repro.motion.kinematics import slerp
 from repro.motion.morphology import retarget
-from repro.motion.motion import Motion, finite_vector3, quat_multiply
+from repro.motion.motion import Motion, finite_vector3
+from repro.motion.quaternion import quat_multiply
 from repro.motion.retrieval import MotionRetriever, RetrievalResult
 from repro.motion.skeleton import Skeleton, rescale_constraint, scale_skeleton, skeleton_of
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from repro.motion.motion import quat_multiply
+from repro.motion.quaternion import quat_multiply
 
 __all__ = [
     "cross",

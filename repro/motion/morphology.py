@@ -96,7 +96,9 @@ import numpy as np
 from repro.errors import MotionError
 from repro.motion.feet import UP_AXIS, foot_contacts, foot_goals, foot_scale
 from repro.motion.kinematics import cross, depth_levels, fk_arrays, min_rotation, normalize, qinv, qrot, transport
-from repro.motion.motion import POSITION_CHANNELS, Motion, quat_multiply
+from repro.motion.channels import POSITION_CHANNELS
+from repro.motion.motion import Motion
+from repro.motion.quaternion import quat_multiply
 from repro.motion.roles import LIMBS
 from repro.motion.skeleton import Skeleton, skeleton_of
 

@@ -39,24 +39,20 @@ Namco: centimetres, :data:`BANDAI_UNIT_M`); :meth:`Motion.scaled` and
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 
 from repro.errors import BVHError, MotionError
+from repro.motion.channels import POSITION_CHANNELS, ROTATION_CHANNELS, channel_layout, channel_table
+from repro.motion.quaternion import euler_to_quat, quat_multiply, quat_rotate
 
 __all__ = [
     "Motion",
     "CMU_UNIT_M",
     "BANDAI_UNIT_M",
-    "POSITION_CHANNELS",
-    "ROTATION_CHANNELS",
     "finite_vector3",
-    "quat_multiply",
-    "quat_rotate",
-    "euler_to_quat",
 ]
 
 #: Metres per CMU length unit.  CMU ASF files declare ``:units length 0.45``: lengths
@@ -67,12 +63,6 @@ CMU_UNIT_M: float = 0.0254 / 0.45
 #: Metres per Bandai Namco length unit (centimetres; ``mocap/bandai/PROVENANCE.md``).
 BANDAI_UNIT_M: float = 0.01
 
-#: The BVH position channel names, in axis order x, y, z.
-POSITION_CHANNELS: tuple[str, str, str] = ("Xposition", "Yposition", "Zposition")
-#: The BVH rotation channel names, in axis order x, y, z.
-ROTATION_CHANNELS: tuple[str, str, str] = ("Xrotation", "Yrotation", "Zrotation")
-
-_AXIS = {"X": 0, "Y": 1, "Z": 2}
 
 #: Below this sum of all local translation lengths, world positions cannot overflow
 #: (a rotated vector's intermediate terms stay under 5 times its length).
@@ -101,119 +91,10 @@ def finite_vector3(value, name: str, error=None) -> np.ndarray:
     return a
 
 
-def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product ``a * b`` of scalar-last quaternions, broadcast over leading axes.
-
-    Parameters
-    ----------
-    a, b : (..., 4) array
-        Quaternions ``(x, y, z, w)``.
-
-    Returns
-    -------
-    (..., 4) array
-        The quaternion of the rotation "first ``b``, then ``a``" (matrix ``R(a) R(b)``).
-    """
-    ax, ay, az, aw = np.moveaxis(a, -1, 0)
-    bx, by, bz, bw = np.moveaxis(b, -1, 0)
-    return np.stack(
-        [
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz,
-        ],
-        axis=-1,
-    )
-
-
-def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vectors ``v`` by unit quaternions ``q`` (scalar-last), broadcast.
-
-    Parameters
-    ----------
-    q : (..., 4) array
-        Unit quaternions ``(x, y, z, w)``.
-    v : (..., 3) array
-        Vectors.
-
-    Returns
-    -------
-    (..., 3) array
-        ``R(q) v``.
-    """
-    u = q[..., :3]
-    w = q[..., 3:4]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
-
-
-def euler_to_quat(seq: str, angles, degrees: bool = True) -> np.ndarray:
-    """Quaternions of Euler-angle rotations, with scipy's ``from_euler`` conventions.
-
-    Same result as ``scipy.spatial.transform.Rotation.from_euler(seq, angles,
-    degrees).as_quat()`` (checked in the tests), computed with plain numpy products of
-    single-axis quaternions: in this scipy version ``from_euler`` costs about 1 us per
-    rotation, i.e. most of the time of reading a CMU clip.
-
-    Parameters
-    ----------
-    seq : str
-        1 to 3 axis letters, all uppercase (intrinsic: ``"ZXY"`` is ``Rz Rx Ry``, the
-        BVH convention for channels listed Z, X, Y) or all lowercase (extrinsic:
-        ``"xyz"`` is ``Rz Ry Rx``, the Acclaim ASF convention for ``axis ... XYZ``).
-    angles : (..., len(seq)) array
-        Angles, one column per letter of ``seq``.
-    degrees : bool, default True
-        Whether ``angles`` are in degrees (else radians).
-
-    Returns
-    -------
-    (..., 4) array
-        Unit quaternions ``(x, y, z, w)``.
-    """
-    if not seq or len(seq) > 3 or not (seq.isupper() or seq.islower()) or set(seq.upper()) - set("XYZ"):
-        raise ValueError(f"Euler sequence must be 1-3 letters of XYZ, all upper or all lower case; got {seq!r}")
-    angles = np.asarray(angles, dtype=float)
-    if angles.shape[-1:] != (len(seq),):
-        raise ValueError(f"angles must end with an axis of length {len(seq)}, got shape {angles.shape}")
-    half = (np.radians(angles) if degrees else angles) * 0.5
-    s, c = np.sin(half), np.cos(half)
-    q = None
-    for k, letter in enumerate(seq):
-        qk = np.zeros(angles.shape[:-1] + (4,))
-        qk[..., _AXIS[letter.upper()]] = s[..., k]
-        qk[..., 3] = c[..., k]
-        if q is None:
-            q = qk
-        elif seq.isupper():  # intrinsic: R = R1 R2 R3
-            q = quat_multiply(q, qk)
-        else:  # extrinsic: R = R3 R2 R1
-            q = quat_multiply(qk, q)
-    return q
-
-
 def _readonly(a: np.ndarray) -> np.ndarray:
     a = np.array(a, copy=True)
     a.flags.writeable = False
     return a
-
-
-def _channel_layout(channels: Sequence[Sequence[str]]) -> tuple[np.ndarray, list[str]]:
-    """Position mask (J, 3) and per-joint rotation axis sequence ("ZYX", "" ...)."""
-    mask = np.zeros((len(channels), 3), dtype=bool)
-    seqs: list[str] = []
-    for j, chans in enumerate(channels):
-        seq = ""
-        for c in chans:
-            if c in POSITION_CHANNELS:
-                mask[j, POSITION_CHANNELS.index(c)] = True
-            elif c in ROTATION_CHANNELS:
-                seq += c[0]
-            else:
-                raise BVHError(f"joint {j}: unknown channel name {c!r}")
-        seqs.append(seq)
-    return mask, seqs
 
 
 @dataclass(frozen=True, eq=False)
@@ -300,7 +181,7 @@ class Motion:
         for name, ch in zip(names, channels):
             if len(set(ch)) != len(ch):
                 raise BVHError(f"joint {name!r}: repeated channel in {list(ch)}")
-        _channel_layout(channels)
+        channel_layout(channels)
         ft = float(self.frame_time)
         if not np.isfinite(ft) or ft <= 0 or not np.isfinite(1.0 / ft):
             raise BVHError(f"frame_time must be finite and > 0 with a finite frame rate, got {self.frame_time!r}")
@@ -423,7 +304,7 @@ class Motion:
 
     @cached_property
     def _layout(self) -> tuple[np.ndarray, list[str]]:
-        return _channel_layout(self.channels)
+        return channel_layout(self.channels)
 
     @property
     def position_mask(self) -> np.ndarray:
@@ -531,9 +412,7 @@ class Motion:
             If a joint with fewer than three rotation channels has a rotation those
             axes cannot express.
         """
-        from repro.motion.bvh import _channel_table
-
-        return _channel_table(self)
+        return channel_table(self)
 
     # ---------------------------------------------------------------- units
     def scaled(self, factor: float, unit_m: float | None = None) -> Motion:

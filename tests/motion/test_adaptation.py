@@ -41,7 +41,7 @@ from repro.motion.adaptation import (
     reach_limb,
     time_adaptation,
 )
-from repro.motion.motion import euler_to_quat, quat_multiply, quat_rotate
+from repro.motion.quaternion import euler_to_quat, quat_multiply, quat_rotate
 from tests.motion_fixtures import MIXAMO, MIXAMO_NAMES
 
 PARENTS = np.array([-1 if p is None else MIXAMO_NAMES.index(p) for _, p, _ in MIXAMO])

@@ -237,7 +237,7 @@ def test_grouped_rotations_match_per_joint_formula():
     skel = read_asf(io.StringIO(asf))
     assert skel.bones["b1"].dofs == ("rz", "rx") and skel.bones["b1"].axis_order == "ZXY"
     m = read_amc(io.StringIO("\n".join(lines) + "\n"), skel)
-    from repro.motion.motion import euler_to_quat, quat_multiply
+    from repro.motion.quaternion import euler_to_quat, quat_multiply
 
     conj = np.array([-1.0, -1.0, -1.0, 1.0])
     for j, name in enumerate(skel.joint_names[1:], start=1):

@@ -4,7 +4,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from repro.motion import kinematics as K
-from repro.motion.motion import quat_multiply
+from repro.motion.quaternion import quat_multiply
 
 rng = np.random.default_rng(0)
 Q = Rotation.random(50, random_state=1).as_quat()

@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 
 from repro.errors import BVHError, ReproError
 from repro.motion import BANDAI_UNIT_M, CMU_UNIT_M, Motion, read_bvh
-from repro.motion.motion import euler_to_quat, quat_multiply, quat_rotate
+from repro.motion.quaternion import euler_to_quat, quat_multiply, quat_rotate
 
 # Two joints and an End Site; the answers below are worked out by hand.
 TINY = """HIERARCHY

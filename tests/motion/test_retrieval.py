@@ -191,7 +191,7 @@ def test_alignment_places_the_start_pose_on_the_current_pose(db, retriever, thet
     pos[:, 0] = rotate_y(pos[:, 0], theta) + [shift[0], 0.0, shift[1]]
     qroot = np.array(pose.rotations)
     qy = np.array([0.0, np.sin(theta / 2), 0.0, np.cos(theta / 2)])
-    from repro.motion.motion import quat_multiply
+    from repro.motion.quaternion import quat_multiply
 
     qroot[:, 0] = quat_multiply(qy, qroot[:, 0])
     pose = dataclasses.replace(pose, positions=pos, rotations=qroot)

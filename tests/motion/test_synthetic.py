@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 from repro.errors import MotionError
 from repro.motion import read_bvh, read_manifest, synthetic_clip, synthetic_database, synthetic_skeleton
-from repro.motion.motion import quat_multiply
+from repro.motion.quaternion import quat_multiply
 from repro.motion.synthetic import (
     ELBOW_FLEXION_LIMITS_DEG,
     HINGE_AXES,

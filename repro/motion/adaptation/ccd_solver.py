@@ -32,7 +32,8 @@ from repro.motion.kinematics import (
     qinv,
     quat_to_matrix,
 )
-from repro.motion.motion import Motion, quat_multiply
+from repro.motion.motion import Motion
+from repro.motion.quaternion import quat_multiply
 
 __all__ = [
     "DEFAULT_LIMITS_DEG",

@@ -35,7 +35,8 @@ from repro.motion.kinematics import (
     quat_to_matrix,
     transport,
 )
-from repro.motion.motion import Motion, quat_multiply
+from repro.motion.motion import Motion
+from repro.motion.quaternion import quat_multiply
 
 __all__ = ["LimbSolution", "reach_limb", "solve_limb", "limb_dmax"]
 

@@ -19,7 +19,8 @@ import numpy as np
 
 from repro.errors import MotionError
 from repro.motion.kinematics import qinv, slerp
-from repro.motion.motion import Motion, euler_to_quat, quat_multiply, quat_rotate
+from repro.motion.motion import Motion
+from repro.motion.quaternion import euler_to_quat, quat_multiply, quat_rotate
 from repro.motion.synthetic.ik import IKSolution, Limb, flexion_at, limb_of, limb_reach, two_bone
 from repro.motion.synthetic.skeleton import (
     DEFAULT_FPS,

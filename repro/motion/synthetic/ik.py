@@ -16,7 +16,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from repro.errors import MotionError
-from repro.motion.motion import quat_multiply
+from repro.motion.quaternion import quat_multiply
 from repro.motion.synthetic.skeleton import ELBOW_FLEXION_LIMITS_DEG, HINGE_AXES, KNEE_FLEXION_LIMITS_DEG, REF_LENGTHS
 from repro.motion.synthetic.tracks import UNIT_X, UNIT_Y, axis_angle_quat
 
