@@ -6,7 +6,7 @@
 Each file holds the same face, :func:`fixture_model` (a 108-vertex patch of the
 500-vertex procedural face -- brows to chin -- with five shapes under
 ARKit names, deltas below 2% of each shape's peak set to exactly zero so that a
-sparse file is sparse), in metres, written by :func:`repro.blendshapes.gltf.write_gltf`
+sparse file is sparse), in metres, written by :func:`repro.blendshapes.gltf_write.write_gltf`
 with one storage feature each.  The tests only read the committed results and
 compare them with :func:`fixture_model`; this script is not needed at test time.
 """
