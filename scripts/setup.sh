@@ -44,3 +44,8 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   pip_quiet install -q -e '.[dev]'
   echo "$want" > "$stamp"
 fi
+
+# the project's IPython kernel configuration (no first-use messages in notebook outputs)
+mkdir -p .venv/etc/ipython
+cmp -s scripts/ipython/ipython_kernel_config.py .venv/etc/ipython/ipython_kernel_config.py \
+  || cp scripts/ipython/ipython_kernel_config.py .venv/etc/ipython/ipython_kernel_config.py

@@ -9,6 +9,7 @@ that everything is undone afterwards.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import subprocess
 import sys
@@ -79,3 +80,28 @@ def test_a_burner_stops_by_itself_when_its_parent_dies():
     while Path(f"/proc/{pid}").exists() and Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z":
         assert time.monotonic() < deadline, f"burner {pid} outlived its parent"
         time.sleep(0.1)
+
+
+def test_project_kernels_do_not_announce_a_font_cache_build(tmp_path, monkeypatch):
+    # scripts/setup.sh installs scripts/ipython/ipython_kernel_config.py into the venv: a kernel of
+    # this environment starts with matplotlib's font-cache announcement (a first-use message on a
+    # slow machine) silenced, even with an empty IPYTHONDIR and HOME
+    from jupyter_client.manager import start_new_kernel
+
+    installed = Path(sys.prefix) / "etc" / "ipython" / "ipython_kernel_config.py"
+    source = Path(__file__).resolve().parents[1] / "scripts" / "ipython" / "ipython_kernel_config.py"
+    assert installed.read_text() == source.read_text(), "run scripts/setup.sh"
+    for var in ("HOME", "IPYTHONDIR", "MPLCONFIGDIR"):
+        monkeypatch.setenv(var, str(tmp_path / var))
+    km, kc = start_new_kernel(kernel_name="python3")
+    try:
+        seen = []
+        kc.execute_interactive(
+            "import logging; print(logging.getLogger('matplotlib.font_manager').getEffectiveLevel())",
+            output_hook=lambda m: seen.append(m["content"].get("text", "")) if m["msg_type"] == "stream" else None,
+            timeout=120,
+        )
+    finally:
+        kc.stop_channels()
+        km.shutdown_kernel(now=True)
+    assert "".join(seen).strip() == str(logging.ERROR)
