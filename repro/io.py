@@ -79,17 +79,25 @@ def read_bytes(src, *, error: type[ReproError] = DataError, max_bytes: int = MAX
                 if total > max_bytes:
                     raise error(f"{p}: more than {max_bytes} bytes of content; refusing to read it")
                 chunks.append(chunk)
-    except FileNotFoundError:
-        raise error(f"{p}: no such file") from None
-    except IsADirectoryError:
-        raise error(f"{p}: is a folder, not a file") from None
-    except PermissionError:
-        raise error(f"{p}: permission denied") from None
     except (EOFError, gzip.BadGzipFile, zlib.error) as exc:
         raise error(f"{p}: corrupt gzip stream ({exc})") from exc
     except OSError as exc:
-        raise error(f"{p} cannot be read: {exc}") from exc
+        raise _open_error(p, exc, error) from (None if isinstance(exc, _PLAIN_OPEN_ERRORS) else exc)
     return b"".join(chunks), str(p)
+
+
+_PLAIN_OPEN_ERRORS = (FileNotFoundError, IsADirectoryError, PermissionError)
+
+
+def _open_error(p, exc: OSError, error: type[ReproError]) -> ReproError:
+    """The caller's ``error`` for a file that cannot be opened or read, naming the path."""
+    if isinstance(exc, FileNotFoundError):
+        return error(f"{p}: no such file")
+    if isinstance(exc, IsADirectoryError):
+        return error(f"{p}: is a folder, not a file")
+    if isinstance(exc, PermissionError):
+        return error(f"{p}: permission denied")
+    return error(f"{p} cannot be read: {exc}")
 
 
 #: dtype kinds :func:`read_npz` returns when ``allow`` is not given (no objects, no structured records).
@@ -180,14 +188,8 @@ def read_npz(
         where = str(p)
         try:
             fh, own = open(p, "rb"), True
-        except FileNotFoundError:
-            raise error(f"{p}: no such file") from None
-        except IsADirectoryError:
-            raise error(f"{p}: is a folder, not a file") from None
-        except PermissionError:
-            raise error(f"{p}: permission denied") from None
         except OSError as exc:
-            raise error(f"{p} cannot be read: {exc}") from exc
+            raise _open_error(p, exc, error) from (None if isinstance(exc, _PLAIN_OPEN_ERRORS) else exc)
     out: dict = {}
     member = None
     budget = max_bytes

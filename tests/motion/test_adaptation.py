@@ -525,7 +525,7 @@ def test_time_adaptation_reports(punch):
 
 
 def test_synthetic_punch_end_site_hit_point():
-    synthetic = pytest.importorskip("repro.motion.synthetic")
+    from repro.motion import synthetic
     m, ann = synthetic.synthetic_clip("punch", "right", "middle", seed=1)
     assert ann["hit_joint"] == "RightHand" and ann["hit_point"] == "end_site"
     tc = ann["hit_frame"]

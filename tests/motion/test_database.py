@@ -46,7 +46,7 @@ from repro.motion.database import (
 )
 from repro.motion.skeleton import Skeleton
 
-synthetic = pytest.importorskip("repro.motion.synthetic", reason="repro.motion.synthetic is not available")
+from repro.motion import synthetic  # noqa: E402  (a broken import must fail, not skip)
 
 
 @pytest.fixture(scope="module")

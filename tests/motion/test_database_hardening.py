@@ -22,7 +22,7 @@ import pytest
 from repro.errors import DataError, MotionError
 from repro.motion.database import MotionDatabase, build_database
 
-synthetic = pytest.importorskip("repro.motion.synthetic", reason="repro.motion.synthetic is not available")
+from repro.motion import synthetic  # noqa: E402  (a broken import must fail, not skip)
 
 
 @pytest.fixture(scope="module")

@@ -33,7 +33,7 @@ from repro.motion.morphology import retarget
 from repro.motion.retrieval import MotionRetriever, Query, search, time_search
 from repro.motion.skeleton import Skeleton, rescale_constraint, scale_skeleton
 
-synthetic = pytest.importorskip("repro.motion.synthetic", reason="repro.motion.synthetic is not available")
+from repro.motion import synthetic  # noqa: E402  (a broken import must fail, not skip)
 
 
 @pytest.fixture(scope="module")

@@ -24,7 +24,7 @@ from repro.motion.clustering import AlignedPoseIndex, aligned_distance, cluster_
 from repro.motion.database import Clip, build_database
 from repro.motion.retrieval import MAX_TARGET_M, MotionRetriever, Query, make_queries, search, time_search
 
-synthetic = pytest.importorskip("repro.motion.synthetic", reason="repro.motion.synthetic is not available")
+from repro.motion import synthetic  # noqa: E402  (a broken import must fail, not skip)
 
 
 @pytest.fixture(scope="module")
