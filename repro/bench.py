@@ -22,6 +22,12 @@ import time
 
 import numpy as np
 
+from repro.motion.paper import (
+    PAPER_ADAPT_PER_FRAME_S,
+    PAPER_LOAD_CONVERT_S,
+    PAPER_SEARCH_S,
+)
+
 __all__ = ["bench_attenuation", "bench_attenuation_scaling", "machine"]
 
 
@@ -186,11 +192,7 @@ def bench_attenuation_scaling(*, quick: bool = False, seed: int = 0, progress: b
 
 
 # ------------------------------------------------------------------ Pronost et al. ~2008
-#: The paper's Section 4 timings, for reference lines (not pass/fail: another machine, 2008).
-PAPER_SEARCH_S = 0.28
-PAPER_LOAD_CONVERT_S = 0.040
-PAPER_ADAPT_PER_FRAME_S = 88e-6
-REACTION_BUDGET_S = 1 / 30
+# The paper's Section 4 timings (reference lines, not pass/fail): repro.motion.paper.
 
 
 def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_queries: int = 200,
@@ -291,8 +293,8 @@ def bench_adaptation(*, quick: bool = False, progress: bool = False):
         clips.append(("cmu 135_04 (front kick)", data.fetch("mocap/cmu/135_04.bvh"), "right_foot", CMU_UNIT_M))
     import tempfile
 
-    from repro.motion.synthetic import synthetic_clip
     from repro.motion.bvh import write_bvh
+    from repro.motion.synthetic import synthetic_clip
 
     reps = 3 if quick else 7
     with tempfile.TemporaryDirectory() as tmp:

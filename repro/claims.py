@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from repro.motion.paper import PAPER_SEARCH_S, REACTION_BUDGET_S
+
 __all__ = ["Claim", "LEDGER", "evaluate", "ledger_table", "to_markdown", "summary_line"]
 
 VERDICTS = ("reproduced", "partially", "not reproduced", "not applicable")
@@ -328,9 +330,9 @@ def _k4(get):
         first = float(g.loc["order -> first adapted frame", "ours_p50_ms"])
         vals = {f"{stage}_p50_ms": float(g.loc[stage, "ours_p50_ms"]) for stage in g.index}
         vals["machine"] = str(g.machine.iloc[0]) if "machine" in g else ""
-        budget = 1000 / 30
+        budget = REACTION_BUDGET_S * 1e3
         if first < budget:
-            return ("reproduced", vals, f"order to first adapted frame {first:.1f} ms (p50) is within 1/30 s; the paper's 0.28 s search is {280 / vals['search_p50_ms']:.0f}x ours")
+            return ("reproduced", vals, f"order to first adapted frame {first:.1f} ms (p50) is within 1/30 s; the paper's {PAPER_SEARCH_S:.2f} s search is {PAPER_SEARCH_S * 1e3 / vals['search_p50_ms']:.0f}x ours")
         return ("partially", vals, f"order to first adapted frame {first:.1f} ms (p50) exceeds 1/30 s on this machine")
 
     return _by_database(t, judge)

@@ -86,7 +86,7 @@ def pytest_collection_modifyitems(config, items):
                 item.add_marker(pytest.mark.skip(reason=reason))
 
     if any(i.get_closest_marker("render") for i in items):
-        from repro.render import render_unavailable_reason
+        from repro.ui.render import render_unavailable_reason
 
         reason = render_unavailable_reason()
         if reason:

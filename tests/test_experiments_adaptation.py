@@ -169,7 +169,7 @@ def _near(img, color, tol=40.0) -> int:
 
 @pytest.mark.render
 def test_skeleton_images_draw_bones_and_the_target_with_one_camera():
-    from repro.render import skeleton_images
+    from repro.ui.render import skeleton_images
 
     P = np.array([[0, 1.0, 0], [0, 1.5, 0], [0.3, 1.3, 0.3], [0, 0.0, 0]])  # a T of three bones
     Q = P + [0.0, 0.0, 0.1]
@@ -211,7 +211,7 @@ def test_adapted_motions_figure_is_rendered_with_pyvista(results):
 def test_adapted_motions_falls_back_to_matplotlib(monkeypatch, tmp_path):
     import matplotlib.pyplot as plt
 
-    from repro import render
+    from repro.ui import render
 
     def no_render(*a, **k):
         raise AssertionError("pyvista must not be used without GL")

@@ -25,7 +25,6 @@ import pandas as pd
 import pytest
 
 import repro.experiments as E
-from repro.bench import REACTION_BUDGET_S
 from repro.motion.database import default_database
 
 # the module (the package exports a function of the same name)
@@ -47,7 +46,7 @@ def test_both_registered_for_pronost():
     for name in ("retrieval_latency", "clusters"):
         assert name in reg
         assert reg[name].paper == "pronost2008"
-        assert reg[name].module == f"repro.experiments.{name}"
+        assert reg[name].module == f"repro.experiments.pronost.{name}"
 
 
 def test_latency_table_is_the_bench_contract(latency):
@@ -61,19 +60,21 @@ def test_latency_table_is_the_bench_contract(latency):
     assert (t.mean_excess_d >= 0).all() and (t.mean_excess_when_differs >= t.mean_excess_d - 1e-12).all()
 
 
-def test_pruned_search_within_reaction_budget_at_base_size(latency):
+def test_pruned_search_is_timed_at_base_size(latency):
+    # whether it fits the 1/30 s budget is a measurement (claim K4, notebook 03), never asserted
     t = latency.table
     base = t[(t.factor == 1) & (t.method == "pruned")]
     assert len(base) == t.database.nunique()
-    assert (base.p50_ms < REACTION_BUDGET_S * 1e3).all(), base[["database", "p50_ms"]]
+    assert (np.isfinite(base.p50_ms) & (base.p50_ms > 0)).all(), base[["database", "p50_ms"]]
     assert (base.n_clips >= 70).all()  # the paper's ~75 motions
 
 
-def test_pruned_faster_than_exhaustive_at_largest_size(latency):
-    t = latency.table
-    for name, g in t.groupby("database"):
-        big = g[g.n_poses == g.n_poses.max()].set_index("method")
-        assert big.loc["pruned", "p50_ms"] < big.loc["exhaustive", "p50_ms"], (name, big[["p50_ms"]])
+def test_pruned_scores_fewer_poses_than_exhaustive_at_largest_size(latency):
+    # why the pruned search is faster, counted rather than timed (timings are the benchmark's)
+    ks = latency.extra_tables["k_sweep"]
+    for name, g in ks.groupby("database"):
+        big = g[(g.n_poses == g.n_poses.max()) & g.is_default_k]
+        assert (big.mean_poses_scored < big.mean_poses_exhaustive).all(), (name, big)
 
 
 def test_k_sweep_columns_and_rows(latency):

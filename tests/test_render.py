@@ -5,7 +5,7 @@ import sys
 
 import pytest
 
-from repro import render
+from repro.ui import render
 from repro.errors import RenderUnavailableError
 
 

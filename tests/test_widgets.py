@@ -1,4 +1,4 @@
-"""The blendshape panel (repro.widgets), driven from code: its numbers are the library's numbers."""
+"""The blendshape panel (repro.ui.face_panel), driven from code: its numbers are the library's numbers."""
 
 import math
 import subprocess
@@ -11,7 +11,7 @@ import pytest
 from repro.blendshapes import attenuation as attenuation_module
 from repro.blendshapes import load_model, scenarios
 from repro.errors import ModelError
-from repro.widgets import (
+from repro.ui.face_panel import (
     NUMBERS_FORMAT,
     PAPER_SLIDERS,
     BlendshapePanel,

@@ -96,13 +96,18 @@ from repro.motion.database import SEMANTICS, MotionDatabase, cut, effector_role
 from repro.motion.kinematics import slerp
 from repro.motion.morphology import retarget
 from repro.motion.motion import Motion, finite_vector3
+from repro.motion.paper import REACTION_BUDGET_S
 from repro.motion.quaternion import quat_multiply
 from repro.motion.retrieval import MotionRetriever, RetrievalResult
-from repro.motion.skeleton import Skeleton, rescale_constraint, scale_skeleton, skeleton_of
+from repro.motion.skeleton import (
+    Skeleton,
+    rescale_constraint,
+    scale_skeleton,
+    skeleton_of,
+)
 
 __all__ = [
     "AREA",
-    "REACTION_BUDGET_S",
     "BLEND_S",
     "MAX_SPEED",
     "MAX_TURN_RATE",
@@ -119,8 +124,6 @@ __all__ = [
 #: The user's area (Section 1: "a real user that displaces in the VR system area (3m x
 #: 3m area)"): ``(min, max)`` of x, y (height) and z, metres.  Targets outside raise.
 AREA: tuple[tuple[float, float], tuple[float, float], tuple[float, float]] = ((-1.5, 1.5), (0.0, 2.5), (-1.5, 1.5))
-#: "When the supervisor provides an order, the system should react in less than 1/30s" (Section 3.4.2).
-REACTION_BUDGET_S: float = 1.0 / 30.0
 #: Seconds over which a selected clip is blended into the current pose.
 BLEND_S: float = 0.2
 #: Largest following speed (m/s) and turning rate (rad/s) of :meth:`KungFuFighter.follow`.
@@ -331,7 +334,7 @@ class Strike:
         ``adapt_per_frame`` and ``retarget_adapt_per_frame`` (per frame of
         :attr:`motion`, the paper's 88 µs), ``solver`` (:func:`adapt` alone).
     budget_s : float
-        :data:`REACTION_BUDGET_S`.
+        :data:`repro.motion.paper.REACTION_BUDGET_S`.
     """
 
     kind: str

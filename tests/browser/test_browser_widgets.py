@@ -50,7 +50,7 @@ def wait_image_change(nb, selector: str, old_src: str | None, timeout: float = S
 def expected_fig5_numbers(alpha: float) -> dict:
     """What the notebook's panel must show at ``alpha``, computed here by the library."""
     from repro.blendshapes import load_model
-    from repro.widgets import BlendshapePanel
+    from repro.ui.face_panel import BlendshapePanel
 
     panel = BlendshapePanel(load_model("procedural"), view="none", region="under_left_eye", attenuation=True)
     panel.set_sliders(Wince=0.7, SneerLeft=0.7, SneerRight=0.7)
@@ -69,7 +69,7 @@ def assert_numbers_match(shown: dict, alpha: float) -> None:
 @pytest.mark.render  # the notebook renders with pyvista
 @pytest.mark.data("ict")  # and compares with the ICT face
 def test_alpha_slider_in_the_fig5_panel(open_notebook):
-    from repro.widgets import parse_numbers
+    from repro.ui.face_panel import parse_numbers
 
     nb = open_notebook(BLENDSHAPE_NB)
     nb.run_all()
@@ -120,7 +120,7 @@ def test_alpha_slider_in_the_fig5_panel(open_notebook):
 def test_kick_button_in_the_fighter_panel(open_notebook):
     if not FIGHTER_NB.is_file():
         pytest.skip(f"{FIGHTER_NB.relative_to(REPO)} does not exist yet")
-    from repro.fighter_widgets import parse_fighter_numbers
+    from repro.ui.fighter_panel import parse_fighter_numbers
 
     nb = open_notebook(FIGHTER_NB)
     nb.run_all()

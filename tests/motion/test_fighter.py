@@ -1,4 +1,4 @@
-"""The interactive fighter (repro.motion.fighter) and its panel (repro.fighter_widgets), Sections 3-4.
+"""The interactive fighter (repro.motion.fighter) and its panel (repro.ui.fighter_panel), Sections 3-4.
 
 What is asserted (no timing is asserted, only that the timings exist):
 
@@ -31,12 +31,12 @@ import pytest
 from repro.errors import MotionError, RetrievalError
 from repro.motion.fighter import (
     AREA,
-    REACTION_BUDGET_S,
     KungFuFighter,
     Strike,
     character_from,
     simulated_user,
 )
+from repro.motion.paper import REACTION_BUDGET_S
 from repro.motion.skeleton import Skeleton, scale_skeleton
 from repro.motion.synthetic import hit_point_trajectory
 
@@ -292,7 +292,7 @@ def test_importing_the_fighter_does_not_import_widget_or_plot_libraries():
 # ------------------------------------------------------------------ the panel
 @pytest.fixture()
 def panel(fighter):
-    from repro.fighter_widgets import FighterPanel
+    from repro.ui.fighter_panel import FighterPanel
 
     p = FighterPanel(fresh(fighter), view=False)
     yield p
@@ -300,7 +300,7 @@ def panel(fighter):
 
 
 def test_panel_kick_and_punch_update_the_numbers(panel):
-    from repro.fighter_widgets import format_fighter_numbers, parse_fighter_numbers
+    from repro.ui.fighter_panel import format_fighter_numbers, parse_fighter_numbers
 
     assert panel.numbers == {}
     assert "repro-fighter-numbers" in panel.numbers_html._dom_classes
@@ -329,7 +329,7 @@ def test_panel_kick_and_punch_update_the_numbers(panel):
 
 
 def test_panel_without_following_reports_unreachable_targets(fighter):
-    from repro.fighter_widgets import FighterPanel
+    from repro.ui.fighter_panel import FighterPanel
 
     p = FighterPanel(fresh(fighter, position=(0.0, -1.4)), view=False, follow=False)
     p.set_target(0.0, 1.7, 1.5)
@@ -364,7 +364,12 @@ def test_panel_character_sliders_change_the_fighter(panel):
 
 
 def test_panel_view_draws_a_filmstrip_and_parse_rejects_other_text(fighter):
-    from repro.fighter_widgets import FighterPanel, filmstrip_figure, key_frames, parse_fighter_numbers
+    from repro.ui.fighter_panel import (
+        FighterPanel,
+        filmstrip_figure,
+        key_frames,
+        parse_fighter_numbers,
+    )
 
     p = FighterPanel(fresh(fighter), view=True)
     assert p.image_png() == b""
@@ -394,7 +399,7 @@ def test_panel_callbacks_show_errors_instead_of_raising(panel, monkeypatch):
 
 
 def test_animation_html_is_a_player(fighter):
-    from repro.fighter_widgets import animation_html
+    from repro.ui.fighter_panel import animation_html
 
     f = fresh(fighter)
     f.follow((0, 1.6, 0), 0.0, snap=True)

@@ -32,7 +32,7 @@ def fig2_interference(quick: bool = False) -> Result:
 
 
 def draw(models):
-    from repro.render import face_images, panel_figure
+    from repro.ui.render import face_images, panel_figure
 
     images, titles, values = [], [], []
     for model in models:

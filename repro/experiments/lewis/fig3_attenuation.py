@@ -25,7 +25,7 @@ def fig3_attenuation(quick: bool = False) -> Result:
 
 
 def draw(pairs):
-    from repro.render import face_images, panel_figure
+    from repro.ui.render import face_images, panel_figure
 
     images, titles = [], []
     for model, att in pairs:

@@ -28,7 +28,7 @@ def draw(pairs, table):
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from repro.render import face_images
+    from repro.ui.render import face_images
 
     sc = S.scenario(KEY)
     fig, axes = plt.subplots(len(pairs), 4, figsize=(12, 3.2 * len(pairs)), squeeze=False, layout="constrained")

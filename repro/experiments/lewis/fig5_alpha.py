@@ -35,7 +35,7 @@ def fig5_alpha(quick: bool = False) -> Result:
 
 
 def draw(pairs):
-    from repro.render import face_images, panel_figure
+    from repro.ui.render import face_images, panel_figure
 
     sc = S.scenario(KEY)
     images, titles = [], []

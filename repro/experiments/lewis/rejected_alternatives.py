@@ -32,7 +32,7 @@ def draw(pairs, table):
 
     from repro.blendshapes.alternatives import edit_zeroed
     from repro.blendshapes.metrics import laplacian_magnitude
-    from repro.render import face_images
+    from repro.ui.render import face_images
 
     methods = ["none", "attenuation", "zeroed_rows", "orthogonal_lock"]
     metrics = [("selected_motion", "selected motion since selection"), ("unselected_fidelity", "unselected fidelity"),

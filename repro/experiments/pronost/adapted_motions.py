@@ -124,10 +124,10 @@ def _panel_title(p) -> str:
 def draw(poses, renderer: str = "auto"):
     """The figure: pyvista renders when off-screen VTK works here, else matplotlib 3D stick figures.
 
-    ``renderer``: ``"auto"`` (probe :func:`repro.render.render_unavailable_reason`), ``"pyvista"`` or
+    ``renderer``: ``"auto"`` (probe :func:`repro.ui.render.render_unavailable_reason`), ``"pyvista"`` or
     ``"matplotlib"``.  The figure's title says which renderer drew it.
     """
-    from repro.render import render_unavailable_reason
+    from repro.ui.render import render_unavailable_reason
 
     if renderer not in ("auto", "pyvista", "matplotlib"):
         raise ValueError(f"renderer must be 'auto', 'pyvista' or 'matplotlib', not {renderer!r}")
@@ -141,7 +141,7 @@ def _draw_pyvista(poses):
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
 
-    from repro.render import skeleton_images
+    from repro.ui.render import skeleton_images
 
     heights, orders, grid = _grid(poses)
     flat = [p for row in grid for p in row]

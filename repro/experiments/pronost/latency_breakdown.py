@@ -42,12 +42,16 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from repro.bench import PAPER_ADAPT_PER_FRAME_S, PAPER_LOAD_CONVERT_S, PAPER_SEARCH_S, REACTION_BUDGET_S, machine
+from repro.bench import machine
 from repro.experiments.registry import Result, experiment
-
-#: "The latency between the supervisor keystroke and the beginning of the search is approximately 3ms."
-PAPER_ORDER_TO_SEARCH_S = 0.003
-PAPER_MACHINE = "Pentium 4 3.6 GHz, 2 GB (2008)"
+from repro.motion.paper import (
+    PAPER_ADAPT_PER_FRAME_S,
+    PAPER_LOAD_CONVERT_S,
+    PAPER_MACHINE,
+    PAPER_ORDER_TO_SEARCH_S,
+    PAPER_SEARCH_S,
+    REACTION_BUDGET_S,
+)
 
 #: (stage, key of Strike.timings, paper seconds or None, note)
 STAGES = (

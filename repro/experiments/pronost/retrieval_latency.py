@@ -57,8 +57,9 @@ import time
 import numpy as np
 import pandas as pd
 
-from repro.bench import PAPER_SEARCH_S, REACTION_BUDGET_S, bench_retrieval, retrieval_summary
+from repro.bench import bench_retrieval, retrieval_summary
 from repro.experiments.registry import Result, experiment
+from repro.motion.paper import PAPER_SEARCH_S, REACTION_BUDGET_S
 
 #: Cluster counts of the k sweep.
 K_VALUES_QUICK = (4, 8, 16, 32, 64)

@@ -57,7 +57,7 @@ from collections.abc import Iterable, Mapping
 import ipywidgets as widgets
 import numpy as np
 
-from repro._panel import PanelCallbacks
+from repro.ui.panel import PanelCallbacks
 from repro.blendshapes import Attenuator, load_model, metrics, select_vertices
 from repro.blendshapes.model import AXES, BlendshapeModel
 from repro.errors import AttenuationError, ModelError, SelectionError
@@ -184,7 +184,7 @@ class _PyvistaView:
     """The same view through ONE persistent off-screen pyvista plotter (points and scalars updated in place)."""
 
     def __init__(self, model: BlendshapeModel, clim, cmap: str, size):
-        from repro.render import require_render
+        from repro.ui.render import require_render
 
         require_render()
         import pyvista as pv
@@ -239,7 +239,7 @@ class BlendshapePanel(PanelCallbacks):
         name the model accepts.
     view : "matplotlib" (default), "pyvista", "auto" or "none"
         "auto" uses pyvista when off-screen rendering works here
-        (:func:`repro.render.render_unavailable_reason`), else matplotlib.
+        (:func:`repro.ui.render.render_unavailable_reason`), else matplotlib.
     region : str, optional
         Preset region selected at start (default: the model's first region).
     axes : str
@@ -320,7 +320,7 @@ class BlendshapePanel(PanelCallbacks):
 
         # view
         if view == "auto":
-            from repro.render import render_unavailable_reason
+            from repro.ui.render import render_unavailable_reason
 
             view = "pyvista" if render_unavailable_reason() is None else "matplotlib"
         self.view_kind = view

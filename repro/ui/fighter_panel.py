@@ -38,7 +38,7 @@ import re
 import ipywidgets as widgets
 import numpy as np
 
-from repro._panel import PanelCallbacks
+from repro.ui.panel import PanelCallbacks
 from repro.motion.fighter import AREA, KungFuFighter, Strike, character_from, simulated_user
 
 __all__ = [

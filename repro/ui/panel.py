@@ -1,4 +1,4 @@
-"""What the ipywidgets panels of both papers share (``repro.widgets``, ``repro.fighter_widgets``)."""
+"""What the ipywidgets panels of both papers share (``repro.ui.face_panel``, ``repro.ui.fighter_panel``)."""
 
 from __future__ import annotations
 

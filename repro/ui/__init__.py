@@ -1,0 +1,9 @@
+"""The presentation layer: ipywidgets panels of both papers and the drawing helpers the figures use.
+
+- :mod:`~repro.ui.panel`: what both panels share (guarded callbacks, batched updates).
+- :mod:`~repro.ui.face_panel`: the blendshape panel of Lewis et al. 2005 (``BlendshapePanel``).
+- :mod:`~repro.ui.fighter_panel`: the kung-fu fighter panel of Pronost et al. (``FighterPanel``).
+- :mod:`~repro.ui.render`: pyvista/matplotlib drawing (headless probe, face and skeleton images).
+
+Nothing in the library imports this package.
+"""
