@@ -26,7 +26,7 @@ def test_bench_adaptation_reports_per_frame_costs():
 
 def test_bench_cli_writes_the_contract_csv(tmp_path, monkeypatch, capsys):
     full = bench.bench_retrieval
-    small = lambda quick: full(databases=["synthetic"], factors=(1,), n_queries=10, progress=False)  # noqa: E731
+    small = lambda quick, progress=False: full(databases=["synthetic"], factors=(1,), n_queries=10, progress=False)  # noqa: E731
     monkeypatch.setattr(bench, "bench_retrieval", small)
     assert cli.main(["bench", "retrieval", "--out", str(tmp_path)]) == 0
     t = pd.read_csv(tmp_path / "retrieval_latency.csv")
