@@ -23,7 +23,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.optimize import minimize
 
-from repro.errors import MotionError
+from repro.errors import MotionError, ReproWarning
 from repro.motion.clustering import (
     AlignedPoseIndex,
     aligned_distance,
@@ -210,7 +210,8 @@ def test_kmeans_partition_centroids_and_bound():
 
 def test_kmeans_edge_cases():
     P = _pose_set(20)
-    assert cluster_poses(P, 50).k <= 20
+    with pytest.warns(ReproWarning, match="using k = 20"):  # cut, and said so
+        assert cluster_poses(P, 50).k <= 20
     one = cluster_poses(P, 1)
     assert one.k == 1 and np.all(one.labels == 0)
     with pytest.raises(MotionError):
