@@ -77,9 +77,6 @@ def _run(names, out: str, quick: bool, force: bool = False) -> int:
     if unknown:
         print(f"repro: unknown figure {', '.join(map(repr, unknown))}; known: {', '.join(reg)}", file=sys.stderr)
         return 2
-    if why := _bad_out(out):
-        print(f"repro: {why}", file=sys.stderr)
-        return 2
     bar = tqdm(total=len(names), desc="figures", unit="fig", delay=1.0, file=sys.stderr)
 
     def report(name, status, paths):
@@ -132,9 +129,6 @@ def _claims(args) -> int:
     from repro import claims
     from repro.io import write_csv, write_text
 
-    if why := _bad_out(args.out):
-        print(f"repro: {why}", file=sys.stderr)
-        return 2
     rows = claims.evaluate(quick=not args.full, progress=True)
     for r in rows:
         print(f"{r['id']:4s} {r['embedded_verdict']:15s} {r['real_verdict']:15s} {r['statement'][:90]}")
@@ -163,6 +157,10 @@ def main(argv=None) -> int:
 
 
 def _main(args) -> int:
+    # every command that writes (run, all, bench, claims) takes --out: refuse a bad one before computing
+    if getattr(args, "out", None) is not None and (why := _bad_out(args.out)):
+        print(f"repro: {why}", file=sys.stderr)
+        return 2
     try:
         if args.command == "list":
             from repro.experiments import registry
@@ -185,9 +183,6 @@ def _main(args) -> int:
                 "retrieval": (bench.bench_retrieval, bench.format_retrieval, "retrieval_latency.csv"),
                 "adaptation": (bench.bench_adaptation, bench.format_adaptation, "bench_adaptation.csv"),
             }[args.which]
-            if why := _bad_out(args.out):
-                print(f"repro: {why}", file=sys.stderr)
-                return 2
             table = run_(quick=args.quick, progress=True)
             print(fmt(table))
             print(f"wrote {write_csv(Path(args.out) / csv_name, table)}")
