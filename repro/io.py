@@ -21,6 +21,7 @@ import tempfile
 import tokenize
 import zipfile
 import zlib
+from collections import Counter
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
@@ -199,8 +200,7 @@ def read_npz(
             fh.seek(0)
             with zipfile.ZipFile(fh) as z:
                 infos = z.infolist()
-                names = [i.filename for i in infos]
-                dup = sorted({n for n in names if names.count(n) > 1})
+                dup = sorted(n for n, c in Counter(i.filename for i in infos).items() if c > 1)
                 if dup:
                     raise error(f"{where}: duplicate archive members {dup[:5]}")
                 for info in infos:

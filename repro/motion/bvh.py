@@ -93,15 +93,6 @@ _NOT_SPACE[[9, 10, 11, 12, 13, 32]] = False  # the ASCII whitespace bytes.split(
 
 
 # ---------------------------------------------------------------------- input
-def _read_bytes(src) -> tuple[bytes, str | None]:
-    """Content of a path (``.gz`` undone, size capped) or of a stream, and its name.
-
-    :func:`repro.io.read_bytes` with :class:`BVHError`: a missing file, a folder, a
-    corrupt gzip stream ... raise a BVHError naming the path.
-    """
-    return read_bytes(src, error=BVHError)
-
-
 def _float(tok: str, where: str) -> float:
     try:
         v = float(tok)
@@ -560,7 +551,7 @@ def read_bvh(src, *, unit_m: float | None = None, strict: bool = False) -> Motio
         rate is infinite) or the joint and frame (offsets and positions so large that
         world positions overflow).
     """
-    data, name = _read_bytes(src)
+    data, name = read_bytes(src, error=BVHError)
     if data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]
     m = _MOTION_RE.search(data)
