@@ -18,6 +18,7 @@ from typing import NamedTuple
 import numpy as np
 
 from repro.errors import MotionError
+from repro.motion.annotation import hit_point_trajectory
 from repro.motion.kinematics import qinv, slerp
 from repro.motion.motion import Motion
 from repro.motion.quaternion import euler_to_quat, quat_multiply, quat_rotate
@@ -54,7 +55,6 @@ __all__ = [
     "HIT_POINTS",
     "TARGET_HEIGHT_FRACTION",
     "synthetic_clip",
-    "hit_point_trajectory",
 ]
 
 # ---------------------------------------------------------------- public constants
@@ -793,26 +793,3 @@ def _annotation(b: _Builder, motion: Motion, kind: str, side: str, fps: float, a
         if kind != "punch":
             ann["support_foot"] = b.lead_side + "Foot"
     return ann
-
-
-def hit_point_trajectory(motion: Motion, joint: str, where: str = "joint") -> np.ndarray:
-    """(F, 3) world trajectory of a hit point: a joint, or the End Site of a joint.
-
-    Parameters
-    ----------
-    motion : Motion
-        Any motion.
-    joint : str
-        Joint name (e.g. the annotation's ``hit_joint``).
-    where : {"joint", "end_site"}
-        The joint's own position, or its (first) End Site.
-    """
-    j = motion.joint_index(joint)
-    if where == "joint":
-        return motion.global_positions()[:, j]
-    if where == "end_site":
-        sites = np.flatnonzero(motion.end_site_parents == j)
-        if sites.size == 0:
-            raise MotionError(f"joint {joint!r} has no End Site")
-        return motion.end_site_positions()[:, sites[0]]
-    raise MotionError(f"where must be 'joint' or 'end_site', got {where!r}")
