@@ -96,11 +96,10 @@ from repro.motion.annotation import SEMANTICS
 from repro.motion.database import MotionDatabase
 from repro.motion.ops import cut
 from repro.motion.roles import effector_role
-from repro.motion.kinematics import slerp
 from repro.motion.morphology import retarget
 from repro.motion.motion import Motion, finite_vector3
 from repro.motion.paper import REACTION_BUDGET_S
-from repro.motion.quaternion import quat_multiply
+from repro.motion.quaternion import quat_multiply, slerp
 from repro.motion.retrieval import MotionRetriever, RetrievalResult
 from repro.motion.skeleton import (
     Skeleton,

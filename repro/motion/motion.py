@@ -46,6 +46,7 @@ import numpy as np
 
 from repro.errors import BVHError, MotionError
 from repro.motion.channels import POSITION_CHANNELS, ROTATION_CHANNELS, channel_layout, channel_table
+from repro.motion.kinematics import depth_levels, fk_arrays
 from repro.motion.quaternion import euler_to_quat, quat_multiply, quat_rotate
 
 __all__ = [
@@ -322,16 +323,7 @@ class Motion:
 
     @cached_property
     def _depth_levels(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        # linear in the number of joints (a scan per depth level would be quadratic for chains)
-        parents = self.parents.tolist()
-        depth = [0] * self.n_joints
-        for j in range(1, self.n_joints):
-            depth[j] = depth[parents[j]] + 1
-        depth = np.array(depth, dtype=np.intp)
-        order = np.argsort(depth, kind="stable")  # joints by depth, index order within a level
-        bounds = np.cumsum(np.bincount(depth))
-        par = self.parents[order]
-        return [(order[a:b], par[a:b]) for a, b in zip(bounds[:-1], bounds[1:])]
+        return depth_levels(self.parents)
 
     # ---------------------------------------------------------- kinematics
     def local_translations(self) -> np.ndarray:
@@ -354,17 +346,10 @@ class Motion:
         positions : (F, J, 3) array
             World position of each joint, file units, in :attr:`joint_names` order.
         """
-        q = self.rotations
         if len(self._depth_levels) > _LEVEL_LOOP_MAX_DEPTH:
             return self._global_transforms_doubling()
-        gq = np.empty_like(q)
-        gp = self.local_translations()  # fresh array, filled level by level in place
-        gq[:, 0] = q[:, 0]
-        for idx, par in self._depth_levels:
-            pq = gq[:, par]
-            gp[:, idx] = gp[:, par] + quat_rotate(pq, gp[:, idx])
-            gq[:, idx] = quat_multiply(pq, q[:, idx])
-        return gq, gp
+        # local_translations() is a fresh array: filled level by level in place
+        return fk_arrays(self._depth_levels, self.rotations, self.local_translations(), copy=False)
 
     def _global_transforms_doubling(self) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`global_transforms` for deep trees, by pointer doubling (no loop over levels).

@@ -17,8 +17,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from repro.errors import MotionError
-from repro.motion.kinematics import slerp
 from repro.motion.motion import Motion
+from repro.motion.quaternion import slerp
 
 __all__ = ["resample", "cut", "mirror_joint_map", "mirror_motion", "variant_motion"]
 

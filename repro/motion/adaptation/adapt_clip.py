@@ -14,7 +14,8 @@ from repro.motion.adaptation.ccd_solver import DEFAULT_HINGE_RANGE_DEG, ccd_spec
 from repro.motion.adaptation.limb import limb_dmax, solve_limb
 from repro.motion.adaptation.offset import offset_curve
 from repro.motion.adaptation.rig import Chain, Rig, check_extension, check_int, default_tol, rig_of, vec3
-from repro.motion.kinematics import fk_arrays, qrot
+from repro.motion.kinematics import fk_arrays
+from repro.motion.quaternion import quat_rotate as qrot
 from repro.motion.motion import Motion
 
 __all__ = ["Adaptation", "adapt"]

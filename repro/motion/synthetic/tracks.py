@@ -15,7 +15,6 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from repro.errors import MotionError
 
@@ -30,8 +29,6 @@ __all__ = [
     "unit",
     "slerp_vec",
     "dir_track",
-    "axis_angle_quat",
-    "quat_power",
     "spherical",
     "rad",
 ]
@@ -107,19 +104,6 @@ def dir_track(t: np.ndarray, keys: Sequence[tuple[float, np.ndarray]], eases: Se
     kt = np.array([k[0] for k in keys], dtype=float)
     kv = unit(np.array([k[1] for k in keys], dtype=float))
     return _piecewise(t, kt, kv, lambda i, u: slerp_vec(kv[i][None], kv[i + 1][None], EASES[eases[i]](u)[:, None]))
-
-
-def axis_angle_quat(axis, angle) -> np.ndarray:
-    """Quaternions of rotations by ``angle`` (radians, (F,)) about a fixed unit ``axis``."""
-    angle = np.asarray(angle, dtype=float)
-    axis = np.asarray(axis, dtype=float)
-    h = 0.5 * angle[..., None]
-    return np.concatenate([np.sin(h) * axis, np.cos(h)], axis=-1)
-
-
-def quat_power(q: np.ndarray, k: float) -> np.ndarray:
-    r = Rotation.from_quat(q)
-    return Rotation.from_rotvec(r.as_rotvec() * k).as_quat()
 
 
 def spherical(az, el) -> np.ndarray:
