@@ -194,8 +194,9 @@ _POSE_NUM = ("traj", "pose_points", "pose_clip", "pose_frame", "pose_heading", "
 class MotionDatabase:
     """Annotated clips and the query-independent data of the retrieval (Sections 3.2-3.3).
 
-    Build with :meth:`from_clips`, :func:`build_database`, :func:`build_cmu_database` or
-    :func:`augment`; save and load with :meth:`save` / :meth:`load`.
+    Build with :meth:`from_clips`, :func:`repro.motion.sources.build_database`,
+    :func:`repro.motion.sources.build_cmu_database` or :func:`repro.motion.augment.augment`;
+    save and load with :meth:`save` / :meth:`load`.
 
     Attributes (C clips, N poses, T trajectory samples, P pose points)
     -------------------------------------------------------------------
@@ -737,25 +738,24 @@ def _database_from_arrays(cls, z: dict, where: str) -> MotionDatabase:
         ck.ensure(src is None or isinstance(src, str), f"motion of clip {i}: source must be a string or null")
         J, F = len(h["joint_names"]), int(nf[i])
         rot = ck.numbers(f"motion{i}_rotations", (F, J, 4), "float")
+        # the stored quaternions are unit already: kept bit for bit (Motion() would
+        # re-normalise them, which may change their last bit); a zero one is Motion's to refuse
+        norm = np.linalg.norm(rot, axis=-1)
+        ck.ensure(np.all((norm < 1e-12) | (np.abs(norm - 1.0) < Motion.UNIT_TOLERANCE)),
+                  f"motion of clip {i}: rotations are not unit quaternions")
         try:
-            m = Motion(joint_names=h["joint_names"], parents=ck.numbers(f"motion{i}_parents", (J,), "int"),
-                       offsets=ck.numbers(f"motion{i}_offsets", (J, 3), "float"),
-                       channels=[tuple(c) for c in h["channels"]], frame_time=ft, rotations=rot,
-                       positions=ck.numbers(f"motion{i}_positions", (F, J, 3), "float"),
-                       end_site_parents=ck.numbers(f"motion{i}_end_site_parents", (None,), "int"),
-                       end_site_offsets=ck.numbers(f"motion{i}_end_site_offsets", (None, 3), "float"),
-                       unit_m=h["unit_m"], source=src)
+            m = Motion.from_unit_rotations(
+                joint_names=h["joint_names"], parents=ck.numbers(f"motion{i}_parents", (J,), "int"),
+                offsets=ck.numbers(f"motion{i}_offsets", (J, 3), "float"),
+                channels=[tuple(c) for c in h["channels"]], frame_time=ft, rotations=rot,
+                positions=ck.numbers(f"motion{i}_positions", (F, J, 3), "float"),
+                end_site_parents=ck.numbers(f"motion{i}_end_site_parents", (None,), "int"),
+                end_site_offsets=ck.numbers(f"motion{i}_end_site_offsets", (None, 3), "float"),
+                unit_m=h["unit_m"], source=src)
         except DataError:
             raise
         except (ReproError, ValueError, TypeError, KeyError, IndexError) as exc:
             ck.fail(f"the motion of clip {i} is unusable: {exc}")
-        # Motion() re-normalises quaternions, which may change their last bit; the
-        # stored ones are unit already, keep them bit for bit
-        ck.ensure(np.all(np.abs(np.linalg.norm(rot, axis=-1) - 1.0) < 1e-6),
-                  f"motion of clip {i}: rotations are not unit quaternions")
-        rot = np.array(rot, dtype=float)
-        rot.flags.writeable = False
-        object.__setattr__(m, "rotations", rot)
         motions[i] = m
     src = arrays["source_clip"]
     lacking = [i for i in range(C) if i not in motions and int(src[i]) not in motions]

@@ -159,7 +159,45 @@ class Motion:
     unit_m: float | None = None
     source: str | None = None
 
+    #: Largest ``| |q| - 1 |`` :meth:`from_unit_rotations` accepts as a unit quaternion.
+    UNIT_TOLERANCE = 1e-6
+
+    @classmethod
+    def from_unit_rotations(cls, **fields) -> Motion:
+        """The trusted constructor: a Motion whose ``rotations`` are unit quaternions already.
+
+        Same fields and checks as the constructor, except that the rotations are kept
+        bit for bit instead of being re-normalised (which can move a quaternion by one
+        ulp); their norms must be within :data:`UNIT_TOLERANCE` of 1, else
+        :class:`~repro.errors.BVHError`.  For results computed from unit quaternions (a
+        database's stored clips, the adaptation's unchanged frames).
+        """
+        obj = cls.__new__(cls)
+        for f in dataclasses.fields(cls):
+            if f.name in fields:
+                value = fields.pop(f.name)
+            elif f.default is not dataclasses.MISSING:
+                value = f.default
+            elif f.default_factory is not dataclasses.MISSING:
+                value = f.default_factory()
+            else:
+                raise TypeError(f"Motion.from_unit_rotations() missing field {f.name!r}")
+            object.__setattr__(obj, f.name, value)
+        if fields:
+            raise TypeError(f"Motion.from_unit_rotations() got unexpected fields {sorted(fields)}")
+        obj._validate(renormalise=False)
+        return obj
+
+    def with_unit_rotations(self, rotations) -> Motion:
+        """This motion with other ``rotations``, unit quaternions kept bit for bit (:meth:`from_unit_rotations`)."""
+        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        fields["rotations"] = rotations
+        return type(self).from_unit_rotations(**fields)
+
     def __post_init__(self) -> None:
+        self._validate(renormalise=True)
+
+    def _validate(self, renormalise: bool) -> None:
         names = [str(n) for n in self.joint_names]
         J = len(names)
         if J == 0:
@@ -197,7 +235,10 @@ class Motion:
         norm = np.linalg.norm(rot, axis=-1, keepdims=True)
         if np.any(norm < 1e-12):
             raise BVHError("rotations contain a zero quaternion")
-        rot = rot / norm
+        if renormalise:
+            rot = rot / norm
+        elif not np.all(np.abs(norm - 1.0) <= self.UNIT_TOLERANCE):
+            raise BVHError(f"rotations are not unit quaternions (|q| - 1 up to {float(np.abs(norm - 1.0).max()):.3g})")
         pos = np.asarray(self.positions, dtype=float)
         if pos.shape != (F, J, 3):
             raise BVHError(f"positions must be ({F}, {J}, 3), got shape {pos.shape}")

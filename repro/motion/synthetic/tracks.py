@@ -1,12 +1,12 @@
-"""Keyframe tracks and the small rotation helpers the synthetic choreography is written with.
+"""Keyframe tracks and the small vector helpers the synthetic choreography is written with.
 
 Every track eases with zero slope at the keys (quintic smootherstep; the strike segment
 ``5u^4 - 4u^5``), so positions and rotations are C1 with zero velocity at the keys.
-Quaternions are scalar-last, as in :mod:`repro.motion.kinematics` (whose ``qinv`` is
-used, and whose ``slerp`` blends the foot rotations: it differs from the former private
-quaternion slerp by at most one ulp, 2.2e-16, on 52 generated clips, and the written
-database is byte-identical).  ``slerp_vec`` interpolates *directions* (no quaternion
-sign flip), which :func:`repro.motion.kinematics.slerp` does not do.
+Quaternion maths (scalar-last) is :mod:`repro.motion.quaternion`'s (its ``slerp`` blends
+the foot rotations: it differs from the former private quaternion slerp by at most one
+ulp, 2.2e-16, on 52 generated clips, and the written database is byte-identical).
+``slerp_vec`` interpolates *directions* (no quaternion sign flip), which
+:func:`repro.motion.quaternion.slerp` does not do.
 """
 
 from __future__ import annotations
