@@ -13,6 +13,7 @@ archive before allocating anything.
 from __future__ import annotations
 
 import contextlib
+import errno
 import gzip
 import math
 import os
@@ -312,8 +313,14 @@ def file_lock(path):
 
 
 @contextlib.contextmanager
-def atomic_path(path, *, mode: int = 0o644):
-    """Yield a temporary path beside ``path``; on success it replaces ``path`` atomically."""
+def atomic_path(path, *, mode: int = 0o644, replace: bool = True):
+    """Yield a temporary path beside ``path``; on success it replaces ``path`` atomically.
+
+    With ``replace=False`` an existing ``path`` is never clobbered: the finished file is
+    hard-linked into place, which fails atomically with :class:`FileExistsError` if the
+    name exists (also when it appeared while the file was being written); on a
+    filesystem without hard links it is moved into place after an existence check.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
@@ -321,11 +328,20 @@ def atomic_path(path, *, mode: int = 0o644):
     try:
         yield Path(tmp)
         os.chmod(tmp, mode)
-        os.replace(tmp, path)
-    except BaseException:
+        if replace:
+            os.replace(tmp, path)
+        else:
+            try:
+                os.link(tmp, path)  # atomic and never clobbers
+            except FileExistsError:
+                raise
+            except OSError:  # a filesystem without hard links
+                if path.exists():
+                    raise FileExistsError(errno.EEXIST, "target exists", str(path)) from None
+                os.replace(tmp, path)
+    finally:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
-        raise
 
 
 def write_text(path, text: str) -> Path:

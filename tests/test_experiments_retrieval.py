@@ -25,7 +25,7 @@ import pandas as pd
 import pytest
 
 import repro.experiments as E
-from repro.motion.database import default_database
+from repro.motion.sources import default_database
 
 # the module (the package exports a function of the same name)
 registry = importlib.import_module("repro.experiments.registry")

@@ -48,7 +48,8 @@ def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_quer
     from tqdm import tqdm  # plain bar on stderr, never a notebook widget
 
     from repro import data
-    from repro.motion.database import augment, default_database
+    from repro.motion.augment import augment
+    from repro.motion.sources import default_database
     from repro.motion.retrieval import time_search
 
     if databases is None:

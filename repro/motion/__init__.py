@@ -73,7 +73,6 @@ __all__ += [
 # Synthetic kung-fu database (no downloaded data needed): repro.motion.synthetic
 from repro.motion.synthetic import (  # noqa: E402
     SyntheticDatabase,
-    hit_point_trajectory,
     read_manifest,
     synthetic_clip,
     synthetic_database,
@@ -90,22 +89,18 @@ __all__ += [
 ]
 
 # The annotated motion database (Section 3.2), pose clustering (Section 3.2.2) and the
-# motion retrieval (Section 3.3): repro.motion.database, .clustering, .retrieval
+# motion retrieval (Section 3.3): repro.motion.annotation, .database, .sources, .augment,
+# .clustering, .retrieval
 from repro.motion.clustering import (  # noqa: E402
     AlignedPoseIndex,
     PoseClusters,
     aligned_distance,
     cluster_poses,
 )
-from repro.motion.database import (  # noqa: E402
-    Clip,
-    Hit,
-    MotionDatabase,
-    augment,
-    build_cmu_database,
-    build_database,
-    detect_hits,
-)
+from repro.motion.annotation import Hit, detect_hits, hit_point_trajectory  # noqa: E402
+from repro.motion.augment import augment  # noqa: E402
+from repro.motion.database import Clip, MotionDatabase  # noqa: E402
+from repro.motion.sources import build_cmu_database, build_database  # noqa: E402
 from repro.motion.retrieval import (  # noqa: E402
     MotionRetriever,
     RetrievalResult,
@@ -153,6 +148,6 @@ __all__ += [
 ]
 
 # The other real sources of the database (Bandai Namco strikes, non-fighting takes).
-from repro.motion.database import build_bandai_database, build_real_database, non_fighting_poses  # noqa: E402
+from repro.motion.sources import build_bandai_database, build_real_database, non_fighting_poses  # noqa: E402
 
 __all__ += ["build_bandai_database", "build_real_database", "non_fighting_poses"]

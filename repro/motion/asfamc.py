@@ -44,6 +44,7 @@ from repro.errors import BVHError
 from repro.io import read_bytes
 from repro.motion.motion import Motion
 from repro.motion.quaternion import euler_to_quat, quat_multiply
+from repro.motion.tokens import finite_float
 
 __all__ = [
     "AsfBone",
@@ -225,16 +226,7 @@ def _lines(text: str) -> Iterator[tuple[int, list[str]]]:
 def _floats(tok: list[str], n: int, where: str, what: str) -> np.ndarray:
     if len(tok) != n:
         raise BVHError(f"{where}: {what} needs {n} numbers, got {len(tok)}")
-    out = []
-    for t in tok:
-        try:
-            v = float(t)
-        except ValueError:
-            raise BVHError(f"{where}: {what} value {t!r} is not a number") from None
-        if not math.isfinite(v) or "_" in t or not t.isascii():
-            raise BVHError(f"{where}: {what} value {t!r} is not a finite number")
-        out.append(v)
-    return np.array(out)
+    return np.array([finite_float(t, f"{where}: {what} value") for t in tok])
 
 
 def _axis_order(tok: str, where: str) -> str:

@@ -55,17 +55,17 @@ import errno
 import os
 import re
 import stat
-import tempfile
 import warnings
 from pathlib import Path
 
 import numpy as np
 
 from repro.errors import BVHError, BVHWarning
-from repro.io import read_bytes
+from repro.io import atomic_path, read_bytes
 from repro.motion.channels import POSITION_CHANNELS, ROTATION_CHANNELS, joint_columns
 from repro.motion.motion import Motion
 from repro.motion.quaternion import euler_to_quat
+from repro.motion.tokens import finite_float
 
 __all__ = ["read_bvh", "write_bvh", "MAX_FRAMES"]
 
@@ -93,16 +93,6 @@ _NOT_SPACE[[9, 10, 11, 12, 13, 32]] = False  # the ASCII whitespace bytes.split(
 
 
 # ---------------------------------------------------------------------- input
-def _float(tok: str, where: str) -> float:
-    try:
-        v = float(tok)
-    except ValueError:
-        raise BVHError(f"{where}: {tok!r} is not a number") from None
-    if "_" in tok or not np.isfinite(v):
-        raise BVHError(f"{where}: {tok!r} is not a finite number")
-    return v
-
-
 # ------------------------------------------------------------------ hierarchy
 class _Hierarchy:
     """The parsed HIERARCHY section (plain lists, turned into a Motion later)."""
@@ -236,7 +226,7 @@ def _parse_hierarchy(header: str, motion_found: bool) -> _Hierarchy:
                 raise BVHError(f"{where}: OFFSET after the children of {_what(top)}")
             if len(tok) != 4:
                 raise BVHError(f"{where}: OFFSET needs 3 numbers, got {len(tok) - 1}")
-            off = (_float(tok[1], f"{where} (OFFSET)"), _float(tok[2], f"{where} (OFFSET)"), _float(tok[3], f"{where} (OFFSET)"))
+            off = tuple(finite_float(t, f"{where} (OFFSET):") for t in tok[1:4])
             if top[0] == "end":
                 h.end_offsets[-1] = off
             else:
@@ -736,31 +726,19 @@ def write_bvh(motion: Motion, path, *, overwrite: bool = False, precision: int =
             + (" (it is the file this motion was read from)" if motion.source and _same(path, motion.source) else ""),
             str(path),
         )
-    path.parent.mkdir(parents=True, exist_ok=True)  # as repro.io.atomic_path does
     mode = stat.S_IMODE(path.stat().st_mode) if path.exists() else 0o644
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, mode)
-        if overwrite:
-            os.replace(tmp, path)
-        else:
-            try:
-                os.link(tmp, path)  # atomic and never clobbers
-            except FileExistsError:
-                raise FileExistsError(
-                    errno.EEXIST, "target appeared while writing; pass overwrite=True to replace it", str(path)
-                ) from None
-            except OSError:  # a filesystem without hard links
-                if path.exists():
-                    raise FileExistsError(errno.EEXIST, "target exists", str(path)) from None
-                os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        with atomic_path(path, mode=mode, replace=overwrite) as tmp:
+            with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
+                fh.write(text)
+                fh.flush()
+                os.fsync(fh.fileno())
+    except FileExistsError as exc:
+        if exc.strerror == "target exists":
+            raise
+        raise FileExistsError(
+            errno.EEXIST, "target appeared while writing; pass overwrite=True to replace it", str(path)
+        ) from None
     return path
 
 

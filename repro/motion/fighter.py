@@ -69,7 +69,7 @@ Choices the paper leaves open (all documented, all parameters)
   the other.
 
 One-time cost (constructor, not an order): building / loading the database
-(:func:`repro.motion.database.default_database`, cached per process: ~3 s for the
+(:func:`repro.motion.sources.default_database`, cached per process: ~3 s for the
 synthetic one, ~1 s for CMU, on a 2-core machine), the :class:`MotionRetriever` (k-means
 of the poses and the per-cluster indices: ~0.2 s), the character and its stance (~10
 ms).  :attr:`KungFuFighter.setup_timings` has the measured values.
@@ -92,12 +92,14 @@ import numpy as np
 from repro.errors import MotionError, RetrievalError
 from repro.motion.adaptation import Adaptation, adapt
 from repro.motion.clustering import root_frames, rotate_y, to_root_frame
-from repro.motion.database import SEMANTICS, MotionDatabase, cut, effector_role
-from repro.motion.kinematics import slerp
+from repro.motion.annotation import SEMANTICS
+from repro.motion.database import MotionDatabase
+from repro.motion.ops import cut
+from repro.motion.roles import effector_role
 from repro.motion.morphology import retarget
 from repro.motion.motion import Motion, finite_vector3
 from repro.motion.paper import REACTION_BUDGET_S
-from repro.motion.quaternion import quat_multiply
+from repro.motion.quaternion import quat_multiply, slerp
 from repro.motion.retrieval import MotionRetriever, RetrievalResult
 from repro.motion.skeleton import (
     Skeleton,
@@ -409,7 +411,7 @@ class KungFuFighter:
     ----------
     database : "synthetic", "cmu" or MotionDatabase, default "synthetic"
         The motion database (names go through
-        :func:`repro.motion.database.default_database`, built once per process).
+        :func:`repro.motion.sources.default_database`, built once per process).
     character : Skeleton, optional
         The fighter (must share the database actor's joint tree); default
         :func:`character_from` of ``height``, ``arm_scale``, ``leg_scale`` on the
@@ -448,7 +450,7 @@ class KungFuFighter:
     def __init__(self, database="synthetic", character: Skeleton | None = None, *, height: float = 1.75,
                  arm_scale: float = 1.0, leg_scale: float = 1.0, seed: int = 0, position=(0.0, -0.8),
                  heading: float = 0.0, retriever: MotionRetriever | None = None):
-        from repro.motion.database import default_database
+        from repro.motion.sources import default_database
 
         t0 = time.perf_counter()
         if isinstance(database, str):

@@ -1,44 +1,28 @@
-"""Vectorised vector and quaternion kinematics shared by the motion library.
+"""Vector helpers and forward kinematics on raw arrays, shared by the motion library.
 
-Quaternions are scalar-last ``(x, y, z, w)`` like :class:`scipy.spatial.transform.Rotation`
-and :mod:`repro.motion.motion`.  These component-wise helpers exist (rather than
-``Rotation`` objects) because they broadcast over (frames, joints) arrays without
-building objects, which dominates the cost of the short clips the online
-retargeting and adaptation of Pronost et al. (Section 3.4) work on.  They are
-checked against :class:`scipy.spatial.transform.Rotation` in
-``tests/motion/test_kinematics.py`` (and, through FK, in the tests of their users).
+Quaternion maths lives in :mod:`repro.motion.quaternion`; this module adds the vector
+operations the solvers use (:func:`dot`, :func:`normalize`, :func:`transport`,
+:func:`matvec`) and **the** forward kinematics, :func:`fk_arrays` over the
+:func:`depth_levels` of a joint tree, which :meth:`repro.motion.motion.Motion.global_transforms`
+and the retargeting and adaptation solvers all run.  Checked against
+:class:`scipy.spatial.transform.Rotation` in ``tests/motion/test_kinematics.py``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from repro.motion.quaternion import quat_multiply
+from repro.motion.quaternion import cross, quat_multiply, quat_rotate
 
 __all__ = [
-    "cross",
     "dot",
-    "qrot",
-    "qinv",
     "normalize",
-    "min_rotation",
     "transport",
     "fk_arrays",
     "depth_levels",
-    "slerp",
-    "quat_to_matrix",
-    "matrix_to_quat",
     "matvec",
     "matvec_t",
 ]
-
-
-# Component-wise versions of np.cross / quat_rotate: same results, but
-# without np.cross's axis juggling, which dominates the cost of short (online) clips.
-def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -46,48 +30,10 @@ def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.einsum("...i,...i->...", a, b)
 
 
-def qrot(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``R(q) v`` for unit quaternions ``(x, y, z, w)`` (as :func:`quat_rotate`)."""
-    u = q[..., :3]
-    t = 2.0 * cross(u, v)
-    return v + q[..., 3:4] * t + cross(u, t)
-
-
-def qinv(q: np.ndarray) -> np.ndarray:
-    return q * np.array([-1.0, -1.0, -1.0, 1.0])
-
-
 def normalize(v: np.ndarray, eps: float = 1e-300) -> tuple[np.ndarray, np.ndarray]:
+    """``(v / |v|, |v|)`` over the last axis (``|v|`` floored at ``eps`` in the division)."""
     n = np.linalg.norm(v, axis=-1, keepdims=True)
     return v / np.maximum(n, eps), n[..., 0]
-
-
-def min_rotation(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Quaternion of the smallest rotation taking direction ``u`` to direction ``v`` (broadcast).
-
-    ``q = normalise(u x v, |u||v| + u.v)``; for (nearly) opposite vectors, a half turn
-    about an axis perpendicular to ``u``.  Zero vectors give the identity.
-    """
-    u, v = np.broadcast_arrays(u, v)
-    nu = np.linalg.norm(u, axis=-1)
-    nv = np.linalg.norm(v, axis=-1)
-    q = np.concatenate([cross(u, v), (nu * nv + np.sum(u * v, axis=-1))[..., None]], axis=-1)
-    qn = np.linalg.norm(q, axis=-1)
-    scale = nu * nv
-    bad = qn <= 1e-12 * np.maximum(scale, 1e-300)
-    if np.any(bad):
-        ub = u[bad]
-        # axis perpendicular to u: cross with the basis vector least aligned with u
-        k = np.argmin(np.abs(ub), axis=-1)
-        e = np.zeros_like(ub)
-        e[np.arange(len(k)), k] = 1.0
-        ax, _ = normalize(cross(ub, e))
-        qb = np.concatenate([ax, np.zeros(ax.shape[:-1] + (1,))], axis=-1)
-        zero = scale[bad] <= 1e-300
-        qb[zero] = [0.0, 0.0, 0.0, 1.0]
-        q[bad] = qb
-        qn = np.linalg.norm(q, axis=-1)
-    return q / qn[..., None]
 
 
 def transport(a0: np.ndarray, r0: np.ndarray, a: np.ndarray) -> np.ndarray:
@@ -109,69 +55,51 @@ def transport(a0: np.ndarray, r0: np.ndarray, a: np.ndarray) -> np.ndarray:
     return normalize(r)[0]
 
 
-def fk_arrays(levels, rotations: np.ndarray, translations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Forward kinematics as :meth:`Motion.global_transforms` on raw arrays."""
+def fk_arrays(levels, rotations: np.ndarray, translations: np.ndarray, *,
+              copy: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Forward kinematics ``G_j = G_parent(j) T(t_j) R(q_j)`` on raw arrays.
+
+    Parameters
+    ----------
+    levels : list of (joints, parents) index arrays
+        :func:`depth_levels` of the tree (depth 1, 2, ...).
+    rotations : (F, J, 4) array
+        Local rotations (unit quaternions).
+    translations : (F, J, 3) array
+        Local translations.
+    copy : bool, default True
+        False: fill ``translations`` in place with the world positions (a fresh array
+        the caller owns).
+
+    Returns
+    -------
+    (F, J, 4) world rotations, (F, J, 3) world positions
+    """
     gq = np.empty_like(rotations)
-    gp = translations.copy()
+    gp = translations.copy() if copy else translations
     gq[:, 0] = rotations[:, 0]
     for idx, par in levels:
         pq = gq[:, par]
-        gp[:, idx] = gp[:, par] + qrot(pq, gp[:, idx])
+        gp[:, idx] = gp[:, par] + quat_rotate(pq, gp[:, idx])
         gq[:, idx] = quat_multiply(pq, rotations[:, idx])
     return gq, gp
 
 
-def depth_levels(parents: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-    J = len(parents)
-    depth = np.zeros(J, dtype=np.intp)
-    for j in range(1, J):
-        depth[j] = depth[parents[j]] + 1
-    return [(np.flatnonzero(depth == d), parents[depth == d]) for d in range(1, int(depth.max(initial=0)) + 1)]
+def depth_levels(parents) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``(joints, their parents)`` per depth 1, 2, ... of a tree (``parents[j] < j``), index order within a level.
 
-
-def slerp(q0: np.ndarray, q1: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """Vectorised slerp of unit quaternions (..., 4) with weights a (..., 1)."""
-    dot = np.sum(q0 * q1, axis=-1, keepdims=True)
-    q1 = np.where(dot < 0, -q1, q1)
-    dot = np.abs(dot)
-    omega = np.arccos(np.clip(dot, -1.0, 1.0))
-    so = np.sin(omega)
-    small = so < 1e-8
-    so_safe = np.where(small, 1.0, so)
-    w0 = np.where(small, 1.0 - a, np.sin((1.0 - a) * omega) / so_safe)
-    w1 = np.where(small, a, np.sin(a * omega) / so_safe)
-    q = w0 * q0 + w1 * q1
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
-
-
-# Rotation matrices: the limb and CCD solvers of repro.motion.adaptation chain many
-# rotations along one path, which is cheaper with 3x3 matrices than with quaternions.
-def quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices of unit quaternions ``(x, y, z, w)``, (..., 4) -> (..., 3, 3)."""
-    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    x2, y2, z2 = x + x, y + y, z + z
-    xx, yy, zz = x * x2, y * y2, z * z2
-    xy, xz, yz = x * y2, x * z2, y * z2
-    wx, wy, wz = w * x2, w * y2, w * z2
-    m = np.empty(q.shape[:-1] + (3, 3))
-    m[..., 0, 0] = 1.0 - (yy + zz)
-    m[..., 0, 1] = xy - wz
-    m[..., 0, 2] = xz + wy
-    m[..., 1, 0] = xy + wz
-    m[..., 1, 1] = 1.0 - (xx + zz)
-    m[..., 1, 2] = yz - wx
-    m[..., 2, 0] = xz - wy
-    m[..., 2, 1] = yz + wx
-    m[..., 2, 2] = 1.0 - (xx + yy)
-    return m
-
-
-def matrix_to_quat(m: np.ndarray) -> np.ndarray:
-    """Unit quaternions ``(x, y, z, w)`` of rotation matrices, (..., 3, 3) -> (..., 4) (scipy)."""
-    from scipy.spatial.transform import Rotation
-
-    shape = m.shape[:-2]
-    return Rotation.from_matrix(m.reshape(-1, 3, 3)).as_quat().reshape(shape + (4,))
+    Linear in the number of joints (a scan per depth level would be quadratic for chains).
+    """
+    parents = np.asarray(parents, dtype=np.intp)
+    par = parents.tolist()
+    depth = [0] * len(par)
+    for j in range(1, len(par)):
+        depth[j] = depth[par[j]] + 1
+    depth = np.array(depth, dtype=np.intp)
+    order = np.argsort(depth, kind="stable")  # joints by depth, index order within a level
+    bounds = np.cumsum(np.bincount(depth))
+    p = parents[order]
+    return [(order[a:b], p[a:b]) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
 def matvec(m: np.ndarray, v: np.ndarray) -> np.ndarray:

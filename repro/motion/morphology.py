@@ -95,10 +95,12 @@ import numpy as np
 
 from repro.errors import MotionError
 from repro.motion.feet import UP_AXIS, foot_contacts, foot_goals, foot_scale
-from repro.motion.kinematics import cross, depth_levels, fk_arrays, min_rotation, normalize, qinv, qrot, transport
+from repro.motion.kinematics import depth_levels, fk_arrays, normalize, transport
+from repro.motion.quaternion import cross, min_rotation, quat_multiply
+from repro.motion.quaternion import quat_conjugate as qinv
+from repro.motion.quaternion import quat_rotate as qrot
 from repro.motion.channels import POSITION_CHANNELS
 from repro.motion.motion import Motion
-from repro.motion.quaternion import quat_multiply
 from repro.motion.roles import LIMBS
 from repro.motion.skeleton import Skeleton, skeleton_of
 

@@ -46,6 +46,7 @@ import numpy as np
 
 from repro.errors import BVHError, MotionError
 from repro.motion.channels import POSITION_CHANNELS, ROTATION_CHANNELS, channel_layout, channel_table
+from repro.motion.kinematics import depth_levels, fk_arrays
 from repro.motion.quaternion import euler_to_quat, quat_multiply, quat_rotate
 
 __all__ = [
@@ -158,7 +159,45 @@ class Motion:
     unit_m: float | None = None
     source: str | None = None
 
+    #: Largest ``| |q| - 1 |`` :meth:`from_unit_rotations` accepts as a unit quaternion.
+    UNIT_TOLERANCE = 1e-6
+
+    @classmethod
+    def from_unit_rotations(cls, **fields) -> Motion:
+        """The trusted constructor: a Motion whose ``rotations`` are unit quaternions already.
+
+        Same fields and checks as the constructor, except that the rotations are kept
+        bit for bit instead of being re-normalised (which can move a quaternion by one
+        ulp); their norms must be within :data:`UNIT_TOLERANCE` of 1, else
+        :class:`~repro.errors.BVHError`.  For results computed from unit quaternions (a
+        database's stored clips, the adaptation's unchanged frames).
+        """
+        obj = cls.__new__(cls)
+        for f in dataclasses.fields(cls):
+            if f.name in fields:
+                value = fields.pop(f.name)
+            elif f.default is not dataclasses.MISSING:
+                value = f.default
+            elif f.default_factory is not dataclasses.MISSING:
+                value = f.default_factory()
+            else:
+                raise TypeError(f"Motion.from_unit_rotations() missing field {f.name!r}")
+            object.__setattr__(obj, f.name, value)
+        if fields:
+            raise TypeError(f"Motion.from_unit_rotations() got unexpected fields {sorted(fields)}")
+        obj._validate(renormalise=False)
+        return obj
+
+    def with_unit_rotations(self, rotations) -> Motion:
+        """This motion with other ``rotations``, unit quaternions kept bit for bit (:meth:`from_unit_rotations`)."""
+        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        fields["rotations"] = rotations
+        return type(self).from_unit_rotations(**fields)
+
     def __post_init__(self) -> None:
+        self._validate(renormalise=True)
+
+    def _validate(self, renormalise: bool) -> None:
         names = [str(n) for n in self.joint_names]
         J = len(names)
         if J == 0:
@@ -196,7 +235,10 @@ class Motion:
         norm = np.linalg.norm(rot, axis=-1, keepdims=True)
         if np.any(norm < 1e-12):
             raise BVHError("rotations contain a zero quaternion")
-        rot = rot / norm
+        if renormalise:
+            rot = rot / norm
+        elif not np.all(np.abs(norm - 1.0) <= self.UNIT_TOLERANCE):
+            raise BVHError(f"rotations are not unit quaternions (|q| - 1 up to {float(np.abs(norm - 1.0).max()):.3g})")
         pos = np.asarray(self.positions, dtype=float)
         if pos.shape != (F, J, 3):
             raise BVHError(f"positions must be ({F}, {J}, 3), got shape {pos.shape}")
@@ -322,16 +364,7 @@ class Motion:
 
     @cached_property
     def _depth_levels(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        # linear in the number of joints (a scan per depth level would be quadratic for chains)
-        parents = self.parents.tolist()
-        depth = [0] * self.n_joints
-        for j in range(1, self.n_joints):
-            depth[j] = depth[parents[j]] + 1
-        depth = np.array(depth, dtype=np.intp)
-        order = np.argsort(depth, kind="stable")  # joints by depth, index order within a level
-        bounds = np.cumsum(np.bincount(depth))
-        par = self.parents[order]
-        return [(order[a:b], par[a:b]) for a, b in zip(bounds[:-1], bounds[1:])]
+        return depth_levels(self.parents)
 
     # ---------------------------------------------------------- kinematics
     def local_translations(self) -> np.ndarray:
@@ -354,17 +387,10 @@ class Motion:
         positions : (F, J, 3) array
             World position of each joint, file units, in :attr:`joint_names` order.
         """
-        q = self.rotations
         if len(self._depth_levels) > _LEVEL_LOOP_MAX_DEPTH:
             return self._global_transforms_doubling()
-        gq = np.empty_like(q)
-        gp = self.local_translations()  # fresh array, filled level by level in place
-        gq[:, 0] = q[:, 0]
-        for idx, par in self._depth_levels:
-            pq = gq[:, par]
-            gp[:, idx] = gp[:, par] + quat_rotate(pq, gp[:, idx])
-            gq[:, idx] = quat_multiply(pq, q[:, idx])
-        return gq, gp
+        # local_translations() is a fresh array: filled level by level in place
+        return fk_arrays(self._depth_levels, self.rotations, self.local_translations(), copy=False)
 
     def _global_transforms_doubling(self) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`global_transforms` for deep trees, by pointer doubling (no loop over levels).

@@ -1,16 +1,45 @@
 """Quaternion primitives of the motion library (scalar-last ``(x, y, z, w)``), the bottom layer.
 
 Imports nothing from :mod:`repro`: :mod:`~repro.motion.motion`, the file formats,
-:mod:`~repro.motion.kinematics` and the solvers build on these.
+:mod:`~repro.motion.kinematics` and the solvers build on these.  Quaternions follow
+:class:`scipy.spatial.transform.Rotation`'s convention; these component-wise versions
+exist (rather than ``Rotation`` objects) because they broadcast over (frames, joints)
+arrays without building objects, which dominates the cost of the short clips the online
+retargeting and adaptation of Pronost et al. (Section 3.4) work on.  They are checked
+against ``Rotation`` in ``tests/motion/test_kinematics.py`` and
+``tests/motion/test_motion.py``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["quat_multiply", "quat_rotate", "euler_to_quat"]
+__all__ = [
+    "cross",
+    "quat_multiply",
+    "quat_rotate",
+    "quat_conjugate",
+    "slerp",
+    "min_rotation",
+    "axis_angle_quat",
+    "quat_power",
+    "quat_to_matrix",
+    "matrix_to_quat",
+    "euler_to_quat",
+]
 
 _AXIS = {"X": 0, "Y": 1, "Z": 2}
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a x b`` over the last axis, broadcast; the same numbers as :func:`numpy.cross`.
+
+    Component-wise, without ``np.cross``'s axis juggling, which dominates the cost of
+    short (online) clips.
+    """
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -52,12 +81,106 @@ def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     Returns
     -------
     (..., 3) array
-        ``R(q) v``.
+        ``R(q) v = v + w t + u x t`` with ``u = q[:3]``, ``t = 2 u x v``.
     """
     u = q[..., :3]
-    w = q[..., 3:4]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
+    t = 2.0 * cross(u, v)
+    return v + q[..., 3:4] * t + cross(u, t)
+
+
+def quat_conjugate(q: np.ndarray) -> np.ndarray:
+    """``(-x, -y, -z, w)``: the inverse of a unit quaternion, broadcast."""
+    return q * np.array([-1.0, -1.0, -1.0, 1.0])
+
+
+def slerp(q0: np.ndarray, q1: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """Vectorised slerp of unit quaternions (..., 4) with weights a (..., 1), along the shorter arc."""
+    dot = np.sum(q0 * q1, axis=-1, keepdims=True)
+    q1 = np.where(dot < 0, -q1, q1)
+    dot = np.abs(dot)
+    omega = np.arccos(np.clip(dot, -1.0, 1.0))
+    so = np.sin(omega)
+    small = so < 1e-8
+    so_safe = np.where(small, 1.0, so)
+    w0 = np.where(small, 1.0 - a, np.sin((1.0 - a) * omega) / so_safe)
+    w1 = np.where(small, a, np.sin(a * omega) / so_safe)
+    q = w0 * q0 + w1 * q1
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def min_rotation(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Quaternion of the smallest rotation taking direction ``u`` to direction ``v`` (broadcast).
+
+    ``q = normalise(u x v, |u||v| + u.v)``; for (nearly) opposite vectors, a half turn
+    about an axis perpendicular to ``u``.  Zero vectors give the identity.
+    """
+    u, v = np.broadcast_arrays(u, v)
+    nu = np.linalg.norm(u, axis=-1)
+    nv = np.linalg.norm(v, axis=-1)
+    q = np.concatenate([cross(u, v), (nu * nv + np.sum(u * v, axis=-1))[..., None]], axis=-1)
+    qn = np.linalg.norm(q, axis=-1)
+    scale = nu * nv
+    bad = qn <= 1e-12 * np.maximum(scale, 1e-300)
+    if np.any(bad):
+        ub = u[bad]
+        # axis perpendicular to u: cross with the basis vector least aligned with u
+        k = np.argmin(np.abs(ub), axis=-1)
+        e = np.zeros_like(ub)
+        e[np.arange(len(k)), k] = 1.0
+        ax = cross(ub, e)
+        ax = ax / np.maximum(np.linalg.norm(ax, axis=-1, keepdims=True), 1e-300)
+        qb = np.concatenate([ax, np.zeros(ax.shape[:-1] + (1,))], axis=-1)
+        zero = scale[bad] <= 1e-300
+        qb[zero] = [0.0, 0.0, 0.0, 1.0]
+        q[bad] = qb
+        qn = np.linalg.norm(q, axis=-1)
+    return q / qn[..., None]
+
+
+def axis_angle_quat(axis, angle) -> np.ndarray:
+    """Quaternions of rotations by ``angle`` (radians, (F,)) about a fixed unit ``axis``."""
+    angle = np.asarray(angle, dtype=float)
+    axis = np.asarray(axis, dtype=float)
+    h = 0.5 * angle[..., None]
+    return np.concatenate([np.sin(h) * axis, np.cos(h)], axis=-1)
+
+
+def quat_power(q: np.ndarray, k: float) -> np.ndarray:
+    """``q^k``: the rotation of ``q`` with its angle multiplied by ``k`` (same axis)."""
+    from scipy.spatial.transform import Rotation
+
+    r = Rotation.from_quat(q)
+    return Rotation.from_rotvec(r.as_rotvec() * k).as_quat()
+
+
+# Rotation matrices: the limb and CCD solvers of repro.motion.adaptation chain many
+# rotations along one path, which is cheaper with 3x3 matrices than with quaternions.
+def quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices of unit quaternions ``(x, y, z, w)``, (..., 4) -> (..., 3, 3)."""
+    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    x2, y2, z2 = x + x, y + y, z + z
+    xx, yy, zz = x * x2, y * y2, z * z2
+    xy, xz, yz = x * y2, x * z2, y * z2
+    wx, wy, wz = w * x2, w * y2, w * z2
+    m = np.empty(q.shape[:-1] + (3, 3))
+    m[..., 0, 0] = 1.0 - (yy + zz)
+    m[..., 0, 1] = xy - wz
+    m[..., 0, 2] = xz + wy
+    m[..., 1, 0] = xy + wz
+    m[..., 1, 1] = 1.0 - (xx + zz)
+    m[..., 1, 2] = yz - wx
+    m[..., 2, 0] = xz - wy
+    m[..., 2, 1] = yz + wx
+    m[..., 2, 2] = 1.0 - (xx + yy)
+    return m
+
+
+def matrix_to_quat(m: np.ndarray) -> np.ndarray:
+    """Unit quaternions ``(x, y, z, w)`` of rotation matrices, (..., 3, 3) -> (..., 4) (scipy)."""
+    from scipy.spatial.transform import Rotation
+
+    shape = m.shape[:-2]
+    return Rotation.from_matrix(m.reshape(-1, 3, 3)).as_quat().reshape(shape + (4,))
 
 
 def euler_to_quat(seq: str, angles, degrees: bool = True) -> np.ndarray:

@@ -70,7 +70,7 @@ Arguments are checked, never silently cut or coerced (a
 * ``k`` (clusters) is an int in ``[1, n_poses]``, ``seed`` an int >= 0,
   ``kd_neighbours`` an int >= 1 (more than a semantics' startable poses means all of
   them), ``frame`` an int inside the current pose, ``semantics`` one of
-  :data:`~repro.motion.database.SEMANTICS`, ``prune`` / ``scale_target`` booleans.
+  :data:`~repro.motion.annotation.SEMANTICS`, ``prune`` / ``scale_target`` booleans.
 """
 
 from __future__ import annotations
@@ -93,7 +93,9 @@ from repro.motion.clustering import (
     root_frames,
     rotate_y,
 )
-from repro.motion.database import SEMANTICS, MotionDatabase, resample
+from repro.motion.annotation import SEMANTICS
+from repro.motion.database import MotionDatabase
+from repro.motion.ops import resample
 from repro.motion.morphology import retarget
 from repro.motion.motion import Motion, finite_vector3
 from repro.motion.skeleton import Skeleton, rescale_constraint, skeleton_of

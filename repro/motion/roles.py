@@ -50,7 +50,7 @@ import numpy as np
 
 from repro.errors import MotionError
 
-__all__ = ["ROLES", "REQUIRED_ROLES", "SIDE_ROLES", "LIMBS", "find_roles"]
+__all__ = ["ROLES", "REQUIRED_ROLES", "SIDE_ROLES", "LIMBS", "find_roles", "effector_role"]
 
 #: Per-side role stems, in proximal-to-distal order (``left_`` / ``right_`` prefixed).
 SIDE_ROLES: tuple[str, ...] = (
@@ -337,3 +337,19 @@ def _check_limb_chains(index: dict[str, int], par: np.ndarray, roles: dict[str, 
 def _side_and_base_is_limb(name: str) -> bool:
     """True when ``name`` reads as a sided limb joint (so it is no trunk joint)."""
     return any(base in b for _, base in _side_and_base(name) for b in _SIDE_BASES.values())
+
+
+def effector_role(roles: Mapping[str, str], hit_role: str, hit_joint: str) -> str:
+    """The role (of a skeleton's ``roles``) whose joint is a clip's hit joint: the effector to adapt.
+
+    A clip's ``hit_role`` names its striking limb's default hit point (``left_foot`` is
+    the toe joint), but its ``hit_joint`` can be another joint of that limb: the
+    synthetic side and round kicks strike with the heel (``LeftFoot``, the ankle).
+    Driving the role's own joint onto the target would put the toe there instead.
+    """
+    side, _, stem = hit_role.partition("_")
+    stems = ("fist", "hand", "wrist") if stem in ("fist", "hand", "wrist") else ("foot", "toe", "ankle")
+    for role in (hit_role,) + tuple(f"{side}_{s}" for s in stems):
+        if roles.get(role) == hit_joint:
+            return role
+    raise MotionError(f"no {side} effector role maps to the hit joint {hit_joint!r} (hit role {hit_role!r})")

@@ -390,7 +390,7 @@ def obj_excerpt(data: bytes, n_lines: int = 2000) -> bytes:
 def synthetic_bvh() -> bytes:
     """A short clip of the library's synthetic database, written by write_bvh."""
     from repro.motion import write_bvh
-    from repro.motion.database import cut
+    from repro.motion.ops import cut
     from repro.motion.synthetic import synthetic_clip
 
     m, _ = synthetic_clip("kick_front", seed=0)
@@ -401,7 +401,9 @@ def synthetic_bvh() -> bytes:
 
 def tiny_database_npz() -> bytes:
     """``MotionDatabase.save`` of a two-clip database (a synthetic punch and its augmented copy)."""
-    from repro.motion.database import MotionDatabase, annotate, augment, resample
+    from repro.motion.augment import augment
+    from repro.motion.database import MotionDatabase, annotate
+    from repro.motion.ops import resample
     from repro.motion.synthetic import synthetic_clip
 
     m, ann = synthetic_clip("punch", seed=0)

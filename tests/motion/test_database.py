@@ -30,20 +30,11 @@ import pytest
 from repro.errors import MotionError
 from repro.motion import read_bvh
 from repro.motion.clustering import root_frames, to_root_frame
-from repro.motion.database import (
-    CMU_WINDOW,
-    Clip,
-    MotionDatabase,
-    augment,
-    build_cmu_database,
-    build_database,
-    cut,
-    detect_hits,
-    hit_frame_for,
-    mirror_joint_map,
-    mirror_motion,
-    resample,
-)
+from repro.motion.annotation import detect_hits, hit_frame_for
+from repro.motion.augment import augment
+from repro.motion.database import Clip, MotionDatabase
+from repro.motion.ops import cut, mirror_joint_map, mirror_motion, resample
+from repro.motion.sources import CMU_WINDOW, build_cmu_database, build_database
 from repro.motion.skeleton import Skeleton
 
 from repro.motion import synthetic  # noqa: E402  (a broken import must fail, not skip)
@@ -282,7 +273,7 @@ def test_cmu_database():
 
 
 def test_load_or_build(tmp_path, syn_dir):
-    from repro.motion.database import load_or_build
+    from repro.motion.sources import load_or_build
 
     calls = []
 

@@ -20,7 +20,8 @@ import numpy as np
 import pytest
 
 from repro.errors import DataError, MotionError
-from repro.motion.database import MotionDatabase, build_database
+from repro.motion.database import MotionDatabase
+from repro.motion.sources import build_database
 
 from repro.motion import synthetic  # noqa: E402  (a broken import must fail, not skip)
 

@@ -33,16 +33,16 @@ import pytest
 from repro import data
 from repro.errors import MotionError, RetrievalError
 from repro.motion import BANDAI_UNIT_M, read_bvh
-from repro.motion.database import (
+from repro.motion.annotation import SEMANTICS
+from repro.motion.database import MotionDatabase
+from repro.motion.rest_pose import match_rest_pose
+from repro.motion.sources import (
     BANDAI_TAKES,
     NON_FIGHTING_TAKES,
-    SEMANTICS,
-    MotionDatabase,
     build_bandai_database,
     build_cmu_database,
     build_real_database,
     clip_source_dataset,
-    match_rest_pose,
     non_fighting_poses,
 )
 from repro.motion.morphology import retarget

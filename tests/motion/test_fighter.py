@@ -38,7 +38,7 @@ from repro.motion.fighter import (
 )
 from repro.motion.paper import REACTION_BUDGET_S
 from repro.motion.skeleton import Skeleton, scale_skeleton
-from repro.motion.synthetic import hit_point_trajectory
+from repro.motion.annotation import hit_point_trajectory
 
 TIMING_KEYS = ("prepare", "search", "load_convert", "retarget", "adapt", "solver", "first_frame",
                "adapt_per_frame", "retarget_adapt_per_frame")

@@ -28,7 +28,8 @@ import pytest
 
 from repro.errors import MotionError, RetrievalError
 from repro.motion.clustering import aligned_distance, rotate_y
-from repro.motion.database import MotionDatabase, build_database
+from repro.motion.database import MotionDatabase
+from repro.motion.sources import build_database
 from repro.motion.morphology import retarget
 from repro.motion.retrieval import MotionRetriever, Query, search, time_search
 from repro.motion.skeleton import Skeleton, rescale_constraint, scale_skeleton
@@ -256,7 +257,7 @@ def test_time_search_reports_latencies(db):
 
 @pytest.mark.data("cmu-bvh")
 def test_cmu_retrieval_kick_and_punch(tmp_path):
-    from repro.motion.database import build_cmu_database
+    from repro.motion.sources import build_cmu_database
 
     db = build_cmu_database()
     p = db.save(tmp_path / "cmu.npz")

@@ -21,7 +21,8 @@ import pytest
 
 from repro.errors import MotionError, ReproError, ReproWarning, RetrievalError
 from repro.motion.clustering import AlignedPoseIndex, aligned_distance, cluster_poses, pose_points, pose_weights
-from repro.motion.database import Clip, build_database
+from repro.motion.database import Clip
+from repro.motion.sources import build_database
 from repro.motion.retrieval import MAX_TARGET_M, MotionRetriever, Query, make_queries, search, time_search
 
 from repro.motion import synthetic  # noqa: E402  (a broken import must fail, not skip)

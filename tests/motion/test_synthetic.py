@@ -18,6 +18,7 @@ from scipy.spatial.transform import Rotation
 
 from repro.errors import MotionError
 from repro.motion import read_bvh, read_manifest, synthetic_clip, synthetic_database, synthetic_skeleton
+from repro.motion.annotation import hit_point_trajectory
 from repro.motion.quaternion import quat_multiply
 from repro.motion.synthetic import (
     ELBOW_FLEXION_LIMITS_DEG,
@@ -33,7 +34,6 @@ from repro.motion.synthetic import (
     STRIKE_KINDS,
     TARGET_HEIGHT_FRACTION,
     database_actor_heights,
-    hit_point_trajectory,
 )
 
 # the joint names other code (the role mapper) relies on, spelled out independently

@@ -32,7 +32,8 @@ import numpy as np
 import pandas as pd
 
 from repro.experiments.registry import Result, experiment
-from repro.experiments.pronost.retargeting_morphologies import effector, frame_of, hit_points, target_in_motion
+from repro.experiments.pronost.retargeting_morphologies import effector, frame_of, target_in_motion
+from repro.motion.annotation import hit_point_trajectory
 
 #: Fighter statures (m).
 HEIGHTS = (1.5, 2.0)
@@ -57,7 +58,7 @@ def _segments(sk) -> list[tuple[int, int]]:
 def _compute(quick: bool):
     from repro.motion.adaptation import adapt
     from repro.motion.clustering import rotate_y
-    from repro.motion.database import default_database
+    from repro.motion.sources import default_database
     from repro.motion.morphology import retarget
     from repro.motion.retrieval import MotionRetriever
     from repro.motion.skeleton import scale_skeleton
@@ -79,8 +80,8 @@ def _compute(quick: bool):
             X = target_in_motion(r, c, k)
             a = adapt(m, effector(db, i), X, r.start_frame, r.hit_frame, hit_point=str(db.hit_wheres[i]))
             s = a.summary()
-            hp0 = hit_points(m, str(db.hit_joints[i]), str(db.hit_wheres[i]))
-            hp1 = hit_points(a.motion, str(db.hit_joints[i]), str(db.hit_wheres[i]))
+            hp0 = hit_point_trajectory(m, str(db.hit_joints[i]), str(db.hit_wheres[i]))
+            hp1 = hit_point_trajectory(a.motion, str(db.hit_joints[i]), str(db.hit_wheres[i]))
             rows.append({
                 "height_m": H, "order": label, "semantics": sem, "target_x_m": x, "target_y_m": y,
                 "target_z_m": float(c[2]), "clip": names[i], "start_frame": r.start_frame, "hit_frame": r.hit_frame,

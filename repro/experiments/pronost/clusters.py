@@ -48,7 +48,7 @@ _AXES = ("x", "y", "z")
 
 def _databases():
     from repro import data
-    from repro.motion.database import default_database
+    from repro.motion.sources import default_database
 
     names = ["synthetic"] + (["cmu"] if data.missing_reason("cmu-bvh") is None else [])
     return [(n, default_database(n)) for n in names]

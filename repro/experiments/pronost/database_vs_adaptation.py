@@ -42,7 +42,8 @@ import numpy as np
 import pandas as pd
 
 from repro.experiments.registry import Result, experiment
-from repro.experiments.pronost.retargeting_morphologies import effector, frame_of, hit_points, target_in_motion
+from repro.experiments.pronost.retargeting_morphologies import effector, frame_of, target_in_motion
+from repro.motion.annotation import hit_point_trajectory
 
 #: Fighter stature (m) and the clip whose first frame is its current (stance) pose.
 HEIGHT = 1.8
@@ -77,7 +78,7 @@ def grid(H: float, quick: bool) -> tuple[np.ndarray, np.ndarray, float]:
 
 def _compute(quick: bool):
     from repro.motion.adaptation import adapt
-    from repro.motion.database import default_database
+    from repro.motion.sources import default_database
     from repro.motion.morphology import retarget
     from repro.motion.retrieval import MotionRetriever
     from repro.motion.skeleton import scale_skeleton
@@ -92,7 +93,7 @@ def _compute(quick: bool):
     def clip_on_character(i: int):
         if i not in played:
             m = retarget(db.motion(i), ch, fix_feet=True)
-            played[i] = (m, hit_points(m, str(db.hit_joints[i]), str(db.hit_wheres[i])))
+            played[i] = (m, hit_point_trajectory(m, str(db.hit_joints[i]), str(db.hit_wheres[i])))
         return played[i]
 
     rows = []

@@ -68,6 +68,7 @@ import numpy as np
 import pandas as pd
 
 from repro.experiments.registry import Result, experiment
+from repro.motion.annotation import hit_point_trajectory
 
 #: Statures (m) of the characters of the sweep.
 HEIGHTS = (1.2, 1.5, 1.75, 2.0, 2.2)
@@ -116,7 +117,7 @@ LEVEL_RANK = {"low": 0, "middle": 1, "high": 2}
 def databases() -> dict:
     """``{"synthetic": db, "cmu": db}`` (CMU only when the dataset is staged)."""
     from repro import data
-    from repro.motion.database import default_database
+    from repro.motion.sources import default_database
 
     out = {"synthetic": default_database("synthetic")}
     if data.missing_reason("cmu-bvh") is None:
@@ -127,15 +128,6 @@ def databases() -> dict:
 def frame_of(motion, f: int):
     """The one-frame motion holding frame ``f`` (a current pose)."""
     return dataclasses.replace(motion, rotations=motion.rotations[f:f + 1], positions=motion.positions[f:f + 1])
-
-
-def hit_points(motion, joint: str, where: str) -> np.ndarray:
-    """(F, 3) world trajectory of a clip's hit point (the joint or its first End Site)."""
-    j = motion.joint_index(joint)
-    if where == "joint":
-        return motion.global_positions()[:, j]
-    site = int(np.flatnonzero(np.asarray(motion.end_site_parents) == j)[0])
-    return motion.end_site_positions()[:, site]
 
 
 def first_root_frame(motion, skeleton) -> tuple[float, np.ndarray]:
@@ -192,8 +184,8 @@ def foot_slide(motion, contacts: np.ndarray, *, skeleton=None, globals_=None) ->
 
 
 def effector(db, i: int) -> str:
-    """The :func:`~repro.motion.adaptation.adapt` effector role of clip ``i`` (see :func:`repro.motion.database.effector_role`)."""
-    from repro.motion.database import effector_role
+    """The :func:`~repro.motion.adaptation.adapt` effector role of clip ``i`` (see :func:`repro.motion.roles.effector_role`)."""
+    from repro.motion.roles import effector_role
 
     return effector_role(db.actor_skeleton(i).roles, str(db.hit_roles[i]), str(db.hit_joints[i]))
 
@@ -214,7 +206,7 @@ def _measure(mo, ch, db, i: int, c: np.ndarray, contacts: np.ndarray) -> dict:
     th, o = root_frames(g[:1], ch.index("pelvis"), ch.index("left_hip"), ch.index("right_hip"))
     f = int(db.hit_frame[i])
     joint, where = str(db.hit_joints[i]), str(db.hit_wheres[i])
-    hp = g[f, mo.joint_index(joint)] if where == "joint" else hit_points(mo, joint, where)[f]
+    hp = g[f, mo.joint_index(joint)] if where == "joint" else hit_point_trajectory(mo, joint, where)[f]
     hp = to_root_frame(hp, th[0], o[0])
     ank = g[:, [ch.index("left_ankle"), ch.index("right_ankle")]][..., [0, 2]]
     both = contacts[1:] & contacts[:-1]
@@ -302,7 +294,7 @@ def _eq1_rows(name: str, db, quick: bool) -> list[dict]:
             for scale in (True, False):
                 r = retriever.search(c, q, semantics=str(db.semantics[j]), scale_target=scale)
                 k = ch.size / r.size_a
-                placed = k * r.align(hit_points(db.motion(r.clip), str(db.hit_joints[r.clip]),
+                placed = k * r.align(hit_point_trajectory(db.motion(r.clip), str(db.hit_joints[r.clip]),
                                                 str(db.hit_wheres[r.clip]))[r.hit_frame])
                 lt, lc = str(db.levels[j]), str(db.levels[r.clip])
                 rows.append({

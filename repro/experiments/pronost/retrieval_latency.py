@@ -39,7 +39,7 @@ here) is the same mean over the queries that differ only (``mean_excess_d /
 differs_from_exhaustive``): "how much worse, when it is worse".  The pruned candidates are
 a subset of the exhaustive ones, so the excess is never negative.
 
-The 10x and 100x databases are made by :func:`repro.motion.database.augment` (mirrored,
+The 10x and 100x databases are made by :func:`repro.motion.augment.augment` (mirrored,
 rescaled, time-warped, noisy *variants* of the base clips), not new captures: they are
 strongly correlated with their sources, which flatters both the clustering and the
 box pruning compared with as many real motions.
@@ -85,7 +85,7 @@ def k_sweep(databases=None, k_values=K_VALUES_QUICK, *, n_queries: int = 100, se
     the fallbacks it took.
     """
     from repro.motion.clustering import default_k
-    from repro.motion.database import default_database
+    from repro.motion.sources import default_database
     from repro.motion.retrieval import MotionRetriever, make_queries, time_search
 
     rows = []

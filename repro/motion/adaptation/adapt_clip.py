@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -14,7 +13,8 @@ from repro.motion.adaptation.ccd_solver import DEFAULT_HINGE_RANGE_DEG, ccd_spec
 from repro.motion.adaptation.limb import limb_dmax, solve_limb
 from repro.motion.adaptation.offset import offset_curve
 from repro.motion.adaptation.rig import Chain, Rig, check_extension, check_int, default_tol, rig_of, vec3
-from repro.motion.kinematics import fk_arrays, qrot
+from repro.motion.kinematics import fk_arrays
+from repro.motion.quaternion import quat_rotate as qrot
 from repro.motion.motion import Motion
 
 __all__ = ["Adaptation", "adapt"]
@@ -370,13 +370,10 @@ def _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchor
 
 
 def _adapted_motion(motion: Motion, rot: np.ndarray, changed: np.ndarray) -> Motion:
-    out = dataclasses.replace(motion, rotations=rot, source=motion.source)
-    # the constructor re-normalises every quaternion, which can move unchanged frames by
-    # one ulp; keep the input's exact values there (frames <= t0 are bit-identical)
-    exact = np.where(changed[:, None, None], out.rotations, motion.rotations)
-    exact.flags.writeable = False
-    object.__setattr__(out, "rotations", exact)
-    return out
+    # re-normalise the changed frames only: the constructor would move unchanged frames
+    # by one ulp; they keep the input's exact values (frames <= t0 are bit-identical)
+    unit = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
+    return motion.with_unit_rotations(np.where(changed[:, None, None], unit, motion.rotations))
 
 
 def _foot_slides(rig: Rig, anchors, gp2: np.ndarray, gp: np.ndarray) -> tuple[dict, dict]:

@@ -22,18 +22,10 @@ from repro.motion.adaptation.rig import (
     rig_of,
     start_rotations,
 )
-from repro.motion.kinematics import (
-    cross,
-    dot,
-    matrix_to_quat,
-    matvec,
-    matvec_t,
-    min_rotation,
-    qinv,
-    quat_to_matrix,
-)
+from repro.motion.kinematics import dot, matvec, matvec_t
 from repro.motion.motion import Motion
-from repro.motion.quaternion import quat_multiply
+from repro.motion.quaternion import cross, matrix_to_quat, min_rotation, quat_multiply, quat_to_matrix
+from repro.motion.quaternion import quat_conjugate as qinv
 
 __all__ = [
     "DEFAULT_LIMITS_DEG",

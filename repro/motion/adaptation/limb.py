@@ -24,19 +24,10 @@ from repro.motion.adaptation.rig import (
     rig_of,
     start_rotations,
 )
-from repro.motion.kinematics import (
-    dot,
-    matrix_to_quat,
-    matvec,
-    matvec_t,
-    min_rotation,
-    normalize,
-    qrot,
-    quat_to_matrix,
-    transport,
-)
+from repro.motion.kinematics import dot, matvec, matvec_t, normalize, transport
 from repro.motion.motion import Motion
-from repro.motion.quaternion import quat_multiply
+from repro.motion.quaternion import matrix_to_quat, min_rotation, quat_multiply, quat_to_matrix
+from repro.motion.quaternion import quat_rotate as qrot
 
 __all__ = ["LimbSolution", "reach_limb", "solve_limb", "limb_dmax"]
 

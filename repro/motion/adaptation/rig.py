@@ -16,7 +16,9 @@ import numpy as np
 
 from repro.errors import MotionError
 from repro.motion.feet import foot_contacts
-from repro.motion.kinematics import cross, depth_levels, matvec, qrot
+from repro.motion.kinematics import depth_levels, matvec
+from repro.motion.quaternion import cross
+from repro.motion.quaternion import quat_rotate as qrot
 from repro.motion.motion import Motion, finite_vector3
 from repro.motion.skeleton import Skeleton
 

@@ -9,7 +9,7 @@ import numpy as np
 from repro.motion.adaptation.ccd_solver import ccd
 from repro.motion.adaptation.limb import reach_limb
 from repro.motion.adaptation.rig import check_frames, rig_of, vec3
-from repro.motion.kinematics import qrot
+from repro.motion.quaternion import quat_rotate as qrot
 from repro.motion.motion import Motion
 
 __all__ = ["time_adaptation"]

@@ -88,7 +88,6 @@ from repro.motion.synthetic.choreography import (
     SIDES,
     STRIKE_KINDS,
     TARGET_HEIGHT_FRACTION,
-    hit_point_trajectory,
     synthetic_clip,
 )
 from repro.motion.synthetic.skeleton import (
@@ -131,5 +130,4 @@ __all__ = [
     "synthetic_database",
     "database_actor_heights",
     "read_manifest",
-    "hit_point_trajectory",
 ]

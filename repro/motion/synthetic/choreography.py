@@ -18,9 +18,17 @@ from typing import NamedTuple
 import numpy as np
 
 from repro.errors import MotionError
-from repro.motion.kinematics import qinv, slerp
+from repro.motion.annotation import hit_point_trajectory
 from repro.motion.motion import Motion
-from repro.motion.quaternion import euler_to_quat, quat_multiply, quat_rotate
+from repro.motion.quaternion import (
+    axis_angle_quat,
+    euler_to_quat,
+    quat_conjugate,
+    quat_multiply,
+    quat_power,
+    quat_rotate,
+    slerp,
+)
 from repro.motion.synthetic.ik import IKSolution, Limb, flexion_at, limb_of, limb_reach, two_bone
 from repro.motion.synthetic.skeleton import (
     DEFAULT_FPS,
@@ -35,10 +43,8 @@ from repro.motion.synthetic.skeleton import (
 from repro.motion.synthetic.tracks import (
     UNIT_X,
     UNIT_Y,
-    axis_angle_quat,
     dir_track,
     ease_smooth,
-    quat_power,
     rad,
     spherical,
     track,
@@ -54,7 +60,6 @@ __all__ = [
     "HIT_POINTS",
     "TARGET_HEIGHT_FRACTION",
     "synthetic_clip",
-    "hit_point_trajectory",
 ]
 
 # ---------------------------------------------------------------- public constants
@@ -399,7 +404,7 @@ class _Builder:
         q[:, JOINT_INDEX["Spine1"]] = q_sp
         chest = quat_multiply(q[:, 0], quat_multiply(q_sp, q_sp))
         # head: 80 % of the way back to facing the target (+Z, upright), split over neck and head
-        nh = quat_power(qinv(chest), 0.4)
+        nh = quat_power(quat_conjugate(chest), 0.4)
         q[:, JOINT_INDEX["Neck"]] = nh
         q[:, JOINT_INDEX["Head"]] = nh
         for side, sgn in (("Left", 1.0), ("Right", -1.0)):
@@ -468,7 +473,7 @@ class _Builder:
         for side, limb in arms.items():
             wkeys, pkeys, ez = self.arm_keys[side]
             if any(v is None for _, v in wkeys):
-                w_chest = quat_rotate(qinv(cq[h]), hit_world["wrist"] - cp[h])
+                w_chest = quat_rotate(quat_conjugate(cq[h]), hit_world["wrist"] - cp[h])
                 wkeys = [(k, w_chest if v is None else v) for k, v in wkeys]
             w_local = track(self.t, wkeys, ez)
             p_local = dir_track(self.t, pkeys, ez)
@@ -476,7 +481,7 @@ class _Builder:
             pole = quat_rotate(cq, p_local)
             ik = two_bone(limb, gp[:, JOINT_INDEX[limb.upper]], target, pole)
             parent = gq[:, PARENTS[JOINT_INDEX[limb.upper]]]
-            q[:, JOINT_INDEX[limb.upper]] = quat_multiply(qinv(parent), ik.q_upper_world)
+            q[:, JOINT_INDEX[limb.upper]] = quat_multiply(quat_conjugate(parent), ik.q_upper_world)
             q[:, JOINT_INDEX[limb.middle]] = ik.q_middle_local
             if side == self.hit_side and self.kind == "punch":
                 self.check_reached(ik, [h], f"{side} arm at the hit")
@@ -503,9 +508,9 @@ class _Builder:
             self.check_reached(ik, planted, f"planted {side} foot")
             if side == self.hit_side and self.kind.startswith("kick"):
                 self.check_reached(ik, [h], f"{side} leg at the hit")
-            q[:, JOINT_INDEX[limb.upper]] = quat_multiply(qinv(gq[:, 0]), ik.q_upper_world)
+            q[:, JOINT_INDEX[limb.upper]] = quat_multiply(quat_conjugate(gq[:, 0]), ik.q_upper_world)
             q[:, JOINT_INDEX[limb.middle]] = ik.q_middle_local
-            ground_local = quat_multiply(qinv(ik.q_lower_world), leg.ground_q)
+            ground_local = quat_multiply(quat_conjugate(ik.q_lower_world), leg.ground_q)
             toe = -leg.heel  # keeps the toes flat on the ground while the heel is raised
             if ankle_local is None:
                 q[:, JOINT_INDEX[limb.end]] = ground_local
@@ -793,26 +798,3 @@ def _annotation(b: _Builder, motion: Motion, kind: str, side: str, fps: float, a
         if kind != "punch":
             ann["support_foot"] = b.lead_side + "Foot"
     return ann
-
-
-def hit_point_trajectory(motion: Motion, joint: str, where: str = "joint") -> np.ndarray:
-    """(F, 3) world trajectory of a hit point: a joint, or the End Site of a joint.
-
-    Parameters
-    ----------
-    motion : Motion
-        Any motion.
-    joint : str
-        Joint name (e.g. the annotation's ``hit_joint``).
-    where : {"joint", "end_site"}
-        The joint's own position, or its (first) End Site.
-    """
-    j = motion.joint_index(joint)
-    if where == "joint":
-        return motion.global_positions()[:, j]
-    if where == "end_site":
-        sites = np.flatnonzero(motion.end_site_parents == j)
-        if sites.size == 0:
-            raise MotionError(f"joint {joint!r} has no End Site")
-        return motion.end_site_positions()[:, sites[0]]
-    raise MotionError(f"where must be 'joint' or 'end_site', got {where!r}")

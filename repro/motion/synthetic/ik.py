@@ -16,9 +16,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from repro.errors import MotionError
-from repro.motion.quaternion import quat_multiply
+from repro.motion.quaternion import axis_angle_quat, quat_multiply
 from repro.motion.synthetic.skeleton import ELBOW_FLEXION_LIMITS_DEG, HINGE_AXES, KNEE_FLEXION_LIMITS_DEG, REF_LENGTHS
-from repro.motion.synthetic.tracks import UNIT_X, UNIT_Y, axis_angle_quat
+from repro.motion.synthetic.tracks import UNIT_X, UNIT_Y
 
 __all__ = ["Limb", "limb_of", "limb_reach", "flexion_at", "IKSolution", "two_bone"]
 

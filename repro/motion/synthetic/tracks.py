@@ -1,12 +1,12 @@
-"""Keyframe tracks and the small rotation helpers the synthetic choreography is written with.
+"""Keyframe tracks and the small vector helpers the synthetic choreography is written with.
 
 Every track eases with zero slope at the keys (quintic smootherstep; the strike segment
 ``5u^4 - 4u^5``), so positions and rotations are C1 with zero velocity at the keys.
-Quaternions are scalar-last, as in :mod:`repro.motion.kinematics` (whose ``qinv`` is
-used, and whose ``slerp`` blends the foot rotations: it differs from the former private
-quaternion slerp by at most one ulp, 2.2e-16, on 52 generated clips, and the written
-database is byte-identical).  ``slerp_vec`` interpolates *directions* (no quaternion
-sign flip), which :func:`repro.motion.kinematics.slerp` does not do.
+Quaternion maths (scalar-last) is :mod:`repro.motion.quaternion`'s (its ``slerp`` blends
+the foot rotations: it differs from the former private quaternion slerp by at most one
+ulp, 2.2e-16, on 52 generated clips, and the written database is byte-identical).
+``slerp_vec`` interpolates *directions* (no quaternion sign flip), which
+:func:`repro.motion.quaternion.slerp` does not do.
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from repro.errors import MotionError
 
@@ -30,8 +29,6 @@ __all__ = [
     "unit",
     "slerp_vec",
     "dir_track",
-    "axis_angle_quat",
-    "quat_power",
     "spherical",
     "rad",
 ]
@@ -107,19 +104,6 @@ def dir_track(t: np.ndarray, keys: Sequence[tuple[float, np.ndarray]], eases: Se
     kt = np.array([k[0] for k in keys], dtype=float)
     kv = unit(np.array([k[1] for k in keys], dtype=float))
     return _piecewise(t, kt, kv, lambda i, u: slerp_vec(kv[i][None], kv[i + 1][None], EASES[eases[i]](u)[:, None]))
-
-
-def axis_angle_quat(axis, angle) -> np.ndarray:
-    """Quaternions of rotations by ``angle`` (radians, (F,)) about a fixed unit ``axis``."""
-    angle = np.asarray(angle, dtype=float)
-    axis = np.asarray(axis, dtype=float)
-    h = 0.5 * angle[..., None]
-    return np.concatenate([np.sin(h) * axis, np.cos(h)], axis=-1)
-
-
-def quat_power(q: np.ndarray, k: float) -> np.ndarray:
-    r = Rotation.from_quat(q)
-    return Rotation.from_rotvec(r.as_rotvec() * k).as_quat()
 
 
 def spherical(az, el) -> np.ndarray:

@@ -15,6 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from repro.errors import MotionError
+from repro.io import atomic_path
 from repro.motion.bvh import write_bvh
 from repro.motion.synthetic.choreography import LEVELS, SIDES, STRIKE_KINDS, synthetic_clip
 from repro.motion.synthetic.skeleton import DEFAULT_FPS, REFERENCE_HEIGHT_M
@@ -137,7 +138,7 @@ def synthetic_database(
         (so re-running with the same arguments is a no-op); if any target exists with
         *different* content, nothing is written and :class:`FileExistsError` is raised,
         unless ``overwrite=True``, in which case those files are replaced.  Each file is
-        moved into place atomically (``os.replace``), the manifest last.
+        moved into place atomically (:func:`repro.io.atomic_path`), the manifest last.
 
     Returns
     -------
@@ -211,8 +212,8 @@ def _commit(stage: Path, out_dir: Path, names: list[str], overwrite: bool) -> No
         )
     for name in names:  # the manifest last: it is complete only once every clip is in place
         if name not in same:
-            os.chmod(stage / name, 0o644)
-            os.replace(stage / name, out_dir / name)
+            with atomic_path(out_dir / name) as tmp:  # mode 0o644, moved into place atomically
+                os.replace(stage / name, tmp)
 
 
 _INT_COLUMNS = ("hit_frame", "frames", "clip_seed")

@@ -1,0 +1,551 @@
+"""Where the database's clips come from: files, the real takes, and the named databases.
+
+* :func:`build_database` -- from a folder of BVH files with an optional
+  ``manifest.csv`` (the synthetic database of :mod:`repro.motion.synthetic`);
+* the catalogue of real takes: CMU subject 135 karate (:data:`CMU_TAKES`,
+  :func:`build_cmu_database`), Bandai Namco strikes (:data:`BANDAI_TAKES`,
+  :func:`build_bandai_database`), both in one database (:func:`build_real_database`), and
+  the non-fighting takes used as current poses of queries (:data:`NON_FIGHTING_TAKES`,
+  :func:`non_fighting_poses`);
+* :func:`load_or_build` (a saved database, or build and save it) and
+  :func:`default_database` (``"synthetic"`` or ``"cmu"``, built once per process).
+
+The takes are read in metres and cut around every hit
+(:func:`repro.motion.annotation.detect_hits`, or the manifest's annotation), resampled to
+the database rate on a grid through the hit time (so the hit stays on a frame).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+import re
+import tempfile
+from collections.abc import Iterable, Mapping, Sequence
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from repro import data
+from repro.errors import DataError, MotionError, RetrievalError
+from repro.motion.annotation import (
+    HIT_ROLE_OF,
+    SEMANTICS,
+    Hit,
+    check_semantics,
+    detect_hits,
+    hit_frame_for,
+)
+from repro.motion.bvh import read_bvh
+from repro.motion.clustering import POSE_ROLES
+from repro.motion.database import DATABASE_FPS, Clip, MotionDatabase
+from repro.motion.motion import BANDAI_UNIT_M, CMU_UNIT_M, Motion
+from repro.motion.ops import resample
+from repro.motion.rest_pose import match_rest_pose
+from repro.motion.skeleton import Skeleton, skeleton_of
+from repro.motion.synthetic import synthetic_database
+
+__all__ = [
+    "CMU_TAKES",
+    "CMU_WINDOW",
+    "BANDAI_TAKES",
+    "NON_FIGHTING_TAKES",
+    "REAL_SOURCES",
+    "build_database",
+    "build_cmu_database",
+    "build_bandai_database",
+    "build_real_database",
+    "load_or_build",
+    "default_database",
+    "clip_source_dataset",
+    "non_fighting_poses",
+]
+
+# ================================================================ the catalogue
+#: Subject-135 takes of the staged CMU set used by :func:`build_cmu_database`, with the
+#: kind of strike they hold (``mocap/cmu/PROVENANCE.md``, "The clips, and strikes found
+#: in them").  135_03 (labelled Empi but a 5 m walk with no strike) and 135_08 (the
+#: calibration pose) are left out.
+CMU_TAKES: dict[str, str] = {
+    "135_02": "kata_arm",  # Empi kata
+    "135_04": "front_kick",
+    "135_05": "kata_arm",  # Gedanbarai (down block)
+    "135_06": "kata_arm",  # Heiansyodan kata
+    "135_07": "roundhouse_kick",  # Mawashigeri
+    "135_09": "lunge_punch",  # Oiduki
+    "135_10": "kata_arm",  # Syutouuke (knife-hand block)
+    "135_11": "side_kick",  # Yokogeri
+}
+#: Seconds kept before and after each detected hit when cutting the CMU takes.
+CMU_WINDOW: tuple[float, float] = (0.6, 0.3)
+
+# The database is built "from the real clips in ../shared/data/mocap/": CMU subject 135
+# (above), the Bandai Namco clips (another skeleton) and walks/runs of other CMU subjects
+# for non-fighting poses.
+
+#: Bandai Namco strike takes and their semantics, from the ``semantics`` column of
+#: ``mocap/bandai/manifest.csv`` (walk and bow are ``other``: see
+#: :data:`NON_FIGHTING_TAKES`).  The kick take also holds arm swings that the punch
+#: detector would report ("arm swings 2/3" in ``mocap/bandai/PROVENANCE.md``): as for the
+#: CMU drills, only strikes of the take's semantics are searched for.
+BANDAI_TAKES: dict[str, str] = {
+    "dataset-1_kick_normal_001": "kick",
+    "dataset-1_punch_normal_001": "punch",
+    "dataset-1_punch_normal_002": "punch",
+}
+
+#: Non-fighting takes (``semantics = other`` in the manifests), for "current poses" of
+#: retrieval queries: path -> (subject, kind, description).  :class:`MotionDatabase`
+#: only holds strikes (:data:`SEMANTICS`; a :class:`Clip` must have a hit), so these
+#: are not database clips; :func:`non_fighting_poses` loads them.  Subjects 131, 7 and
+#: 9 share the CMU joint tree with subject 135 but neither its bone lengths nor its rest
+#: directions (the retrieval can retarget them to the 135 actor only after
+#: :func:`match_rest_pose`, ``non_fighting_poses(rest_like=db)``); the Bandai walk and bow are on the
+#: Bandai joint tree (the bow's file has a 10 cm Head End Site and a slightly different
+#: Hips offset, so its skeleton is *not* the one of the other Bandai takes: its size is
+#: 1.40 m instead of 1.30 m).  135_03 is labelled "Empi" in the CMU index but is a
+#: ~5 m walk without any strike (``mocap/cmu/PROVENANCE.md``): subject 135's only walk.
+NON_FIGHTING_TAKES: dict[str, tuple[str, str, str]] = {
+    "mocap/cmu/131_01.bvh": ("cmu131", "walk", "Start Walk Stop"),
+    "mocap/cmu/131_02.bvh": ("cmu131", "walk", "Start Walk Stop"),
+    "mocap/cmu/131_09.bvh": ("cmu131", "walk", "Start Walk Left"),
+    "mocap/cmu/131_10.bvh": ("cmu131", "walk", "Start Walk Left"),
+    "mocap/cmu/131_12.bvh": ("cmu131", "walk", "Start Walk Right"),
+    "mocap/cmu/131_13.bvh": ("cmu131", "walk", "Start Walk Right"),
+    "mocap/cmu/07_05.bvh": ("cmu07", "walk", "slow walk"),
+    "mocap/cmu/09_06.bvh": ("cmu09", "run", "run"),
+    "mocap/cmu/135_03.bvh": ("cmu135", "walk", "Empi (index label); a ~5 m walk, no strike"),
+    "mocap/bandai/dataset-1_walk_normal_001.bvh": ("bandai", "walk", "walk (style: normal)"),
+    "mocap/bandai/dataset-1_bow_normal_001.bvh": ("bandai", "bow", "bow (style: normal)"),
+}
+
+#: Sources :func:`build_real_database` can combine.
+REAL_SOURCES: tuple[str, ...] = ("cmu135", "bandai")
+
+
+# ================================================================ reading and cutting
+def _cut_around(motion: Motion, hit_time: float, window: tuple[float, float] | None, fps: float):
+    """Resample to ``fps`` on a grid through the hit time, keeping ``window`` around it.
+
+    Returns the new motion, the hit frame in it and the start time in the source.
+    """
+    T = (motion.n_frames - 1) * motion.frame_time
+    before, after = (hit_time, T - hit_time) if window is None else window
+    k0 = int(math.floor(min(before, hit_time) * fps + 1e-9))
+    k1 = int(math.floor(min(after, T - hit_time) * fps + 1e-9))
+    times = hit_time + np.arange(-k0, k1 + 1) / fps
+    out = resample(motion, frames=times / motion.frame_time, frame_time=1.0 / fps)
+    return out, k0, float(times[0])
+
+
+def _infer_unit(motion: Motion) -> float:
+    """Metres per unit guessed from the stature in file units (metres, cm, CMU units)."""
+    h = Skeleton.from_motion(motion).height
+    if 0.5 <= h <= 3.0:
+        return 1.0
+    if 50.0 <= h <= 300.0:
+        return 0.01
+    if 20.0 <= h <= 45.0:
+        return CMU_UNIT_M
+    raise MotionError(f"cannot guess the length unit of {motion.source!r} (stature {h:.4g} units); pass unit_m")
+
+
+def _read(path: Path, unit_m: float | None) -> Motion:
+    m = read_bvh(path)
+    u = _infer_unit(m) if unit_m is None else float(unit_m)
+    return dataclasses.replace(m, unit_m=u).to_metres()
+
+
+def _clips_from_take(motion: Motion, name: str, *, fps: float, window, hits: Iterable[Hit], kind: str = "",
+                     level: str = "", hit_joint: str | None = None, hit_where: str = "joint", tag=True) -> list[Clip]:
+    sk = Skeleton.from_motion(motion)
+    out = []
+    for n, h in enumerate(hits):
+        m, k0, t0 = _cut_around(motion, h.frame * motion.frame_time, window, fps)
+        cname = f"{name}_h{n:02d}_{h.role}" if tag else name
+        out.append(Clip(name=cname, motion=m, semantics=h.semantics, hit_role=h.role,
+                        hit_joint=hit_joint or sk.roles[h.role], hit_where=hit_where, hit_frame=k0, kind=kind,
+                        side=h.side, source=str(motion.source or name), source_time=t0, level=level))
+    return out
+
+
+def _read_manifest_rows(path: Path) -> list[dict]:
+    with open(path, newline="", encoding="utf-8") as fh:
+        return [dict(r) for r in csv.DictReader(fh)]
+
+
+def build_database(source, *, fps: float = DATABASE_FPS, window: tuple[float, float] | None = None,
+                   unit_m: float | None = None, manifest: str | None = "manifest.csv",
+                   pose_roles: Sequence[str] = POSE_ROLES, pose_window: int = 1, detect_kw: Mapping | None = None
+                   ) -> MotionDatabase:
+    """Build the database from a folder of BVH files (and its manifest when there is one).
+
+    With a manifest (the columns of :data:`repro.motion.synthetic.MANIFEST_COLUMNS`:
+    ``file``, ``semantics``, ``side``, ``hit_joint``, ``hit_point`` (``joint`` or
+    ``end_site``), ``hit_frame``, ``kind``, ``level``; an optional ``unit_m``) each row
+    is one clip, annotated as the manifest says -- rows whose semantics is not a strike
+    (``"other"``, the stance clips) are skipped; an empty or negative ``hit_frame`` is
+    found with :func:`hit_frame_for`, an empty ``hit_joint`` is the role's joint.  Without
+    a manifest every BVH file is searched with :func:`detect_hits` and cut around each
+    strike.  Clips are resampled to ``fps`` on a grid that passes through the hit time
+    (so the hit stays on a frame).
+
+    Parameters
+    ----------
+    source : str or os.PathLike
+        Folder (or a single manifest file).
+    fps : float, default 30
+    window : (before, after) seconds, optional
+        Cut each clip to this window around its hit; default: the whole clip for manifest
+        rows (the manifest's clips *are* the annotated subsequences), (0.6, 0.3) for
+        detected strikes.
+    unit_m : float, optional
+        Metres per file unit; default from the manifest's ``unit_m`` column, else guessed
+        from the stature (metres, centimetres or CMU units).
+    manifest : str or None, default "manifest.csv"
+        Name of the manifest in the folder; None to ignore it.
+    pose_roles, pose_window
+        Pose representation (:meth:`MotionDatabase.from_clips`).
+    detect_kw : mapping, optional
+        Thresholds passed to :func:`detect_hits`.
+
+    Raises
+    ------
+    repro.errors.MotionError
+        No clip found, a manifest naming a missing file or bad annotation.
+    """
+    src = Path(source)
+    folder = src.parent if src.is_file() else src
+    mpath = src if src.is_file() else (folder / manifest if manifest else None)
+    detect_kw = dict(detect_kw or {})
+    clips: list[Clip] = []
+    if mpath is not None and mpath.is_file():
+        for r in _read_manifest_rows(mpath):
+            sem = (r.get("semantics") or "").strip()
+            if sem not in SEMANTICS:
+                continue
+            f = folder / r["file"]
+            if not f.is_file():
+                raise MotionError(f"{mpath}: {r['file']} is missing")
+            u = unit_m if unit_m is not None else (float(r["unit_m"]) if r.get("unit_m") else None)
+            m = _read(f, u)
+            side = (r.get("side") or "").strip()
+            role = HIT_ROLE_OF.get((sem, side))
+            if role is None:
+                raise MotionError(f"{mpath}: {r['file']}: side must be left or right, got {side!r}")
+            hf = (r.get("hit_frame") or "").strip()
+            hf = int(hf) if hf not in ("",) else -1
+            if hf < 0:
+                hf = hit_frame_for(m, role, **detect_kw)
+            where = (r.get("hit_point") or "joint").strip() or "joint"
+            hj = (r.get("hit_joint") or "").strip() or None
+            hit = Hit(frame=hf, time=hf * m.frame_time, role=role, semantics=sem, side=side, extension=float("nan"),
+                      height=float("nan"), start=hf, stop=hf + 1)
+            clips += _clips_from_take(m, Path(r["file"]).stem, fps=fps, window=window, hits=[hit],
+                                      kind=(r.get("kind") or "").strip(), level=(r.get("level") or "").strip(),
+                                      hit_joint=hj, hit_where=where, tag=False)
+        how = f"manifest {mpath.name}"
+    else:
+        for f in sorted(folder.glob("*.bvh")):
+            m = _read(f, unit_m)
+            hits = detect_hits(m, **detect_kw)
+            clips += _clips_from_take(m, f.stem, fps=fps, window=CMU_WINDOW if window is None else window, hits=hits)
+        how = "detect_hits"
+    if not clips:
+        raise MotionError(f"no punch or kick clip found in {src}")
+    return MotionDatabase.from_clips(clips, pose_roles=pose_roles, window=pose_window,
+                                     meta={"built_from": str(src), "annotations": how, "fps": fps,
+                                           "window": None if window is None else list(window)})
+
+
+# ================================================================ the real takes
+def _dataset_of(path: str) -> str:
+    return "bandai" if path.startswith("mocap/bandai/") else "cmu-bvh"
+
+
+def _cmu135_clips(takes, *, fps: float, window, detect_kw) -> tuple[list[Clip], dict]:
+    """The clips of :func:`build_cmu_database` (same reading, detection and cutting)."""
+    if takes is None:
+        takes = CMU_TAKES
+    if not isinstance(takes, Mapping):
+        takes = {t: CMU_TAKES.get(t, "") for t in takes}
+    clips: list[Clip] = []
+    for take, kind in takes.items():
+        m = _read(data.fetch(f"mocap/cmu/{take}.bvh"), CMU_UNIT_M)
+        m = dataclasses.replace(m, source=f"mocap/cmu/{take}.bvh")
+        sem = "kick" if kind.endswith("kick") else "punch"
+        hits = detect_hits(m, semantics=sem, **dict(detect_kw or {}))
+        clips += _clips_from_take(m, take, fps=fps, window=window, hits=hits, kind=kind)
+    return clips, dict(takes)
+
+
+def _bandai_clips(takes, *, fps: float, window, detect_kw) -> tuple[list[Clip], dict]:
+    if takes is None:
+        takes = BANDAI_TAKES
+    if not isinstance(takes, Mapping):
+        unknown = [t for t in takes if t not in BANDAI_TAKES]
+        if unknown:
+            raise MotionError(f"unknown Bandai strike take(s) {unknown}; known: {sorted(BANDAI_TAKES)}")
+        takes = {t: BANDAI_TAKES[t] for t in takes}
+    clips: list[Clip] = []
+    for take, sem in takes.items():
+        check_semantics(sem)
+        rel = f"mocap/bandai/{take}.bvh"
+        m = _read(data.fetch(rel), BANDAI_UNIT_M)
+        m = dataclasses.replace(m, source=rel)
+        hits = detect_hits(m, semantics=sem, **dict(detect_kw or {}))
+        clips += _clips_from_take(m, take, fps=fps, window=window, hits=hits, kind=f"{sem}_normal")
+    return clips, dict(takes)
+
+
+def build_cmu_database(takes: Mapping[str, str] | Sequence[str] | None = None, *, fps: float = DATABASE_FPS,
+                       window: tuple[float, float] = CMU_WINDOW, pose_roles: Sequence[str] = POSE_ROLES,
+                       pose_window: int = 1, detect_kw: Mapping | None = None) -> MotionDatabase:
+    """The database of the real CMU karate takes (subject 135), cut around detected strikes.
+
+    Each take of :data:`CMU_TAKES` is read in metres (:data:`~repro.motion.CMU_UNIT_M`),
+    searched with :func:`detect_hits` (kick drills for kicks, the other takes for arm
+    strikes), and every hit becomes a clip from ``window[0]`` s before to ``window[1]`` s
+    after it, resampled to ``fps``.  Semantics: ``"kick"`` for kicks, ``"punch"`` for
+    every arm strike (the lunge punches of 135_09 and the arm strikes and blocks of the
+    katas, kind ``"kata_arm"``).  With the default thresholds this gives 14 kicks, 9
+    lunge punches and about 50 kata arm strikes (see ``mocap/cmu/PROVENANCE.md``), about
+    the 75 motions of the paper.
+
+    Parameters
+    ----------
+    takes : mapping take -> kind, or sequence of takes, optional
+        Default :data:`CMU_TAKES`.
+    fps, window, pose_roles, pose_window, detect_kw
+        As :func:`build_database`.
+
+    Raises
+    ------
+    repro.errors.DataError
+        If the staged CMU files are missing (:func:`repro.data.fetch`).
+    """
+    clips, takes = _cmu135_clips(takes, fps=fps, window=window, detect_kw=detect_kw)
+    return MotionDatabase.from_clips(clips, pose_roles=pose_roles, window=pose_window,
+                                     meta={"built_from": "mocap/cmu", "takes": dict(takes), "annotations": "detect_hits",
+                                           "fps": fps, "window": list(window)})
+
+
+def build_bandai_database(takes: Mapping[str, str] | Sequence[str] | None = None, *, fps: float = DATABASE_FPS,
+                          window: tuple[float, float] = CMU_WINDOW, pose_roles: Sequence[str] = POSE_ROLES,
+                          pose_window: int = 1, detect_kw: Mapping | None = None) -> MotionDatabase:
+    """The database of the Bandai Namco strike takes, cut around detected strikes.
+
+    Each take of :data:`BANDAI_TAKES` is read in metres
+    (:data:`~repro.motion.BANDAI_UNIT_M`; the 6-channel joints' position channels
+    replace their OFFSET, :func:`~repro.motion.read_bvh`), searched with
+    :func:`detect_hits` for strikes of the manifest's semantics only, and every hit
+    becomes a clip from ``window[0]`` s before to ``window[1]`` s after it, resampled to
+    ``fps`` (the files are at 30 fps already).  Kind ``"kick_normal"`` /
+    ``"punch_normal"`` (the dataset's "normal" style).  With the default thresholds:
+    3 right kicks (``dataset-1_kick_normal_001``), 2 left punches (``punch_normal_001``)
+    and 5 right punches (``punch_normal_002``): 10 clips, as counted in
+    ``mocap/bandai/PROVENANCE.md``.
+
+    The actor is the Bandai skeleton itself (one base actor): leg 0.80 m, arm 0.47 m,
+    ``size_a`` 1.30 m -- the straightened stature stops at the ``Head`` joint (the file
+    has no head-top point) and counts no ankle height, so it is *not* comparable with the
+    CMU actor's 1.64 m (see :attr:`repro.motion.skeleton.Skeleton.height`).  Hit points:
+    ``Hand_L``/``Hand_R`` (the wrist; no fist point) and ``Toes_L``/``Toes_R``.
+
+    Raises
+    ------
+    repro.errors.DataError
+        If the staged Bandai files are missing (:func:`repro.data.fetch`).
+    """
+    clips, takes = _bandai_clips(takes, fps=fps, window=window, detect_kw=detect_kw)
+    if not clips:
+        raise MotionError("no strike found in the Bandai takes")
+    return MotionDatabase.from_clips(clips, pose_roles=pose_roles, window=pose_window,
+                                     meta={"built_from": "mocap/bandai", "takes": takes, "annotations": "detect_hits",
+                                           "fps": fps, "window": list(window), "sources": {"bandai": len(clips)}})
+
+
+def build_real_database(include: Sequence[str] = REAL_SOURCES, *, cmu_takes=None, bandai_takes=None,
+                        fps: float = DATABASE_FPS, window: tuple[float, float] = CMU_WINDOW,
+                        pose_roles: Sequence[str] = POSE_ROLES, pose_window: int = 1,
+                        detect_kw: Mapping | None = None) -> MotionDatabase:
+    """One database of the real strike clips: CMU subject 135 and/or Bandai Namco.
+
+    ``include`` names the sources (:data:`REAL_SOURCES`): ``"cmu135"`` gives exactly the
+    clips of :func:`build_cmu_database`, ``"bandai"`` those of
+    :func:`build_bandai_database`, in that order.  The two skeletons have different
+    joint trees (31 CMU joints, 22 Bandai joints), so the database holds two base actors
+    (:attr:`MotionDatabase.actors`, ``actor`` per clip); pose clouds are role-based
+    (:data:`~repro.motion.clustering.POSE_ROLES`) and share one array and one
+    clustering (in practice every k-means cluster holds poses of one family only: the
+    clouds are divided by sizes that the two rigs measure differently).
+
+    What the retrieval (:class:`repro.motion.retrieval.MotionRetriever`) does with it:
+    the current pose is retargeted (Section 3.4.1) to every actor *with the character's
+    joint tree*, and only the clips of those actors are candidates (clusters without
+    such poses are skipped: the result then says ``fallback="neighbour_clusters"``).  A
+    CMU character (subject 135 and its :func:`~repro.motion.scale_skeleton`
+    derivatives; subjects 131, 7 and 9 only after :func:`match_rest_pose`) therefore
+    retrieves only CMU clips and a Bandai character only Bandai clips; nothing is retargeted across joint trees
+    (:func:`repro.motion.morphology.decode` requires the same topology), and Eq. 1 is
+    never applied between a CMU character and a Bandai actor, whose sizes are not
+    measured alike.  Mixing the sources in one file is for bookkeeping (one database,
+    one save, one retriever); it gives no character more clips.
+
+    ``"cmu-walks"`` (non-fighting takes) cannot be included: a database clip needs a hit;
+    use :func:`non_fighting_poses`.
+
+    Raises
+    ------
+    repro.errors.MotionError
+        Unknown or empty ``include``.
+    repro.errors.DataError
+        A needed staged file is missing and cannot be downloaded
+        (:func:`repro.data.fetch`).
+    """
+    include = tuple(include)
+    bad = [s for s in include if s not in REAL_SOURCES]
+    if bad:
+        hint = (" (non-fighting takes are not database clips: use non_fighting_poses())"
+                if any("walk" in s or "other" in s for s in bad) else "")
+        raise MotionError(f"unknown source(s) {bad}; known: {list(REAL_SOURCES)}{hint}")
+    if not include:
+        raise MotionError("include names no source")
+    clips: list[Clip] = []
+    counts: dict[str, int] = {}
+    takes: dict[str, dict] = {}
+    for s in dict.fromkeys(include):
+        if s == "cmu135":
+            c, t = _cmu135_clips(cmu_takes, fps=fps, window=window, detect_kw=detect_kw)
+        else:
+            c, t = _bandai_clips(bandai_takes, fps=fps, window=window, detect_kw=detect_kw)
+        clips += c
+        counts[s] = len(c)
+        takes[s] = t
+    if not clips:
+        raise MotionError(f"no strike found in {list(include)}")
+    return MotionDatabase.from_clips(clips, pose_roles=pose_roles, window=pose_window,
+                                     meta={"built_from": ["mocap/cmu" if s == "cmu135" else "mocap/bandai"
+                                                          for s in counts],
+                                           "takes": takes, "annotations": "detect_hits", "fps": fps,
+                                           "window": list(window), "sources": counts})
+
+
+# ================================================================ named databases
+def load_or_build(path, build=build_cmu_database, **kw) -> MotionDatabase:
+    """Load the database saved at ``path``, or ``build(**kw)`` it and save it there.
+
+    For notebooks: the first run builds (about a second for the CMU takes) and saves
+    atomically; later runs load.  Delete the file to rebuild (nothing checks that the
+    saved database was built with the same ``kw``).
+    """
+    path = Path(path)
+    if path.exists():
+        return MotionDatabase.load(path)
+    db = build(**kw)
+    db.save(path)
+    return db
+
+
+@lru_cache(maxsize=4)
+def default_database(name: str = "synthetic", seed: int = 0) -> MotionDatabase:
+    """A ready database by name, built once per process.
+
+    ``"synthetic"``: the embedded set of :func:`repro.motion.synthetic.synthetic_database`
+    (75 clips written to a temporary folder, built from its manifest), always available.
+    ``"cmu"``: :func:`build_cmu_database` from the staged CMU takes (needs dataset
+    ``cmu-bvh``; raises :class:`~repro.errors.DataError` saying how to get it).
+    """
+    if name == "synthetic":
+        with tempfile.TemporaryDirectory(prefix="repro-synthetic-") as tmp:
+            synthetic_database(tmp, seed=seed)
+            return build_database(tmp)
+    if name == "cmu":
+        reason = data.missing_reason("cmu-bvh")
+        if reason:
+            raise DataError(reason)
+        return build_cmu_database()
+    raise RetrievalError(f"unknown database {name!r}; known: 'synthetic', 'cmu'")
+
+
+def clip_source_dataset(db: MotionDatabase) -> np.ndarray:
+    """(C,) ``"cmu135"`` / ``"bandai"`` / ``""`` for every clip, from its source file."""
+    out = np.full(db.n_clips, "", dtype=object)
+    for i, s in enumerate(db.sources.tolist()):
+        if "mocap/bandai/" in s:
+            out[i] = "bandai"
+        elif re.search(r"mocap/cmu/135_\d+\.bvh", s):
+            out[i] = "cmu135"
+    return out.astype(str)
+
+
+def non_fighting_poses(takes: Sequence[str] | None = None, *, fps: float | None = DATABASE_FPS,
+                       kinds: Sequence[str] | None = None, rest_like=None) -> dict[str, Motion]:
+    """The non-fighting takes as motions in metres, for the current poses of queries.
+
+    Parameters
+    ----------
+    takes : sequence of str, optional
+        Paths relative to the data folder (keys of :data:`NON_FIGHTING_TAKES`); default
+        all of them (CMU 131 walks, CMU 7 slow walk, CMU 9 run, CMU 135_03 walk, Bandai
+        walk and bow).  Any staged BVH path is accepted (centimetres under
+        ``mocap/bandai/``, CMU units elsewhere).
+    fps : float or None, default 30
+        Resample to this rate (the database's); None keeps the file's (120 Hz for CMU).
+    kinds : sequence of str, optional
+        Keep only these kinds of :data:`NON_FIGHTING_TAKES` (``"walk"``, ``"run"``,
+        ``"bow"``), e.g. ``("walk", "run")``.
+    rest_like : MotionDatabase, Skeleton, Motion or sequence of them, optional
+        Put every motion that shares the joint tree of one of these skeletons (for a
+        database: of one of its :attr:`~MotionDatabase.actors`) on that skeleton's rest
+        directions with :func:`match_rest_pose` (bone lengths and joint positions
+        kept).  Needed for the CMU subjects 131, 7 and 9 to be used against the CMU 135
+        actor: the retrieval retargets the current pose to the actor
+        (:meth:`repro.motion.retrieval.MotionRetriever.prepare`), and the retargeting
+        refuses rest directions more than 5 degrees apart (they differ by 12-14
+        degrees).  Motions with no matching joint tree are returned unchanged.
+
+    Returns
+    -------
+    dict
+        Take name (file stem) -> :class:`~repro.motion.Motion` in metres
+        (``unit_m = 1``), ``source`` the relative path.  Any frame of it is a
+        ``current_pose`` for the retrieval with the motion's own skeleton
+        (``Skeleton.from_motion``) as the character: as they are, the Bandai walk and bow
+        (against the Bandai actor) and CMU 135_03 (against the CMU 135 actor); the other
+        CMU subjects after ``rest_like=db``.
+
+    Raises
+    ------
+    repro.errors.DataError
+        A needed staged file is missing.
+    """
+    if takes is None:
+        takes = list(NON_FIGHTING_TAKES)
+    takes = list(takes)
+    if kinds is not None:
+        kinds = set(kinds)
+        takes = [t for t in takes if NON_FIGHTING_TAKES.get(t, ("", "", ""))[1] in kinds]
+    refs: list[Skeleton] = []
+    if rest_like is not None:
+        items = rest_like if isinstance(rest_like, (list, tuple)) else [rest_like]
+        for it in items:
+            if isinstance(it, MotionDatabase):
+                refs += list(it.actors)
+            else:
+                refs.append(skeleton_of(it))
+    out: dict[str, Motion] = {}
+    for rel in takes:
+        unit = BANDAI_UNIT_M if _dataset_of(rel) == "bandai" else CMU_UNIT_M
+        m = _read(data.fetch(rel), unit)
+        if fps is not None and abs(m.fps - fps) > 1e-9 * fps:
+            m = resample(m, fps)
+        m = dataclasses.replace(m, source=rel)
+        for sk in refs:
+            if sk.is_compatible(m):
+                m = dataclasses.replace(match_rest_pose(m, sk), source=rel)
+                break
+        out[Path(rel).stem] = m
+    return out
