@@ -74,7 +74,8 @@ class Skeleton:
     joint_names, parents, offsets, channels, end_site_parents, end_site_offsets, unit_m
         As in :class:`~repro.motion.Motion`.
     roles : mapping role -> joint name, optional
-        Default: :func:`find_roles` on the names and parents.
+        Default: :func:`find_roles` on the names, parents and rest offsets (roles from
+        the structure first, the names second).
 
     Raises
     ------
@@ -116,7 +117,7 @@ class Skeleton:
             raise MotionError("end_site_parents / end_site_offsets are inconsistent or not finite")
         if self.unit_m is not None and not (np.isfinite(self.unit_m) and self.unit_m > 0):
             raise MotionError(f"unit_m must be finite and > 0, got {self.unit_m!r}")
-        roles = dict(self.roles) if self.roles is not None else find_roles(names, parents)
+        roles = dict(self.roles) if self.roles is not None else find_roles(names, parents, offsets=offsets)
         bad = [f"{r}->{j}" for r, j in roles.items() if j not in names]
         if bad:
             raise MotionError(f"roles name unknown joints: {bad}")
@@ -160,7 +161,7 @@ class Skeleton:
             Passed to :func:`find_roles`.
         """
         if roles is None:
-            roles = find_roles(motion.joint_names, motion.parents, overrides=overrides)
+            roles = find_roles(motion.joint_names, motion.parents, overrides=overrides, offsets=motion.offsets)
         return cls(
             joint_names=list(motion.joint_names),
             parents=motion.parents,
