@@ -50,7 +50,7 @@ import numpy as np
 
 from repro.errors import MotionError
 
-__all__ = ["ROLES", "REQUIRED_ROLES", "ROLES_FOR", "SIDE_ROLES", "LIMBS", "find_roles", "check_roles", "is_helper_name"]
+__all__ = ["LIMBS", "REQUIRED_ROLES", "ROLES", "ROLES_FOR", "SIDE_ROLES", "check_roles", "find_roles", "is_helper_name"]
 
 #: Per-side role stems, in proximal-to-distal order (``left_`` / ``right_`` prefixed).
 SIDE_ROLES: tuple[str, ...] = (
@@ -112,11 +112,14 @@ _LEFT = (re.compile(rf"^(?:left{_SEP}?|l{_SEP}?)(.+)$"), re.compile(rf"^(.+?)(?:
 _RIGHT = (re.compile(rf"^(?:right{_SEP}?|r{_SEP}?)(.+)$"), re.compile(rf"^(.+?)(?:{_SEP}?right|{_SEP}r)$"))
 
 
+class _AmbiguousLimbs(MotionError):
+    """Two candidate limbs on one side: an error even when the names would decide otherwise."""
+
+
 def _strip(name: str) -> str:
     """Lower case, namespace (``mixamorig:``) and ``joint_`` prefix removed."""
     n = name.lower().rsplit(":", 1)[-1].strip()
-    if n.startswith("joint_"):
-        n = n[len("joint_"):]
+    n = n.removeprefix("joint_")
     n = re.sub(r"^bip\d*[ _]", "", n)  # 3ds Max Biped "Bip01 L Thigh"
     return n
 
@@ -247,10 +250,10 @@ def find_roles(
             raise MotionError(f"offsets must be a finite ({len(names)}, 3) array, got shape {off.shape}")
         try:
             found = _roles_from_structure(names, par, off)
+        except _AmbiguousLimbs:
+            raise
         except MotionError:
             found = None  # e.g. every bone along one line: the names decide
-        else:
-            _deepest_trunk(found, names, index, par, off)
         if found is not None:
             used0 = set(roles.values())
             for role, joint in found.items():
@@ -442,26 +445,6 @@ def _has_body_word(name: str) -> bool:
     return any(w in n for w in _BODY_WORDS)
 
 
-def _deepest_trunk(found: dict[str, str], names, index, par, off) -> None:
-    """Spine / neck below zero-length helpers: ``mPelvis -> mSpine1 (0) -> mTorso`` gives spine = mTorso."""
-    lh, rh = found.get("left_hip"), found.get("right_hip")
-    ls, rs = found.get("left_shoulder"), found.get("right_shoulder")
-    if not (lh and rh and ls and rs):
-        return
-    pel = _lca(index[lh], index[rh], par)
-    che = _lca(index[ls], index[rs], par)
-    path = _ancestors(che, par)
-    if pel not in path or che == pel:
-        return
-    below = path[: path.index(pel)][::-1]  # first joint after the pelvis ... chest
-    scale = float(np.linalg.norm(off, axis=1).max())
-    k = 0
-    while k + 1 < len(below) and np.linalg.norm(off[below[k]]) <= 1e-6 * scale:
-        k += 1
-    if k:
-        found["spine"] = names[below[k]]
-
-
 def _rest_positions(parents: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     p = np.array(offsets, dtype=float)
     for j in range(1, len(p)):
@@ -525,7 +508,7 @@ def _structure(names: list[str], par: np.ndarray, off: np.ndarray) -> dict:
             f"{names[hub]!r} has {len(br)} branches); not a humanoid skeleton"
         )
     groups = sorted(((tips_under(c), c) for c in br), key=lambda g: -len(g[0]))
-    upper_tips, upper_root = groups[0]
+    upper_tips, _upper_root = groups[0]
     if len(upper_tips) < 3:
         raise MotionError(
             f"the branches of {names[hub]!r} hold at most {len(upper_tips)} end joints each; "
@@ -593,7 +576,7 @@ def _bases(name: str) -> set[str]:
     """Side-stripped bases of a name (also without a Second Life ``m`` prefix or a digit suffix)."""
     out = set()
     for _, b in _side_and_base(name):
-        for c in (b, b[1:] if b.startswith("m") else b):
+        for c in (b, b.removeprefix("m")):
             out.add(c)
             out.add(c.rstrip("0123456789"))
     return out
@@ -667,7 +650,7 @@ def _roles_from_structure(names: list[str], par: np.ndarray, off: np.ndarray) ->
             sides[t1], sides[t2] = by_name
             continue
         if by_name[0] and by_name[0] == by_name[1]:
-            raise MotionError(
+            raise _AmbiguousLimbs(
                 f"two candidate {'legs' if group is legs else 'arms'} on the {by_name[0]} side: "
                 f"{names[g1['prox']]!r} and {names[g2['prox']]!r}"
             )
@@ -720,7 +703,7 @@ def check_roles(roles: Mapping[str, str], purpose: str, joint_names: Sequence[st
         missing = [r for r in need if not r.startswith("right_") and r not in roles]
         if not ok_side:
             limb = "arm" if purpose == "a punch" else "leg"
-            missing += [f"an {limb} (" + ", ".join(r.replace("right_", "left_/right_") for r in side_need) + ")"]
+            missing += [f"{'an' if limb == 'arm' else 'a'} {limb} (" + ", ".join(r.replace("right_", "left_/right_") for r in side_need) + ")"]
     else:
         missing = [r for r in need if r not in roles]
     if missing:
