@@ -24,13 +24,15 @@ the CMU, Bandai Namco and Mixamo files).
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 
-from repro.errors import MotionError
+from repro.errors import MotionError, UnitWarning
+from repro.motion.motion import CMU_UNIT_M
 from repro.motion.roles import LIMBS, REQUIRED_ROLES, find_roles
 
 __all__ = [
@@ -38,7 +40,49 @@ __all__ = [
     "skeleton_of",
     "scale_skeleton",
     "rescale_constraint",
+    "infer_unit",
+    "UNITS",
 ]
+
+#: Candidate units: (name, metres per unit).
+UNITS: tuple[tuple[str, float], ...] = (
+    ("metres", 1.0),
+    ("centimetres", 0.01),
+    ("millimetres", 0.001),
+    ("inches", 0.0254),
+    ("CMU units (1/0.45 inch)", CMU_UNIT_M),
+)
+#: Statures a human skeleton may have, metres.
+STATURE_RANGE_M: tuple[float, float] = (0.5, 2.5)
+#: The stature the choice between overlapping units favours, metres.
+TYPICAL_STATURE_M: float = 1.7
+
+
+def infer_unit(stature: float) -> tuple[float, str]:
+    """``(unit_m, unit name)`` of a skeleton whose stature is ``stature`` file units.
+
+    Raises
+    ------
+    repro.errors.MotionError
+        If the stature is not finite and positive, or no unit of :data:`UNITS` makes it
+        a human stature (:data:`STATURE_RANGE_M`).
+    """
+    try:
+        h = float(stature)
+    except (TypeError, ValueError):
+        raise MotionError(f"stature must be a number, got {stature!r}") from None
+    if not np.isfinite(h) or h <= 0:
+        raise MotionError(f"stature must be finite and > 0 to infer the unit, got {stature!r}")
+    lo, hi = STATURE_RANGE_M
+    fits = [(abs(np.log(h * u / TYPICAL_STATURE_M)), u, n) for n, u in UNITS if lo <= h * u <= hi]
+    if not fits:
+        raise MotionError(
+            f"cannot infer the length unit: a stature of {h:.4g} file units is no human stature "
+            f"({lo}-{hi} m) in any of {[n for n, _ in UNITS]}; pass unit_m= explicitly"
+        )
+    _, u, n = min(fits)
+    return u, n
+
 
 def _readonly(a) -> np.ndarray:
     a = np.array(a, dtype=float, copy=True)
@@ -162,7 +206,7 @@ class Skeleton:
         """
         if roles is None:
             roles = find_roles(motion.joint_names, motion.parents, overrides=overrides, offsets=motion.offsets)
-        return cls(
+        sk = cls(
             joint_names=list(motion.joint_names),
             parents=motion.parents,
             offsets=motion.offsets,
@@ -172,6 +216,21 @@ class Skeleton:
             unit_m=motion.unit_m,
             roles=roles,
         )
+        if sk.unit_m is None:
+            # no unit given: inferred from the stature (repro.motion.units), with a UnitWarning;
+            # left unknown when the stature fits no unit (to_metres then says so)
+            try:
+                u, name = infer_unit(sk.height)
+            except MotionError:
+                return sk
+            warnings.warn(
+                f"{getattr(motion, 'source', None) or 'motion'}: no unit_m given; inferred {name} "
+                f"({u:g} m per unit) from the stature of {sk.height:.4g} units",
+                UnitWarning,
+                stacklevel=2,
+            )
+            sk = dataclasses.replace(sk, unit_m=u)
+        return sk
 
     def with_offsets(self, offsets, end_site_offsets=None, unit_m=None) -> Skeleton:
         """Same joints, roles and channels with new offsets (and End Site offsets, units)."""
