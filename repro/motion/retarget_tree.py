@@ -127,8 +127,9 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
     tgt = skeleton_of(character, roles=character_roles)
     check_roles(src.roles, "retargeting", src.joint_names)
     check_roles(tgt.roles, "retargeting", tgt.joint_names)
+    up_t = _up_of(character, tgt)
     Bs = body_frame(src, _up_of(motion, src))
-    Bt = body_frame(tgt, _up_of(character, tgt))
+    Bt = body_frame(tgt, up_t)
     C = Bt @ Bs.T
     c = _mat_to_quat(C)
     ci = qinv(c)
@@ -252,7 +253,7 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
         end_site_parents=tgt.end_site_parents,
         end_site_offsets=tgt.end_site_offsets,
         unit_m=tgt.unit_m,
-        up=getattr(character, "up", None),
+        up=up_t,
     )
 
 

@@ -14,7 +14,7 @@ from repro.motion import BANDAI_UNIT_M, CMU_UNIT_M, read_bvh, retarget, write_bv
 from repro.motion.retarget_tree import retarget_across
 from repro.motion.skeleton import Skeleton, skeleton_of
 from repro.motion.synthetic import synthetic_clip
-from tests.motion.skeleton_conventions import CONVENTIONS, Z_UP, build
+from repro.motion.synthetic.conventions import CONVENTIONS, Z_UP, build
 
 Z_UP_CONVENTIONS = {"biped", "unreal"}
 ROLES = ("pelvis", "chest", "head", "left_shoulder", "right_elbow", "right_wrist", "left_wrist",

@@ -15,7 +15,7 @@ from repro.motion import read_bvh
 from repro.motion.roles import check_roles, find_roles, is_helper_name
 from repro.motion.skeleton import Skeleton
 from tests.motion.role_tables import MIXAMO_EXPECTED, MIXAMO_NAMES, MIXAMO_PARENTS
-from tests.motion.skeleton_conventions import CONVENTIONS, build, expected_roles
+from repro.motion.synthetic.conventions import CONVENTIONS, build, expected_roles
 
 
 @pytest.mark.parametrize("convention", CONVENTIONS)

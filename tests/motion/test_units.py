@@ -12,7 +12,7 @@ from repro.errors import BVHError, MotionError, UnitWarning
 from repro.motion import BANDAI_UNIT_M, CMU_UNIT_M, read_bvh
 from repro.motion.skeleton import Skeleton
 from repro.motion.units import UNITS, infer_unit, infer_units
-from tests.motion.skeleton_conventions import CONVENTIONS, build
+from repro.motion.synthetic.conventions import CONVENTIONS, build
 
 Z_UP = {"biped", "unreal"}
 

@@ -1,7 +1,7 @@
 """Skeletons of other tools' naming conventions, built from the synthetic actor by renaming and
 restructuring (extra spine joints, twist bones, fingers, face joints, zero-length helpers, Z-up,
 A-pose).  No third-party file is used: every joint and offset comes from
-:func:`repro.motion.synthetic.synthetic_skeleton`.  Shared by the roles / units / retargeting tests."""
+:func:`repro.motion.synthetic.synthetic_skeleton`.  Used by the roles / units / retargeting tests and the cross_skeleton figure."""
 
 from __future__ import annotations
 
