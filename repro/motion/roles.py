@@ -6,8 +6,16 @@ and tree structure (:class:`repro.motion.skeleton.Skeleton` keeps the table).
 
 Roles
 -----
-A *role* names a body part independently of the naming convention of a file.  Limb
-joints are found by name (case-insensitive, side from prefixes/suffixes ``l``/``r``,
+A *role* names a body part independently of the naming convention of a file.  Given the
+rest offsets (``find_roles(..., offsets=...)``, which :class:`~repro.motion.skeleton.Skeleton`
+always passes), roles come from the **structure first**: legs, arms and head from the
+joint tree and the rest pose (twist / roll / helper bones, fingers, face joints, props
+and zero-length joints set aside), the names only confirming and disambiguating (which
+of ``RightCollar``/``RightShoulder`` is the upper arm, the side when the rest pose cannot
+tell it); this recognises MotionBuilder/Biovision, Poser/DAZ, Second Life (``m``-prefixed
+bento), 3ds Max Biped, SMPL, Unreal, Unity/HumanIK and Blender ``.L`` names besides the
+three tables below.  :func:`check_roles` names what a use lacks (a punch needs an arm).
+Without offsets, limb joints are found by name (case-insensitive, side from prefixes/suffixes ``l``/``r``,
 ``Left``/``Right``, ``_L``/``_R``); the trunk joints are found from the tree when the
 parents are known (pelvis = lowest common ancestor of the two hips, chest = lowest
 common ancestor of the two shoulders), else by name.  Joint-to-role tables for the three

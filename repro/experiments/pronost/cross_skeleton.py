@@ -154,8 +154,8 @@ def draw(table: pd.DataFrame):
         ax.set_xticks(range(len(g)), g.index, rotation=45, ha="right", fontsize=8)
         ax.set_ylabel(lab, fontsize=8)
         ax.grid(alpha=0.3, axis="y")
-    fig.suptitle("Synthetic database retargeted onto other skeletons (statures %s m)"
-                 % ", ".join(f"{h:g}" for h in sorted(set(syn.height_m))))
+    heights = ", ".join(f"{h:g}" for h in sorted(set(syn.height_m)))
+    fig.suptitle(f"Synthetic database retargeted onto other skeletons (statures {heights} m)")
     fig.tight_layout()
     return fig
 
