@@ -52,7 +52,9 @@ wrist; the toe joint (ball of the foot) when present, else the ankle.
 from __future__ import annotations
 
 import re
+from collections import OrderedDict
 from collections.abc import Mapping, Sequence
+from functools import lru_cache
 
 import numpy as np
 
@@ -124,6 +126,7 @@ class _AmbiguousLimbs(MotionError):
     """Two candidate limbs on one side: an error even when the names would decide otherwise."""
 
 
+@lru_cache(maxsize=8192)
 def _strip(name: str) -> str:
     """Lower case, namespace (``mixamorig:``) and ``joint_`` prefix removed."""
     n = name.lower().rsplit(":", 1)[-1].strip()
@@ -136,7 +139,8 @@ def _alnum(s: str) -> str:
     return re.sub(r"[^a-z0-9]", "", s)
 
 
-def _side_and_base(name: str) -> list[tuple[str, str]]:
+@lru_cache(maxsize=8192)
+def _side_and_base(name: str) -> tuple[tuple[str, str], ...]:
     """Possible (side, base) readings of a joint name; base stripped of separators."""
     n = _strip(name)
     out = []
@@ -145,7 +149,7 @@ def _side_and_base(name: str) -> list[tuple[str, str]]:
             m = p.match(n)
             if m:
                 out.append((side, _alnum(m.group(1))))
-    return out
+    return tuple(out)
 
 
 def _ancestors(j: int, parents: np.ndarray) -> list[int]:
@@ -235,8 +239,39 @@ def find_roles(
         parent-child chain.
     """
     names = [str(n) for n in joint_names]
-    index = {n: i for i, n in enumerate(names)}
     par = None if parents is None else np.asarray(parents, dtype=np.intp)
+    key = None
+    try:
+        off_key = None if offsets is None else np.asarray(offsets, dtype=float).tobytes()
+        key = (tuple(names), None if par is None else par.tobytes(), off_key,
+               tuple(sorted((overrides or {}).items())), tuple(required))
+        hash(key)
+    except (TypeError, ValueError):
+        key = None
+    if key is not None:
+        try:  # (another thread may evict the entry meanwhile)
+            hit = _CACHE[key]
+            _CACHE.move_to_end(key)
+            return dict(hit)
+        except KeyError:
+            pass
+    roles = _find_roles(names, par, overrides, required, offsets)
+    if key is not None:
+        _CACHE[key] = dict(roles)
+        while len(_CACHE) > 256:
+            try:
+                _CACHE.popitem(last=False)
+            except KeyError:
+                break
+    return roles
+
+
+#: Role tables of recent skeletons (the same skeleton is encoded once per clip).
+_CACHE: OrderedDict = OrderedDict()
+
+
+def _find_roles(names, par, overrides, required, offsets) -> dict[str, str]:
+    index = {n: i for i, n in enumerate(names)}
     if par is not None and par.shape != (len(names),):
         raise MotionError(f"parents must have one entry per joint ({len(names)}), got shape {par.shape}")
     roles: dict[str, str] = {}
@@ -407,6 +442,7 @@ _SKIP_WHOLE = re.compile(r"^(ring|middle|mid|little|lip|lid|ear|nose|nostril|han
 _SKIP_END = re.compile(r"(end|nub|site|tip)\d*$")
 
 
+@lru_cache(maxsize=8192)
 def is_helper_name(name: str) -> bool:
     """True for joints that carry no body role by name: twist/roll/helper bones, fingers,
     face joints, props and ``..._End`` leaves (``Unreal upperarm_twist_01_l``, ``mixamorig:
@@ -425,6 +461,7 @@ def is_helper_name(name: str) -> bool:
     return False
 
 
+@lru_cache(maxsize=8192)
 def _name_side(name: str) -> str | None:
     """Side read from a name (``Left``/``L_``/``_l``/``.L``/``l`` prefix, ``mShoulderLeft``), or None."""
     n = _strip(name)
@@ -447,6 +484,7 @@ _BODY_WORDS = tuple(
 )
 
 
+@lru_cache(maxsize=8192)
 def _has_body_word(name: str) -> bool:
     """Names confirm the structure: a joint named ``Something`` is no knee until ``overrides`` says so."""
     n = _alnum(_strip(name))
@@ -580,16 +618,18 @@ _LEG_STEMS = ("hip", "knee", "ankle")
 _AMBIGUOUS_BASES = {"shoulder", "hand", "hip"}
 
 
-def _bases(name: str) -> set[str]:
+@lru_cache(maxsize=8192)
+def _bases(name: str) -> frozenset[str]:
     """Side-stripped bases of a name (also without a Second Life ``m`` prefix or a digit suffix)."""
     out = set()
     for _, b in _side_and_base(name):
         for c in (b, b.removeprefix("m")):
             out.add(c)
             out.add(c.rstrip("0123456789"))
-    return out
+    return frozenset(out)
 
 
+@lru_cache(maxsize=8192)
 def _stem_votes(name: str, stem: str) -> tuple[int, int]:
     """(1 if the name reads as ``stem``, 1 if it reads unambiguously as another limb stem)."""
     bs = _bases(name)
