@@ -22,9 +22,15 @@ import numpy as np
 
 from repro.errors import MotionError, UnitWarning
 from repro.motion.motion import Motion
-from repro.motion.skeleton import STATURE_RANGE_M, TYPICAL_STATURE_M, UNITS, infer_unit, skeleton_of
+from repro.motion.skeleton import (
+    STATURE_RANGE_M,
+    TYPICAL_STATURE_M,
+    UNITS,
+    infer_unit,
+    skeleton_of,
+)
 
-__all__ = ["UNITS", "STATURE_RANGE_M", "TYPICAL_STATURE_M", "infer_unit", "infer_up", "infer_units"]
+__all__ = ["STATURE_RANGE_M", "TYPICAL_STATURE_M", "UNITS", "infer_unit", "infer_units", "infer_up"]
 
 def _axis_of(v: np.ndarray) -> str | None:
     n = np.linalg.norm(v)

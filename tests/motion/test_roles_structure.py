@@ -14,8 +14,8 @@ from repro.errors import MotionError
 from repro.motion import read_bvh
 from repro.motion.roles import check_roles, find_roles, is_helper_name
 from repro.motion.skeleton import Skeleton
-from tests.motion.role_tables import MIXAMO_EXPECTED, MIXAMO_NAMES, MIXAMO_PARENTS
 from repro.motion.synthetic.conventions import CONVENTIONS, build, expected_roles
+from tests.motion.role_tables import MIXAMO_EXPECTED, MIXAMO_NAMES, MIXAMO_PARENTS
 
 
 @pytest.mark.parametrize("convention", CONVENTIONS)

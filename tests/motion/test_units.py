@@ -11,8 +11,8 @@ from repro import data
 from repro.errors import BVHError, MotionError, UnitWarning
 from repro.motion import BANDAI_UNIT_M, CMU_UNIT_M, read_bvh
 from repro.motion.skeleton import Skeleton
-from repro.motion.units import UNITS, infer_unit, infer_units
 from repro.motion.synthetic.conventions import CONVENTIONS, build
+from repro.motion.units import UNITS, infer_unit, infer_units
 
 Z_UP = {"biped", "unreal"}
 
@@ -70,7 +70,7 @@ def test_uninferable_stature_is_an_error():
     sk = Skeleton.from_motion(m)
     assert sk.unit_m is None
     with pytest.raises(MotionError, match="unit"):
-        sk.size
+        sk.size  # noqa: B018
 
 
 def test_motion_up_is_validated():
