@@ -24,6 +24,7 @@ __all__ = [
     "RenderUnavailableError",
     "ReproWarning",
     "BVHWarning",
+    "UnitWarning",
     "CacheWarning",
 ]
 
@@ -77,6 +78,10 @@ class ReproWarning(UserWarning):
 
 class BVHWarning(ReproWarning):
     """A BVH (or ASF/AMC) file was read, but part of it was ignored (e.g. text after the frames)."""
+
+
+class UnitWarning(ReproWarning):
+    """A length unit or up axis was not given and was inferred (the message says which)."""
 
 
 class CacheWarning(ReproWarning):

@@ -88,31 +88,33 @@ the round trip reproduces the motion to rounding error.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from repro.errors import MotionError
+from repro.motion.channels import POSITION_CHANNELS
 from repro.motion.feet import UP_AXIS, foot_contacts, foot_goals, foot_scale
 from repro.motion.kinematics import depth_levels, fk_arrays, normalize, transport
+from repro.motion.motion import Motion
 from repro.motion.quaternion import cross, min_rotation, quat_multiply
 from repro.motion.quaternion import quat_conjugate as qinv
 from repro.motion.quaternion import quat_rotate as qrot
-from repro.motion.channels import POSITION_CHANNELS
-from repro.motion.motion import Motion
+from repro.motion.retarget_tree import retarget_across
 from repro.motion.roles import LIMBS
 from repro.motion.skeleton import Skeleton, skeleton_of
 
 __all__ = [
+    "LIMB_NAMES",
+    "DecodeReport",
     "MorphologyIndependentMotion",
-    "encode",
     "decode",
     "decode_with_report",
-    "DecodeReport",
-    "LIMB_NAMES",
-    "retarget",
+    "encode",
     "naive_retarget",
+    "retarget",
     "time_retarget",
 ]
 
@@ -602,9 +604,30 @@ def retarget(motion: Motion, target, *, roles=None, fix_feet: bool = False) -> M
     roles : mapping, optional
         Role table of the source (default: found).
     fix_feet : bool, default False
-        Correct the feet artifacts (see :func:`decode`).
+        Correct the feet artifacts (see :func:`decode`; same joint tree only).
+
+    A target whose joint tree differs (other joint names with the same parents; or
+    another tree, rest pose or up axis) is retargeted too: with the same parents and
+    the roles on the same joints, the joints are renamed and decoded as above (exact);
+    otherwise through the body-part roles, :func:`repro.motion.retarget_tree.retarget_across`.
     """
-    return decode(encode(motion, roles=roles), target, fix_feet=fix_feet)
+    if not (isinstance(target, Skeleton) or hasattr(target, "offsets")):
+        raise MotionError(f"target must be a Skeleton or a Motion, got {type(target).__name__}")
+    if list(target.joint_names) == list(motion.joint_names) and np.array_equal(target.parents, motion.parents):
+        return decode(encode(motion, roles=roles), target, fix_feet=fix_feet)
+    mi = encode(motion, roles=roles)
+    tgt = skeleton_of(target)
+    if np.array_equal(tgt.parents, motion.parents):
+        src_index = {r: motion.joint_names.index(j) for r, j in mi.roles.items()}
+        if all(tgt.roles.get(r) == tgt.joint_names[i] for r, i in src_index.items()):
+            renamed = dataclasses.replace(tgt, joint_names=list(motion.joint_names), roles=mi.roles)
+            try:
+                out = decode(mi, renamed, fix_feet=fix_feet)
+            except MotionError:
+                out = None  # another rest pose: through the roles
+            if out is not None:
+                return dataclasses.replace(out, joint_names=list(tgt.joint_names))
+    return retarget_across(motion, target, roles=roles)
 
 
 def naive_retarget(motion: Motion, target, *, scale_root: bool = False) -> Motion:

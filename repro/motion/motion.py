@@ -136,6 +136,9 @@ class Motion:
     unit_m : float or None, optional
         Metres per length unit of the data when known (e.g. :data:`CMU_UNIT_M`),
         used by :meth:`to_metres`.
+    up : {"y", "z"} or None, optional
+        The world's up axis when known (given, or inferred by
+        :func:`repro.motion.units.infer_units`); None means the BVH convention, Y.
     source : str or None, optional
         Where the motion was read from (informational; :func:`write_bvh` refuses to
         overwrite existing files unless asked).
@@ -158,6 +161,7 @@ class Motion:
     end_site_offsets: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
     unit_m: float | None = None
     source: str | None = None
+    up: str | None = None
 
     #: Largest ``| |q| - 1 |`` :meth:`from_unit_rotations` accepts as a unit quaternion.
     UNIT_TOLERANCE = 1e-6
@@ -265,6 +269,8 @@ class Motion:
         set_(self, "end_site_parents", _readonly(esp.astype(np.intp)))
         set_(self, "end_site_offsets", _readonly(eso))
         set_(self, "unit_m", None if self.unit_m is None else float(self.unit_m))
+        if self.up is not None and self.up not in ("y", "z"):
+            raise BVHError(f"up must be 'y', 'z' or None, got {self.up!r}")
         self._check_finite_kinematics()
 
     def _check_finite_kinematics(self) -> None:

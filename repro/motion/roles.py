@@ -6,8 +6,16 @@ and tree structure (:class:`repro.motion.skeleton.Skeleton` keeps the table).
 
 Roles
 -----
-A *role* names a body part independently of the naming convention of a file.  Limb
-joints are found by name (case-insensitive, side from prefixes/suffixes ``l``/``r``,
+A *role* names a body part independently of the naming convention of a file.  Given the
+rest offsets (``find_roles(..., offsets=...)``, which :class:`~repro.motion.skeleton.Skeleton`
+always passes), roles come from the **structure first**: legs, arms and head from the
+joint tree and the rest pose (twist / roll / helper bones, fingers, face joints, props
+and zero-length joints set aside), the names only confirming and disambiguating (which
+of ``RightCollar``/``RightShoulder`` is the upper arm, the side when the rest pose cannot
+tell it); this recognises MotionBuilder/Biovision, Poser/DAZ, Second Life (``m``-prefixed
+bento), 3ds Max Biped, SMPL, Unreal, Unity/HumanIK and Blender ``.L`` names besides the
+three tables below.  :func:`check_roles` names what a use lacks (a punch needs an arm).
+Without offsets, limb joints are found by name (case-insensitive, side from prefixes/suffixes ``l``/``r``,
 ``Left``/``Right``, ``_L``/``_R``); the trunk joints are found from the tree when the
 parents are known (pelvis = lowest common ancestor of the two hips, chest = lowest
 common ancestor of the two shoulders), else by name.  Joint-to-role tables for the three
@@ -44,13 +52,16 @@ wrist; the toe joint (ball of the foot) when present, else the ankle.
 from __future__ import annotations
 
 import re
+from collections import OrderedDict
 from collections.abc import Mapping, Sequence
+from functools import lru_cache
 
 import numpy as np
 
 from repro.errors import MotionError
 
-__all__ = ["ROLES", "REQUIRED_ROLES", "SIDE_ROLES", "LIMBS", "find_roles", "effector_role"]
+__all__ = ["LIMBS", "REQUIRED_ROLES", "ROLES", "ROLES_FOR", "SIDE_ROLES", "check_roles", "effector_role", "find_roles",
+           "is_helper_name"]
 
 #: Per-side role stems, in proximal-to-distal order (``left_`` / ``right_`` prefixed).
 SIDE_ROLES: tuple[str, ...] = (
@@ -92,7 +103,7 @@ LIMBS: dict[str, tuple[str, str, str]] = {
 # hand bone) of CMU ones, where a separate "wrist" joint exists.
 _SIDE_BASES: dict[str, tuple[str, ...]] = {
     "clavicle": ("clavicle", "collarbone", "collar", "shoulder"),
-    "shoulder": ("humerus", "upperarm", "uparm", "arm"),
+    "shoulder": ("humerus", "upperarm", "uparm", "arm", "shldr"),
     "elbow": ("radius", "forearm", "lowerarm", "lowarm", "elbow"),
     "wrist": ("wrist", "hand"),
     "hip": ("femur", "upleg", "upperleg", "thigh", "hip"),
@@ -112,11 +123,16 @@ _LEFT = (re.compile(rf"^(?:left{_SEP}?|l{_SEP}?)(.+)$"), re.compile(rf"^(.+?)(?:
 _RIGHT = (re.compile(rf"^(?:right{_SEP}?|r{_SEP}?)(.+)$"), re.compile(rf"^(.+?)(?:{_SEP}?right|{_SEP}r)$"))
 
 
+class _AmbiguousLimbs(MotionError):
+    """Two candidate limbs on one side: an error even when the names would decide otherwise."""
+
+
+@lru_cache(maxsize=8192)
 def _strip(name: str) -> str:
     """Lower case, namespace (``mixamorig:``) and ``joint_`` prefix removed."""
     n = name.lower().rsplit(":", 1)[-1].strip()
-    if n.startswith("joint_"):
-        n = n[len("joint_"):]
+    n = n.removeprefix("joint_")
+    n = re.sub(r"^bip\d*[ _]", "", n)  # 3ds Max Biped "Bip01 L Thigh"
     return n
 
 
@@ -124,7 +140,8 @@ def _alnum(s: str) -> str:
     return re.sub(r"[^a-z0-9]", "", s)
 
 
-def _side_and_base(name: str) -> list[tuple[str, str]]:
+@lru_cache(maxsize=8192)
+def _side_and_base(name: str) -> tuple[tuple[str, str], ...]:
     """Possible (side, base) readings of a joint name; base stripped of separators."""
     n = _strip(name)
     out = []
@@ -133,7 +150,7 @@ def _side_and_base(name: str) -> list[tuple[str, str]]:
             m = p.match(n)
             if m:
                 out.append((side, _alnum(m.group(1))))
-    return out
+    return tuple(out)
 
 
 def _ancestors(j: int, parents: np.ndarray) -> list[int]:
@@ -158,6 +175,7 @@ def find_roles(
     *,
     overrides: Mapping[str, str] | None = None,
     required: Sequence[str] = REQUIRED_ROLES,
+    offsets: Sequence | np.ndarray | None = None,
 ) -> dict[str, str]:
     """Map body-part roles to the joints of a skeleton, by name patterns and tree structure.
 
@@ -189,6 +207,21 @@ def find_roles(
         with unusual names: ``{"left_wrist": "L_Hand_jnt"}``).
     required : sequence of str
         Roles that must be found (default :data:`REQUIRED_ROLES`).
+    offsets : (J, 3) array, optional
+        Rest offsets.  With ``parents`` they switch on *roles from structure first*:
+        the legs are the two branches of the first three-way branching joint (the
+        pelvis hub) whose end joints lie lowest, the head the highest end of the third
+        branch (the trunk) and the arms its two most lateral ends, once twist / roll /
+        helper bones, fingers, face joints, props and ``_End`` leaves are set aside by
+        name (:func:`is_helper_name`) and runs of co-located joints (zero-length
+        helpers) are collapsed to their deepest joint.  In each limb chain the two
+        longest consecutive bones are the upper arm and forearm (thigh and shin), so
+        a joint before them is the clavicle and one after them the hand (toe).  The
+        side comes from the names (``Left``/``L_``/``_l``/``l``/``.L``/``...Left``)
+        and, when the names say nothing, from the rest pose (the toes point forward,
+        left = up x forward).  When the structure cannot be read (a rest pose with
+        every bone along one line, as Bandai Namco's), the names decide as without
+        ``offsets``.
 
     Returns
     -------
@@ -207,8 +240,39 @@ def find_roles(
         parent-child chain.
     """
     names = [str(n) for n in joint_names]
-    index = {n: i for i, n in enumerate(names)}
     par = None if parents is None else np.asarray(parents, dtype=np.intp)
+    key = None
+    try:
+        off_key = None if offsets is None else np.asarray(offsets, dtype=float).tobytes()
+        key = (tuple(names), None if par is None else par.tobytes(), off_key,
+               tuple(sorted((overrides or {}).items())), tuple(required))
+        hash(key)
+    except (TypeError, ValueError):
+        key = None
+    if key is not None:
+        try:  # (another thread may evict the entry meanwhile)
+            hit = _CACHE[key]
+            _CACHE.move_to_end(key)
+            return dict(hit)
+        except KeyError:
+            pass
+    roles = _find_roles(names, par, overrides, required, offsets)
+    if key is not None:
+        _CACHE[key] = dict(roles)
+        while len(_CACHE) > 256:
+            try:
+                _CACHE.popitem(last=False)
+            except KeyError:
+                break
+    return roles
+
+
+#: Role tables of recent skeletons (the same skeleton is encoded once per clip).
+_CACHE: OrderedDict = OrderedDict()
+
+
+def _find_roles(names, par, overrides, required, offsets) -> dict[str, str]:
+    index = {n: i for i, n in enumerate(names)}
     if par is not None and par.shape != (len(names),):
         raise MotionError(f"parents must have one entry per joint ({len(names)}), got shape {par.shape}")
     roles: dict[str, str] = {}
@@ -218,6 +282,28 @@ def find_roles(
         if joint not in index:
             raise MotionError(f"override {role!r} -> {joint!r}: no such joint; joints: {names}")
         roles[role] = joint
+    seen: dict[str, str] = {}
+    for role, joint in roles.items():
+        stem = role.split("_", 1)[-1]
+        if joint in seen and stem not in ("fist", "foot", "hand", "toe", "wrist", "ankle"):
+            raise MotionError(f"conflicting overrides: {seen[joint]!r} and {role!r} both name joint {joint!r}")
+        seen.setdefault(joint, role)
+    if par is not None and offsets is not None:
+        off = np.asarray(offsets, dtype=float)
+        if off.shape != (len(names), 3) or not np.all(np.isfinite(off)):
+            raise MotionError(f"offsets must be a finite ({len(names)}, 3) array, got shape {off.shape}")
+        try:
+            found = _roles_from_structure(names, par, off)
+        except _AmbiguousLimbs:
+            raise
+        except MotionError:
+            found = None  # e.g. every bone along one line: the names decide
+        if found is not None:
+            used0 = set(roles.values())
+            for role, joint in found.items():
+                if role not in roles and joint not in used0 and _has_body_word(joint):
+                    roles[role] = joint
+                    used0.add(joint)
     used = set(roles.values())
     _limbs_by_name(names, index, par, roles, used)
     if "head" not in roles:
@@ -237,7 +323,7 @@ def find_roles(
     missing = [r for r in required if r not in roles]
     if missing:
         raise MotionError(
-            f"skeleton lacks the roles {missing} (found {sorted(roles)}); joints: {names}. "
+            f"skeleton lacks the roles {missing} needed for retargeting (found {sorted(roles)}); joints: {names}. "
             "Pass overrides={'role': 'joint name'} to name them."
         )
     if par is not None:
@@ -353,3 +439,340 @@ def effector_role(roles: Mapping[str, str], hit_role: str, hit_joint: str) -> st
         if roles.get(role) == hit_joint:
             return role
     raise MotionError(f"no {side} effector role maps to the hit joint {hit_joint!r} (hit role {hit_role!r})")
+
+
+# ---------------------------------------------------------------- roles from structure
+#: Roles each use of a skeleton needs (for :func:`check_roles` messages).
+ROLES_FOR: dict[str, tuple[str, ...]] = {
+    "a punch": ("pelvis", "chest", "right_shoulder", "right_elbow", "right_wrist", "right_fist"),
+    "a kick": ("pelvis", "right_hip", "right_knee", "right_ankle", "right_foot"),
+    "retargeting": REQUIRED_ROLES,
+}
+
+# Joints that never carry a body role: twist / roll / helper bones, fingers, face, props.
+_SKIP_PARTS = (
+    "twist", "roll", "helper", "nub", "prop", "weapon", "sword", "thumb", "index", "pinky", "pinkie",
+    "finger", "carpal", "wing", "tail", "hind", "face", "eye", "jaw", "tongue", "brow", "teeth", "cheek",
+    "skirt", "hair", "cape", "breast", "skull", "headtop", "headend", "ik", "pole", "target", "bow",
+)  # fmt: skip
+_SKIP_WHOLE = re.compile(r"^(ring|middle|mid|little|lip|lid|ear|nose|nostril|hand[a-z]+\d*|fingers?\d*)$")
+_SKIP_END = re.compile(r"(end|nub|site|tip)\d*$")
+
+
+@lru_cache(maxsize=8192)
+def is_helper_name(name: str) -> bool:
+    """True for joints that carry no body role by name: twist/roll/helper bones, fingers,
+    face joints, props and ``..._End`` leaves (``Unreal upperarm_twist_01_l``, ``mixamorig:
+    LeftHandIndex1``, ``mFaceJaw``, ``HeadTop_End``)."""
+    n = _strip(name)
+    bases = [b for _, b in _side_and_base(name)] or [_alnum(n)]
+    for b in bases:
+        b2 = b[1:] if b.startswith("m") and len(b) > 1 and b[1:2].isalpha() else b
+        for s in (b, b2):
+            if any(p in s for p in _SKIP_PARTS if p not in ("ik", "bow", "pole", "target")):
+                return True
+            if s.startswith(("ik", "pole", "target")) or s == "bow":
+                return True
+            if _SKIP_WHOLE.match(s) or (_SKIP_END.search(s) and not s.endswith(("spine", "hand", "head"))):
+                return True
+    return False
+
+
+@lru_cache(maxsize=8192)
+def _name_side(name: str) -> str | None:
+    """Side read from a name (``Left``/``L_``/``_l``/``.L``/``l`` prefix, ``mShoulderLeft``), or None."""
+    n = _strip(name)
+    a = _alnum(n)
+    if re.search(r"(?<![a-z])left|left$", n) or a.endswith("left") or a.startswith("left"):
+        return "left"
+    if re.search(r"(?<![a-z])right|right$", n) or a.endswith("right") or a.startswith("right"):
+        return "right"
+    sides = {s for s, _ in _side_and_base(name)}
+    if re.search(rf"(^|{_SEP})l({_SEP}|$)", n):
+        sides.add("left")
+    if re.search(rf"(^|{_SEP})r({_SEP}|$)", n):
+        sides.add("right")
+    return sides.pop() if len(sides) == 1 else None
+
+
+_BODY_WORDS = tuple(
+    sorted({b for bs in _SIDE_BASES.values() for b in bs} | {b for bs in _CENTER_BASES.values() for b in bs}
+           | {"collar", "shldr", "calf", "ball", "clav", "upper", "lower", "fore", "thigh", "abdomen", "torso"})
+)
+
+
+@lru_cache(maxsize=8192)
+def _has_body_word(name: str) -> bool:
+    """Names confirm the structure: a joint named ``Something`` is no knee until ``overrides`` says so."""
+    n = _alnum(_strip(name))
+    return any(w in n for w in _BODY_WORDS)
+
+
+def _rest_positions(parents: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    p = np.array(offsets, dtype=float)
+    for j in range(1, len(p)):
+        p[j] = p[parents[j]] + offsets[j]
+    return p
+
+
+def rest_up_axis(names: Sequence[str], parents, offsets) -> np.ndarray | None:
+    """Unit up direction of a rest pose (mean of the upper-body tips minus the leg tips), or None."""
+    try:
+        st = _structure([str(n) for n in names], np.asarray(parents, np.intp), np.asarray(offsets, float))
+    except MotionError:
+        return None
+    return st["up"]
+
+
+def _structure(names: list[str], par: np.ndarray, off: np.ndarray) -> dict:
+    """Legs, arms and head chains from the tree and the rest pose (see :func:`find_roles`)."""
+    J = len(names)
+    P = _rest_positions(par, off)
+    bl = np.linalg.norm(off, axis=1)
+    scale = float(np.ptp(P, axis=0).max()) if J > 1 else 0.0
+    if scale <= 0 or not np.isfinite(scale):
+        raise MotionError("the rest pose has no extent; cannot find body parts from the structure")
+    tol = 1e-6 * scale
+    skip = np.array([is_helper_name(n) for n in names])
+    children: list[list[int]] = [[] for _ in range(J)]
+    for j in range(1, J):
+        children[par[j]].append(j)
+    # a skipped joint's subtree is kept only when it holds unskipped joints (in-chain helpers)
+    has_cand = ~skip.copy()
+    for j in range(J - 1, 0, -1):
+        if has_cand[j]:
+            has_cand[par[j]] = True
+    tips = [j for j in range(J) if not skip[j] and not any(has_cand[c] for c in children[j])]
+
+    def tips_under(j):
+        out, stack = [], [j]
+        while stack:
+            k = stack.pop()
+            if k in tipset:
+                out.append(k)
+            stack.extend(c for c in children[k] if has_cand[c])
+        return out
+
+    tipset = set(tips)
+    # pelvis hub: first joint from the root with >= 3 tip-bearing branches
+    hub = 0
+    while True:
+        br = [c for c in children[hub] if has_cand[c]]
+        if len(br) >= 3 or len(br) == 0:
+            break
+        if len(br) == 1:
+            hub = br[0]
+            continue
+        break
+    br = [c for c in children[hub] if has_cand[c]]
+    if len(br) < 3:
+        raise MotionError(
+            f"no joint of the tree branches into two legs and a trunk (first branching joint "
+            f"{names[hub]!r} has {len(br)} branches); not a humanoid skeleton"
+        )
+    groups = sorted(((tips_under(c), c) for c in br), key=lambda g: -len(g[0]))
+    upper_tips, _upper_root = groups[0]
+    if len(upper_tips) < 3:
+        raise MotionError(
+            f"the branches of {names[hub]!r} hold at most {len(upper_tips)} end joints each; "
+            "expected a trunk ending in two arms and a head"
+        )
+    leg_cands = [g for g in groups[1:] if len(g[0]) >= 1]
+    mean_upper = P[upper_tips].mean(axis=0)
+    # lowest leg tips relative to the hub
+    def low(g):
+        return min(float((P[t] - P[hub]) @ (mean_upper - P[hub])) for t in g[0])
+
+    leg_cands.sort(key=low)
+    if len(leg_cands) < 2:
+        raise MotionError(f"found fewer than two legs under {names[hub]!r}; not a humanoid skeleton")
+    legs = []
+    for g, _ in leg_cands[:2]:
+        legs.append(min(g, key=lambda t: float((P[t] - P[hub]) @ (mean_upper - P[hub]))))
+    up = mean_upper - P[legs].mean(axis=0)
+    nu = np.linalg.norm(up)
+    if nu <= 1e-3 * scale:
+        raise MotionError("the rest pose does not tell up from down (legs and trunk end at the same height)")
+    up = up / nu
+    # head: the upper tip highest along up; arms: the two most lateral of the others
+    head = max(upper_tips, key=lambda t: float(P[t] @ up))
+    others = [t for t in upper_tips if t != head]
+    chest_ref = P[hub] + up * float((P[head] - P[hub]) @ up) * 0.7
+
+    def lateral(t):
+        v = P[t] - chest_ref
+        return float(np.linalg.norm(v - (v @ up) * up))
+
+    others.sort(key=lateral, reverse=True)
+    if len(others) < 2:
+        raise MotionError("the upper body has fewer than two arms")
+    arms = others[:2]
+    return {"P": P, "bl": bl, "tol": tol, "up": up, "hub": hub, "head": head, "arms": arms, "legs": legs}
+
+
+def _points(chain: list[int], P: np.ndarray, tol: float) -> list[int]:
+    """Collapse runs of co-located joints to their deepest one."""
+    out: list[int] = []
+    for j in chain:
+        if out and np.linalg.norm(P[j] - P[out[-1]]) <= tol:
+            out[-1] = j
+        else:
+            out.append(j)
+    return out
+
+
+def _path_down(a: int, d: int, par: np.ndarray) -> list[int]:
+    """Joints from ``a`` (excluded) down to ``d`` (included)."""
+    out = []
+    while d != a and d >= 0:
+        out.append(d)
+        d = int(par[d])
+    return out[::-1]
+
+
+_ARM_STEMS = ("shoulder", "elbow", "wrist")
+_LEG_STEMS = ("hip", "knee", "ankle")
+_AMBIGUOUS_BASES = {"shoulder", "hand", "hip"}
+
+
+@lru_cache(maxsize=8192)
+def _bases(name: str) -> frozenset[str]:
+    """Side-stripped bases of a name (also without a Second Life ``m`` prefix or a digit suffix)."""
+    out = set()
+    for _, b in _side_and_base(name):
+        for c in (b, b.removeprefix("m")):
+            out.add(c)
+            out.add(c.rstrip("0123456789"))
+    return frozenset(out)
+
+
+@lru_cache(maxsize=8192)
+def _stem_votes(name: str, stem: str) -> tuple[int, int]:
+    """(1 if the name reads as ``stem``, 1 if it reads unambiguously as another limb stem)."""
+    bs = _bases(name)
+    vote = int(any(b in _SIDE_BASES[stem] for b in bs))
+    other = int(
+        not vote
+        and any(b in bases and b not in _AMBIGUOUS_BASES for s, bases in _SIDE_BASES.items() if s != stem for b in bs)
+    )
+    return vote, other
+
+
+def _limb_from_chain(pts: list[int], names: list[str], P: np.ndarray, kind: str) -> dict | None:
+    """Proximal, middle, distal joints of an arm or leg chain of points (None: names disagree)."""
+    if len(pts) < 3:
+        raise MotionError(f"{kind} chain ending at {names[pts[-1]]!r} has fewer than three joints")
+    stems = _ARM_STEMS if kind == "arm" else _LEG_STEMS
+    seg = [float(np.linalg.norm(P[pts[i]] - P[pts[i - 1]])) for i in range(1, len(pts))]
+    best, key = None, None
+    for i in range(1, len(seg)):
+        trio = (pts[i - 1], pts[i], pts[i + 1])
+        votes = [_stem_votes(names[j], st) for j, st in zip(trio, stems)]
+        k = (sum(v for v, _ in votes) - sum(c for _, c in votes), seg[i - 1] + seg[i])
+        if key is None or k > key:
+            best, key = i, k
+            bad = any(c for _, c in votes)
+    if bad:
+        return None  # the names contradict every reading of the structure: let the names decide
+    return {"before": pts[: best - 1], "prox": pts[best - 1], "mid": pts[best], "dist": pts[best + 1],
+            "after": pts[best + 2:]}
+
+
+def _roles_from_structure(names: list[str], par: np.ndarray, off: np.ndarray) -> dict[str, str]:
+    st = _structure(names, par, off)
+    P, tol, up, hub = st["P"], st["tol"], st["up"], st["hub"]
+    roles: dict[str, str] = {}
+    # legs
+    legs = {}
+    for t in st["legs"]:
+        pts = _points(_path_down(hub, t, par), P, tol)
+        legs[t] = _limb_from_chain(pts, names, P, "leg")
+    arms = {}
+    head = st["head"]
+    chest = _lca(st["arms"][0], st["arms"][1], par)
+    for t in st["arms"]:
+        arms[t] = _limb_from_chain(_points(_path_down(chest, t, par), P, tol), names, P, "arm")
+    # facing: toes point forward; else names must tell the sides
+    fwd = np.zeros(3)
+    for lg in legs.values():
+        if lg is not None and lg["after"]:
+            v = P[lg["after"][0]] - P[lg["dist"]]
+            fwd += v - (v @ up) * up
+    sides: dict[int, str] = {}
+    for group in (legs, arms):
+        (t1, g1), (t2, g2) = group.items()
+        if g1 is None or g2 is None:
+            # one chain's names disagree with the structure: sides from the tips' names
+            for t, g in ((t1, g1), (t2, g2)):
+                side = None if g is None else _name_side(names[g["prox"]]) or _name_side(names[t])
+                if side is None:
+                    group[t] = None
+                else:
+                    sides[t] = side
+            continue
+        by_name = [_name_side(names[g["prox"]]) or _name_side(names[g["mid"]]) or _name_side(names[t]) for t, g in ((t1, g1), (t2, g2))]
+        if by_name[0] and by_name[1] and by_name[0] != by_name[1]:
+            sides[t1], sides[t2] = by_name
+            continue
+        if by_name[0] and by_name[0] == by_name[1]:
+            raise _AmbiguousLimbs(
+                f"two candidate {'legs' if group is legs else 'arms'} on the {by_name[0]} side: "
+                f"{names[g1['prox']]!r} and {names[g2['prox']]!r}"
+            )
+        nf = np.linalg.norm(fwd)
+        if nf <= 1e-9 * np.linalg.norm(P[g1["prox"]] - P[g2["prox"]] + 1e-300):
+            raise MotionError(
+                f"cannot tell left from right for {names[g1['prox']]!r} / {names[g2['prox']]!r}: no side in "
+                "the names and no toes to tell the facing direction"
+            )
+        left = cross_np(up, fwd / nf)
+        s1 = float((P[g1["prox"]] - P[g2["prox"]]) @ left)
+        sides[t1], sides[t2] = ("left", "right") if s1 > 0 else ("right", "left")
+    for t, lg in legs.items():
+        if lg is None:
+            continue
+        s = sides[t]
+        roles[f"{s}_hip"], roles[f"{s}_knee"], roles[f"{s}_ankle"] = (names[lg[k]] for k in ("prox", "mid", "dist"))
+        if lg["after"]:
+            roles[f"{s}_toe"] = names[lg["after"][0]]
+    for t, am in arms.items():
+        if am is None:
+            continue
+        s = sides[t]
+        roles[f"{s}_shoulder"], roles[f"{s}_elbow"], roles[f"{s}_wrist"] = (names[am[k]] for k in ("prox", "mid", "dist"))
+        if am["after"]:
+            roles[f"{s}_hand"] = names[am["after"][0]]
+    # head: a joint named head on the head chain, else the tip
+    hchain = _path_down(hub, head, par)
+    named = [j for j in hchain if _alnum(_strip(names[j])).lstrip("m") in ("head", "head1", "headbone")]
+    roles["head"] = names[named[-1] if named else head]
+    return roles
+
+
+def cross_np(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.cross(a, b)
+
+
+def check_roles(roles: Mapping[str, str], purpose: str, joint_names: Sequence[str] = ()) -> None:
+    """Raise :class:`MotionError` naming the roles ``purpose`` needs and the skeleton lacks.
+
+    ``purpose`` is a key of :data:`ROLES_FOR` (``"a punch"``, ``"a kick"``, ``"retargeting"``)."""
+    if purpose not in ROLES_FOR:
+        raise MotionError(f"unknown purpose {purpose!r}; one of {list(ROLES_FOR)}")
+    need = ROLES_FOR[purpose]
+    if purpose in ("a punch", "a kick"):
+        side_need = [r for r in need if r.startswith("right_")]
+        ok_side = [
+            s for s in ("left", "right") if all(r.replace("right_", f"{s}_") in roles for r in side_need)
+        ]
+        missing = [r for r in need if not r.startswith("right_") and r not in roles]
+        if not ok_side:
+            limb = "arm" if purpose == "a punch" else "leg"
+            missing += [f"{'an' if limb == 'arm' else 'a'} {limb} (" + ", ".join(r.replace("right_", "left_/right_") for r in side_need) + ")"]
+    else:
+        missing = [r for r in need if r not in roles]
+    if missing:
+        raise MotionError(
+            f"{purpose} needs {missing}, which this skeleton lacks (found {sorted(roles)}); joints: "
+            f"{list(joint_names)}"
+        )

@@ -24,13 +24,15 @@ the CMU, Bandai Namco and Mixamo files).
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 
-from repro.errors import MotionError
+from repro.errors import MotionError, UnitWarning
+from repro.motion.motion import CMU_UNIT_M
 from repro.motion.roles import LIMBS, REQUIRED_ROLES, find_roles
 
 __all__ = [
@@ -38,7 +40,49 @@ __all__ = [
     "skeleton_of",
     "scale_skeleton",
     "rescale_constraint",
+    "infer_unit",
+    "UNITS",
 ]
+
+#: Candidate units: (name, metres per unit).
+UNITS: tuple[tuple[str, float], ...] = (
+    ("metres", 1.0),
+    ("centimetres", 0.01),
+    ("millimetres", 0.001),
+    ("inches", 0.0254),
+    ("CMU units (1/0.45 inch)", CMU_UNIT_M),
+)
+#: Statures a human skeleton may have, metres.
+STATURE_RANGE_M: tuple[float, float] = (0.5, 2.5)
+#: The stature the choice between overlapping units favours, metres.
+TYPICAL_STATURE_M: float = 1.7
+
+
+def infer_unit(stature: float) -> tuple[float, str]:
+    """``(unit_m, unit name)`` of a skeleton whose stature is ``stature`` file units.
+
+    Raises
+    ------
+    repro.errors.MotionError
+        If the stature is not finite and positive, or no unit of :data:`UNITS` makes it
+        a human stature (:data:`STATURE_RANGE_M`).
+    """
+    try:
+        h = float(stature)
+    except (TypeError, ValueError):
+        raise MotionError(f"stature must be a number, got {stature!r}") from None
+    if not np.isfinite(h) or h <= 0:
+        raise MotionError(f"stature must be finite and > 0 to infer the unit, got {stature!r}")
+    lo, hi = STATURE_RANGE_M
+    fits = [(abs(np.log(h * u / TYPICAL_STATURE_M)), u, n) for n, u in UNITS if lo <= h * u <= hi]
+    if not fits:
+        raise MotionError(
+            f"cannot infer the length unit: a stature of {h:.4g} file units is no human stature "
+            f"({lo}-{hi} m) in any of {[n for n, _ in UNITS]}; pass unit_m= explicitly"
+        )
+    _, u, n = min(fits)
+    return u, n
+
 
 def _readonly(a) -> np.ndarray:
     a = np.array(a, dtype=float, copy=True)
@@ -74,7 +118,8 @@ class Skeleton:
     joint_names, parents, offsets, channels, end_site_parents, end_site_offsets, unit_m
         As in :class:`~repro.motion.Motion`.
     roles : mapping role -> joint name, optional
-        Default: :func:`find_roles` on the names and parents.
+        Default: :func:`find_roles` on the names, parents and rest offsets (roles from
+        the structure first, the names second).
 
     Raises
     ------
@@ -116,7 +161,7 @@ class Skeleton:
             raise MotionError("end_site_parents / end_site_offsets are inconsistent or not finite")
         if self.unit_m is not None and not (np.isfinite(self.unit_m) and self.unit_m > 0):
             raise MotionError(f"unit_m must be finite and > 0, got {self.unit_m!r}")
-        roles = dict(self.roles) if self.roles is not None else find_roles(names, parents)
+        roles = dict(self.roles) if self.roles is not None else find_roles(names, parents, offsets=offsets)
         bad = [f"{r}->{j}" for r, j in roles.items() if j not in names]
         if bad:
             raise MotionError(f"roles name unknown joints: {bad}")
@@ -160,8 +205,8 @@ class Skeleton:
             Passed to :func:`find_roles`.
         """
         if roles is None:
-            roles = find_roles(motion.joint_names, motion.parents, overrides=overrides)
-        return cls(
+            roles = find_roles(motion.joint_names, motion.parents, overrides=overrides, offsets=motion.offsets)
+        sk = cls(
             joint_names=list(motion.joint_names),
             parents=motion.parents,
             offsets=motion.offsets,
@@ -171,6 +216,21 @@ class Skeleton:
             unit_m=motion.unit_m,
             roles=roles,
         )
+        if sk.unit_m is None:
+            # no unit given: inferred from the stature (repro.motion.units), with a UnitWarning;
+            # left unknown when the stature fits no unit (to_metres then says so)
+            try:
+                u, name = infer_unit(sk.height)
+            except MotionError:
+                return sk
+            warnings.warn(
+                f"{getattr(motion, 'source', None) or 'motion'}: no unit_m given; inferred {name} "
+                f"({u:g} m per unit) from the stature of {sk.height:.4g} units",
+                UnitWarning,
+                stacklevel=2,
+            )
+            sk = dataclasses.replace(sk, unit_m=u)
+        return sk
 
     def with_offsets(self, offsets, end_site_offsets=None, unit_m=None) -> Skeleton:
         """Same joints, roles and channels with new offsets (and End Site offsets, units)."""

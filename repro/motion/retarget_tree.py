@@ -1,0 +1,288 @@
+"""Retargeting onto a character whose joint tree differs from the motion's (Section 3.4.1).
+
+Kulpa et al. (2005), on which Pronost et al. build, store a motion so that characters with
+*different skeletons* can play it.  :mod:`repro.motion.morphology` keeps the joint tree
+(it copies local rotations); this module goes through the body-part roles
+(:func:`repro.motion.roles.find_roles`) instead, so the character may have more or fewer
+spine joints, clavicles or none, hand/toe joints or none, fingers, face joints, twist
+bones and props, another rest pose (A- vs T-pose, other bone axes) and another up axis.
+The name: the one thing it adds to ``morphology`` is the change of joint tree.
+
+What is carried per frame, in the motion's world mapped onto the character's world by the
+rotation ``C`` between the two rest *body frames* (left, up, forward; up = the inferred up
+axis, left from the hips, forward = left x up... see :func:`body_frame`):
+
+* the **root path**: the pelvis position divided by the source's hip height, multiplied
+  by the character's (so a planted foot stays on the floor plane through the origin);
+* the **trunk**: the pelvis, chest and head orientations; the character's extra spine
+  (neck) joints share the pelvis-to-chest (chest-to-head) bend equally;
+* each **limb** (Kulpa's representation): the distal point relative to the proximal one
+  divided by the limb length, and the bend plane of the middle joint (the swivel); the
+  character's middle joint is placed by two-bone IK (law of cosines) in that plane;
+* the **end segments** (clavicles, hands, feet, toes) as directions.
+
+Every orientation is decoded as a *global direction*: a character joint ``j`` takes the
+source's world rotation of the same role composed with the smallest rotation taking the
+character's rest bone direction to the (mapped) source rest bone direction, so rest poses
+with different bone axes give the same pose.  Joints without a role (fingers, face,
+twist bones, props) keep their rest rotation relative to their parent.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from repro.errors import MotionError
+from repro.motion.kinematics import depth_levels, fk_arrays, normalize
+from repro.motion.motion import Motion
+from repro.motion.quaternion import cross, min_rotation, quat_multiply
+from repro.motion.quaternion import quat_conjugate as qinv
+from repro.motion.quaternion import quat_rotate as qrot
+from repro.motion.roles import check_roles
+from repro.motion.skeleton import Skeleton, skeleton_of
+from repro.motion.units import infer_up
+
+__all__ = ["body_frame", "retarget_across"]
+
+_ROT = ("Zrotation", "Xrotation", "Yrotation")
+_POS = ("Xposition", "Yposition", "Zposition")
+_AXIS = {"y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
+
+
+def body_frame(sk: Skeleton, up: str) -> np.ndarray:
+    """(3, 3) columns left, up, forward of a skeleton's rest pose (``up`` = world axis)."""
+    u = _AXIS[up]
+    p = sk.rest_positions()
+    lat = p[sk.index("left_hip")] - p[sk.index("right_hip")]
+    lat = lat + p[sk.index("left_shoulder")] - p[sk.index("right_shoulder")]
+    lat = lat - (lat @ u) * u
+    n = np.linalg.norm(lat)
+    if n <= 1e-9 * max(sk.height, 1e-300):
+        raise MotionError(
+            f"left and right hips/shoulders coincide across the up axis {up.upper()} in the rest pose of "
+            f"{sk.roles['pelvis']!r}'s skeleton; cannot tell its facing direction"
+        )
+    left = lat / n
+    fwd = np.cross(left, u)
+    return np.stack([left, u, fwd], axis=1)
+
+
+def _mat_to_quat(m: np.ndarray) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(m).as_quat()
+
+
+def _up_of(x, sk: Skeleton) -> str:
+    up = getattr(x, "up", None)
+    if up is not None:
+        return up
+    return infer_up(x if isinstance(x, Motion) else None, sk)
+
+
+def _arc(P: np.ndarray, chain: list[int]) -> np.ndarray:
+    """Normalised rest arc length at each joint of a chain (0 at its start, 1 at its end)."""
+    seg = np.linalg.norm(np.diff(P[chain], axis=0), axis=1)
+    u = np.concatenate([[0.0], np.cumsum(seg)])
+    return u / u[-1] if u[-1] > 0 else np.linspace(0.0, 1.0, len(chain))
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v)
+    return v / n if n > 0 else v
+
+
+def retarget_across(motion: Motion, character, *, roles=None, character_roles=None) -> Motion:
+    """``motion`` played by ``character``, whose joint tree may differ (see the module docstring).
+
+    Parameters
+    ----------
+    motion : Motion
+    character : Skeleton or Motion
+        Any humanoid skeleton (its own roles are found, or given as ``character_roles``).
+    roles, character_roles : mapping role -> joint, optional
+
+    Returns
+    -------
+    Motion
+        On the character's skeleton (its joints, offsets, End Sites, channels when it has
+        them, else 6 channels on the root and ZXY rotations elsewhere; ``unit_m``), writable
+        with :func:`~repro.motion.write_bvh`.
+
+    Raises
+    ------
+    repro.errors.MotionError
+        Missing roles on either side (named), a character root without position channels,
+        a rest pose whose facing cannot be told.
+    """
+    if not isinstance(motion, Motion):
+        raise MotionError(f"motion must be a Motion, got {type(motion).__name__}")
+    src = Skeleton.from_motion(motion, roles=roles)
+    tgt = skeleton_of(character, roles=character_roles)
+    check_roles(src.roles, "retargeting", src.joint_names)
+    check_roles(tgt.roles, "retargeting", tgt.joint_names)
+    up_t = _up_of(character, tgt)
+    Bs = body_frame(src, _up_of(motion, src))
+    Bt = body_frame(tgt, up_t)
+    C = Bt @ Bs.T
+    c = _mat_to_quat(C)
+    ci = qinv(c)
+    F = motion.n_frames
+    gq_s, gp_s = fk_arrays(depth_levels(src.parents), motion.rotations, motion.local_translations())
+    Ps, Pt = src.rest_positions(), tgt.rest_positions()
+    rs, rt = src.roles, tgt.roles
+
+    def si(role):
+        return src.joint_names.index(rs[role])
+
+    def ti(role):
+        return tgt.joint_names.index(rt[role])
+
+    def mapped(role):
+        """C G_s C^-1 of a role: (F, 4)."""
+        return quat_multiply(quat_multiply(c[None], gq_s[:, si(role)]), ci[None])
+
+    def ref_dir(P, roles_, names, a, b):
+        return _unit(P[names.index(roles_[b])] - P[names.index(roles_[a])])
+
+    def delta(a, b):
+        """Smallest rotation taking the character's rest bone a->b to the mapped source one."""
+        dt = ref_dir(Pt, rt, tgt.joint_names, a, b)
+        ds = C @ ref_dir(Ps, rs, src.joint_names, a, b)
+        return min_rotation(dt, ds)
+
+    def oriented(role, a, b):
+        return quat_multiply(mapped(role), delta(a, b)[None])
+
+    J = tgt.n_joints
+    G = np.zeros((F, J, 4))
+    G[..., 3] = 1.0
+    P = np.zeros((F, J, 3))
+    fixed: dict[int, np.ndarray] = {}  # joint -> global rotation (F, 4)
+    fixed[ti("pelvis")] = oriented("pelvis", "pelvis", "chest")
+    fixed[ti("chest")] = oriented("chest", "chest", "head")
+    fixed[ti("head")] = oriented("head", "chest", "head")
+    for side in ("left", "right"):
+        for a, b in (("clavicle", "shoulder"), ("wrist", "hand"), ("ankle", "toe"), ("toe", "toe")):
+            ra, rb = f"{side}_{a}", f"{side}_{b}"
+            if ra in rt and ra in rs:
+                if a == "toe":
+                    fixed[ti(ra)] = oriented(ra, f"{side}_ankle", ra)
+                elif rb in rt and rb in rs:
+                    fixed[ti(ra)] = oriented(ra, ra, rb)
+                elif a == "wrist":
+                    fixed[ti(ra)] = oriented(ra, f"{side}_elbow", ra)
+                elif a == "ankle":
+                    fixed[ti(ra)] = oriented(ra, f"{side}_knee", ra)
+    # chains whose joints share a bend (pelvis -> chest, chest -> head): each character bone
+    # takes the source's world rotation at the same fraction of the chain's length
+    for a, b in (("pelvis", "chest"), ("chest", "head")):
+        T = [ti(a)] + tgt.path(rt[a], rt[b])
+        Sj = [si(a)] + src.path(rs[a], rs[b])
+        ut, us = _arc(Pt, T), _arc(Ps, Sj)
+        for i in range(1, len(T) - 1):
+            mid = 0.5 * (ut[i] + ut[i + 1])
+            k = int(np.clip(np.searchsorted(us, mid, side="right") - 1, 0, len(Sj) - 2))
+            dt = Pt[T[i + 1]] - Pt[T[i]]
+            ds = C @ (Ps[Sj[k + 1]] - Ps[Sj[k]])
+            d = min_rotation(dt, ds) if np.linalg.norm(dt) > 0 and np.linalg.norm(ds) > 0 else np.array([0, 0, 0, 1.0])
+            G_role = quat_multiply(quat_multiply(c[None], gq_s[:, Sj[k]]), ci[None])
+            fixed[T[i]] = quat_multiply(G_role, d[None])
+    limbs = {}
+    for side in ("left", "right"):
+        for kind, (p_, m_, d_) in (("arm", ("shoulder", "elbow", "wrist")), ("leg", ("hip", "knee", "ankle"))):
+            roles3 = tuple(f"{side}_{r}" for r in (p_, m_, d_))
+            limbs[ti(roles3[0])] = (kind, roles3)
+    # root path: pelvis position scaled by hip heights, mapped into the character's world
+    k = tgt.hip_height / src.hip_height
+    pel_goal = qrot(np.broadcast_to(c, (F, 4)), gp_s[:, si("pelvis")] * k)
+    root_path = [0] + tgt.path(tgt.joint_names[0], rt["pelvis"])
+    if tgt.channels is not None and not all(ch in tgt.channels[0] for ch in _POS):
+        raise MotionError(
+            f"character root {tgt.joint_names[0]!r} has no position channels (channels "
+            f"{list(tgt.channels[0])}); the retargeted motion needs to move it"
+        )
+    root_t = pel_goal - sum(tgt.offsets[j] for j in root_path[1:]) if len(root_path) > 1 else pel_goal
+    pending: dict[int, np.ndarray] = {}  # middle / distal joint -> world target position
+    for j in range(J):
+        p = tgt.parents[j]
+        if p < 0:
+            P[:, j] = root_t
+            Gp = np.zeros((F, 4))
+            Gp[:, 3] = 1.0
+        else:
+            Gp = G[:, p]
+            P[:, j] = P[:, p] + qrot(Gp, np.broadcast_to(tgt.offsets[j], (F, 3)))
+        if j in fixed:
+            G[:, j] = fixed[j]
+        elif j in limbs:
+            kind, (rp, rm, rd) = limbs[j]
+            G[:, j], pending[ti(rm)], pending[ti(rd)] = _solve_limb(
+                src, tgt, gp_s, gq_s, C, mapped, delta, P[:, j], (rp, rm, rd), si, ti
+            )
+        elif j in pending and tgt.parents[j] >= 0 and any(j == ti(lm[1][1]) for lm in limbs.values()):
+            # middle joint: its forearm/shin to the distal goal
+            kind, (rp, rm, rd) = next(v for v in limbs.values() if ti(v[1][1]) == j)
+            G0 = quat_multiply(mapped(rm), delta(rm, rd)[None])
+            cur = qrot(G0, np.broadcast_to(Pt[ti(rd)] - Pt[j], (F, 3)))
+            G[:, j] = quat_multiply(min_rotation(cur, pending[ti(rd)] - P[:, j]), G0)
+        else:
+            G[:, j] = Gp  # no role: rest rotation relative to the parent
+    # local rotations
+    loc = np.empty_like(G)
+    loc[:, 0] = G[:, 0]
+    nz = tgt.parents[1:]
+    loc[:, 1:] = quat_multiply(qinv(G[:, nz]), G[:, 1:])
+    channels = tgt.channels if tgt.channels is not None else [_POS + _ROT] + [_ROT] * (J - 1)
+    positions = np.broadcast_to(tgt.offsets, (F, J, 3)).copy()
+    positions[:, 0] = root_t
+    return Motion(
+        joint_names=list(tgt.joint_names),
+        parents=tgt.parents,
+        offsets=tgt.offsets,
+        channels=channels,
+        frame_time=motion.frame_time,
+        rotations=loc,
+        positions=positions,
+        end_site_parents=tgt.end_site_parents,
+        end_site_offsets=tgt.end_site_offsets,
+        unit_m=tgt.unit_m,
+        up=up_t,
+    )
+
+
+def _solve_limb(src, tgt, gp_s, gq_s, C, mapped, delta, S, roles3, si, ti):
+    """Proximal global rotation and the middle / distal goals of one limb (Kulpa: normalised
+    distal vector x limb length, middle joint in the source's bend plane)."""
+    rp, rm, rd = roles3
+    F = gp_s.shape[0]
+    Ss, Es, Ws = gp_s[:, si(rp)], gp_s[:, si(rm)], gp_s[:, si(rd)]
+    Ls = src.bone_lengths[si(rm)] + src.bone_lengths[si(rd)]
+    l1, l2 = tgt.bone_lengths[ti(rm)], tgt.bone_lengths[ti(rd)]
+    n = (Ws - Ss) @ C.T / Ls  # normalised limb vector, character world
+    a, dn = normalize(n * (l1 + l2))
+    e = (Es - Ss) @ C.T
+    bend = e - np.sum(e * a, axis=-1, keepdims=True) * a
+    b, bn = normalize(bend)
+    valid = bn > 1e-9 * src.bone_lengths[si(rm)]
+    if not valid.all():
+        # straight limb: keep the last defined bend plane (first one backward), else any
+        idx = np.where(valid, np.arange(F), -1)
+        idx = np.maximum.accumulate(idx)
+        first = int(np.argmax(valid)) if valid.any() else -1
+        if first >= 0:
+            idx = np.where(idx < 0, first, idx)
+            b = b[idx]
+            b = normalize(b - np.sum(b * a, axis=-1, keepdims=True) * a)[0]
+        else:
+            ref = np.broadcast_to(C @ np.array([0.0, 0.0, 1.0]), a.shape)
+            b = normalize(cross(a, cross(ref, a)) + 1e-12)[0]
+    d = np.clip(dn, abs(l1 - l2), l1 + l2)
+    cosb = np.clip((l1**2 + d**2 - l2**2) / (2 * l1 * np.maximum(d, 1e-300)), -1.0, 1.0)
+    sinb = np.sqrt(1.0 - cosb**2)
+    E = S + a * (l1 * cosb)[:, None] + b * (l1 * sinb)[:, None]
+    W = S + a * d[:, None]
+    G0 = quat_multiply(mapped(rp), delta(rp, rm)[None])
+    Pt = tgt.rest_positions()
+    cur = qrot(G0, np.broadcast_to(Pt[ti(rm)] - Pt[ti(rp)], (F, 3)))
+    return quat_multiply(min_rotation(cur, E - S), G0), E, W
