@@ -38,3 +38,20 @@ def test_ict_case_when_present(bounded):
     assert c.loc["eq3", "eyeSquint_L"] < 0  # the observation: Eq. 3 pushes eyeSquint_L below 0
     assert c.loc["bounded", "min_weight"] >= 0 and c.loc["bounded", "max_weight"] <= 1
     assert np.isclose(c.loc["clamped", "eyeSquint_L"], 0.0)
+
+
+@pytest.fixture(scope="module")
+def dm():
+    return get("direct_manipulation").func(quick=True).table
+
+
+def test_dm_reaches_the_targets_and_the_pin_keeps_the_selection(dm):
+    assert registry()["direct_manipulation"].paper == "lewis2005"
+    for (model, key), g in dm.groupby(["model", "scenario"]):
+        g = g.set_index("method")
+        assert g.loc["sliders", "dragged_error"] < 1e-9
+        assert g.loc["dm", "dragged_error"] < 0.01 * g.loc["dm", "drag_distance"], (model, key)
+        assert g.loc["dm_pinned", "pinned_motion_max"] <= 0.02 * g.loc["sliders", "pinned_motion_max"] + 1e-5, (model, key)
+        assert 0 <= g.loc["dm_pinned_bounded", "min_weight"] and g.loc["dm_pinned_bounded", "max_weight"] <= 1
+        # the regularised solve spreads the edit over more sliders than the slider edit used
+        assert g.loc["dm", "n_sliders_moved"] > g.loc["sliders", "n_sliders_moved"], (model, key)
