@@ -47,12 +47,12 @@ from repro.errors import AttenuationError
 
 __all__ = [
     "BoxQPResult",
-    "check_bounds",
-    "solve_box_qp",
+    "benchmark",
     "bounded_attenuate",
     "bounded_edit",
+    "check_bounds",
     "clamped_edit",
-    "benchmark",
+    "solve_box_qp",
 ]
 
 

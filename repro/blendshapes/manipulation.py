@@ -42,13 +42,19 @@ from typing import NamedTuple
 import numpy as np
 import scipy.linalg
 
-from repro.blendshapes.attenuation import Attenuator, check_selection, check_w, scaled, select_vertices
+from repro.blendshapes.attenuation import (
+    Attenuator,
+    check_selection,
+    check_w,
+    scaled,
+    select_vertices,
+)
 from repro.blendshapes.bounded import check_bounds, solve_box_qp
 from repro.blendshapes.checks import as_real, as_real_array, describe
 from repro.blendshapes.model import BlendshapeModel
 from repro.errors import AttenuationError, SelectionError
 
-__all__ = ["DirectManipulator", "Drag", "DragResult", "DEFAULT_MU", "DEFAULT_PIN_ALPHA"]
+__all__ = ["DEFAULT_MU", "DEFAULT_PIN_ALPHA", "DirectManipulator", "Drag", "DragResult"]
 
 DEFAULT_MU = 1e-3
 DEFAULT_PIN_ALPHA = 100.0
