@@ -394,7 +394,8 @@ class Attenuator:
     model_or_D : BlendshapeModel or (3n, m) array
     cache_size : int
         How many (selection, alpha) solutions to keep, ``0..MAX_CACHE_SIZE``
-        (0 keeps none: every call solves).
+        (0 keeps none: every call solves).  Each holds three m x m matrices: ``M`` and, for
+        the bounded solve (:meth:`system`), ``A = P + alpha Q`` and ``P``.
 
     Examples
     --------
