@@ -154,3 +154,20 @@ def test_bad_weights_selection_attenuator(face):
         solve_box_qp(np.eye(2), np.ones(2), np.zeros(2), np.ones(2), method="magic")
     lo, hi = check_bounds(0, 1, 3)
     assert lo.tolist() == [0, 0, 0] and hi.tolist() == [1, 1, 1]
+
+
+def test_box_qp_bad_input():
+    ok = (np.eye(2), np.ones(2), np.zeros(2), np.ones(2))
+    assert solve_box_qp(*ok).x.tolist() == [1.0, 1.0]
+    with pytest.raises(AttenuationError, match="A must have shape"):
+        solve_box_qp(np.eye(3), *ok[1:])
+    with pytest.raises(AttenuationError, match="NaN"):
+        solve_box_qp(np.full((2, 2), np.nan), *ok[1:])
+    with pytest.raises(AttenuationError, match="g must be a 1-D"):
+        solve_box_qp(ok[0], np.ones((2, 1)), *ok[2:])
+    with pytest.raises(AttenuationError, match="x0 must have shape"):
+        solve_box_qp(*ok, x0=np.ones(3))
+    with pytest.raises(AttenuationError, match="max_iter"):
+        solve_box_qp(*ok, max_iter=0)
+    with pytest.raises(AttenuationError, match="lo > hi"):
+        solve_box_qp(ok[0], ok[1], np.ones(2), np.zeros(2))

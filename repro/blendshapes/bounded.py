@@ -42,7 +42,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from repro.blendshapes.attenuation import Attenuator, check_w_max
-from repro.blendshapes.checks import as_real_array, describe
+from repro.blendshapes.checks import as_int, as_real_array, describe
 from repro.errors import AttenuationError
 
 __all__ = [
@@ -197,20 +197,33 @@ def solve_box_qp(A, g, lo, hi, x0=None, *, max_iter: int | None = None, method: 
     diag(A)``: among the minimisers (all giving the same face) it picks one of
     small norm.  ``method="lsq_linear"`` skips the active sets (the reference).
     """
-    A = np.asarray(A, dtype=np.float64)
-    g = np.asarray(g, dtype=np.float64)
+    g = as_real_array(g, "g", error=AttenuationError, ndim=1)
+    m = g.shape[0]
+    A = as_real_array(A, "A", error=AttenuationError, shape=(m, m))
+    lo, hi = check_bounds(lo, hi, m)
+    if x0 is not None:
+        x0 = as_real_array(x0, "x0", error=AttenuationError, shape=(m,))
+    if method not in ("auto", "lsq_linear"):
+        raise AttenuationError(f"method must be 'auto' or 'lsq_linear', got {describe(method)}")
+    if max_iter is not None:
+        max_iter = as_int(max_iter, "max_iter", error=AttenuationError, lo=1)
+    return _box_qp(A, g, lo, hi, x0, max_iter=max_iter, method=method)
+
+
+def _box_qp(A, g, lo, hi, x0=None, *, max_iter=None, method="auto") -> BoxQPResult:
+    """:func:`solve_box_qp` on checked arguments (the per-slider-move path)."""
     m = g.shape[0]
     if method == "lsq_linear":
         x = _lsq_linear(A, g, lo, hi)
         return BoxQPResult(x, 0, "lsq_linear", int(np.count_nonzero((x <= lo) | (x >= hi))))
-    if method != "auto":
-        raise AttenuationError(f"method must be 'auto' or 'lsq_linear', got {describe(method)}")
     scale = float(np.abs(np.diag(A)).max(initial=0.0))
     if x0 is None:
-        try:
-            x0 = np.linalg.solve(A + 1e-12 * scale * np.eye(m), g)
-        except np.linalg.LinAlgError:
-            return solve_box_qp(A, g, lo, hi, method="lsq_linear")
+        _, x0, info = lapack.dposv(A, g, lower=1)
+        if info != 0 or not np.isfinite(x0).all():  # singular: the ridge below, from the ridged solution
+            try:
+                x0 = np.linalg.solve(A + 1e-12 * scale * np.eye(m), g)
+            except np.linalg.LinAlgError:
+                return _box_qp(A, g, lo, hi, method="lsq_linear")
     if ((x0 >= lo) & (x0 <= hi)).all():
         return BoxQPResult(np.array(x0, dtype=np.float64), 0, "unconstrained", 0)
     if scale == 0.0:
@@ -229,7 +242,7 @@ def solve_box_qp(A, g, lo, hi, x0=None, *, max_iter: int | None = None, method: 
         x, it = _primal_active_set(Ar, g, lo, hi, x_start.copy(), at_lo, at_hi, gtol, xtol, 10 * m)
         steps += it
     if x is None:
-        return solve_box_qp(A, g, lo, hi, method="lsq_linear")
+        return _box_qp(A, g, lo, hi, method="lsq_linear")
     x = np.clip(x, lo, hi)
     return BoxQPResult(x, steps, "active-set", int(np.count_nonzero((x <= lo) | (x >= hi))))
 
@@ -251,7 +264,7 @@ def _solve(att: Attenuator, w1, selected, alpha, lo, hi, offset=None) -> BoxQPRe
         g = P @ w
     if not (np.isfinite(u0).all() and np.isfinite(g).all()):
         raise AttenuationError("the bounded solve overflows float64 (the weights or D are too large)")
-    return solve_box_qp(A, g, lo, hi, u0)
+    return _box_qp(A, g, lo, hi, u0)
 
 
 def bounded_attenuate(att: Attenuator, w1, selected, alpha=None, lo=0.0, hi=1.0, *, info: bool = False):
