@@ -394,7 +394,8 @@ class Attenuator:
     model_or_D : BlendshapeModel or (3n, m) array
     cache_size : int
         How many (selection, alpha) solutions to keep, ``0..MAX_CACHE_SIZE``
-        (0 keeps none: every call solves).
+        (0 keeps none: every call solves).  Each holds three m x m matrices: ``M`` and, for
+        the bounded solve (:meth:`system`), ``A = P + alpha Q`` and ``P``.
 
     Examples
     --------
@@ -425,7 +426,8 @@ class Attenuator:
         self.G = _gram(D, self.scale_exponent)  #: ``(D 2^-e)^T (D 2^-e)``; = ``D^T D`` when ``e = 0``
         self.G.flags.writeable = False
         self._q: OrderedDict[bytes, np.ndarray] = OrderedDict()
-        self._M: OrderedDict[tuple[bytes, float], tuple[np.ndarray, int, float]] = OrderedDict()
+        # (selection, alpha) -> (M, rank, max |M|, A = P + alpha Q, P)
+        self._M: OrderedDict[tuple[bytes, float], tuple] = OrderedDict()
         self.rank: int | None = None  #: rank of ``P + alpha Q`` for the last solve (m = full)
 
     def __repr__(self) -> str:
@@ -452,6 +454,26 @@ class Attenuator:
             self._q.move_to_end(key)
         return Q
 
+    def selection_gram(self, selected) -> np.ndarray:
+        """``Q = S^T S`` (m x m, of the scaled ``D``) for a selection of rows; cached, read-only.
+
+        With :attr:`G` it gives the Gram form of any quadratic in ``S D w``
+        (:mod:`repro.blendshapes.bounded`, :mod:`repro.blendshapes.manipulation`).
+        """
+        sel, key = self._selection(selected)
+        Q = self._Q(sel, key)
+        Q.flags.writeable = False
+        return Q
+
+    def system(self, selected, alpha=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(A, P, M)`` of Eq. (3): ``A = P + alpha Q``, ``P = Sbar^T Sbar`` (scaled ``D``), ``M = A^-1 P``; cached.
+
+        Eq. (2) is ``u^T A u - 2 u^T P w1 + const`` in ``u = w2``: the Gram form
+        the bounded solve (:func:`repro.blendshapes.bounded.bounded_attenuate`) minimises.
+        """
+        hit = self._matrix(selected, alpha)
+        return hit[3], hit[4], hit[0]
+
     def default_alpha(self, selected) -> float:
         """Section 5's default alpha for this selection."""
         sel = check_selection(selected, self.n_rows)
@@ -461,8 +483,8 @@ class Attenuator:
         """``M = (P + alpha Q)^-1 P`` (m x m), so that ``w2 = M w1`` (Eq. 3); cached."""
         return self._matrix(selected, alpha)[0]
 
-    def _matrix(self, selected, alpha) -> tuple[np.ndarray, int, float]:
-        """``(M, rank, max |M|)`` for a selection and alpha, from the cache or solved."""
+    def _matrix(self, selected, alpha) -> tuple:
+        """``(M, rank, max |M|, A, P)`` for a selection and alpha, from the cache or solved."""
         sel, key = self._selection(selected)
         a = check_alpha(alpha, sel.size, self.n_rows)
         hit = self._M.get((key, a))
@@ -480,14 +502,16 @@ class Attenuator:
             A = P + a * Q  # an inf here (alpha ~ 1e300) is refused by _solve_matrix
         M, rank = _solve_matrix(A, P)
         M.flags.writeable = False
-        hit = (M, rank, float(np.abs(M).max(initial=0.0)))
+        A.flags.writeable = False
+        P.flags.writeable = False
+        hit = (M, rank, float(np.abs(M).max(initial=0.0)), A, P)
         self._remember(self._M, (key, a), hit, self._cache_size)
         self.rank = rank
         return hit
 
     def attenuate(self, w1, selected, alpha=None) -> np.ndarray:
         """``w2`` for slider values (or a slider change) ``w1``: Eq. (3)."""
-        M, _, mmax = self._matrix(selected, alpha)
+        M, _, mmax = self._matrix(selected, alpha)[:3]
         w, wmax = check_w_max(w1, self.m)
         return _matvec(M, mmax, w, wmax, "w2 = M w1")
 
@@ -502,7 +526,7 @@ class Attenuator:
         """
         w_base, bmax = check_w_max(w_base, self.m, "w_base")
         w_target, tmax = check_w_max(w_target, self.m, "w_target")
-        M, _, mmax = self._matrix(selected, alpha)
+        M, _, mmax = self._matrix(selected, alpha)[:3]
         dmax = bmax + tmax  # bounds max |w_target - w_base|
         if dmax < 1e300 and mmax * dmax * self.m + bmax < 1e300:  # nothing can overflow: the hot path
             return w_base + M @ (w_target - w_base)
