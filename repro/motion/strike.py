@@ -76,6 +76,7 @@ __all__ = [
     "turn_and_move",
     "blend_into",
     "clip_effector",
+    "reach_by_distance",
 ]
 
 #: Seconds over which a selected clip is blended into the current pose.
@@ -427,3 +428,44 @@ def strike(
         closest_error=float(np.linalg.norm(p0 - X, axis=1).min()),
         cost=adaptation_cost(blended, ad.motion, ch, frames=slice(1, None)),
     )
+
+
+def reach_by_distance(distances, reached, levels, bins=5) -> list[dict]:
+    """Whole-body reach per target distance: reached fraction and the level each target needed.
+
+    ``distances`` (n,) metres, ``reached`` (n,) bool, ``levels`` (n,) str of :data:`LEVELS`
+    (:attr:`Strike.level`, one per strike); ``bins`` an int (equal-count bins) or the bin
+    edges.  One dict per non-empty bin: ``distance_min_m``, ``distance_max_m``, ``n``,
+    ``reached_fraction``, and ``limb_fraction`` / ``spine_fraction`` / ``root_fraction``:
+    the fraction of the bin's targets reached at that level (they add up to
+    ``reached_fraction``), ``unreached_fraction``.
+    """
+    d = np.asarray(distances, dtype=float).reshape(-1)
+    ok = np.asarray(reached, dtype=bool).reshape(-1)
+    lv = np.asarray(levels).astype(str).reshape(-1)
+    if not (d.shape == ok.shape == lv.shape) or not np.all(np.isfinite(d)):
+        raise MotionError("distances, reached and levels must be equal-length 1-D arrays of finite distances")
+    bad = set(lv.tolist()) - set(LEVELS)
+    if bad:
+        raise MotionError(f"unknown levels {sorted(bad)}; expected {list(LEVELS)}")
+    if d.size == 0:
+        return []
+    if isinstance(bins, (int, np.integer)):
+        if bins < 1:
+            raise MotionError(f"bins must be >= 1, got {bins}")
+        edges = np.quantile(d, np.linspace(0.0, 1.0, int(bins) + 1))
+    else:
+        edges = np.asarray(bins, dtype=float)
+    which = np.clip(np.searchsorted(edges, d, side="right") - 1, 0, edges.size - 2)
+    out = []
+    for b in range(edges.size - 1):
+        sel = which == b
+        if not sel.any():
+            continue
+        row = {"distance_min_m": float(d[sel].min()), "distance_max_m": float(d[sel].max()), "n": int(sel.sum()),
+               "reached_fraction": float(ok[sel].mean())}
+        for name in LEVELS:
+            row[f"{name}_fraction"] = float(np.mean(ok[sel] & (lv[sel] == name)))
+        row["unreached_fraction"] = float(np.mean(~ok[sel]))
+        out.append(row)
+    return out
