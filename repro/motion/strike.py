@@ -85,6 +85,10 @@ BLEND_S: float = 0.2
 LEVELS: tuple[str, ...] = ("limb", "spine", "root")
 #: Largest root shift of the ``"root"`` level, per metre of the character's leg length.
 MAX_ROOT_SHIFT: float = 0.35
+#: Fractions of the miss left by CCD that the root shift tries, in order (the first the support leg follows wins).
+ROOT_SHIFT_TRIALS: tuple[float, ...] = (1.15, 0.5)
+#: CCD sweeps per frame after a root shift (the shift does most of the work).
+ROOT_MAX_ITER: int = 20
 #: A target horizontally closer than this fraction of the character's size to the current
 #: pose's root (and below the head) is inside the body.
 BODY_RADIUS: float = 0.08
@@ -393,9 +397,9 @@ def strike(
         n_rel = None if release is None else int(round(float(release) / blended.frame_time))
         foot_tol = 1e-3 * leg
         tried.append("root")
-        for frac in (1.15, 0.6, 0.3):
+        for frac in ROOT_SHIFT_TRIALS:  # the support leg must still reach its pinned foot
             off = _root_shift(ad, frac, max_root_shift * leg, kind, n_rel)
-            ad2 = adapt(blended, effector, X, 0, tc, root_offsets=off, **opts)
+            ad2 = adapt(blended, effector, X, 0, tc, root_offsets=off, max_iter=ROOT_MAX_ITER, **opts)
             if ad2.foot_error <= max(foot_tol, ad.foot_error) and ad2.residual < ad.residual:
                 ad = ad2
                 break
