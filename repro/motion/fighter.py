@@ -24,8 +24,10 @@ supervisor can ask the virtual character to kick or punch the user" (Abstract, S
    solves the hit constraint with ``d(t)``, limb IK and CCD and keeps planted feet in
    place (:func:`repro.motion.adaptation.adapt`).
 
-:class:`KungFuFighter` does this in :meth:`KungFuFighter.order` and measures every stage
-with :func:`time.perf_counter` (a :class:`Strike` holds the result and the timings);
+:class:`KungFuFighter` does this in :meth:`KungFuFighter.order` through the one pipeline,
+:func:`repro.motion.strike.strike` (which also brings in the spine and a root shift when the
+limb cannot reach, and measures every stage with :func:`time.perf_counter`; a
+:class:`~repro.motion.strike.Strike` holds the result, the timings and the cost);
 :meth:`KungFuFighter.follow` is the behaviour between orders; :func:`simulated_user`
 replaces the tracked head by a deterministic trajectory.
 
