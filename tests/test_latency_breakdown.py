@@ -12,7 +12,11 @@ import pandas as pd
 import pytest
 
 from repro.experiments import get, registry
-from repro.experiments.pronost.latency_breakdown import STAGE_NAMES, breakdown, run_orders
+from repro.experiments.pronost.latency_breakdown import (
+    STAGE_NAMES,
+    breakdown,
+    run_orders,
+)
 
 PAPER_MS = {
     "order -> search start": 3.0,

@@ -71,12 +71,12 @@ __all__ = [
     "MAX_ROOT_SHIFT",
     "STAGES",
     "Strike",
-    "strike",
-    "one_frame",
-    "turn_and_move",
     "blend_into",
     "clip_effector",
+    "one_frame",
     "reach_by_distance",
+    "strike",
+    "turn_and_move",
 ]
 
 #: Seconds over which a selected clip is blended into the current pose.

@@ -9,7 +9,14 @@ from repro.errors import MotionError, RetrievalError
 from repro.motion.adaptation import adapt
 from repro.motion.adaptation.cost import COST_KEYS, adaptation_cost
 from repro.motion.feet import foot_contacts, max_foot_slide, min_toe_height
-from repro.motion.strike import LEVELS, Strike, clip_effector, one_frame, reach_by_distance, strike
+from repro.motion.strike import (
+    LEVELS,
+    Strike,
+    clip_effector,
+    one_frame,
+    reach_by_distance,
+    strike,
+)
 
 STANCE_CLIP = "actor2_punch_left_high"
 
