@@ -12,7 +12,11 @@ import pandas as pd
 import pytest
 
 from repro.experiments import get, registry
-from repro.experiments.pronost.latency_breakdown import STAGE_NAMES, breakdown, run_orders
+from repro.experiments.pronost.latency_breakdown import (
+    STAGE_NAMES,
+    breakdown,
+    run_orders,
+)
 
 PAPER_MS = {
     "order -> search start": 3.0,
@@ -94,3 +98,19 @@ def test_run_orders_is_deterministic_apart_from_timings():
     b = run_orders("synthetic", n_orders=3, seed=5)
     cols = ["kind", "clip", "start_frame", "d", "hit_error_m", "reached"]
     pd.testing.assert_frame_equal(a[cols], b[cols])
+
+
+def test_p99_and_the_per_level_table(result):
+    t = result.table
+    assert (t.ours_p99_ms >= t.ours_p90_ms).all()
+    orders = result.extra_tables["orders"]
+    assert t.set_index("stage").loc["order -> first adapted frame", "ours_p99_ms"] == pytest.approx(
+        np.percentile(orders.first_frame_ms, 99))
+    lv = result.extra_tables["per_level"]
+    assert list(lv.level) == ["limb only", "with CCD (spine)", "with CCD + root shift"]
+    assert lv.n_orders.sum() == len(orders) and set(orders.level) <= {"limb", "spine", "root"}
+    np.testing.assert_allclose(lv.paper_per_frame_ms, 0.088)
+    for _, row in lv.iterrows():
+        assert np.isnan(row.per_frame_p50_ms) == (row.n_orders == 0)
+        if row.n_orders:
+            assert row.per_frame_p99_ms >= row.per_frame_p50_ms > 0

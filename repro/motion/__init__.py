@@ -147,6 +147,12 @@ __all__ += [
     "time_adaptation",
 ]
 
+# One order carried out (Sections 3.3-3.4): the Strike of repro.motion.strike.strike (the
+# function itself stays on its module: a package attribute named like the submodule would shadow it).
+from repro.motion.strike import Strike  # noqa: E402
+
+__all__ += ["Strike"]
+
 # The other real sources of the database (Bandai Namco strikes, non-fighting takes).
 from repro.motion.sources import build_bandai_database, build_real_database, non_fighting_poses  # noqa: E402
 

@@ -14,7 +14,7 @@ from repro.errors import MotionError
 from repro.motion.motion import Motion
 from repro.motion.skeleton import Skeleton
 
-__all__ = ["UP_AXIS", "foot_contacts", "foot_metrics", "foot_goals", "foot_scale"]
+__all__ = ["UP_AXIS", "foot_contacts", "foot_metrics", "foot_goals", "foot_scale", "max_foot_slide", "min_toe_height"]
 
 #: Vertical axis of the world (BVH files are Y-up; the floor is the plane y = 0).
 UP_AXIS: int = 1
@@ -156,3 +156,40 @@ def foot_goals(A: np.ndarray, contacts: np.ndarray, heights: np.ndarray, n_blend
         goal[:, s] = anchor[phase[idx[:, s]]]
         w[:, s] = np.clip(1.0 - dist[:, s] / (n_blend + 1.0), 0.0, 1.0)
     return goal, w
+
+
+def max_foot_slide(motion: Motion, contacts: np.ndarray, *, skeleton: Skeleton | None = None,
+                   global_positions: np.ndarray | None = None, up_axis: int = UP_AXIS) -> float:
+    """Largest horizontal drift of a planted ankle from its position at the start of its contact phase.
+
+    In the motion's units.  ``contacts`` (F, 2): planted frames of the left / right ankle
+    (usually those of the *source* motion, :func:`foot_contacts`).
+    """
+    sk = Skeleton.from_motion(motion) if skeleton is None else skeleton
+    contacts = np.asarray(contacts, dtype=bool)
+    if contacts.shape != (motion.n_frames, 2):
+        raise MotionError(f"contacts must be ({motion.n_frames}, 2), got {contacts.shape}")
+    g = motion.global_positions() if global_positions is None else global_positions
+    horiz = [a for a in range(3) if a != up_axis]
+    ank = g[:, [sk.index("left_ankle"), sk.index("right_ankle")]][..., horiz]
+    worst = 0.0
+    for s in range(2):
+        c = np.concatenate([[0], contacts[:, s].astype(int), [0]])
+        d = np.diff(c)
+        for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
+            worst = max(worst, float(np.linalg.norm(ank[a:b, s] - ank[a, s], axis=-1).max()))
+    return worst
+
+
+def min_toe_height(motion: Motion, contacts: np.ndarray | None = None, *, skeleton: Skeleton | None = None,
+                   global_positions: np.ndarray | None = None, up_axis: int = UP_AXIS) -> float:
+    """Lowest toe (foot-effector joint) height, over the planted frames of each side (all frames if None)."""
+    sk = Skeleton.from_motion(motion) if skeleton is None else skeleton
+    g = motion.global_positions() if global_positions is None else global_positions
+    h = g[:, [sk.index("left_foot"), sk.index("right_foot")], up_axis]
+    if contacts is None:
+        return float(h.min())
+    c = np.asarray(contacts, dtype=bool)
+    if c.shape != h.shape:
+        raise MotionError(f"contacts must be {h.shape}, got {c.shape}")
+    return float(h[c].min()) if c.any() else float("nan")

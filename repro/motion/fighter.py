@@ -24,8 +24,10 @@ supervisor can ask the virtual character to kick or punch the user" (Abstract, S
    solves the hit constraint with ``d(t)``, limb IK and CCD and keeps planted feet in
    place (:func:`repro.motion.adaptation.adapt`).
 
-:class:`KungFuFighter` does this in :meth:`KungFuFighter.order` and measures every stage
-with :func:`time.perf_counter` (a :class:`Strike` holds the result and the timings);
+:class:`KungFuFighter` does this in :meth:`KungFuFighter.order` through the one pipeline,
+:func:`repro.motion.strike.strike` (which also brings in the spine and a root shift when the
+limb cannot reach, and measures every stage with :func:`time.perf_counter`; a
+:class:`~repro.motion.strike.Strike` holds the result, the timings and the cost);
 :meth:`KungFuFighter.follow` is the behaviour between orders; :func:`simulated_user`
 replaces the tracked head by a deterministic trajectory.
 
@@ -90,22 +92,24 @@ from dataclasses import dataclass
 import numpy as np
 
 from repro.errors import MotionError, RetrievalError
-from repro.motion.adaptation import Adaptation, adapt
-from repro.motion.clustering import root_frames, rotate_y, to_root_frame
+from repro.motion.clustering import root_frames
 from repro.motion.annotation import SEMANTICS
 from repro.motion.database import MotionDatabase
-from repro.motion.ops import cut
-from repro.motion.roles import effector_role
 from repro.motion.morphology import retarget
 from repro.motion.motion import Motion, finite_vector3
-from repro.motion.paper import REACTION_BUDGET_S
-from repro.motion.quaternion import quat_multiply, slerp
-from repro.motion.retrieval import MotionRetriever, RetrievalResult
+from repro.motion.retrieval import MotionRetriever
 from repro.motion.skeleton import (
     Skeleton,
-    rescale_constraint,
     scale_skeleton,
     skeleton_of,
+)
+from repro.motion.strike import (
+    BLEND_S,
+    STAGES,
+    Strike,
+    one_frame,
+    strike,
+    turn_and_move,
 )
 
 __all__ = [
@@ -126,15 +130,11 @@ __all__ = [
 #: The user's area (Section 1: "a real user that displaces in the VR system area (3m x
 #: 3m area)"): ``(min, max)`` of x, y (height) and z, metres.  Targets outside raise.
 AREA: tuple[tuple[float, float], tuple[float, float], tuple[float, float]] = ((-1.5, 1.5), (0.0, 2.5), (-1.5, 1.5))
-#: Seconds over which a selected clip is blended into the current pose.
-BLEND_S: float = 0.2
 #: Largest following speed (m/s) and turning rate (rad/s) of :meth:`KungFuFighter.follow`.
 MAX_SPEED: float = 2.0
 MAX_TURN_RATE: float = math.radians(270.0)
 #: The supervisor's orders (the database's semantics).
 ORDER_KINDS: tuple[str, ...] = tuple(SEMANTICS)
-#: Measured stages of an order, in :attr:`Strike.timings` (seconds).
-STAGES: tuple[str, ...] = ("prepare", "search", "load_convert", "adapt", "first_frame")
 
 # ------------------------------------------------------------------ characters
 def character_from(height: float = 1.75, arm_scale: float = 1.0, leg_scale: float = 1.0, *, base=None) -> Skeleton:
@@ -251,34 +251,8 @@ def simulated_user(seed: int = 0, duration: float = 10.0, fps: float = 30.0, *, 
 
 
 # ------------------------------------------------------------------ helpers
-def _qy(theta: float) -> np.ndarray:
-    """Quaternion (x, y, z, w) of the rotation about +y by ``theta`` (same as :func:`rotate_y`)."""
-    return np.array([0.0, math.sin(theta / 2.0), 0.0, math.cos(theta / 2.0)])
-
-
-def _transform(motion: Motion, theta: float, translation) -> Motion:
-    """The motion rotated about the vertical axis through the world origin by ``theta``, then translated."""
-    rot = np.array(motion.rotations)
-    rot[:, 0] = quat_multiply(np.broadcast_to(_qy(theta), rot[:, 0].shape), rot[:, 0])
-    pos = np.array(motion.positions)
-    pos[:, 0] = rotate_y(pos[:, 0], theta) + np.asarray(translation, dtype=float)
-    return dataclasses.replace(motion, rotations=rot, positions=pos)
-
-
-def _frame(motion: Motion, f: int) -> Motion:
-    return dataclasses.replace(motion, rotations=motion.rotations[f:f + 1], positions=motion.positions[f:f + 1])
-
-
 def _wrap(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
-def _effector(sk: Skeleton, hit_role: str, hit_joint: str) -> str:
-    """The adaptation effector role whose joint is the clip's hit joint (``"right_ankle"`` for a heel kick)."""
-    try:
-        return effector_role(sk.roles, hit_role, hit_joint)
-    except MotionError as exc:
-        raise RetrievalError(str(exc)) from None
 
 
 def check_target(target) -> np.ndarray:
@@ -292,107 +266,6 @@ def check_target(target) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ results
-@dataclass(frozen=True, eq=False)
-class Strike:
-    """One order carried out: what was retrieved, the adapted motion, how well it hits, how long it took.
-
-    Attributes
-    ----------
-    kind : str
-        ``"punch"`` or ``"kick"`` (the order).
-    target : (3,) array
-        The head position stored at the order (world, metres).
-    target_local : (3,) array
-        ``c``: the target in the root frame of the current pose (Section 3.3).
-    retrieval : RetrievalResult
-        The search's answer (clip, start frame, ``d``, ``d_qr``, ``d_cr``, ``c_r``,
-        alignment, fallback).
-    effector : str
-        The hit point's role on the character (``"right_fist"``, ``"left_ankle"`` ...).
-    motion : Motion
-        The adapted motion on the character, world frame, at the database rate; frame 0
-        is the current pose at the order.
-    original : Motion
-        The same before the constraint solver (placed, retargeted and blended).
-    adaptation : Adaptation
-        The solver's report (:func:`repro.motion.adaptation.adapt`).
-    tc : int
-        Contact frame of :attr:`motion`.
-    hit_error : float
-        Distance (m) between the hit point and the target at the contact.
-    reached : bool
-        ``hit_error`` within the solver's tolerance (1e-4 of the limb length).
-    unadapted_error : float
-        The same distance without the solver (how far the retrieved clip alone misses).
-    foot_slide : float
-        Largest horizontal slide (m) of a pinned (planted) foot during the strike.
-    timings : dict
-        Seconds (``time.perf_counter``): ``prepare`` (order -> search start: checks, the
-        current pose, the target in its root frame, ``q_r`` = the pose retargeted to the
-        actor(s); Eq. 1 itself, one multiplication per clip, runs inside the search
-        call), ``search``, ``load_convert`` (clip from the
-        database, cut, retargeted; of which ``retarget``), ``adapt`` (placement, blend,
-        constraint solver), ``first_frame`` (order -> first adapted frame, the sum),
-        ``adapt_per_frame`` and ``retarget_adapt_per_frame`` (per frame of
-        :attr:`motion`, the paper's 88 µs), ``solver`` (:func:`adapt` alone).
-    budget_s : float
-        :data:`repro.motion.paper.REACTION_BUDGET_S`.
-    """
-
-    kind: str
-    target: np.ndarray
-    target_local: np.ndarray
-    retrieval: RetrievalResult
-    effector: str
-    motion: Motion
-    original: Motion
-    adaptation: Adaptation
-    tc: int
-    hit_error: float
-    reached: bool
-    unadapted_error: float
-    foot_slide: float
-    timings: dict
-    budget_s: float = REACTION_BUDGET_S
-
-    @property
-    def clip_name(self) -> str:
-        """Name of the retrieved clip."""
-        return self.retrieval.name
-
-    @property
-    def semantics(self) -> str:
-        """Semantics of the retrieved clip (the order's kind)."""
-        return self.retrieval.semantics
-
-    @property
-    def n_frames(self) -> int:
-        return self.motion.n_frames
-
-    @property
-    def within_budget(self) -> bool:
-        """Whether order -> first adapted frame took less than 1/30 s."""
-        return self.timings["first_frame"] <= self.budget_s
-
-    def hit_positions(self) -> np.ndarray:
-        """(F, 3) world trajectory of the hit point in :attr:`motion`."""
-        return self.adaptation.hit_positions
-
-    def summary(self, timings: bool = True) -> dict:
-        """Flat numbers for tables; ``timings=False`` keeps only the deterministic ones."""
-        r = self.retrieval
-        out = {
-            "kind": self.kind, "clip": r.name, "start_frame": r.start_frame, "contact_frame": self.tc,
-            "d": r.d, "d_qr": r.d_qr, "d_cr": r.d_cr, "fallback": r.fallback, "effector": self.effector,
-            "unadapted_error_m": self.unadapted_error, "hit_error_m": self.hit_error, "reached": self.reached,
-            "foot_slide_m": self.foot_slide, "frames": self.n_frames,
-        }
-        if timings:
-            out.update({f"{k}_ms": v * 1e3 for k, v in self.timings.items()})
-            out["within_budget"] = self.within_budget
-        return out
-
-
 @dataclass(frozen=True)
 class FollowStep:
     """The fighter's state after :meth:`KungFuFighter.follow`: position (x, z), facing, distance to the head."""
@@ -480,6 +353,8 @@ class KungFuFighter:
         self.place(position, heading)
         self.time = 0.0
         self.strikes: list[Strike] = []
+        self.playing: Strike | None = None
+        self._play_end = 0.0
 
     # ------------------------------------------------------------- character
     def _make_stance(self) -> None:
@@ -493,7 +368,7 @@ class KungFuFighter:
             g = m.global_positions()[:1]
             _, o = root_frames(g, base.index("pelvis"), base.index("left_hip"), base.index("right_hip"))
             # synthetic clips face their opponent along the clip world's +z
-            self._stance_actor = _transform(m, 0.0, -o[0])
+            self._stance_actor = turn_and_move(m, 0.0, -o[0])
             self.stance_source = "synthetic stance clip"
         else:
             kinds = np.asarray(db.kinds)
@@ -504,10 +379,10 @@ class KungFuFighter:
             th, o = root_frames(g, base.index("pelvis"), base.index("left_hip"), base.index("right_hip"))
             hx, _, hz = db.hit_position[i]
             facing = th[0] + math.atan2(hx, hz)  # the clip's hit direction, as the opponent's
-            one = _frame(m, 0)
+            one = one_frame(m, 0)
             still = dataclasses.replace(one, rotations=np.repeat(one.rotations, int(db.fps), axis=0),
                                         positions=np.repeat(one.positions, int(db.fps), axis=0))
-            self._stance_actor = _transform(_transform(still, 0.0, -o[0]), -facing, np.zeros(3))
+            self._stance_actor = turn_and_move(turn_and_move(still, 0.0, -o[0]), -facing, np.zeros(3))
             self.stance_source = f"first frame of clip {db.names[i]}, held"
 
     def set_character(self, character: Skeleton) -> None:
@@ -551,13 +426,16 @@ class KungFuFighter:
         F = self.stance.n_frames
         idx = (self.stance_frame - np.arange(int(frames) - 1, -1, -1)) % F
         m = dataclasses.replace(self.stance, rotations=self.stance.rotations[idx], positions=self.stance.positions[idx])
-        return _transform(m, self.heading, np.array([self.position[0], 0.0, self.position[1]]))
+        return turn_and_move(m, self.heading, np.array([self.position[0], 0.0, self.position[1]]))
 
     def advance(self, dt: float) -> None:
         """Advance the clock by ``dt`` seconds (the stance loop plays)."""
         if not (np.isfinite(dt) and dt >= 0):
             raise MotionError(f"dt must be a finite number >= 0, got {dt!r}")
         self.time += float(dt)
+        if self.playing is not None and self.time >= self._play_end - 1e-9:
+            s, self.playing = self.playing, None
+            self._finish(s)
 
     def follow(self, head_position, dt: float = 1.0 / 30.0, *, snap: bool = False) -> FollowStep:
         """One tick of the behaviour between orders: stay at striking distance of the head, facing it.
@@ -577,7 +455,7 @@ class KungFuFighter:
             raise MotionError(f"dt must be a finite number >= 0, got {dt!r}")
         v = np.array([head[0], head[2]]) - self.position
         dist = float(np.hypot(*v))
-        if dist > 1e-9:
+        if dist > 1e-9 and self.playing is None:  # no following while a strike plays
             want = math.atan2(v[0], v[1])
             turn = _wrap(want - self.heading)
             if not snap:
@@ -594,17 +472,24 @@ class KungFuFighter:
         return FollowStep(position=self.position.copy(), heading=self.heading, distance=d, bearing_error=bearing)
 
     # ------------------------------------------------------------- orders
-    def order(self, kind: str, target, *, commit: bool = True) -> Strike:
-        """Carry out a supervisor's order: retrieve, convert, adapt; every stage timed.
+    def order(self, kind: str, target, *, commit: bool | str = True) -> Strike:
+        """Carry out a supervisor's order with :func:`repro.motion.strike.strike`; every stage timed.
 
         Parameters
         ----------
         kind : {"punch", "kick"}
         target : (3,) array
             The user's head (world, metres), stored now and not refreshed.
-        commit : bool, default True
-            Append the strike to :attr:`strikes`, move the fighter by the strike's root
-            displacement and advance the clock by the strike's duration.
+        commit : bool or "play", default True
+            True: append the strike to :attr:`strikes`, move the fighter by the strike's
+            root displacement and advance the clock by the strike's duration (played at
+            once).  ``"play"``: the strike starts now and plays as the clock advances
+            (:meth:`advance`, :meth:`follow`, which does not move the fighter meanwhile);
+            it is recorded and the fighter moved when it ends.  False: nothing changes.
+
+        A second order while a strike plays (``commit="play"``) is refused with
+        :class:`repro.errors.MotionError`: the playing strike keeps its stored target
+        (the paper does not refresh it) and is not interrupted.
 
         Returns
         -------
@@ -614,75 +499,40 @@ class KungFuFighter:
         ------
         repro.errors.RetrievalError
             Unknown kind; a target that is not a finite 3-vector inside :data:`AREA`.
+        repro.errors.MotionError
+            An order while a strike plays; a target inside the fighter's body.
         """
+        if not (isinstance(commit, bool) or commit == "play"):
+            raise MotionError(f"commit must be True, False or 'play', got {commit!r}")
         t_order = time.perf_counter()
-        # ---- 1. order -> search start: the query (c in the root frame, Eq. 1, q_r)
         if kind not in ORDER_KINDS:
             raise RetrievalError(f"unknown order {kind!r}; the supervisor orders one of {list(ORDER_KINDS)}")
+        if self.playing is not None:
+            p = self.playing
+            raise MotionError(
+                f"a {p.kind} is playing until t = {self._play_end:.3f} s (now {self.time:.3f} s): the order is refused; "
+                "the playing strike keeps its stored target (the paper does not refresh it)")
         X = check_target(target)
         pose = self.current_pose((self.db.window - 1) * self.db.step + 1)
-        q = self.retriever.prepare(pose, self.character)
-        pose = _frame(pose, pose.n_frames - 1)
-        c = to_root_frame(X, q.heading, q.origin)
-        rescale_constraint(c, 1.0, q.size_c)  # Eq. 1 per clip happens in the search; this validates c
-        t_search = time.perf_counter()
-        # ---- 2. search
-        res = self.retriever.search(c, q, semantics=kind)
-        t_load = time.perf_counter()
-        # ---- 3. clip load + convert (retarget to the character)
-        db = self.db
-        m = cut(db.motion(res.clip), res.start_frame, int(db.n_frames[res.clip]))
-        t_rt = time.perf_counter()
-        mc = retarget(m, self.character)
-        t_adapt = time.perf_counter()
-        # ---- 4. adaptation: place, blend, solve
-        k = res.size_c / res.size_a
-        placed = _transform(mc, res.heading + res.rotation_y, rotate_y(k * res.translation, res.heading) + res.origin)
-        tc = res.lead_frames
-        blended = self._blend(pose, placed, tc)
-        effector = _effector(self.character, res.hit_role, str(db.hit_joints[res.clip]))
-        t_solver = time.perf_counter()
-        ad = adapt(blended, effector, X, 0, tc, hit_point=str(db.hit_wheres[res.clip]))
-        t_end = time.perf_counter()
-        F = ad.motion.n_frames
-        timings = {
-            "prepare": t_search - t_order,
-            "search": t_load - t_search,
-            "load_convert": t_adapt - t_load,
-            "retarget": t_adapt - t_rt,
-            "adapt": t_end - t_adapt,
-            "solver": t_end - t_solver,
-            "first_frame": t_end - t_order,
-        }
-        timings["adapt_per_frame"] = timings["adapt"] / F
-        timings["retarget_adapt_per_frame"] = (timings["retarget"] + timings["adapt"]) / F
-        strike = Strike(
-            kind=kind, target=X, target_local=c, retrieval=res, effector=effector, motion=ad.motion,
-            original=blended, adaptation=ad, tc=tc, hit_error=float(ad.residual), reached=bool(ad.reached),
-            unadapted_error=float(np.linalg.norm(ad.original_hit[tc] - X)),
-            foot_slide=float(max(ad.foot_slide.values())), timings=timings)
-        if commit:
-            self._commit(strike)
-        return strike
+        s = strike(self.retriever, self.character, pose, X, kind, blend_s=BLEND_S, t_order=t_order)
+        if commit == "play":
+            self.playing = s
+            self._play_end = self.time + (s.n_frames - 1) / self.db.fps
+        elif commit:
+            self._commit(s)
+        return s
 
-    def _blend(self, pose: Motion, placed: Motion, tc: int) -> Motion:
-        """Blend the placed clip into the current pose over the first frames (frame 0 = the pose)."""
-        F = placed.n_frames
-        nb = max(1, min(int(round(BLEND_S * self.db.fps)), tc, F - 1))
-        w = _smooth(np.arange(F) / nb)  # 0 at frame 0, 1 from frame nb
-        r0 = np.broadcast_to(pose.rotations[0], placed.rotations.shape)
-        rot = slerp(r0, placed.rotations, w[:, None, None])
-        pos = np.array(placed.positions)
-        pos[:, 0] += (1.0 - w)[:, None] * (pose.positions[0, 0] - placed.positions[0, 0])[None, :]
-        return dataclasses.replace(placed, rotations=rot, positions=pos)
+    def _commit(self, s: Strike) -> None:
+        self.time += (s.n_frames - 1) / self.db.fps
+        self._finish(s)
 
-    def _commit(self, strike: Strike) -> None:
+    def _finish(self, s: Strike) -> None:
+        """The strike is over: move by its root displacement, record it."""
         sk = self.character
-        g = strike.motion.global_positions()[[0, -1]]
+        g = s.motion.global_positions()[[0, -1]]
         _, o = root_frames(g, sk.index("pelvis"), sk.index("left_hip"), sk.index("right_hip"))
         self.position = self.position + (o[1] - o[0])[[0, 2]]
-        self.time += (strike.n_frames - 1) / self.db.fps
-        self.strikes.append(strike)
+        self.strikes.append(s)
 
     def kick(self, target, **kw) -> Strike:
         """``order("kick", target)``."""

@@ -406,3 +406,24 @@ def test_animation_html_is_a_player(fighter):
     s = f.punch((0, 1.6, 0))
     out = animation_html(s, every=8)  # every 8th frame keeps it small
     assert "<script" in out and "animation" in out.lower()
+
+
+def test_a_second_order_while_a_strike_plays_is_refused_and_keeps_the_target(fighter):
+    f = fresh(fighter)
+    head = (0.4, 1.6, 0.3)
+    f.follow(head, 0.0, snap=True)
+    s = f.order("punch", head, commit="play")
+    assert f.playing is s and f.strikes == []
+    stored = s.target.copy()
+    with pytest.raises(MotionError, match="playing"):
+        f.order("kick", (0.0, 1.0, 0.0))
+    np.testing.assert_array_equal(s.target, stored)  # the stored target is not refreshed
+    pos = f.position.copy()
+    f.follow((1.0, 1.5, 1.0), 1.0 / 30)  # no following while the strike plays
+    np.testing.assert_array_equal(f.position, pos)
+    f.advance((s.n_frames - 1) / f.db.fps)
+    assert f.playing is None and f.strikes == [s]
+    f.follow(head, 0.0, snap=True)
+    assert f.order("kick", head).kind == "kick"  # accepted once the strike is over
+    with pytest.raises(MotionError, match="commit"):
+        f.order("kick", head, commit="later")

@@ -13,27 +13,25 @@ metres, and at a depth proportional to the fighter's height (it keeps "a reachab
 distance"), in the fighter's root frame (:data:`TARGETS`).  Each order goes through the
 whole pipeline: retrieval from the full synthetic database (Section 3.3, Eq. 1), the
 paper's retargeting to the fighter (:func:`~repro.motion.morphology.retarget` with
-``fix_feet=True``, Section 3.4.1), placement on the current pose, and the constraints
-solver from the start frame to the hit frame (:func:`~repro.motion.adaptation.adapt`,
-Section 3.4.2).
+``fix_feet=True``, Section 3.4.1), placement on the current pose and the blend with it, and
+the constraints solver from the start frame to the hit frame (Section 3.4.2): the one
+pipeline, :func:`repro.motion.strike.strike`.
 
 The figure draws, per fighter and order, the pose at the contact frame before adaptation
 (grey) and after (light blue), the hit point's trajectory from the start frame to the
 contact (dashed), and the target (blue sphere), in the fighter's root frame.  The table:
 the clip chosen, the hit error at contact before and after adaptation, whether it was
-reached, how many frames needed CCD, the largest slide of a pinned foot and the
-bone-length error of the adapted motion.
+reached and the reach level needed (limb / spine / root), how many frames needed CCD, the
+largest slide of a planted foot, the bone-length error of the adapted motion and the cost
+of the adaptation (:func:`repro.motion.adaptation.cost.adaptation_cost`).
 """
 
 from __future__ import annotations
-
 
 import numpy as np
 import pandas as pd
 
 from repro.experiments.registry import Result, experiment
-from repro.experiments.pronost.retargeting_morphologies import effector, frame_of, target_in_motion
-from repro.motion.annotation import hit_point_trajectory
 
 #: Fighter statures (m).
 HEIGHTS = (1.5, 2.0)
@@ -56,12 +54,12 @@ def _segments(sk) -> list[tuple[int, int]]:
 
 
 def _compute(quick: bool):
-    from repro.motion.adaptation import adapt
-    from repro.motion.clustering import rotate_y
+    from repro.motion.clustering import to_root_frame
     from repro.motion.sources import default_database
     from repro.motion.morphology import retarget
     from repro.motion.retrieval import MotionRetriever
     from repro.motion.skeleton import scale_skeleton
+    from repro.motion.strike import one_frame, strike
 
     db = default_database("synthetic")
     names = [str(n) for n in db.names]
@@ -69,37 +67,31 @@ def _compute(quick: bool):
     rows, poses = [], []
     for H in HEIGHTS:
         ch = scale_skeleton(db.actors[0], height=H)
-        stance = frame_of(retarget(db.motion(names.index(STANCE_CLIP)), ch), 0)
+        stance = one_frame(retarget(db.motion(names.index(STANCE_CLIP)), ch), 0)
         q = retriever.prepare(stance, ch)
         for label, sem, x, y, zf in (TARGETS_QUICK if quick else TARGETS):
             c = np.array([x, y, zf * ch.size])
-            r = retriever.search(c, q, semantics=sem)
-            i = r.clip
-            m = retarget(db.motion(i), ch, fix_feet=True)
-            k = ch.size / r.size_a
-            X = target_in_motion(r, c, k)
-            a = adapt(m, effector(db, i), X, r.start_frame, r.hit_frame, hit_point=str(db.hit_wheres[i]))
-            s = a.summary()
-            hp0 = hit_point_trajectory(m, str(db.hit_joints[i]), str(db.hit_wheres[i]))
-            hp1 = hit_point_trajectory(a.motion, str(db.hit_joints[i]), str(db.hit_wheres[i]))
+            s = strike(retriever, ch, stance, c, sem, frame="root", query=q, fix_feet=True)
+            r, a = s.retrieval, s.adaptation
             rows.append({
                 "height_m": H, "order": label, "semantics": sem, "target_x_m": x, "target_y_m": y,
-                "target_z_m": float(c[2]), "clip": names[i], "start_frame": r.start_frame, "hit_frame": r.hit_frame,
+                "target_z_m": float(c[2]), "clip": r.name, "start_frame": r.start_frame, "hit_frame": r.hit_frame,
                 "fallback": r.fallback,
-                "before_m": float(np.linalg.norm(hp0[r.hit_frame] - X)), "after_m": a.residual,
-                "reached": a.reached, "frames_ccd": s["frames_ccd"], "max_foot_slide_m": s["max_foot_slide"],
-                "bone_length_error_m": s["bone_length_error"],
+                "before_m": s.unadapted_error, "after_m": s.hit_error,
+                "reached": s.reached, "level": s.level, "frames_ccd": int(np.sum(a.solver == "ccd")),
+                "max_foot_slide_m": s.foot_slide, "bone_length_error_m": a.bone_length_error,
+                **s.cost,
             })
 
-            def to_char(P):  # clip world (on the fighter) -> fighter's root frame
-                return rotate_y(P, r.rotation_y) + k * np.asarray(r.translation)
+            def to_char(P):  # world -> the fighter's root frame (at the order)
+                return to_root_frame(P, q.heading, q.origin)
 
-            tc, sl = r.hit_frame, slice(r.start_frame, r.hit_frame + 1)
+            tc, sl = s.tc, slice(0, s.tc + 1)
             poses.append({
                 "height_m": H, "order": label, "target": c, "segments": _segments(ch),
-                "original": to_char(m.global_positions()[tc]), "adapted": to_char(a.motion.global_positions()[tc]),
-                "traj_original": to_char(hp0[sl]), "traj_adapted": to_char(hp1[sl]),
-                "before_m": rows[-1]["before_m"], "after_m": a.residual, "clip": names[i],
+                "original": to_char(s.original.global_positions()[tc]), "adapted": to_char(s.motion.global_positions()[tc]),
+                "traj_original": to_char(s.original_hit_positions()[sl]), "traj_adapted": to_char(s.hit_positions()[sl]),
+                "before_m": s.unadapted_error, "after_m": s.hit_error, "clip": r.name,
             })
     return pd.DataFrame(rows), tuple(poses)
 

@@ -29,21 +29,32 @@ point's trajectory comes to the target after the start frame (what the retrieval
 reaches after adaptation (the reachable area of this fighter, for that semantics), the
 fraction a smaller database reaches too.
 
+Every strike goes through the one pipeline, :func:`repro.motion.strike.strike` (retrieve,
+retarget, place, blend with the stance, solve at the levels limb / spine / root).  The
+price paid for "after = 0" is measured per strike against the retargeted, placed and
+blended clip (:func:`repro.motion.adaptation.cost.adaptation_cost`) and averaged per
+database size: ``rotation_change_mean_deg_mean`` (mean joint-rotation change),
+``rotation_change_max_deg_mean`` / ``rotation_change_worst_deg``, the added joint
+acceleration (``added_acceleration_max_mps2_mean``, ``acceleration_ratio_mean``),
+``joint_limit_violations_per_strike``, ``bone_length_error_m_mean`` and the root shift;
+``limb_fraction`` / ``spine_fraction`` / ``root_fraction``: the targets reached with the limb
+alone, with CCD over the spine / pelvis, with a root shift.
+
 The main table has one row per semantics x database size x seed;
-``extra_tables["grid"]`` one row per target as well.  ``quick=True``: a 5 x 5 grid,
+``extra_tables["grid"]`` one row per target as well; ``extra_tables["reach"]`` the
+whole-body reach study: the full database, targets on the centre column at depths
+:data:`REACH_DEPTHS` x H, per semantics and depth the reached fraction and the fraction
+that needed each level (:func:`repro.motion.strike.reach_by_distance`).  ``quick=True``: a 5 x 5 grid,
 sizes 72 / 18 / 4, two seeds (the full run: 9 x 9, sizes 72 / 36 / 18 / 9 / 4 / 2,
 five seeds).
 """
 
 from __future__ import annotations
 
-
 import numpy as np
 import pandas as pd
 
 from repro.experiments.registry import Result, experiment
-from repro.experiments.pronost.retargeting_morphologies import effector, frame_of, target_in_motion
-from repro.motion.annotation import hit_point_trajectory
 
 #: Fighter stature (m) and the clip whose first frame is its current (stance) pose.
 HEIGHT = 1.8
@@ -54,6 +65,11 @@ SIZES, SEEDS, GRID = (72, 36, 18, 9, 4, 2), 5, (9, 9)
 SIZES_QUICK, SEEDS_QUICK, GRID_QUICK = (72, 18, 4), 2, (5, 5)
 #: The "small database" of the heat maps.
 SMALL = 4
+#: Whole-body reach study (full database, centre column x = 0): target depths, in units of H.
+REACH_DEPTHS, REACH_DEPTHS_QUICK = (0.4, 0.5, 0.6, 0.7, 0.8), (0.5, 0.7)
+#: Columns of the cost of adaptation (repro.motion.adaptation.cost.adaptation_cost), aggregated by mean.
+COST_COLUMNS = ("rotation_change_mean_deg", "rotation_change_max_deg", "added_acceleration_max_mps2",
+                "acceleration_ratio", "bone_length_error_m", "joint_limit_violations", "root_shift_max_m")
 
 
 def subset(db, n: int, seed: int) -> np.ndarray:
@@ -76,27 +92,29 @@ def grid(H: float, quick: bool) -> tuple[np.ndarray, np.ndarray, float]:
     return np.linspace(*X_RANGE, nx) * H, np.linspace(*Y_RANGE, ny) * H, DEPTH * H
 
 
+def _row(s, ch) -> dict:
+    a = s.adaptation
+    return {
+        "clip": s.retrieval.name, "start_frame": s.retrieval.start_frame, "hit_frame": s.retrieval.hit_frame,
+        "fallback": s.retrieval.fallback, "before_m": s.unadapted_error, "closest_m": s.closest_error,
+        "after_m": s.hit_error, "reached": s.reached, "level": s.level,
+        "frames_ccd": int(np.sum(a.solver == "ccd")), "foot_slide_m": s.foot_slide, **s.cost,
+    }
+
+
 def _compute(quick: bool):
-    from repro.motion.adaptation import adapt
     from repro.motion.sources import default_database
     from repro.motion.morphology import retarget
     from repro.motion.retrieval import MotionRetriever
     from repro.motion.skeleton import scale_skeleton
+    from repro.motion.strike import one_frame, reach_by_distance, strike
 
     db = default_database("synthetic")
     ch = scale_skeleton(db.actors[0], height=HEIGHT)
     names = [str(n) for n in db.names]
-    stance = frame_of(retarget(db.motion(names.index(STANCE_CLIP)), ch), 0)
+    stance = one_frame(retarget(db.motion(names.index(STANCE_CLIP)), ch), 0)
     xs, ys, z = grid(ch.size, quick)
-    played: dict[int, tuple] = {}
-
-    def clip_on_character(i: int):
-        if i not in played:
-            m = retarget(db.motion(i), ch, fix_feet=True)
-            played[i] = (m, hit_point_trajectory(m, str(db.hit_joints[i]), str(db.hit_wheres[i])))
-        return played[i]
-
-    rows = []
+    rows, reach = [], []
     for n in (SIZES_QUICK if quick else SIZES):
         for seed in range(1 if n >= db.n_clips else (SEEDS_QUICK if quick else SEEDS)):
             idx = subset(db, n, seed)
@@ -106,26 +124,24 @@ def _compute(quick: bool):
                 for x in xs:
                     for y in ys:
                         c = np.array([x, y, z])
-                        r = retriever.search(c, q, semantics=sem)
-                        i = int(idx[r.clip])
-                        m, hp = clip_on_character(i)
-                        X = target_in_motion(r, c, ch.size / r.size_a)
-                        a = adapt(m, effector(db, i), X, r.start_frame, r.hit_frame, hit_point=str(db.hit_wheres[i]))
-                        rows.append({
-                            "semantics": sem, "db_size": int(idx.size), "seed": seed,
-                            "x_m": float(x), "y_m": float(y), "z_m": float(z),
-                            "clip": names[i], "start_frame": r.start_frame, "hit_frame": r.hit_frame,
-                            "fallback": r.fallback,
-                            "before_m": float(np.linalg.norm(hp[r.hit_frame] - X)),
-                            "closest_m": float(np.linalg.norm(hp[r.start_frame:] - X, axis=1).min()),
-                            "after_m": a.residual, "reached": a.reached,
-                            "frames_ccd": int(np.sum(a.solver == "ccd")),
-                        })
+                        s = strike(retriever, ch, stance, c, sem, frame="root", query=q, fix_feet=True)
+                        rows.append({"semantics": sem, "db_size": int(idx.size), "seed": seed,
+                                     "x_m": float(x), "y_m": float(y), "z_m": float(z), **_row(s, ch)})
+                if n >= db.n_clips:  # whole-body reach: deeper targets, the full database
+                    for depth in (REACH_DEPTHS_QUICK if quick else REACH_DEPTHS):
+                        for y in ys:
+                            c = np.array([0.0, y, depth * ch.size])
+                            s = strike(retriever, ch, stance, c, sem, frame="root", query=q, fix_feet=True)
+                            reach.append({"semantics": sem, "depth_h": depth, "y_m": float(y),
+                                          "distance_m": float(np.linalg.norm(c - [0.0, ch.hip_height, 0.0])),
+                                          **_row(s, ch)})
     g = pd.DataFrame(rows)
     # the reachable area: targets the full database's clips reach after adaptation
     full = g[g.db_size == g.db_size.max()].set_index(["semantics", "x_m", "y_m"]).reached
     g["reachable_with_full_db"] = [bool(full.loc[k]) for k in zip(g.semantics, g.x_m, g.y_m)]
     g["reached_in_reachable"] = np.where(g.reachable_with_full_db, g.reached.astype(float), np.nan)
+    for lv in ("limb", "spine", "root"):
+        g[f"level_{lv}"] = (g.level == lv) & g.reached
     table = g.groupby(["semantics", "db_size", "seed"], sort=False).agg(
         n_targets=("x_m", "size"),
         before_mean_m=("before_m", "mean"), before_median_m=("before_m", "median"), before_max_m=("before_m", "max"),
@@ -134,8 +150,18 @@ def _compute(quick: bool):
         reached_fraction=("reached", "mean"),
         reached_fraction_of_full_db_area=("reached_in_reachable", "mean"),
         distinct_clips=("clip", "nunique"),
+        limb_fraction=("level_limb", "mean"), spine_fraction=("level_spine", "mean"),
+        root_fraction=("level_root", "mean"),
+        **{f"{k}_mean" if k != "joint_limit_violations" else "joint_limit_violations_per_strike": (k, "mean")
+           for k in COST_COLUMNS},
+        rotation_change_worst_deg=("rotation_change_max_deg", "max"),
     ).reset_index()
-    return table, g
+    rd = pd.DataFrame(reach)
+    reach_table = pd.DataFrame([
+        {"semantics": sem, "depth_h": d, **row}
+        for (sem, d), part in rd.groupby(["semantics", "depth_h"], sort=False)
+        for row in reach_by_distance(part.distance_m, part.reached, part.level, bins=1)])
+    return table, g, reach_table
 
 
 def draw(table: pd.DataFrame, g: pd.DataFrame):
@@ -193,5 +219,5 @@ def draw(table: pd.DataFrame, g: pd.DataFrame):
     data=(),  # the synthetic database only
 )
 def database_vs_adaptation(quick: bool = False) -> Result:
-    table, g = _compute(bool(quick))
-    return Result(table=table, draw=lambda: draw(table, g), extra_tables={"grid": g})
+    table, g, reach = _compute(bool(quick))
+    return Result(table=table, draw=lambda: draw(table, g), extra_tables={"grid": g, "reach": reach})

@@ -62,12 +62,11 @@ the clips); ``extra_tables["eq1"]`` one row per database x character x target cl
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pandas as pd
 
 from repro.experiments.registry import Result, experiment
+from repro.motion.feet import max_foot_slide
 from repro.motion.annotation import hit_point_trajectory
 
 #: Statures (m) of the characters of the sweep.
@@ -125,11 +124,6 @@ def databases() -> dict:
     return out
 
 
-def frame_of(motion, f: int):
-    """The one-frame motion holding frame ``f`` (a current pose)."""
-    return dataclasses.replace(motion, rotations=motion.rotations[f:f + 1], positions=motion.positions[f:f + 1])
-
-
 def first_root_frame(motion, skeleton) -> tuple[float, np.ndarray]:
     """Heading and origin of the root reference frame of a motion's first frame."""
     from repro.motion.clustering import root_frames
@@ -148,46 +142,6 @@ def character(base, height: float, proportions: str = "uniform"):
     if distal != 1.0:
         bones = {base.roles[f"{s}_{r}"]: distal for s in ("left", "right") for r in ("wrist", "ankle")}
     return scale_skeleton(base, height=height, arm_scale=arm, leg_scale=leg, bone_scales=bones)
-
-
-def target_in_motion(result, c: np.ndarray, k: float) -> np.ndarray:
-    """A target ``c`` (character root frame) in the world of the selected clip played on the character.
-
-    The clip retargeted to a character that is a uniform scaling (factor ``k`` =
-    ``size_c / size_a``) of its actor is the clip scaled by ``k``; the system plays it
-    aligned on the current pose, ``c_char = R_y(rot) P + k t`` (:meth:`RetrievalResult.place`
-    without the current pose's own frame), so ``P = R_y(-rot) (c - k t)``.
-    """
-    from repro.motion.clustering import rotate_y
-
-    return rotate_y(np.asarray(c, dtype=float) - k * np.asarray(result.translation), -result.rotation_y)
-
-
-def foot_slide(motion, contacts: np.ndarray, *, skeleton=None, globals_=None) -> float:
-    """Largest horizontal drift (m) of a planted ankle from its position at the start of its contact phase.
-
-    ``contacts`` (F, 2): planted frames of the left / right ankle (usually those of the
-    *source* motion, :func:`~repro.motion.feet.foot_contacts`).
-    """
-    from repro.motion.skeleton import Skeleton
-
-    sk = Skeleton.from_motion(motion) if skeleton is None else skeleton
-    g = motion.global_positions() if globals_ is None else globals_
-    ank = g[:, [sk.index("left_ankle"), sk.index("right_ankle")]][..., [0, 2]]
-    worst = 0.0
-    for s in range(2):
-        c = np.concatenate([[0], contacts[:, s].astype(int), [0]])
-        d = np.diff(c)
-        for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
-            worst = max(worst, float(np.linalg.norm(ank[a:b, s] - ank[a, s], axis=-1).max()))
-    return worst
-
-
-def effector(db, i: int) -> str:
-    """The :func:`~repro.motion.adaptation.adapt` effector role of clip ``i`` (see :func:`repro.motion.roles.effector_role`)."""
-    from repro.motion.roles import effector_role
-
-    return effector_role(db.actor_skeleton(i).roles, str(db.hit_roles[i]), str(db.hit_joints[i]))
 
 
 def bone_length_error(motion, skeleton, *, globals_=None) -> float:
@@ -214,7 +168,7 @@ def _measure(mo, ch, db, i: int, c: np.ndarray, contacts: np.ndarray) -> dict:
     toe = g[:, [ch.index("left_foot"), ch.index("right_foot")], 1]
     return {
         "hit_error_m": float(np.linalg.norm(hp - c)),
-        "foot_slide_m": foot_slide(mo, contacts, skeleton=ch, globals_=g),
+        "foot_slide_m": max_foot_slide(mo, contacts, skeleton=ch, global_positions=g),
         # as repro.motion.feet.foot_metrics: mean horizontal ankle speed over planted frame pairs
         "slide_speed_mps": float(step[both].sum() / max(both.sum(), 1) / mo.frame_time),
         "min_toe_height_m": float(toe.min()),
@@ -239,6 +193,7 @@ def _methods(motion, ch, i, db, c):
     from repro.motion.adaptation import adapt
     from repro.motion.clustering import from_root_frame
     from repro.motion.morphology import decode, encode, naive_retarget
+    from repro.motion.strike import clip_effector
 
     yield "naive", naive_retarget(motion, ch), {}
     yield "naive_scaled_root", naive_retarget(motion, ch, scale_root=True), {}
@@ -248,7 +203,7 @@ def _methods(motion, ch, i, db, c):
     yield "mi_feet", b, {}
     th, o = first_root_frame(b, ch)
     X = from_root_frame(c, th, o)
-    ad = adapt(b, effector(db, i), X, 0, int(db.hit_frame[i]), hit_point=str(db.hit_wheres[i]))
+    ad = adapt(b, clip_effector(db, i, ch), X, 0, int(db.hit_frame[i]), hit_point=str(db.hit_wheres[i]))
     yield "mi_feet_adapt", ad.motion, {"reached": ad.reached}
 
 
@@ -279,6 +234,7 @@ def _sweep_rows(name: str, db, quick: bool) -> list[dict]:
 def _eq1_rows(name: str, db, quick: bool) -> list[dict]:
     from repro.motion.morphology import retarget
     from repro.motion.retrieval import MotionRetriever
+    from repro.motion.strike import one_frame
 
     retriever = MotionRetriever(db, seed=0)
     rows = []
@@ -287,7 +243,7 @@ def _eq1_rows(name: str, db, quick: bool) -> list[dict]:
         for j in idx:
             actor = db.actor_skeleton(j)
             ch = character(actor, h)
-            stance = frame_of(retarget(db.motion(j), ch), 0)
+            stance = one_frame(retarget(db.motion(j), ch), 0)
             inside = 0.999 * db.hit_position[j] + 0.001 * (db.box_min[j] + db.box_max[j]) / 2
             c = inside * ch.size / db.size_a[j]
             q = retriever.prepare(stance, ch)
@@ -295,7 +251,7 @@ def _eq1_rows(name: str, db, quick: bool) -> list[dict]:
                 r = retriever.search(c, q, semantics=str(db.semantics[j]), scale_target=scale)
                 k = ch.size / r.size_a
                 placed = k * r.align(hit_point_trajectory(db.motion(r.clip), str(db.hit_joints[r.clip]),
-                                                str(db.hit_wheres[r.clip]))[r.hit_frame])
+                                                          str(db.hit_wheres[r.clip]))[r.hit_frame])
                 lt, lc = str(db.levels[j]), str(db.levels[r.clip])
                 rows.append({
                     "database": name, "height_m": h, "size_c_m": ch.size, "target_clip": str(db.names[j]),

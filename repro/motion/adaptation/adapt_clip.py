@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -9,7 +10,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from repro.errors import MotionError
-from repro.motion.adaptation.ccd_solver import DEFAULT_HINGE_RANGE_DEG, ccd_spec, ccd_sweeps
+from repro.motion.adaptation.ccd_solver import (
+    DEFAULT_HINGE_RANGE_DEG,
+    ccd_spec,
+    ccd_sweeps,
+)
 from repro.motion.adaptation.limb import limb_dmax, solve_limb
 from repro.motion.adaptation.offset import offset_curve
 from repro.motion.adaptation.rig import Chain, Rig, check_extension, check_int, default_tol, rig_of, vec3
@@ -27,8 +32,8 @@ class Adaptation:
     Attributes
     ----------
     motion : Motion
-        The adapted motion: same skeleton, channels and root trajectory; only local
-        rotations differ from the input.
+        The adapted motion: same skeleton and channels; only local rotations differ from
+        the input (and the root trajectory by ``root_offsets`` when given).
     effector, hit_joint : str
         Effector role and the joint name of its hit point.
     target : (3,) array
@@ -74,6 +79,10 @@ class Adaptation:
         frame counts ``frames_limb``, ``frames_ccd``, ``frames_feet``.
     tol : float
         The reach tolerance used.
+    root_offsets : (F, 3) array or None
+        The root translation added to the input (None: the root did not move).
+    contacts : (F, 2) bool array or None
+        The planted frames used.
     """
 
     motion: Motion
@@ -101,6 +110,8 @@ class Adaptation:
     changed: np.ndarray
     timings: dict
     tol: float
+    root_offsets: np.ndarray | None = None
+    contacts: np.ndarray | None = None
 
     @property
     def error_at_tc(self) -> float:
@@ -154,6 +165,9 @@ def adapt(
     foot_blend: float = 0.1,
     hit_point: str = "joint",
     roles=None,
+    contacts=None,
+    root_offsets=None,
+    floor: float | None = None,
 ) -> Adaptation:
     """Adapt a selected motion so that its hit point reaches ``target`` at the contact ``tc`` (Section 3.4.2).
 
@@ -166,7 +180,14 @@ def adapt(
     in the original motion, for every contact phase overlapping the edited frames, at its
     position at ``max(phase start, t0)`` (released over ``foot_blend`` seconds);
     ``"track"`` keeps the other ankles on their original trajectories; ``None`` leaves the
-    legs alone.  Frames ``<= t0`` never change (but ``tc`` when ``t0 == tc``).  Lengths in
+    legs alone; ``"plant"`` pins like ``"pin"`` every contact phase after ``t0`` (also those
+    after the edited frames).  ``contacts`` (F, 2) bool: the planted frames to use (detected
+    once on the retrieved clip and carried through; default: detected on ``motion``).
+    ``root_offsets`` (F, 3): a root translation added to the input before solving (the
+    whole-body level of :func:`repro.motion.strike.strike`); ``p(t)`` and the planted-foot
+    anchors stay those of the input, so the support foot does not move with the root.
+    ``floor``: on pinned frames the ankle goal is lifted so the foot's toe joint stays at
+    or above this height.  Frames ``<= t0`` never change (but ``tc`` when ``t0 == tc``).  Lengths in
     the motion's units; ``tol`` defaults to 1e-4 of the limb length.  The package
     docstring (:mod:`repro.motion.adaptation`) tells the whole method and its limits.
 
@@ -182,8 +203,13 @@ def adapt(
     tc = check_int("tc", tc, 0, F - 1)
     if t0 > tc:
         raise MotionError(f"t0={t0} is after the contact frame tc={tc}")
-    if feet not in ("pin", "track", None):
-        raise MotionError(f"feet must be 'pin', 'track' or None, got {feet!r}")
+    if feet not in ("pin", "plant", "track", None):
+        raise MotionError(f"feet must be 'pin', 'plant', 'track' or None, got {feet!r}")
+    contacts = rig.contacts if contacts is None else _check_contacts(contacts, F)
+    if floor is not None:
+        floor = float(floor)
+        if not np.isfinite(floor):
+            raise MotionError(f"floor must be a finite height or None, got {floor!r}")
     n_release = _release_frames(release, motion.frame_time)
     foot_blend = float(foot_blend)
     if not np.isfinite(foot_blend) or foot_blend < 0:
@@ -197,7 +223,20 @@ def adapt(
 
     gq, gp = rig.globals
     p = gp[:, ch.hit] + qrot(gq[:, ch.hit], ch.hit_offset)
-    t_start = _start_frame(rig.contacts, ch, t0, tc)
+    ref_gp = gp
+    shifted = np.zeros(F, dtype=bool)
+    if root_offsets is not None:  # solve on the shifted motion; goals and foot anchors from the input
+        off = _check_offsets(root_offsets, F)
+        shifted = np.any(off != 0.0, axis=1)
+        shifted[: t0 + 1] = False
+        off[~shifted] = 0.0
+        pos = np.array(motion.positions)
+        pos[:, 0] += off
+        motion = dataclasses.replace(motion, positions=pos)
+        rig = rig_of(motion, roles)
+        ch = rig.chain(effector, hit_point)
+        gq, gp = rig.globals
+    t_start = _start_frame(contacts, ch, t0, tc)
     d = offset_curve(t_start, tc, X - p[tc], F, kind=kind, release=n_release)
     goals = p + d
     edit = np.flatnonzero(np.any(d != 0.0, axis=1))
@@ -215,10 +254,12 @@ def adapt(
     anchors: list[tuple[int, int, int]] = []  # (side, first pinned frame, stop)
     foot_err, n_feet = 0.0, 0
     if feet is not None:
-        foot_err, n_feet = _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors)
+        foot_err, n_feet = _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors,
+                                       contacts=contacts, ref_gp=ref_gp, shifted=shifted, floor=floor,
+                                       t_start=t_start)
     timings["feet"] = time.perf_counter() - t1
 
-    changed = np.any(rot != np.asarray(motion.rotations), axis=(1, 2))
+    changed = np.any(rot != np.asarray(motion.rotations), axis=(1, 2)) | shifted
     out = _adapted_motion(motion, rot, changed)
     cf = np.flatnonzero(changed)
     gq2, gp2 = gq.copy(), gp.copy()  # forward kinematics only where the pose changed
@@ -230,7 +271,7 @@ def adapt(
     bone_err = float(
         np.max(np.abs(_bone_lengths(gp2[cf], motion.parents) - _bone_lengths(gp[cf], motion.parents)), initial=0.0)
     )
-    slide, slide_o = _foot_slides(rig, anchors, gp2, gp)
+    slide, slide_o = _foot_slides(rig, anchors, gp2, ref_gp)
     timings["total"] = time.perf_counter() - t_total
     timings.update(frames_limb=int(edit.size), frames_ccd=int(np.sum(solver == "ccd")), frames_feet=int(n_feet))
     return Adaptation(
@@ -259,6 +300,8 @@ def adapt(
         changed=changed,
         timings=timings,
         tol=tol,
+        root_offsets=None if root_offsets is None else np.where(shifted[:, None], off, 0.0),
+        contacts=contacts,
     )
 
 
@@ -316,19 +359,44 @@ def _solve_hit(rig, ch, motion, rot, edit, goals, spec, max_iter, tol, ext, solv
     rot[edit] = r
 
 
-def _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors) -> tuple[float, int]:
-    """Keep the other feet planted (``"pin"``) or on their trajectories (in place).
+def _check_contacts(contacts, F: int) -> np.ndarray:
+    try:
+        c = np.asarray(contacts)
+    except (TypeError, ValueError):
+        c = None
+    if c is None or c.shape != (F, 2) or c.dtype != bool:
+        raise MotionError(f"contacts must be an ({F}, 2) bool array of planted frames (left, right), "
+                          f"got {getattr(c, 'shape', type(contacts).__name__)} {getattr(c, 'dtype', '')}")
+    return c
 
+
+def _check_offsets(offsets, F: int) -> np.ndarray:
+    try:
+        o = np.array(offsets, dtype=float)
+    except (TypeError, ValueError):
+        o = None
+    if o is None or o.shape != (F, 3) or not np.all(np.isfinite(o)):
+        raise MotionError(f"root_offsets must be a finite ({F}, 3) array, got "
+                          f"{getattr(o, 'shape', type(offsets).__name__)}")
+    return o
+
+
+def _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors, *, contacts, ref_gp,
+                shifted, floor, t_start) -> tuple[float, int]:
+    """Keep the other feet planted (``"pin"``, ``"plant"``) or on their trajectories (in place).
+
+    Goals come from ``ref_gp`` (the input's joint positions, before a root shift).
     Returns the largest ankle error and the number of solved frames.
     """
-    gq, gp = rig.globals
-    contacts = rig.contacts
+    gq = rig.globals[0]
+    gp = ref_gp
     F = motion.n_frames
     foot_err = 0.0
     n_feet = 0
     n_blend = int(round(foot_blend / motion.frame_time))
     for side in ("left", "right"):
-        if ch.kind == "leg" and side == ch.side:
+        striking = ch.kind == "leg" and side == ch.side
+        if striking and feet != "plant":
             continue
         s = _SIDE_INDEX[side]
         leg = rig.chain(f"{side}_ankle")
@@ -338,10 +406,10 @@ def _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchor
         goal = orig.copy()
         w = np.zeros(F)
         need = np.zeros(F, dtype=bool)
-        if feet == "pin":
+        if feet in ("pin", "plant"):
             for a, b in _phases(contacts[:, s]):
-                if b <= t0 + 1 or a >= stop:
-                    continue
+                if b <= t0 + 1 or (a >= stop and feet == "pin") or (striking and b - 1 > t_start and a < stop):
+                    continue  # the striking foot: up to its lift-off and after the edit (it lands)
                 a = max(a, t0)
                 anchors.append((s, a, b))
                 goal[a:b] = orig[a]
@@ -350,14 +418,19 @@ def _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchor
                 delta = orig[a] - orig[b - 1]
                 for k in range(1, n_blend + 1):
                     f = b - 1 + k
-                    if f >= F or pinned[f, s]:
+                    if f >= F or pinned[f, s] or (striking and t_start < f < stop):
                         break
                     wk = 1.0 - k / (n_blend + 1.0)
                     goal[f] = orig[f] + wk * delta
                     w[f] = max(w[f], wk)
+            if floor is not None:
+                _lift_to_floor(rig, side, ank, gp, goal, w > 0, floor)
             need |= w > 0
-        moved = np.any(rot[:, anc] != np.asarray(motion.rotations)[:, anc], axis=(1, 2))
-        need |= moved
+        if striking:  # never over the strike itself
+            need[t_start + 1:stop] = False
+        else:
+            need |= shifted
+            need |= np.any(rot[:, anc] != np.asarray(motion.rotations)[:, anc], axis=(1, 2))
         need[: t0 + 1] = False
         fr = np.flatnonzero(need)
         if fr.size:
@@ -367,6 +440,20 @@ def _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchor
             rot[fr] = rf
             foot_err = max(foot_err, float(res.max(initial=0.0)))
     return foot_err, n_feet
+
+
+def _lift_to_floor(rig, side: str, ank: int, gp: np.ndarray, goal: np.ndarray, on: np.ndarray, floor: float) -> None:
+    """Raise the ankle goals on ``on`` frames so that the toe (same foot orientation) is not below ``floor``."""
+    try:
+        toe = rig.sk.index(f"{side}_foot")
+    except MotionError:
+        return
+    if toe == ank:
+        return
+    rel = gp[:, toe, 1] - gp[:, ank, 1]  # the foot keeps its world orientation
+    low = np.minimum(goal[:, 1] + rel, goal[:, 1]) - floor
+    lift = np.where(on, np.maximum(0.0, -low), 0.0)
+    goal[:, 1] += lift
 
 
 def _adapted_motion(motion: Motion, rot: np.ndarray, changed: np.ndarray) -> Motion:

@@ -36,6 +36,7 @@ __all__ = [
     "ccd_spec",
     "ccd_sweeps",
     "ccd",
+    "cone_limits",
 ]
 
 #: Default CCD joint limits: largest rotation (degrees) of a joint's local rotation away
@@ -393,3 +394,10 @@ def ccd(
         iterations=iters,
         chain=[rig.sk.joint_names[int(ch.path[k])] for k, _, _ in spec],
     )
+
+
+def cone_limits(motion: Motion, limits: Mapping[str, float] | None = None, *, roles=None) -> np.ndarray:
+    """(J,) the cone limit (radians) :func:`ccd` keeps each joint within, around its original local rotation."""
+    rig = rig_of(motion, roles)
+    lim = _check_limits(rig, limits)
+    return np.array([_limit_of(rig, j, lim) for j in range(len(rig.sk.joint_names))])

@@ -1,0 +1,477 @@
+"""One order carried out: the runtime sequence of Pronost et al., Sections 3.3-3.4 (Fig. 2, Fig. 6).
+
+:func:`strike` is the one pipeline of the reproduction; :class:`~repro.motion.fighter.KungFuFighter`
+and every Pronost figure call it.  For an order (a target ``X`` and a semantics) and the
+character's current motion it
+
+1. **prepares the query** (Section 3.3): ``q_r`` = the current pose retargeted to the
+   database's actor(s) and ``c`` = the target in the current pose's root frame
+   (:meth:`~repro.motion.retrieval.MotionRetriever.prepare`);
+2. **searches** the database (cluster nearest to ``q_r``, bounding boxes, Eq. 1,
+   ``d = d_qr + d_cr``: :meth:`~repro.motion.retrieval.MotionRetriever.search`);
+3. **loads and converts** the clip: cut from the selected start frame, retargeted to the
+   character (:func:`~repro.motion.morphology.retarget`, Section 3.4.1); the foot
+   contacts are detected *once*, here, on the retrieved clip (on its actor), and carried
+   through every later stage;
+4. **places** it (rotation about the vertical and translation fitting the start pose onto
+   the current pose, scaled from the actor to the character) and **blends and
+   synchronises** it with the current motion over :data:`BLEND_S` seconds (Fig. 6 lists
+   this first): frame 0 of the strike is the current pose;
+5. **solves the constraints** frame by frame (Section 3.4.2,
+   :func:`~repro.motion.adaptation.adapt`): ``d(t)`` from ``t0`` (= frame 0, now) to
+   ``tc`` (the hit), the limb, CCD when the limb cannot reach, feet kept on the ground.
+
+Whole-body reach (``reach``, :data:`LEVELS`): ``"limb"`` is the two-bone IK alone,
+``"spine"`` adds the paper's CCD (elbow, shoulder, clavicle and the spine for a punch;
+knee, hip and pelvis for a kick, within joint limits), ``"root"`` (default) adds a root
+shift when CCD cannot reach either: the root follows ``d(t)`` by the remaining miss
+(at most ``max_root_shift`` of the leg length, halved until the support leg, pinned on
+its planted foot, still reaches the ground), and the limb / CCD are solved again from
+there.  A step (moving the support foot) is not taken.  ``Strike.level`` says which level
+the contact frame needed; ``reached=False`` with the residual and ``level="root"`` (or the
+level allowed) when nothing reaches.
+
+Feet: the planted phases after ``t0`` are pinned (``feet="plant"``) with the toe kept at
+or above the floor (``y = 0``).
+
+Bad input: a target inside the body (horizontally within :data:`BODY_RADIUS` x size of
+the current pose's root, below the head) raises :class:`repro.errors.MotionError`; so does
+a character without the effector the retrieved clip strikes with.  Targets out of reach
+are a documented best effort (``reached=False``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from repro.errors import MotionError, RetrievalError
+from repro.motion.adaptation import Adaptation, adapt
+from repro.motion.adaptation.cost import adaptation_cost
+from repro.motion.adaptation.offset import offset_curve
+from repro.motion.clustering import from_root_frame, rotate_y, to_root_frame
+from repro.motion.database import MotionDatabase
+from repro.motion.ops import cut
+from repro.motion.roles import effector_role
+from repro.motion.feet import foot_contacts, max_foot_slide
+from repro.motion.quaternion import slerp
+from repro.motion.morphology import retarget
+from repro.motion.motion import Motion, finite_vector3
+from repro.motion.paper import REACTION_BUDGET_S
+from repro.motion.quaternion import quat_multiply
+from repro.motion.retrieval import MotionRetriever, RetrievalResult
+from repro.motion.skeleton import Skeleton, rescale_constraint, skeleton_of
+
+__all__ = [
+    "BLEND_S",
+    "BODY_RADIUS",
+    "LEVELS",
+    "MAX_ROOT_SHIFT",
+    "STAGES",
+    "Strike",
+    "blend_into",
+    "clip_effector",
+    "one_frame",
+    "reach_by_distance",
+    "strike",
+    "turn_and_move",
+]
+
+#: Seconds over which a selected clip is blended into the current pose.
+BLEND_S: float = 0.2
+#: Levels of whole-body reach, in order: two-bone limb IK, + CCD over the spine / pelvis, + a root shift.
+LEVELS: tuple[str, ...] = ("limb", "spine", "root")
+#: Largest root shift of the ``"root"`` level, per metre of the character's leg length.
+MAX_ROOT_SHIFT: float = 0.35
+#: Fractions of the miss left by CCD that the root shift tries, in order (the first the support leg follows wins).
+ROOT_SHIFT_TRIALS: tuple[float, ...] = (1.15, 0.5)
+#: CCD sweeps per frame after a root shift (the shift does most of the work).
+ROOT_MAX_ITER: int = 20
+#: A target horizontally closer than this fraction of the character's size to the current
+#: pose's root (and below the head) is inside the body.
+BODY_RADIUS: float = 0.08
+#: Measured stages of an order, in :attr:`Strike.timings` (seconds).
+STAGES: tuple[str, ...] = ("prepare", "search", "load_convert", "adapt", "first_frame")
+
+
+# ------------------------------------------------------------------ helpers (one home each)
+def one_frame(motion: Motion, f: int) -> Motion:
+    """The one-frame motion holding frame ``f`` of ``motion`` (a current pose)."""
+    F = motion.n_frames
+    if not -F <= int(f) < F:
+        raise MotionError(f"frame {f} outside the motion's {F} frames")
+    f = int(f) % F
+    return dataclasses.replace(motion, rotations=motion.rotations[f:f + 1], positions=motion.positions[f:f + 1])
+
+
+def _qy(theta: float) -> np.ndarray:
+    return np.array([0.0, math.sin(theta / 2.0), 0.0, math.cos(theta / 2.0)])
+
+
+def turn_and_move(motion: Motion, theta: float, translation) -> Motion:
+    """The motion rotated by ``theta`` about the vertical axis through the world origin, then translated."""
+    rot = np.array(motion.rotations)
+    rot[:, 0] = quat_multiply(np.broadcast_to(_qy(theta), rot[:, 0].shape), rot[:, 0])
+    pos = np.array(motion.positions)
+    pos[:, 0] = rotate_y(pos[:, 0], theta) + np.asarray(translation, dtype=float)
+    return dataclasses.replace(motion, rotations=rot, positions=pos)
+
+
+def _smooth(u):
+    u = np.clip(u, 0.0, 1.0)
+    return u * u * u * (u * (6.0 * u - 15.0) + 10.0)
+
+
+def blend_into(pose: Motion, placed: Motion, n_blend: int) -> Motion:
+    """Blend ``placed`` into the pose (frame 0 of the result = ``pose``'s last frame) over ``n_blend`` frames.
+
+    Joint rotations by slerp, the root position by an offset that decays to 0 (smootherstep).
+    """
+    F = placed.n_frames
+    nb = max(1, int(n_blend))
+    w = _smooth(np.arange(F) / nb)
+    r0 = np.broadcast_to(pose.rotations[-1], placed.rotations.shape)
+    rot = slerp(r0, placed.rotations, w[:, None, None])
+    pos = np.array(placed.positions)
+    pos[:, 0] += (1.0 - w)[:, None] * (pose.positions[-1, 0] - placed.positions[0, 0])[None, :]
+    return dataclasses.replace(placed, rotations=rot, positions=pos)
+
+
+def clip_effector(db: MotionDatabase, clip: int, character: Skeleton) -> str:
+    """The effector role (on ``character``) of the joint clip ``clip`` strikes with; MotionError if it has none."""
+    hit_role, hit_joint = str(db.hit_roles[clip]), str(db.hit_joints[clip])
+    role = effector_role(db.actor_skeleton(clip).roles, hit_role, hit_joint)
+    if role not in character.roles:
+        raise MotionError(f"the character has no {role!r} (clip {db.names[clip]!r} strikes with it); its roles: "
+                          f"{sorted(character.roles)}")
+    return role
+
+
+# ------------------------------------------------------------------ the result
+@dataclass(frozen=True, eq=False)
+class Strike:
+    """One order carried out: what was retrieved, the played motion, how well it hits, its cost, how long it took.
+
+    Attributes
+    ----------
+    kind : str
+        The order's semantics (``"punch"`` or ``"kick"``).
+    target : (3,) array
+        The target stored at the order (world, metres); never refreshed.
+    target_local : (3,) array
+        ``c``: the target in the root frame of the current pose (Section 3.3).
+    retrieval : RetrievalResult
+    effector : str
+        The hit point's role on the character.
+    motion : Motion
+        The played motion on the character, world frame; frame 0 is the current pose.
+    original : Motion
+        The same before the constraint solver (retargeted, placed and blended).
+    adaptation : Adaptation
+        The solver's report (of the level used).
+    tc : int
+        Contact frame of :attr:`motion`.
+    hit_error : float
+        Distance (m) between the hit point and the target at the contact.
+    reached : bool
+    unadapted_error : float
+        The same distance without the solver.
+    foot_slide : float
+        Largest horizontal slide (m) of a planted ankle over the contacts of the retrieved clip.
+    timings : dict
+        Seconds: ``prepare``, ``search``, ``load_convert`` (of which ``retarget``), ``adapt``
+        (placement, blend, solver at every level tried; of which ``solver``),
+        ``first_frame`` (order -> first adapted frame), ``adapt_per_frame``,
+        ``retarget_adapt_per_frame`` (the paper's 88 µs).
+    level : str
+        The reach level the contact frame needed (:data:`LEVELS`); for an unreachable
+        target the highest level tried.
+    levels_tried : tuple of str
+    contacts : (F, 2) bool
+        Planted frames (left, right), detected once on the retrieved clip.
+    closest_error : float
+        Closest approach (m) of the unadapted hit-point trajectory to the target.
+    cost : dict
+        :func:`repro.motion.adaptation.cost.adaptation_cost` of :attr:`motion` against :attr:`original`.
+    budget_s : float
+    """
+
+    kind: str
+    target: np.ndarray
+    target_local: np.ndarray
+    retrieval: RetrievalResult
+    effector: str
+    motion: Motion
+    original: Motion
+    adaptation: Adaptation
+    tc: int
+    hit_error: float
+    reached: bool
+    unadapted_error: float
+    foot_slide: float
+    timings: dict
+    level: str = "limb"
+    levels_tried: tuple = ()
+    contacts: np.ndarray | None = None
+    closest_error: float = float("nan")
+    cost: dict = field(default_factory=dict)
+    budget_s: float = REACTION_BUDGET_S
+
+    @property
+    def clip_name(self) -> str:
+        return self.retrieval.name
+
+    @property
+    def semantics(self) -> str:
+        return self.retrieval.semantics
+
+    @property
+    def n_frames(self) -> int:
+        return self.motion.n_frames
+
+    @property
+    def within_budget(self) -> bool:
+        """Whether order -> first adapted frame took less than 1/30 s."""
+        return self.timings["first_frame"] <= self.budget_s
+
+    def hit_positions(self) -> np.ndarray:
+        """(F, 3) world trajectory of the hit point in :attr:`motion`."""
+        return self.adaptation.hit_positions
+
+    def original_hit_positions(self) -> np.ndarray:
+        """(F, 3) world trajectory of the hit point in :attr:`original` (before the solver)."""
+        return self.adaptation.original_hit
+
+    def summary(self, timings: bool = True) -> dict:
+        """Flat numbers for tables; ``timings=False`` keeps only the deterministic ones."""
+        r = self.retrieval
+        out = {
+            "kind": self.kind, "clip": r.name, "start_frame": r.start_frame, "contact_frame": self.tc,
+            "d": r.d, "d_qr": r.d_qr, "d_cr": r.d_cr, "fallback": r.fallback, "effector": self.effector,
+            "unadapted_error_m": self.unadapted_error, "hit_error_m": self.hit_error, "reached": self.reached,
+            "foot_slide_m": self.foot_slide, "frames": self.n_frames, "level": self.level,
+        }
+        out.update({k: v for k, v in self.cost.items()})
+        if timings:
+            out.update({f"{k}_ms": v * 1e3 for k, v in self.timings.items()})
+            out["within_budget"] = self.within_budget
+        return out
+
+
+# ------------------------------------------------------------------ the pipeline
+def _retriever_of(source, seed: int) -> MotionRetriever:
+    if isinstance(source, MotionRetriever):
+        return source
+    if isinstance(source, MotionDatabase):
+        return MotionRetriever(source, seed=seed)
+    raise RetrievalError(f"strike needs a MotionDatabase or a MotionRetriever, got {type(source).__name__}")
+
+
+def _check_inside_body(X: np.ndarray, c: np.ndarray, ch: Skeleton) -> None:
+    """MotionError for a target inside the character's body (near the root axis, below the head)."""
+    r = float(np.hypot(c[0], c[2]))
+    if r < BODY_RADIUS * ch.size and X[1] < ch.size:
+        raise MotionError(
+            f"target {np.round(X, 3).tolist()} is inside the character's body: {r:.3f} m from its root axis "
+            f"(less than {BODY_RADIUS:g} x size = {BODY_RADIUS * ch.size:.3f} m) below its head; "
+            "a strike needs a target in front of the character")
+
+
+def _root_shift(ad: Adaptation, frac: float, limit: float, kind: str, release) -> np.ndarray:
+    """Root offsets (F, 3) following ``d(t)``'s timing by the miss left at the contact (capped)."""
+    tc = ad.tc
+    miss = ad.target - ad.hit_positions[tc]
+    n = float(np.linalg.norm(miss))
+    if n > limit:
+        miss = miss * (limit / n)
+    F = ad.offsets.shape[0]
+    return offset_curve(ad.t_start, tc, frac * miss, F, kind=kind, release=release)
+
+
+def strike(
+    source,
+    character,
+    current_motion: Motion,
+    target,
+    semantics: str,
+    *,
+    frame: str = "world",
+    query=None,
+    blend_s: float = BLEND_S,
+    fix_feet: bool = False,
+    reach: str = "root",
+    max_root_shift: float = MAX_ROOT_SHIFT,
+    feet: str | None = "plant",
+    floor: float | None = 0.0,
+    kind: str = "smoothstep",
+    release: float | None = 0.25,
+    seed: int = 0,
+    t_order: float | None = None,
+) -> Strike:
+    """Carry out an order: retrieve, convert, place and blend, solve (Sections 3.3-3.4; module docstring).
+
+    Parameters
+    ----------
+    source : MotionRetriever or MotionDatabase
+        A database is wrapped in a new retriever (k-means with ``seed``: a one-time cost;
+        pass a retriever to share it).
+    character : Skeleton or Motion
+        The character (joint tree of the database's actor).
+    current_motion : Motion
+        The character's current motion, world frame, metres; its last frame is the
+        current pose (pass the database's pose window so that ``q_r`` has it).
+    target : (3,) array
+        ``X``, metres: world (``frame="world"``) or the current pose's root frame
+        (``frame="root"``, i.e. ``c``).
+    semantics : str
+        ``"punch"`` or ``"kick"``.
+    query : Query, optional
+        :meth:`MotionRetriever.prepare` of ``current_motion`` already made.
+    blend_s : float
+        Seconds of the blend with the current pose (at most up to the contact).
+    fix_feet : bool
+        ``retarget(..., fix_feet=...)``: the decoder's own foot pass (Section 3.4.1).
+    reach : {"limb", "spine", "root"}
+        Highest level of whole-body reach allowed.
+    max_root_shift : float
+        Cap of the root shift, per metre of leg length.
+    feet, floor, kind, release
+        :func:`repro.motion.adaptation.adapt` options.
+    t_order : float, optional
+        ``time.perf_counter()`` at the order (default: now).
+
+    Raises
+    ------
+    repro.errors.RetrievalError
+        Bad source, semantics, target or pose (from the retrieval).
+    repro.errors.MotionError
+        A target inside the body; a character without the clip's effector; bad options.
+    """
+    t_order = time.perf_counter() if t_order is None else t_order
+    if reach not in LEVELS:
+        raise MotionError(f"reach must be one of {list(LEVELS)}, got {reach!r}")
+    if frame not in ("world", "root"):
+        raise MotionError(f"frame must be 'world' or 'root', got {frame!r}")
+    blend_s = float(blend_s)
+    if not (np.isfinite(blend_s) and blend_s >= 0):
+        raise MotionError(f"blend_s must be a finite number of seconds >= 0, got {blend_s!r}")
+    retriever = _retriever_of(source, seed)
+    db = retriever.db
+    ch = skeleton_of(character)
+    # ---- 1. the query: q_r, c in the root frame, Eq. 1 validated
+    v = finite_vector3(target, "target (x, y, z) in metres", RetrievalError)
+    q = retriever.prepare(current_motion, ch) if query is None else query
+    if frame == "world":
+        X, c = v, to_root_frame(v, q.heading, q.origin)
+    else:
+        c, X = v, from_root_frame(v, q.heading, q.origin)
+    rescale_constraint(c, 1.0, q.size_c)
+    _check_inside_body(X, c, ch)
+    t_search = time.perf_counter()
+    # ---- 2. search
+    res = retriever.search(c, q, semantics=semantics)
+    t_load = time.perf_counter()
+    # ---- 3. load + convert; the contacts, once, on the retrieved clip
+    effector = clip_effector(db, res.clip, ch)
+    m = cut(db.motion(res.clip), res.start_frame, int(db.n_frames[res.clip]))
+    contacts = foot_contacts(m)
+    t_rt = time.perf_counter()
+    mc = retarget(m, ch, fix_feet=fix_feet)
+    t_adapt = time.perf_counter()
+    # ---- 4. place on the current pose, blend with the current motion
+    k = res.size_c / res.size_a
+    placed = turn_and_move(mc, res.heading + res.rotation_y, rotate_y(k * res.translation, res.heading) + res.origin)
+    tc = res.lead_frames
+    nb = min(int(round(blend_s * db.fps)), tc, placed.n_frames - 1)
+    blended = blend_into(current_motion, placed, nb) if nb >= 1 else placed
+    # ---- 5. the constraints, level by level
+    t_solver = time.perf_counter()
+    hit_point = str(db.hit_wheres[res.clip])
+    opts = dict(hit_point=hit_point, contacts=contacts, feet=feet, floor=floor, kind=kind, release=release)
+    ad = adapt(blended, effector, X, 0, tc, max_iter=0 if reach == "limb" else 50, **opts)
+    tried = ["limb"] if reach == "limb" else ["limb", "spine"]
+    if not ad.reached and reach == "root":
+        leg = ch.leg_length
+        n_rel = None if release is None else int(round(float(release) / blended.frame_time))
+        foot_tol = 1e-3 * leg
+        tried.append("root")
+        for frac in ROOT_SHIFT_TRIALS:  # the support leg must still reach its pinned foot
+            off = _root_shift(ad, frac, max_root_shift * leg, kind, n_rel)
+            ad2 = adapt(blended, effector, X, 0, tc, root_offsets=off, max_iter=ROOT_MAX_ITER, **opts)
+            if ad2.foot_error <= max(foot_tol, ad.foot_error) and ad2.residual < ad.residual:
+                ad = ad2
+                break
+    t_end = time.perf_counter()
+    if not ad.reached or reach == "limb":
+        level = tried[-1]
+    elif ad.root_offsets is not None and np.any(ad.root_offsets[tc] != 0):
+        level = "root"
+    else:
+        level = "spine" if ad.solver[tc] == "ccd" else "limb"
+    F = ad.motion.n_frames
+    timings = {
+        "prepare": t_search - t_order,
+        "search": t_load - t_search,
+        "load_convert": t_adapt - t_load,
+        "retarget": t_adapt - t_rt,
+        "adapt": t_end - t_adapt,
+        "solver": t_end - t_solver,
+        "first_frame": t_end - t_order,
+    }
+    timings["adapt_per_frame"] = timings["adapt"] / F
+    timings["retarget_adapt_per_frame"] = (timings["retarget"] + timings["adapt"]) / F
+    p0 = ad.original_hit
+    return Strike(
+        kind=semantics, target=X, target_local=c, retrieval=res, effector=effector, motion=ad.motion,
+        original=blended, adaptation=ad, tc=tc, hit_error=float(ad.residual), reached=bool(ad.reached),
+        unadapted_error=float(np.linalg.norm(p0[tc] - X)),
+        foot_slide=max_foot_slide(ad.motion, contacts, skeleton=ch),
+        timings=timings, level=level, levels_tried=tuple(tried), contacts=contacts,
+        closest_error=float(np.linalg.norm(p0 - X, axis=1).min()),
+        cost=adaptation_cost(blended, ad.motion, ch, frames=slice(1, None)),
+    )
+
+
+def reach_by_distance(distances, reached, levels, bins=5) -> list[dict]:
+    """Whole-body reach per target distance: reached fraction and the level each target needed.
+
+    ``distances`` (n,) metres, ``reached`` (n,) bool, ``levels`` (n,) str of :data:`LEVELS`
+    (:attr:`Strike.level`, one per strike); ``bins`` an int (equal-count bins) or the bin
+    edges.  One dict per non-empty bin: ``distance_min_m``, ``distance_max_m``, ``n``,
+    ``reached_fraction``, and ``limb_fraction`` / ``spine_fraction`` / ``root_fraction``:
+    the fraction of the bin's targets reached at that level (they add up to
+    ``reached_fraction``), ``unreached_fraction``.
+    """
+    d = np.asarray(distances, dtype=float).reshape(-1)
+    ok = np.asarray(reached, dtype=bool).reshape(-1)
+    lv = np.asarray(levels).astype(str).reshape(-1)
+    if not (d.shape == ok.shape == lv.shape) or not np.all(np.isfinite(d)):
+        raise MotionError("distances, reached and levels must be equal-length 1-D arrays of finite distances")
+    bad = set(lv.tolist()) - set(LEVELS)
+    if bad:
+        raise MotionError(f"unknown levels {sorted(bad)}; expected {list(LEVELS)}")
+    if d.size == 0:
+        return []
+    if isinstance(bins, (int, np.integer)):
+        if bins < 1:
+            raise MotionError(f"bins must be >= 1, got {bins}")
+        edges = np.quantile(d, np.linspace(0.0, 1.0, int(bins) + 1))
+    else:
+        edges = np.asarray(bins, dtype=float)
+    which = np.clip(np.searchsorted(edges, d, side="right") - 1, 0, edges.size - 2)
+    out = []
+    for b in range(edges.size - 1):
+        sel = which == b
+        if not sel.any():
+            continue
+        row = {"distance_min_m": float(d[sel].min()), "distance_max_m": float(d[sel].max()), "n": int(sel.sum()),
+               "reached_fraction": float(ok[sel].mean())}
+        for name in LEVELS:
+            row[f"{name}_fraction"] = float(np.mean(ok[sel] & (lv[sel] == name)))
+        row["unreached_fraction"] = float(np.mean(~ok[sel]))
+        out.append(row)
+    return out

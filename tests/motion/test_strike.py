@@ -1,0 +1,182 @@
+"""The one strike pipeline (repro.motion.strike): levels of reach, feet, cost, bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from repro.errors import MotionError, RetrievalError
+from repro.motion.adaptation import adapt
+from repro.motion.adaptation.cost import COST_KEYS, adaptation_cost
+from repro.motion.feet import foot_contacts, max_foot_slide, min_toe_height
+from repro.motion.strike import (
+    LEVELS,
+    Strike,
+    clip_effector,
+    one_frame,
+    reach_by_distance,
+    strike,
+)
+
+STANCE_CLIP = "actor2_punch_left_high"
+
+
+@pytest.fixture(scope="module")
+def setup():
+    from repro.motion.sources import default_database
+    from repro.motion.morphology import retarget
+    from repro.motion.retrieval import MotionRetriever
+    from repro.motion.skeleton import scale_skeleton
+
+    db = default_database("synthetic")
+    ch = scale_skeleton(db.actors[0], height=1.8)
+    names = [str(n) for n in db.names]
+    stance = one_frame(retarget(db.motion(names.index(STANCE_CLIP)), ch), 0)
+    retriever = MotionRetriever(db, seed=0)
+    return db, ch, stance, retriever, retriever.prepare(stance, ch)
+
+
+def run(setup, c, sem, **kw):
+    db, ch, stance, retriever, q = setup
+    kw.setdefault("frame", "root")
+    return strike(retriever, ch, stance, c, sem, query=q, **kw)
+
+
+def test_strike_starts_at_the_current_pose_and_reaches_a_near_target(setup):
+    _, ch, stance, _, _ = setup
+    s = run(setup, [0.0, 1.2, 1.0], "punch")
+    assert isinstance(s, Strike) and s.kind == "punch"
+    np.testing.assert_allclose(s.motion.global_positions()[0], stance.global_positions()[0], atol=1e-9)
+    assert s.reached and s.hit_error < 1e-3 and s.level in ("limb", "spine")
+    assert s.unadapted_error > s.hit_error and s.closest_error <= s.unadapted_error + 1e-12
+    assert set(COST_KEYS) <= set(s.cost) and s.cost["bone_length_error_m"] < 1e-9
+    assert {"prepare", "search", "load_convert", "adapt", "first_frame"} <= set(s.timings)
+    # the world frame and the root frame give the same strike
+    w = strike(setup[3], ch, stance, s.target, "punch", query=setup[4])
+    assert w.retrieval.clip == s.retrieval.clip
+    np.testing.assert_allclose(w.motion.rotations, s.motion.rotations, atol=1e-12)
+
+
+@pytest.mark.parametrize("sem", ["punch", "kick"])
+def test_root_level_reaches_what_the_spine_cannot(setup, sem):
+    """K6: beyond CCD's reach the root shifts (support foot pinned) and the target is reached."""
+    c = [0.0, 0.9, 1.2]
+    spine = run(setup, c, sem, reach="spine")
+    assert not spine.reached and spine.level == "spine" and spine.hit_error > 0.05
+    assert spine.levels_tried == ("limb", "spine") and spine.cost["root_shift_max_m"] == 0.0
+    root = run(setup, c, sem)
+    assert root.reached and root.level == "root" and root.levels_tried == LEVELS
+    leg = setup[1].leg_length
+    assert 0.0 < root.cost["root_shift_max_m"] <= 0.35 * leg + 1e-9
+    assert root.foot_slide < 0.01  # the support foot stays put while the root moves
+    assert root.adaptation.foot_error < 0.005  # the pinned ankle within 5 mm of its anchor
+
+
+def test_unreachable_target_is_a_documented_best_effort(setup):
+    s = run(setup, [0.0, 1.4, 3.0], "punch")
+    assert not s.reached and s.level == "root" and s.levels_tried == LEVELS
+    assert s.hit_error == pytest.approx(s.adaptation.residual) and s.hit_error > 1.0
+    limb = run(setup, [0.0, 1.4, 3.0], "punch", reach="limb")
+    assert not limb.reached and limb.level == "limb" and limb.levels_tried == ("limb",)
+    assert (limb.adaptation.ccd_iterations == 0).all()
+
+
+def test_target_inside_the_body_is_refused(setup):
+    with pytest.raises(MotionError, match="inside the character's body"):
+        run(setup, [0.02, 1.0, 0.03], "punch")
+
+
+def test_bad_options_and_sources(setup):
+    db, ch, stance, retriever, q = setup
+    with pytest.raises(MotionError, match="reach"):
+        run(setup, [0.0, 1.2, 1.0], "punch", reach="everything")
+    with pytest.raises(MotionError, match="frame"):
+        run(setup, [0.0, 1.2, 1.0], "punch", frame="clip")
+    with pytest.raises(RetrievalError, match="MotionDatabase or a MotionRetriever"):
+        strike("synthetic", ch, stance, [0.0, 1.2, 1.0], "punch")
+    with pytest.raises(RetrievalError):
+        run(setup, [0.0, np.nan, 1.0], "punch")
+    with pytest.raises(RetrievalError, match="semantics"):
+        run(setup, [0.0, 1.2, 1.0], "headbutt")
+
+
+def test_a_character_without_the_clips_limb_is_refused(setup):
+    db, ch, *_ = setup
+    i = int(np.flatnonzero(db.semantics == "kick")[0])
+
+    class NoLegs:
+        roles = {k: v for k, v in ch.roles.items() if not k.endswith(("_foot", "_toe", "_ankle"))}
+
+    assert clip_effector(db, i, ch) in ch.roles
+    with pytest.raises(MotionError, match="has no"):
+        clip_effector(db, i, NoLegs())
+
+
+def test_contacts_are_detected_once_on_the_retrieved_clip_and_carried_through(setup):
+    from repro.motion.ops import cut
+
+    db = setup[0]
+    s = run(setup, [0.0, 1.2, 1.0], "kick")
+    r = s.retrieval
+    expected = foot_contacts(cut(db.motion(r.clip), r.start_frame, int(db.n_frames[r.clip])))
+    np.testing.assert_array_equal(s.contacts, expected)
+    assert s.adaptation.contacts is s.contacts
+    # adapt uses the contacts it is given, not its own detection
+    none = np.zeros_like(s.contacts)
+    a = adapt(s.original, s.effector, s.target, 0, s.tc, contacts=none, hit_point=str(db.hit_wheres[r.clip]))
+    assert not a.foot_pinned.any()
+    with pytest.raises(MotionError, match="contacts"):
+        adapt(s.original, s.effector, s.target, 0, s.tc, contacts=none[:-1])
+
+
+def test_feet_stay_on_the_floor_and_do_not_slide_on_the_synthetic_database(setup):
+    """K5 on every synthetic clip: toe >= -5 mm on contacts, planted ankle slide < 1 cm (adapt, feet="plant")."""
+    from repro.motion.morphology import retarget
+    from repro.motion.skeleton import scale_skeleton
+    from repro.motion.annotation import hit_point_trajectory
+
+    db = setup[0]
+    worst_toe, worst_slide, old_toe = np.inf, 0.0, np.inf
+    for i in range(db.n_clips):
+        m = db.motion(i)
+        ch = scale_skeleton(db.actor_skeleton(i), height=1.8)
+        c = foot_contacts(m)
+        mc = retarget(m, ch, fix_feet=True)
+        tc = int(db.hit_frame[i])
+        X = hit_point_trajectory(mc, str(db.hit_joints[i]), str(db.hit_wheres[i]))[tc] + [0.0, 0.0, 0.05]
+        eff = clip_effector(db, i, ch)
+        a = adapt(mc, eff, X, 0, tc, hit_point=str(db.hit_wheres[i]), contacts=c, feet="plant", floor=0.0)
+        worst_toe = min(worst_toe, min_toe_height(a.motion, c, skeleton=ch))
+        worst_slide = max(worst_slide, max_foot_slide(a.motion, c, skeleton=ch))
+        if i < 12:
+            old = adapt(mc, eff, X, 0, tc, hit_point=str(db.hit_wheres[i]), contacts=c, feet="pin")
+            old_toe = min(old_toe, min_toe_height(old.motion, c, skeleton=ch))
+    assert worst_toe >= -0.005 and worst_slide < 0.01
+    assert old_toe < -0.005  # without the floor constraint the toes dip through the floor
+
+
+def test_adaptation_cost_is_zero_for_no_change_and_grows_with_the_edit(setup):
+    db, ch, *_ = setup
+    near = run(setup, [0.0, 1.2, 1.0], "punch")
+    zero = adaptation_cost(near.original, near.original, ch)
+    assert zero["rotation_change_max_deg"] == 0.0 and zero["added_acceleration_max_mps2"] == 0.0
+    assert zero["root_shift_max_m"] == 0.0 and zero["bone_length_error_m"] < 1e-9
+    assert near.cost["rotation_change_max_deg"] > 0.0
+    far = run(setup, [0.0, 0.9, 1.2], "punch")
+    assert far.cost["root_shift_max_m"] > near.cost["root_shift_max_m"]
+    with pytest.raises(MotionError):
+        adaptation_cost(near.original, one_frame(near.original, 0), ch)
+
+
+def test_reach_by_distance_adds_up():
+    d = [0.9, 1.0, 1.1, 1.3, 1.5, 1.6]
+    ok = [True, True, True, True, False, False]
+    lv = ["limb", "spine", "root", "root", "root", "root"]
+    rows = reach_by_distance(d, ok, lv, bins=2)
+    assert sum(r["n"] for r in rows) == 6
+    for r in rows:
+        assert r["limb_fraction"] + r["spine_fraction"] + r["root_fraction"] == pytest.approx(r["reached_fraction"])
+        assert r["reached_fraction"] + r["unreached_fraction"] == pytest.approx(1.0)
+    assert rows[0]["reached_fraction"] == 1.0 and rows[-1]["reached_fraction"] < 1.0
+    with pytest.raises(MotionError):
+        reach_by_distance(d, ok, ["walk"] * 6)
