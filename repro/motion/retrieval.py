@@ -86,8 +86,8 @@ from scipy.spatial import cKDTree
 from repro.errors import MotionError, RetrievalError
 from repro.motion.clustering import (
     AlignedPoseIndex,
-    aligned_distance,
     PoseClusters,
+    aligned_distance,
     check_int,
     cluster_poses,
     pose_points,
@@ -111,6 +111,7 @@ __all__ = [
     "search",
     "make_queries",
     "time_search",
+    "scoring_frame_miss",
 ]
 
 #: Values of :attr:`RetrievalResult.fallback`.
@@ -1021,7 +1022,7 @@ class MotionRetriever:
 
     def _finish(self, q: Query, parts: list, c_r: np.ndarray, *, method: str, n: int, cluster: int = -1):
         if not parts:
-            raise RetrievalError(f"no clip of an actor compatible with the character for this semantics")
+            raise RetrievalError("no clip of an actor compatible with the character for this semantics")
         rows = np.concatenate([p[0] for p in parts])
         d = np.concatenate([p[1] for p in parts])
         dqr = np.concatenate([p[2] for p in parts])
