@@ -428,9 +428,17 @@ class MotionRetriever:
         if unit != 1.0:
             m = m.to_metres(unit)
         q_n = {}
+        gc = m.global_positions()
         for a in self.actors_present.tolist():
             actor = db.actors[a]
-            if not actor.is_compatible(ch):
+            if self._compatible(ch, a) is None:
+                continue
+            k = self._scaling_of(m, a)
+            if k is not None:  # a uniform scaling of the actor: q_r is the pose scaled, no retargeting needed
+                idx = [actor.index(r) for r in db.pose_roles]
+                pts = pose_points(gc, idx, actor.index("pelvis"), actor.index("left_hip"), actor.index("right_hip"),
+                                  window=db.window, step=db.step)[-1]
+                q_n[a] = pts / (k * actor.size)
                 continue
             try:
                 qr = retarget(m, actor)
@@ -445,9 +453,35 @@ class MotionRetriever:
             raise RetrievalError(
                 "the character shares no joint tree with the database's actors; make it from an actor "
                 "with repro.motion.scale_skeleton (joints: " + ", ".join(ch.joint_names[:5]) + ", ...)")
-        gc = m.global_positions()
         th, o = root_frames(gc[-1:], ch.index("pelvis"), ch.index("left_hip"), ch.index("right_hip"))
         return Query(q_n=q_n, size_c=float(size_c), heading=float(th[0]), origin=o[0], actors=tuple(q_n))
+
+    def _compatible(self, ch: Skeleton, a: int) -> bool | None:
+        """True if the character shares actor ``a``'s joint tree, else None; cached per (character, actor)."""
+        key = (id(ch), a)
+        hit = self._prep_cache.get(key)
+        if hit is not None and hit[0] is ch:
+            return hit[1]
+        out = True if self.db.actors[a].is_compatible(ch) else None
+        if len(self._prep_cache) > 64:
+            self._prep_cache.clear()
+        self._prep_cache[key] = (ch, out)
+        return out
+
+    def _scaling_of(self, m: Motion, a: int) -> float | None:
+        """The factor ``k`` if the pose's skeleton (metres) is actor ``a``'s scaled by ``k``, else None.
+
+        Then retargeting the pose to the actor (same rotations, bones scaled) scales its
+        pose cloud, and ``q_r`` in units of the actor's size is the pose's own cloud in
+        units of its size: no retargeting is needed (``prepare``'s fast path).
+        """
+        oa = self.db.actors[a].offsets
+        om = np.asarray(m.offsets, dtype=float)
+        if om.shape != np.shape(oa):
+            return None
+        k = float(np.linalg.norm(om) / max(float(np.linalg.norm(oa)), 1e-300))
+        ok = k > 0 and np.allclose(om, k * oa, rtol=1e-9, atol=1e-12 * max(1.0, float(np.abs(om).max())))
+        return k if ok else None
 
     def _semantics(self, semantics) -> str:
         if not isinstance(semantics, str) or semantics not in SEMANTICS:
@@ -1348,7 +1382,7 @@ def make_queries(db: MotionDatabase, n: int, seed: int = 0, *, noise: float = 0.
 
 
 def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retriever: MotionRetriever | None = None,
-                methods: Sequence[str] = ("pruned", "exhaustive", "kdtree"), repeats: int = 3, noise: float = 0.05,
+                methods: Sequence[str] = ("pruned", "exact", "exhaustive", "kdtree"), repeats: int = 3, noise: float = 0.05,
                 **retriever_kw) -> dict:
     """Latency of the three searches on random queries (no assertion; for the figures).
 
@@ -1368,7 +1402,8 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
         "mean_ms"}}`` under ``"latency"``, and ``"agreement"``: for ``pruned`` and
         ``kdtree``, the fraction of queries whose selection (clip, start frame) differs
         from the exhaustive optimum and the mean / max relative excess of ``d``; plus the
-        fallback counts of the pruned search.
+        fallback counts of the pruned search.  ``"exact"`` (the branch and bound,
+        :meth:`MotionRetriever.search_exact`) should differ in 0 queries (``n_differs``).
 
     Raises
     ------
@@ -1401,7 +1436,7 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
         qq = r.prepare(pose, ch)
         prep_t.append(time.perf_counter() - t)
         prepared.append((c, qq, sem))
-    fns = {"pruned": r.search, "exhaustive": r.search_exhaustive, "kdtree": r.search_kdtree}
+    fns = {"pruned": r.search, "exact": r.search_exact, "exhaustive": r.search_exhaustive, "kdtree": r.search_kdtree}
     lat, results = {}, {}
     for mth in methods:
         fn = fns[mth]
@@ -1428,7 +1463,8 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
                 continue
             diff = [(a.clip, a.start_frame) != (b.clip, b.start_frame) for a, b in zip(results[mth], ex)]
             excess = np.array([(a.d - b.d) / max(b.d, 1e-12) for a, b in zip(results[mth], ex)])
-            agreement[mth] = {"differs": float(np.mean(diff)), "mean_excess": float(excess.mean()),
+            agreement[mth] = {"differs": float(np.mean(diff)), "n_differs": int(np.sum(diff)),
+                              "mean_excess": float(excess.mean()),
                               "max_excess": float(excess.max()), "same_clip": float(np.mean(
                                   [a.clip == b.clip for a, b in zip(results[mth], ex)]))}
     fb = {}

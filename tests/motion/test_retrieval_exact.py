@@ -198,3 +198,21 @@ def test_cmu_triangle_inequality_and_exact_search():
             a = r.search(c, q, semantics=sem, method="exact", scoring=scoring)
             b = r.search_exhaustive(c, q, semantics=sem, scoring=scoring)
             assert a.pose == b.pose and a.d == pytest.approx(b.d, rel=1e-12, abs=1e-15)
+
+
+def test_prepare_fast_path_equals_retargeting(db, retriever):
+    """A character that is a uniform scaling of the actor: q_r without retargeting is the retargeted one."""
+    from repro.motion.clustering import pose_points
+    from repro.motion.morphology import retarget
+    from repro.motion.skeleton import scale_skeleton
+
+    a = db.actors[0]
+    ch = scale_skeleton(a, height=1.3)
+    for c, pose, _, sem in make_queries(db, 10, seed=11):
+        p = retarget(pose, ch)
+        q = retriever.prepare(p, ch)
+        g = retarget(p, a).global_positions()
+        ref = pose_points(g, [a.index(x) for x in db.pose_roles], a.index("pelvis"), a.index("left_hip"),
+                          a.index("right_hip"))[-1] / a.size
+        np.testing.assert_allclose(q.q_n[0], ref, atol=1e-12)
+        assert q.size_c == pytest.approx(ch.size)
