@@ -175,13 +175,13 @@ def _main(args) -> int:
 
             return _run(list(registry()), args.out, args.quick, args.force)
         if args.command == "bench":
-            from repro import bench
+            from repro.bench import adaptation, attenuation, retrieval
             from repro.io import write_csv
 
             run_, fmt, csv_name = {
-                "attenuation": (bench.bench_attenuation, bench.format_attenuation, "bench_attenuation.csv"),
-                "retrieval": (bench.bench_retrieval, bench.format_retrieval, "retrieval_latency.csv"),
-                "adaptation": (bench.bench_adaptation, bench.format_adaptation, "bench_adaptation.csv"),
+                "attenuation": (attenuation.bench_attenuation, attenuation.format_attenuation, "bench_attenuation.csv"),
+                "retrieval": (retrieval.bench_retrieval, retrieval.format_retrieval, "retrieval_latency.csv"),
+                "adaptation": (adaptation.bench_adaptation, adaptation.format_adaptation, "bench_adaptation.csv"),
             }[args.which]
             table = run_(quick=args.quick, progress=True)
             print(fmt(table))

@@ -15,6 +15,7 @@ import time
 import pytest
 
 from repro import bench
+from repro.bench import attenuation as bench_attenuation_module
 
 
 @pytest.fixture
@@ -22,14 +23,14 @@ def slow_small_bench(monkeypatch):
     """bench_attenuation on the small procedural face only, each timing step made 0.6 s slower."""
     from repro.blendshapes import load_model
 
-    monkeypatch.setattr(bench, "_models", lambda quick: iter([load_model("procedural")]))
-    fast = bench._median_time
+    monkeypatch.setattr(bench_attenuation_module, "_models", lambda quick: iter([load_model("procedural")]))
+    fast = bench.median_time
 
     def slow(fn, args_list):
         time.sleep(0.6)
         return fast(fn, args_list[:2])
 
-    monkeypatch.setattr(bench, "_median_time", slow)
+    monkeypatch.setattr(bench_attenuation_module, "median_time", slow)
 
 
 def test_bench_attenuation_prints_nothing_by_default_however_slow(slow_small_bench, capfd):
@@ -87,7 +88,7 @@ def test_claims_evaluate_passes_progress_through(monkeypatch):
         return real(e, quick=quick, progress=progress)
 
     monkeypatch.setattr(registry_mod, "call_experiment", spy)
-    monkeypatch.setattr(bench, "_models", lambda quick: iter([load_model("procedural")]))
+    monkeypatch.setattr(bench_attenuation_module, "_models", lambda quick: iter([load_model("procedural")]))
     claims.evaluate(quick=True, claims=attenuation_claims[:1])
     assert calls == [("attenuation_speed", False)]
 

@@ -15,7 +15,7 @@ from repro.experiments.registry import Result, experiment
     paper="lewis2005",
 )
 def attenuation_speed(quick: bool = False, progress: bool = False) -> Result:
-    from repro.bench import bench_attenuation, bench_attenuation_scaling
+    from repro.bench.attenuation import bench_attenuation, bench_attenuation_scaling
 
     table = bench_attenuation(quick=quick, progress=progress)
     scaling = bench_attenuation_scaling(quick=quick, progress=progress)

@@ -57,7 +57,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from repro.bench import bench_retrieval, retrieval_summary
+from repro.bench.retrieval import bench_retrieval, retrieval_summary
 from repro.experiments.registry import Result, experiment
 from repro.motion.paper import PAPER_SEARCH_S, REACTION_BUDGET_S
 
