@@ -24,11 +24,10 @@ import numpy as np
 import pytest
 
 from repro.errors import RetrievalError
-from repro.motion.clustering import aligned_distance, rotate_y, root_frames
+from repro.motion import synthetic
+from repro.motion.clustering import aligned_distance, root_frames, rotate_y
 from repro.motion.database import MotionDatabase, augment, build_database
 from repro.motion.retrieval import MotionRetriever, make_queries
-
-from repro.motion import synthetic  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -164,8 +163,8 @@ def test_start_scoring_lowers_the_played_miss(db, retriever, prepared):
     assert np.mean(start) < np.mean(first)
 
 
-@pytest.mark.parametrize("kw", [dict(method="fast"), dict(method=1), dict(scoring="last"), dict(scoring=None),
-                                dict(method="pruned", scoring="start"), dict(method="kdtree", scoring="start")])
+@pytest.mark.parametrize("kw", [{"method": "fast"}, {"method": 1}, {"scoring": "last"}, {"scoring": None},
+                                {"method": "pruned", "scoring": "start"}, {"method": "kdtree", "scoring": "start"}])
 def test_bad_method_or_scoring(retriever, prepared, kw):
     c, q, sem = prepared[0]
     with pytest.raises(RetrievalError, match="method|scoring"):
