@@ -10,12 +10,14 @@ from repro.bench import adaptation, retrieval
 def test_bench_retrieval_columns_and_methods():
     t = retrieval.bench_retrieval(databases=["synthetic"], factors=(1, 2), n_queries=20, progress=False)
     assert {"n_clips", "n_poses", "method", "p50_ms", "p99_ms"} <= set(t.columns)
-    assert set(t.method) == {"pruned", "exhaustive", "kdtree"}
+    assert set(t.method) == {"pruned", "exact", "exhaustive", "kdtree"}
     assert (t[t.method == "exhaustive"].differs_from_exhaustive == 0).all()
+    assert (t[t.method == "exact"].n_differs == 0).all()  # the exact search is the exhaustive optimum
     assert t.n_poses.nunique() == 2 and (t.p50_ms > 0).all()
     s = retrieval.retrieval_summary(t)["synthetic"]
     assert s["largest_factor"] == 2 and s["speedup_vs_exhaustive_at_largest"] > 0
     assert "pruned vs exhaustive" in retrieval.format_retrieval(t)
+    assert "exact vs exhaustive" in retrieval.format_retrieval(t)
 
 
 def test_bench_adaptation_reports_per_frame_costs():

@@ -53,9 +53,10 @@ def test_latency_table_is_the_bench_contract(latency):
     t = latency.table
     assert list(t.columns[:7]) == ["database", "factor", "n_clips", "n_poses", "method", "p50_ms", "p99_ms"]
     assert "synthetic" in set(t.database)
-    assert set(t.method) == {"pruned", "exhaustive", "kdtree"}
+    assert set(t.method) == {"pruned", "exact", "exhaustive", "kdtree"}
     assert set(t.factor) == {1, 10}  # quick
     assert (t[t.method == "exhaustive"].differs_from_exhaustive == 0).all()
+    assert (t[t.method == "exact"].n_differs == 0).all()  # the exact search: never a worse clip
     assert t.differs_from_exhaustive.between(0, 1).all()
     assert (t.mean_excess_d >= 0).all() and (t.mean_excess_when_differs >= t.mean_excess_d - 1e-12).all()
 

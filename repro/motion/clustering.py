@@ -508,8 +508,43 @@ def _nearest_centroid(X: np.ndarray, C: np.ndarray, chunk: int = 65536) -> np.nd
     return out
 
 
+def _kmeans_sample(X: np.ndarray, k: int, iterations: int, rng) -> np.ndarray:
+    """k-means++ seeding and Lloyd iterations on a sample, with BLAS distances (float32).
+
+    The seeding keeps every point's squared distance to its nearest chosen centre and
+    updates it with one new centre at a time (O(n k), where
+    :func:`scipy.cluster.vq.kmeans2`'s ``minit="++"`` recomputes the distances to all
+    chosen centres at every step, O(n k^2)).
+    """
+    n = X.shape[0]
+    x2 = np.einsum("ij,ij->i", X, X)
+    C = np.empty((k, X.shape[1]), dtype=X.dtype)
+    C[0] = X[rng.integers(n)]
+    best = np.maximum(x2 - 2.0 * (X @ C[0]) + C[0] @ C[0], 0.0)
+    for j in range(1, k):
+        tot = float(best.sum(dtype=np.float64))
+        i = int(rng.integers(n)) if tot <= 0 else int(np.searchsorted(np.cumsum(best, dtype=np.float64),
+                                                                      rng.random() * tot))
+        C[j] = X[min(i, n - 1)]
+        np.minimum(best, np.maximum(x2 - 2.0 * (X @ C[j]) + C[j] @ C[j], 0.0), out=best)
+    for _ in range(iterations):
+        lab = _nearest_centroid(X, C)
+        C = _means(X, lab, k, C)
+    return C
+
+
+def _means(X: np.ndarray, labels: np.ndarray, k: int, previous: np.ndarray) -> np.ndarray:
+    """Mean of every label's rows (one bincount per column); an empty label keeps ``previous``."""
+    cnt = np.bincount(labels, minlength=k).astype(np.float64)
+    S = np.stack([np.bincount(labels, weights=X[:, j], minlength=k) for j in range(X.shape[1])], axis=1)
+    out = np.array(previous, dtype=np.float64)
+    nz = cnt > 0
+    out[nz] = S[nz] / cnt[nz, None]
+    return out.astype(X.dtype)
+
+
 def cluster_poses(points: np.ndarray, k: int | None = None, *, weights=None, seed: int = 0,
-                  iterations: int = 20, max_fit: int | None = 50_000) -> PoseClusters:
+                  iterations: int = 20, max_fit: int | None = 20_000) -> PoseClusters:
     """k-means of pose clouds (Section 3.2.2), deterministic for a fixed seed.
 
     Parameters
@@ -525,12 +560,15 @@ def cluster_poses(points: np.ndarray, k: int | None = None, *, weights=None, see
         Seed (an int >= 0) of the k-means++ initialisation (:func:`scipy.cluster.vq.kmeans2`).
     iterations : int, default 20
         k-means iterations, in ``[1, MAX_ITERATIONS]`` (10,000).
-    max_fit : int or None, default 50,000
-        With more poses than this (the 10x / 100x augmented databases), the k-means
-        iterations run on a random subset of ``max_fit`` poses (drawn with ``seed``), then
-        every pose is assigned to its nearest centroid and the centroids are recomputed
-        as the means of their members (one more Lloyd step on all poses).  None: always
-        use all poses.
+    max_fit : int or None, default 20,000
+        With more poses than this (the 10x / 100x / 1,000x augmented databases), k-means
+        runs on a random subset of ``max_fit`` poses (drawn with ``seed``; k-means++
+        seeding and Lloyd iterations with BLAS distances in float32, linear in ``k`` per
+        seed, :func:`_kmeans_sample`), then every pose is assigned to its nearest
+        centroid in chunks and the centroids are recomputed as the means of their
+        members (one more Lloyd step on all poses).  Memory: float32 chunks, never a
+        second copy of all poses.  Up to ``max_fit`` poses (the paper-size databases)
+        :func:`scipy.cluster.vq.kmeans2` runs on all of them.  None: always the latter.
 
     Returns
     -------
@@ -560,19 +598,16 @@ def cluster_poses(points: np.ndarray, k: int | None = None, *, weights=None, see
         max_fit = check_int(max_fit, "max_fit", k)
     w = pose_weights(P, weights)
     sw = np.sqrt(w)[None, :, None]
+    if max_fit is not None and N > max_fit and k > 1:
+        return _cluster_large(p, k, w, seed, iterations, int(max_fit))
     X = (p * sw).reshape(N, 3 * P)
     if k == 1:
         labels = np.zeros(N, dtype=np.intp)
         C = X.mean(axis=0, keepdims=True)
     else:
         rng = np.random.default_rng(seed)
-        if max_fit is not None and N > max_fit:
-            fit = np.sort(rng.choice(N, int(max_fit), replace=False))
-            C, _ = kmeans2(X[fit], k, iter=iterations, minit="++", rng=rng)
-            labels = _nearest_centroid(X, C)
-        else:
-            C, labels = kmeans2(X, k, iter=iterations, minit="++", rng=rng)
-            labels = labels.astype(np.intp)
+        C, labels = kmeans2(X, k, iter=iterations, minit="++", rng=rng)
+        labels = labels.astype(np.intp)
     used = np.unique(labels)
     remap = np.full(max(k, 1), -1, dtype=np.intp)
     remap[used] = np.arange(used.size)
@@ -583,3 +618,36 @@ def cluster_poses(points: np.ndarray, k: int | None = None, *, weights=None, see
     members = [np.flatnonzero(labels == c) for c in range(used.size)]
     return PoseClusters(centroids=centroids, labels=labels, members=members, weights=w, seed=int(seed),
                         inertia=inertia)
+
+
+def _cluster_large(p: np.ndarray, k: int, w: np.ndarray, seed: int, iterations: int, max_fit: int,
+                   chunk: int = 65536) -> PoseClusters:
+    """:func:`cluster_poses` beyond ``max_fit`` poses: k-means of a sample, one pass over all."""
+    N, P, _ = p.shape
+    sw = np.sqrt(w).astype(np.float32)[None, :, None]
+    rng = np.random.default_rng(seed)
+    fit = np.sort(rng.choice(N, max_fit, replace=False))
+    C = _kmeans_sample((p[fit].astype(np.float32) * sw).reshape(max_fit, 3 * P), k, iterations, rng)
+    labels = np.empty(N, dtype=np.intp)
+    S = np.zeros((k, 3 * P))
+    for a in range(0, N, chunk):
+        Xc = (p[a:a + chunk].astype(np.float32) * sw).reshape(-1, 3 * P)
+        lab = _nearest_centroid(Xc, C)
+        labels[a:a + chunk] = lab
+        for j in range(3 * P):
+            S[:, j] += np.bincount(lab, weights=Xc[:, j], minlength=k)
+    cnt = np.bincount(labels, minlength=k)
+    used = np.flatnonzero(cnt)
+    remap = np.full(k, -1, dtype=np.intp)
+    remap[used] = np.arange(used.size)
+    labels = remap[labels]
+    Cm = S[used] / cnt[used, None]
+    inertia = 0.0
+    for a in range(0, N, chunk):
+        Xc = (p[a:a + chunk] * sw).reshape(-1, 3 * P)
+        inertia += float(np.sum((Xc - Cm[labels[a:a + chunk]]) ** 2))
+    order = np.argsort(labels, kind="stable")
+    members = np.split(order, np.cumsum(cnt[used])[:-1])
+    centroids = Cm.reshape(-1, P, 3) / np.sqrt(w)[None, :, None]
+    return PoseClusters(centroids=centroids, labels=labels, members=members, weights=w, seed=int(seed),
+                        inertia=inertia / N)

@@ -87,6 +87,7 @@ from repro.errors import MotionError, RetrievalError
 from repro.motion.clustering import (
     AlignedPoseIndex,
     PoseClusters,
+    aligned_distance,
     check_int,
     cluster_poses,
     pose_points,
@@ -102,6 +103,8 @@ from repro.motion.skeleton import Skeleton, rescale_constraint, skeleton_of
 
 __all__ = [
     "FALLBACKS",
+    "METHODS",
+    "SCORINGS",
     "MAX_TARGET_M",
     "MAX_WEIGHT",
     "Query",
@@ -110,6 +113,7 @@ __all__ = [
     "search",
     "make_queries",
     "time_search",
+    "scoring_frame_miss",
 ]
 
 #: Values of :attr:`RetrievalResult.fallback`.
@@ -118,8 +122,20 @@ FALLBACKS: tuple[str, ...] = ("none", "neighbour_clusters", "no_box", "disabled"
 MAX_TARGET_M: float = 1e6
 #: Largest accepted ``w_q`` / ``w_c`` (only their ratio matters).
 MAX_WEIGHT: float = 1e6
-#: The search methods of :func:`time_search`.
-METHODS: tuple[str, ...] = ("pruned", "exhaustive", "kdtree")
+#: The search methods of :func:`time_search` (and ``method=`` of :meth:`MotionRetriever.search`).
+METHODS: tuple[str, ...] = ("pruned", "exact", "exhaustive", "kdtree")
+#: Frames in which ``d_cr`` is scored (``scoring=`` of the searches): ``"first"`` the paper's (the
+#: clip's hit trajectory in the root frame of its first frame), ``"start"`` the frame in which the
+#: candidate is played from its start pose (see :meth:`MotionRetriever.search`).
+SCORINGS: tuple[str, ...] = ("first", "start")
+#: Ties: candidates whose ``d`` is within ``TIE_RTOL * d + TIE_ATOL`` of the best are tied, and the
+#: lowest pose index wins (shared by the exact and exhaustive searches, so that both return the same
+#: pose even when two evaluations of ``d`` differ in the last bits).
+TIE_RTOL: float = 1e-12
+TIE_ATOL: float = 1e-15
+#: Slack (units of the actor's size) subtracted from the lower bounds of the exact search, above the
+#: rounding error of the closed-form aligned distance (about 1e-8 near 0).
+BOUND_SLACK: float = 1e-6
 
 
 @dataclass(frozen=True, eq=False)
@@ -250,6 +266,11 @@ class _Block:
     uclips: np.ndarray  # distinct clips
     inv: np.ndarray  # clips == uclips[inv]
     single_actor: int | None
+    # groups (the poses of one clip in the block, contiguous since rows are sorted), for the exact search
+    gstart: np.ndarray | None = None  # (G+1,) offsets
+    gindex: AlignedPoseIndex | None = None  # group centroids
+    gradius: np.ndarray | None = None  # (G,) largest aligned distance centroid -> pose
+    gcent: np.ndarray | None = None  # (G, P, 3) group centroids
 
 
 def _check_target(target) -> np.ndarray:
@@ -350,6 +371,10 @@ class MotionRetriever:
         self.traj_padded = db.traj[idx]  # (C, L, 3), each padded with its last sample
         self._kd: dict = {}
         self._prep_cache: dict = {}
+        self._start: dict | None = None
+        self._qm_cache = None
+        self._bounds_setup()
+        self._exact_setup()
 
     # ------------------------------------------------------------ query side
     @property
@@ -405,9 +430,17 @@ class MotionRetriever:
         if unit != 1.0:
             m = m.to_metres(unit)
         q_n = {}
+        gc = m.global_positions()
         for a in self.actors_present.tolist():
             actor = db.actors[a]
-            if not actor.is_compatible(ch):
+            if self._compatible(ch, a) is None:
+                continue
+            k = self._scaling_of(m, a)
+            if k is not None:  # a uniform scaling of the actor: q_r is the pose scaled, no retargeting needed
+                idx = [actor.index(r) for r in db.pose_roles]
+                pts = pose_points(gc, idx, actor.index("pelvis"), actor.index("left_hip"), actor.index("right_hip"),
+                                  window=db.window, step=db.step)[-1]
+                q_n[a] = pts / (k * actor.size)
                 continue
             try:
                 qr = retarget(m, actor)
@@ -422,9 +455,35 @@ class MotionRetriever:
             raise RetrievalError(
                 "the character shares no joint tree with the database's actors; make it from an actor "
                 "with repro.motion.scale_skeleton (joints: " + ", ".join(ch.joint_names[:5]) + ", ...)")
-        gc = m.global_positions()
         th, o = root_frames(gc[-1:], ch.index("pelvis"), ch.index("left_hip"), ch.index("right_hip"))
         return Query(q_n=q_n, size_c=float(size_c), heading=float(th[0]), origin=o[0], actors=tuple(q_n))
+
+    def _compatible(self, ch: Skeleton, a: int) -> bool | None:
+        """True if the character shares actor ``a``'s joint tree, else None; cached per (character, actor)."""
+        key = (id(ch), a)
+        hit = self._prep_cache.get(key)
+        if hit is not None and hit[0] is ch:
+            return hit[1]
+        out = True if self.db.actors[a].is_compatible(ch) else None
+        if len(self._prep_cache) > 64:
+            self._prep_cache.clear()
+        self._prep_cache[key] = (ch, out)
+        return out
+
+    def _scaling_of(self, m: Motion, a: int) -> float | None:
+        """The factor ``k`` if the pose's skeleton (metres) is actor ``a``'s scaled by ``k``, else None.
+
+        Then retargeting the pose to the actor (same rotations, bones scaled) scales its
+        pose cloud, and ``q_r`` in units of the actor's size is the pose's own cloud in
+        units of its size: no retargeting is needed (``prepare``'s fast path).
+        """
+        oa = self.db.actors[a].offsets
+        om = np.asarray(m.offsets, dtype=float)
+        if om.shape != np.shape(oa):
+            return None
+        k = float(np.linalg.norm(om) / max(float(np.linalg.norm(oa)), 1e-300))
+        ok = k > 0 and np.allclose(om, k * oa, rtol=1e-9, atol=1e-12 * max(1.0, float(np.abs(om).max())))
+        return k if ok else None
 
     def _semantics(self, semantics) -> str:
         if not isinstance(semantics, str) or semantics not in SEMANTICS:
@@ -514,7 +573,8 @@ class MotionRetriever:
         j = int(np.argmin(d))
         return int(rows[j]), float(d[j]), float(dqr[j]), float(dcr[j]), rows.size
 
-    def _score_block(self, b: _Block | None, q: Query, c_r: np.ndarray, inside: np.ndarray | None = None):
+    def _score_block(self, b: _Block | None, q: Query, c_r: np.ndarray, inside: np.ndarray | None = None, *,
+                     tie: bool = False):
         """Best pose of a block: ``(row, d, d_qr, d_cr, n_scored)``, or None if none qualifies.
 
         ``inside`` (C,) bool: the box test; poses of other clips are not candidates.
@@ -542,7 +602,7 @@ class MotionRetriever:
         n = int(valid.sum())
         if n < valid.size:
             d[~valid] = np.inf
-        j = int(np.argmin(d))
+        j = self._pick(d, b.rows) if tie else int(np.argmin(d))
         return int(b.rows[j]), float(d[j]), float(dq[j]), float(dcr_u[b.inv[j]]), n
 
     def _result(self, q: Query, best, c_r, *, cluster, fallback, rank, method) -> RetrievalResult:
@@ -568,7 +628,8 @@ class MotionRetriever:
 
     # ------------------------------------------------------------- searches
     def search(self, target, current_pose, character=None, semantics: str = "punch", *, prune: bool = True,
-               scale_target: bool = True, frame: int | None = None) -> RetrievalResult:
+               scale_target: bool = True, frame: int | None = None, method: str = "pruned",
+               scoring: str = "first") -> RetrievalResult:
         """The paper's retrieval (Section 3.3): cluster, box pruning, weighted distance.
 
         Clips whose hit-trajectory box does not contain ``c_r`` are pruned (the paper's
@@ -593,6 +654,21 @@ class MotionRetriever:
             Apply Eq. 1; False uses ``c_r = c`` (an ablation, to show what Eq. 1 does).
         frame : int, optional
             Frame of ``current_pose`` to use (default the last).
+        method : {"pruned", "exact", "exhaustive", "kdtree"}, default "pruned"
+            ``"pruned"``: the paper's search (above), unchanged.  ``"exact"``: branch and
+            bound over the same clusters and boxes (:meth:`search_exact`), the exhaustive
+            optimum at a fraction of its cost.  ``"exhaustive"`` / ``"kdtree"``: the
+            baselines (:meth:`search_exhaustive`, :meth:`search_kdtree`).
+        scoring : {"first", "start"}, default "first"
+            Frame of ``d_cr``.  ``"first"``: the paper's, the clip's hit trajectory in the
+            root frame of its first frame (one box per clip).  ``"start"``: the frame in
+            which the candidate is played from that start pose (aligned on ``q_r`` as
+            :meth:`RetrievalResult.place` does), from the start frame on, so that
+            ``d_cr`` is the closest approach of the played hit point to ``c_r``.
+            ``"start"`` needs ``method="exact"`` or ``"exhaustive"`` (the paper's pruning
+            tests one first-frame box per clip).  The default stays the paper's, which
+            is what the figures reproduce; the strike pipeline asks for
+            ``method="exact", scoring="start"``.
 
         Returns
         -------
@@ -601,19 +677,66 @@ class MotionRetriever:
         Raises
         ------
         repro.errors.RetrievalError
-            Unknown semantics, a database without clips of it, a target that is not a
-            finite 3-vector, a character that cannot be retargeted to.
+            Unknown semantics, method or scoring, a database without clips of it, a
+            target that is not a finite 3-vector, a character that cannot be retargeted to.
         """
         c = _check_target(target)
         sem = self._semantics(semantics)
         prune, scale_target = _check_flag("prune", prune), _check_flag("scale_target", scale_target)
+        method, scoring = self._method(method, scoring)
         q = self._query(current_pose, character, frame)
+        if method == "exact":
+            return self._search_exact(c, q, sem, scoring, scale_target)
+        if method == "exhaustive":
+            return self._search_exhaustive(c, q, sem, scoring, scale_target)
+        if method == "kdtree":
+            return self.search_kdtree(c, q, None, sem)
         return self._search_pruned(c, q, sem, prune=prune, scale_target=scale_target)
+
+    def _method(self, method, scoring) -> tuple[str, str]:
+        if not isinstance(method, str) or method not in METHODS:
+            raise RetrievalError(f"unknown method {method!r}; expected one of {list(METHODS)}")
+        if not isinstance(scoring, str) or scoring not in SCORINGS:
+            raise RetrievalError(f"unknown scoring {scoring!r}; expected one of {list(SCORINGS)}")
+        if scoring == "start" and method in ("pruned", "kdtree"):
+            raise RetrievalError(f"scoring='start' is for method 'exact' or 'exhaustive', not {method!r} "
+                                 "(the paper's pruning tests one first-frame box per clip)")
+        return method, scoring
+
+    def search_exact(self, target, current_pose, character=None, semantics: str = "punch", *,
+                     scoring: str = "first", scale_target: bool = True, frame: int | None = None,
+                     stats: dict | None = None) -> RetrievalResult:
+        """Exact search: the exhaustive optimum of ``d``, by branch and bound over clusters and clips.
+
+        Kovar et al.'s aligned distance ``D`` minimises over an isometry group (rotations
+        about the vertical, horizontal translations) applied to a whole cloud, under a
+        weighted Euclidean seminorm (non-negative weights): it is a pseudometric, so for
+        a cluster block of centroid ``m`` and radius ``r`` (largest ``D(m, p)`` of its
+        poses) every pose has ``D(q_r, p) >= D(q_r, m) - r``.  With ``scoring="first"``
+        ``d_cr >= dist(c_r, box)`` (the union box of the block's clips, then each clip's
+        box); with ``scoring="start"`` the bound is alignment-invariant: the range of
+        horizontal distances of the played trajectory from the pose's centroid, and of
+        its heights (see :meth:`_start_geometry`).  Blocks are visited in increasing
+        order of their lower bound on ``d = w_q d_qr + w_c d_cr`` (both in metres, the
+        bound scaled by the block's smallest actor size) and the search stops when the
+        bound exceeds the best ``d`` found; inside a block only poses whose own bound can
+        beat it get an exact ``d_cr``.  Ties (within :data:`TIE_RTOL`) go to the lowest
+        pose index, as in :meth:`search_exhaustive`.  ``stats`` (a dict), when given,
+        receives ``clusters_visited`` and ``poses_scored``.
+        """
+        c = _check_target(target)
+        sem = self._semantics(semantics)
+        scale_target = _check_flag("scale_target", scale_target)
+        _, scoring = self._method("exact", scoring)
+        if scoring == "start" and not scale_target:
+            raise RetrievalError("scoring='start' needs scale_target=True (Eq. 1)")
+        q = self._query(current_pose, character, frame)
+        return self._search_exact(c, q, sem, scoring, scale_target, stats=stats)
 
     def _search_pruned(self, c, q: Query, sem: str, *, prune: bool = True, scale_target: bool = True):
         c_r = self._c_r(c, q.size_c, scale_target)
         if not prune:
-            best = self._score_block(self.sem_block[sem], q, c_r)
+            best = self._score_block(self.sem_block[sem], q, c_r, tie=True)
             if best is None:
                 raise RetrievalError(f"no {sem!r} clip of an actor compatible with the character")
             return self._result(q, best, c_r, cluster=-1, fallback="disabled", rank=-1, method="pruned")
@@ -641,17 +764,509 @@ class MotionRetriever:
         return self._result(q, best, c_r, cluster=int(order[0]), fallback="no_box", rank=-1, method="pruned")
 
     def search_exhaustive(self, target, current_pose, character=None, semantics: str = "punch", *,
-                          scale_target: bool = True, frame: int | None = None) -> RetrievalResult:
-        """Baseline: score every startable pose of the semantics with the same ``d``."""
+                          scale_target: bool = True, frame: int | None = None, scoring: str = "first") -> RetrievalResult:
+        """Baseline: score every startable pose of the semantics with the same ``d``.
+
+        Ties (``d`` within :data:`TIE_RTOL` of the minimum) go to the lowest pose index.
+        ``scoring``: as in :meth:`search`.
+        """
         c = _check_target(target)
         sem = self._semantics(semantics)
         scale_target = _check_flag("scale_target", scale_target)
+        _, scoring = self._method("exhaustive", scoring)
+        if scoring == "start" and not scale_target:
+            raise RetrievalError("scoring='start' needs scale_target=True (Eq. 1)")
         q = self._query(current_pose, character, frame)
+        return self._search_exhaustive(c, q, sem, scoring, scale_target)
+
+    # ------------------------------------------------ exact search (branch and bound)
+    def _bounds_setup(self) -> None:
+        """Per (cluster, semantics) block: radius, smallest actor size, union box of its clips.
+
+        Radius: the largest aligned distance (units of the actor's size) from the centroid
+        to a pose of the block, so that ``D(q, p) >= D(q, m) - r`` for every pose ``p`` of
+        it (triangle inequality of the pseudometric ``D``).
+        """
+        db = self.db
+        s = db.size_a
+        self._nbox_lo = db.box_min / s[:, None]
+        self._nbox_hi = db.box_max / s[:, None]
+        k = self.clusters.k
+        self._bb = {}
+        for sem in SEMANTICS:
+            rad = np.full(k, np.inf)
+            smin = np.full(k, np.inf)
+            lo = np.full((k, 3), np.inf)
+            hi = np.full((k, 3), -np.inf)
+            for cl in range(k):
+                b = self.cluster_block[cl][sem]
+                if b is None:
+                    continue
+                self._groups(b)
+                rad[cl] = float(b.index.distances(self.clusters.centroids[cl]).max())
+                smin[cl] = float(b.size.min())
+                lo[cl] = self._nbox_lo[b.uclips].min(axis=0)
+                hi[cl] = self._nbox_hi[b.uclips].max(axis=0)
+            self._bb[sem] = {"radius": rad, "s_min": smin, "box_lo": lo, "box_hi": hi,
+                             "empty": ~np.isfinite(smin)}
+
+    def _groups(self, b: _Block) -> None:
+        """Split a block into its clips' runs of poses: centroid and radius of each (exact search)."""
+        G = b.uclips.size
+        gstart = np.concatenate([[0], np.flatnonzero(np.diff(b.inv)) + 1, [b.rows.size]])
+        if gstart.size != G + 1:  # rows sorted, so each clip's poses are contiguous
+            raise AssertionError("block rows are not grouped by clip")
+        pts = self.db.pose_points[b.rows]
+        cnt = np.diff(gstart).astype(float)
+        cent = np.add.reduceat(pts, gstart[:-1], axis=0) / cnt[:, None, None]
+        r = aligned_distance(cent[b.inv], pts, self.weights)
+        b.gstart = gstart
+        b.gcent = cent
+        b.gindex = None
+        b.gradius = np.maximum.reduceat(r, gstart[:-1])
+
+    def _start_geometry(self) -> dict:
+        """Per pose: where its clip's hit trajectory lies when the clip is played from it.
+
+        For a startable pose ``p`` (clip ``i``, frame ``f``): ``phi``, ``u`` with
+        ``traj_f = R_y(phi) traj_0 + u`` (the trajectory from the root frame of the clip's
+        first frame to the root frame of frame ``f``, actor metres), and over the played
+        part ``t >= f`` of it, the range ``[rho_lo, rho_hi]`` of horizontal distances from
+        the pose's weighted centroid and ``[y_lo, y_hi]`` of heights (units of the actor's
+        size): an alignment-invariant region (the aligned placement rotates about the
+        centroid), hence a bound of ``d_cr`` in the start frame.  Built on first use.
+        """
+        if self._start is not None:
+            return self._start
+        db = self.db
+        N = db.n_poses
+        phi = np.zeros(N)
+        u = np.zeros((N, 3))
+        rho = np.zeros((N, 2))
+        yr = np.zeros((N, 2))
+        cx, cz = self.index._X, self.index._Z
+        for i in range(db.n_clips):
+            F, hf = int(db.n_frames[i]), int(db.hit_frame[i])
+            nf = min(hf, F)
+            if nf <= 0:
+                continue
+            p0, t0 = int(db.pose_start[i]), int(db.traj_start[i])
+            s = float(db.size_a[i])
+            th = db.pose_heading[p0:p0 + nf]
+            o = db.pose_origin[p0:p0 + nf]
+            tr0 = db.traj[t0:t0 + F]
+            ph = th[0] - th
+            uu = rotate_y(o[0] - o, -th)
+            phi[p0:p0 + nf] = ph
+            u[p0:p0 + nf] = uu
+            trf = rotate_y(tr0[None, :, :], ph[:, None]) + uu[:, None, :]  # (nf, F, 3)
+            r = np.hypot(trf[..., 0] / s - cx[p0:p0 + nf, None], trf[..., 2] / s - cz[p0:p0 + nf, None])
+            played = np.arange(F)[None, :] >= np.arange(nf)[:, None]
+            rho[p0:p0 + nf, 0] = np.where(played, r, np.inf).min(axis=1)
+            rho[p0:p0 + nf, 1] = np.where(played, r, -np.inf).max(axis=1)
+            y = tr0[:, 1] / s
+            yr[p0:p0 + nf, 0] = np.minimum.accumulate(y[::-1])[::-1][:nf]
+            yr[p0:p0 + nf, 1] = np.maximum.accumulate(y[::-1])[::-1][:nf]
+        blocks, groups, exgroups = {}, {}, {}
+        for sem in SEMANTICS:
+            k = self.clusters.k
+            reg = np.empty((k, 4))
+            reg[:] = (np.inf, -np.inf, np.inf, -np.inf)
+            for cl in range(k):
+                b = self.cluster_block[cl][sem]
+                if b is not None:
+                    rr, yy = rho[b.rows], yr[b.rows]
+                    reg[cl] = (rr[:, 0].min(), rr[:, 1].max(), yy[:, 0].min(), yy[:, 1].max())
+                    gs = b.gstart[:-1]
+                    groups[(sem, cl)] = np.stack([np.minimum.reduceat(rr[:, 0], gs), np.maximum.reduceat(rr[:, 1], gs),
+                                                  np.minimum.reduceat(yy[:, 0], gs), np.maximum.reduceat(yy[:, 1], gs)],
+                                                 axis=1)
+            blocks[sem] = reg
+            if self._ex.get(sem) is not None:
+                ex = self._ex[sem]
+                gs = ex["gstart"][:-1]
+                rr, yy = rho[ex["rows"]], yr[ex["rows"]]
+                exgroups[sem] = np.stack([np.minimum.reduceat(rr[:, 0], gs), np.maximum.reduceat(rr[:, 1], gs),
+                                          np.minimum.reduceat(yy[:, 0], gs), np.maximum.reduceat(yy[:, 1], gs)], axis=1)
+        self._start = {"exgroups": exgroups, "phi": phi, "u": u, "rho": rho, "y": yr, "blocks": blocks, "groups": groups}
+        return self._start
+
+    def _d_cr_start(self, rows: np.ndarray, alpha: np.ndarray, c_hat: np.ndarray, cq: np.ndarray,
+                    chunk: int = 8192) -> np.ndarray:
+        """Exact ``d_cr`` (actor metres) of poses ``rows`` scored in their start frame.
+
+        The clip played from pose ``p`` (aligned on ``q_r`` by the rotation ``alpha`` about
+        the vertical and the translation that matches the horizontal centroids) brings its
+        hit point closest to ``c_r`` at ``min_{t >= f} |traj_0(t) - c_0|`` where ``c_0`` is
+        the target taken back to the clip's first-frame root frame.
+        """
+        db = self.db
+        g = self._start_geometry()
+        clips = db.pose_clip[rows]
+        s = db.size_a[clips]
+        f = db.pose_frame[rows]
+        # target in the pose's canonical frame (units of size), then actor metres, then frame 0
+        v = c_hat[None, :] - np.array([cq[0], 0.0, cq[1]])[None, :]
+        cf = rotate_y(v, -alpha)
+        cf[:, 0] += self.index._X[rows]
+        cf[:, 2] += self.index._Z[rows]
+        c0 = rotate_y(cf * s[:, None] - g["u"][rows], -g["phi"][rows])
+        out = np.empty(rows.size)
+        L = self.traj_padded.shape[1]
+        t = np.arange(L)
+        for a in range(0, rows.size, chunk):
+            sl = slice(a, a + chunk)
+            diff = self.traj_padded[clips[sl]] - c0[sl, None, :]
+            d2 = np.einsum("ctk,ctk->ct", diff, diff)
+            d2[t[None, :] < f[sl, None]] = np.inf
+            out[sl] = np.sqrt(d2.min(axis=1))
+        return out
+
+    @staticmethod
+    def _tie_threshold(best: float) -> float:
+        return best + TIE_RTOL * abs(best) + TIE_ATOL
+
+    @classmethod
+    def _pick(cls, d: np.ndarray, rows: np.ndarray) -> int:
+        """Index into ``d`` of the selection: the lowest pose among the (near-)ties of the minimum."""
+        m = float(np.min(d))
+        tied = np.flatnonzero(d <= cls._tie_threshold(m))
+        return int(tied[np.argmin(rows[tied])])
+
+    def _lb_cr(self, scoring: str, c_hat: np.ndarray, cq: tuple, box_lo=None, box_hi=None, reg=None) -> np.ndarray:
+        """Lower bound of ``d_cr`` / ``size_a`` from boxes (first frame) or start regions (see below)."""
+        if scoring == "first":
+            gap = np.maximum(np.maximum(box_lo - c_hat, c_hat - box_hi), 0.0)
+            lc = np.sqrt(np.einsum("ck,ck->c", gap, gap))
+        else:
+            rc = float(np.hypot(c_hat[0] - cq[0], c_hat[2] - cq[1]))
+            gr = np.maximum(np.maximum(reg[:, 0] - rc, rc - reg[:, 1]), 0.0)
+            gy = np.maximum(np.maximum(reg[:, 2] - c_hat[1], c_hat[1] - reg[:, 3]), 0.0)
+            lc = np.hypot(gr, gy)
+        return np.maximum(lc - BOUND_SLACK, 0.0)
+
+    def _eval_block(self, b: _Block, q: Query, c_r: np.ndarray, scoring: str, c_hat: np.ndarray, cq: dict,
+                    best: float = np.inf, key=None):
+        """Score the poses of block ``b`` whose lower bound can beat ``best``.
+
+        With groups (cluster blocks, ``key = (semantics, cluster)``): first a bound per
+        group (the poses of one clip, centroid and radius), then a bound per pose of the
+        surviving groups (its exact ``d_qr`` and its clip's box, or its start region),
+        then the exact ``d`` of the poses still below the threshold.  Returns ``(rows, d,
+        d_qr, d_cr, n_scored)`` of the poses evaluated exactly, or None.
+        """
+        db = self.db
+        thr = self._tie_threshold(best)
+        prep = self._prepared(q)
+        g = self._start_geometry() if scoring == "start" else None
+        clip_actor = db.actor[b.uclips]
+        # ---- group level
+        if b.gindex is not None and np.isfinite(thr):
+            lbg = np.full(b.uclips.size, np.inf)
+            gsize = db.size_a[b.uclips]
+            lbox = (self._lb_cr("first", c_hat, None, self._nbox_lo[b.uclips], self._nbox_hi[b.uclips])
+                    if scoring == "first" else None)
+            for a in q.q_n:
+                sel = slice(None) if b.single_actor == a else np.flatnonzero(clip_actor == a)
+                if b.single_actor is not None and b.single_actor != a:
+                    continue
+                dg = b.gindex.distances(q.q_n[a], None if isinstance(sel, slice) else sel, prepared=prep[a])
+                lq = np.maximum(dg - b.gradius[sel] - BOUND_SLACK, 0.0)
+                lc = lbox[sel] if scoring == "first" else self._lb_cr("start", c_hat, cq[a], reg=g["groups"][key][sel])
+                lbg[sel] = gsize[sel] * (self.w_q * lq + self.w_c * lc)
+            keepg = lbg <= thr
+            if not keepg.any():
+                return None
+            cand = np.flatnonzero(keepg[b.inv])
+        else:
+            cand = None
+        rows = b.rows if cand is None else b.rows[cand]
+        inv = b.inv if cand is None else b.inv[cand]
+        actor = b.actor if cand is None else b.actor[cand]
+        size = b.size if cand is None else b.size[cand]
+        allowed = np.ones(rows.size, dtype=bool)
+        if len(q.q_n) != len(self.actors_present):
+            allowed = np.isin(actor, q.actors)
+        if not allowed.any():
+            return None
+        # ---- pose level: exact d_qr, bound of d_cr
+        dq = np.full(rows.size, np.inf)
+        alpha = np.zeros(rows.size) if scoring == "start" else None
+        for a, qn in q.q_n.items():
+            if b.single_actor is not None:
+                if b.single_actor != a:
+                    continue
+                sel, sub = slice(None), cand
+            else:
+                sel = np.flatnonzero(actor == a)
+                if sel.size == 0:
+                    continue
+                sub = sel if cand is None else cand[sel]
+            if scoring == "start":
+                out = b.index.distances(qn, sub, return_transform=True, prepared=prep[a])
+                dq[sel], alpha[sel] = out[0], out[1]
+            else:
+                dq[sel] = b.index.distances(qn, sub, prepared=prep[a])
+        dqr = dq * size
+        if scoring == "first":
+            lbc = self._lb_cr("first", c_hat, None, self._nbox_lo[b.uclips], self._nbox_hi[b.uclips])
+            lb = self.w_q * dqr + self.w_c * lbc[inv] * size
+        else:
+            lb = np.full(rows.size, np.inf)
+            for a in q.q_n:
+                sel = actor == a
+                if np.any(sel):
+                    rr, yy = g["rho"][rows[sel]], g["y"][rows[sel]]
+                    reg = np.concatenate([rr, yy], axis=1)
+                    lb[sel] = self.w_q * dqr[sel] + self.w_c * size[sel] * self._lb_cr("start", c_hat, cq[a], reg=reg)
+        lb[~allowed] = np.inf
+        keep = np.flatnonzero(lb <= thr)
+        if keep.size == 0:
+            return None
+        # ---- exact d_cr of what is left
+        if scoring == "first":
+            need = np.zeros(b.uclips.size, dtype=bool)
+            need[inv[keep]] = True
+            uk = np.flatnonzero(need)
+            pos = np.zeros(b.uclips.size, dtype=np.intp)
+            pos[uk] = np.arange(uk.size)
+            dcr = self._d_cr(b.uclips[uk], c_r)[pos[inv[keep]]]
+        else:
+            dcr = np.empty(keep.size)
+            act = actor[keep]
+            for a in q.q_n:
+                sel = act == a
+                if np.any(sel):
+                    dcr[sel] = self._d_cr_start(rows[keep[sel]], alpha[keep[sel]], c_hat, cq[a])
+        d = self.w_q * dqr[keep] + self.w_c * dcr
+        return rows[keep], d, dqr[keep], dcr, keep.size
+
+    def _prepared(self, q: Query) -> dict:
+        """The query matrices of ``q_r`` (one per actor), computed once per query."""
+        key = id(q)
+        hit = self._qm_cache
+        if hit is None or hit[0] != key or hit[1] is not q:
+            self._qm_cache = hit = (key, q, {a: self.index.query_matrix(qn) for a, qn in q.q_n.items()})
+        return hit[2]
+
+    def _c_hat(self, c: np.ndarray, q: Query) -> np.ndarray:
+        return c / q.size_c
+
+    def _cq(self, q: Query) -> dict:
+        w = self.weights
+        return {a: (float(qn[:, 0] @ w), float(qn[:, 2] @ w)) for a, qn in q.q_n.items()}
+
+    def _finish(self, q: Query, parts: list, c_r: np.ndarray, *, method: str, n: int, cluster: int = -1):
+        if not parts:
+            raise RetrievalError("no clip of an actor compatible with the character for this semantics")
+        rows = np.concatenate([p[0] for p in parts])
+        d = np.concatenate([p[1] for p in parts])
+        dqr = np.concatenate([p[2] for p in parts])
+        dcr = np.concatenate([p[3] for p in parts])
+        j = self._pick(d, rows)
+        best = (int(rows[j]), float(d[j]), float(dqr[j]), float(dcr[j]), int(n))
+        return self._result(q, best, c_r, cluster=cluster, fallback="disabled", rank=-1, method=method)
+
+    def _exact_setup(self) -> None:
+        """Flat arrays of the groups (clip runs inside clusters) of each semantics, cluster by cluster."""
+        db = self.db
+        self._ex = {}
+        for sem in SEMANTICS:
+            rows, gstart, gcl, cent, rad, clstart = [], [0], [], [], [], [0]
+            for cl in range(self.clusters.k):
+                b = self.cluster_block[cl][sem]
+                if b is not None:
+                    rows.append(b.rows)
+                    gstart.extend((b.gstart[1:] + gstart[-1] - 0).tolist())
+                    gcl.append(np.full(b.uclips.size, cl))
+                    cent.append(b.gcent)
+                    rad.append(b.gradius)
+                clstart.append(clstart[-1] + (0 if b is None else b.uclips.size))
+            if not rows:
+                self._ex[sem] = None
+                continue
+            rows = np.concatenate(rows)
+            gstart = np.asarray(gstart, dtype=np.intp)
+            gclip = db.pose_clip[rows[gstart[:-1]]]
+            uclip, gu = np.unique(gclip, return_inverse=True)
+            self._ex[sem] = {
+                "rows": rows, "index": self.index.subset(rows), "gstart": gstart, "glen": np.diff(gstart),
+                "gclip": gclip, "gsize": db.size_a[gclip], "gactor": db.actor[gclip], "gcluster": np.concatenate(gcl),
+                "gindex": AlignedPoseIndex(np.concatenate(cent), self.weights), "gradius": np.concatenate(rad),
+                "clstart": np.asarray(clstart, dtype=np.intp), "size": self.pose_size[rows],
+                "actor": db.actor[db.pose_clip[rows]], "clip": db.pose_clip[rows], "sem": sem,
+                "uclip": uclip, "gu": gu,
+            }
+
+    def _group_lb(self, ex: dict, gids: np.ndarray, q: Query, scoring: str, c_hat, cq, prep, c_r,
+                  lc: np.ndarray | None = None) -> np.ndarray:
+        """Lower bound of ``d`` (metres) on every pose of the groups ``gids``.
+
+        ``lc`` (metres): a bound of ``d_cr`` per group when already known.
+        """
+        lb = np.full(gids.size, np.inf)
+        gact = ex["gactor"][gids]
+        for a, qn in q.q_n.items():
+            sel = np.flatnonzero(gact == a) if len(self.actors_present) > 1 else slice(None)
+            sub = gids[sel]
+            if sub.size == 0:
+                continue
+            dg = ex["gindex"].distances(qn, sub, prepared=prep[a])
+            lq = np.maximum(dg - ex["gradius"][sub] - BOUND_SLACK, 0.0)
+            if lc is not None:
+                lcs = lc[sel]
+            elif scoring == "first":  # d_cr is per clip: exact (one trajectory per clip, cheap)
+                uc, inv = np.unique(ex["gclip"][sub], return_inverse=True)
+                lcs = self._d_cr(uc, c_r)[inv]
+            else:
+                lcs = ex["gsize"][sub] * self._lb_cr("start", c_hat, cq[a],
+                                                     reg=self._start_geometry()["exgroups"][ex["sem"]][sub])
+            lb[sel] = ex["gsize"][sub] * self.w_q * lq + self.w_c * lcs
+        return lb
+
+    def _eval_groups(self, ex: dict, gids: np.ndarray, q: Query, c_r, scoring: str, c_hat, cq, prep, best: float):
+        """Exact ``d`` of the poses of groups ``gids`` whose own bound can beat ``best``."""
+        st, ln = ex["gstart"][gids], ex["glen"][gids]
+        tot = int(ln.sum())
+        pos = np.repeat(st - np.concatenate([[0], np.cumsum(ln)[:-1]]), ln) + np.arange(tot)
+        rows = ex["rows"][pos]
+        actor, size, clip = ex["actor"][pos], ex["size"][pos], ex["clip"][pos]
+        allowed = np.isin(actor, q.actors) if len(q.q_n) != len(self.actors_present) else None
+        dq = np.full(tot, np.inf)
+        alpha = np.zeros(tot) if scoring == "start" else None
+        for a, qn in q.q_n.items():
+            sel = np.flatnonzero(actor == a) if len(self.actors_present) > 1 else slice(None)
+            sub = pos[sel]
+            if sub.size == 0:
+                continue
+            if scoring == "start":
+                out = ex["index"].distances(qn, sub, return_transform=True, prepared=prep[a])
+                dq[sel], alpha[sel] = out[0], out[1]
+            else:
+                dq[sel] = ex["index"].distances(qn, sub, prepared=prep[a])
+        dqr = dq * size
+        if scoring == "first":
+            lbc = self._lb_cr("first", c_hat, None, self._nbox_lo[clip], self._nbox_hi[clip])
+            lb = self.w_q * dqr + self.w_c * lbc * size
+        else:
+            g = self._start_geometry()
+            lb = np.full(tot, np.inf)
+            for a in q.q_n:
+                sel = np.flatnonzero(actor == a) if len(self.actors_present) > 1 else slice(None)
+                reg = np.concatenate([g["rho"][rows[sel]], g["y"][rows[sel]]], axis=1)
+                lb[sel] = self.w_q * dqr[sel] + self.w_c * size[sel] * self._lb_cr("start", c_hat, cq[a], reg=reg)
+        if allowed is not None:
+            lb[~allowed] = np.inf
+        keep = np.flatnonzero(lb <= self._tie_threshold(best))
+        if keep.size == 0:
+            return None
+        if scoring == "first":
+            uc, inv = np.unique(clip[keep], return_inverse=True)
+            dcr = self._d_cr(uc, c_r)[inv]
+        else:
+            dcr = np.empty(keep.size)
+            act = actor[keep]
+            for a in q.q_n:
+                sel = act == a
+                if np.any(sel):
+                    dcr[sel] = self._d_cr_start(rows[keep[sel]], alpha[keep[sel]], c_hat, cq[a])
+        d = self.w_q * dqr[keep] + self.w_c * dcr
+        return rows[keep], d, dqr[keep], dcr, keep.size
+
+    def _search_exact(self, c, q: Query, sem: str, scoring: str, scale_target: bool = True,
+                      stats: dict | None = None, batch: int = 48) -> RetrievalResult:
         c_r = self._c_r(c, q.size_c, scale_target)
-        best = self._score_block(self.sem_block[sem], q, c_r)
-        if best is None:
+        if not scale_target:  # the normalised target differs per actor size: score everything (exact)
+            return self._search_exhaustive(c, q, sem, scoring, scale_target, method="exact")
+        ex = self._ex[sem]
+        c_hat = self._c_hat(c, q)
+        cq = self._cq(q)
+        prep = self._prepared(q)
+        bb = self._bb[sem]
+        geo = self._start_geometry() if scoring == "start" else None
+        # 1. clusters: lower bound of d over each (cluster, semantics) block, per actor of the query
+        lbs, lqs = [], []
+        for a, qn in q.q_n.items():
+            lq = np.maximum(self.centroid_index.distances(qn) - bb["radius"] - BOUND_SLACK, 0.0)
+            lc = (self._lb_cr("first", c_hat, None, bb["box_lo"], bb["box_hi"]) if scoring == "first"
+                  else self._lb_cr("start", c_hat, cq[a], reg=geo["blocks"][sem]))
+            lbs.append(bb["s_min"] * (self.w_q * lq + self.w_c * lc))
+            lqs.append(lq)
+        lb_cl = np.min(lbs, axis=0)
+        lb_cl[bb["empty"]] = np.inf
+        lq_cl = np.min(lqs, axis=0)
+        order = np.argsort(lb_cl, kind="stable")
+        best, parts, n, n_groups = np.inf, [], 0, 0
+        clst = ex["clstart"]
+
+        def visit(gids, lbg):
+            nonlocal best, n, n_groups
+            o = np.argsort(lbg, kind="stable")
+            gids, lbg = gids[o], lbg[o]
+            for a in range(0, gids.size, batch):
+                if not lbg[a] <= self._tie_threshold(best):
+                    break
+                sub = gids[a:a + batch][lbg[a:a + batch] <= self._tie_threshold(best)]
+                n_groups += sub.size
+                out = self._eval_groups(ex, sub, q, c_r, scoring, c_hat, cq, prep, best)
+                if out is not None:
+                    n += out[4]
+                    parts.append(out)
+                    best = min(best, float(out[1].min()))
+
+        # 2. the most promising cluster first (its clip runs, best bound first): a first best d
+        first = int(order[0])
+        g0 = np.arange(clst[first], clst[first + 1])
+        visit(g0, self._group_lb(ex, g0, q, scoring, c_hat, cq, prep, c_r))
+        # 3. every other clip run (group) whose bound can beat it; bounds from cheap to tight
+        thr = self._tie_threshold(best)
+        gs = ex["gsize"]
+        lq_g = lq_cl[ex["gcluster"]]
+        if scoring == "first":
+            uc = ex["uclip"]
+            lc_u = self._lb_cr("first", c_hat, None, self._nbox_lo[uc], self._nbox_hi[uc]) * self.db.size_a[uc]
+            lc = lc_u[ex["gu"]]
+        else:
+            lc = np.min([gs * self._lb_cr("start", c_hat, cq[a], reg=geo["exgroups"][sem]) for a in q.q_n], axis=0)
+        lb0 = gs * self.w_q * lq_g + self.w_c * lc
+        lb0[clst[first]:clst[first + 1]] = np.inf  # visited
+        cand = np.flatnonzero(lb0 <= thr)
+        if scoring == "first" and cand.size:
+            # exact d_cr of the clips still in (one trajectory per clip)
+            need = np.unique(ex["gu"][cand])
+            dcr_u = np.full(uc.size, np.inf)
+            dcr_u[need] = self._d_cr(uc[need], c_r)
+            lc = dcr_u[ex["gu"][cand]]
+            m = gs[cand] * self.w_q * lq_g[cand] + self.w_c * lc <= thr
+            cand, lc = cand[m], lc[m]
+        elif cand.size:
+            lc = lc[cand]
+        if cand.size:
+            lbg = self._group_lb(ex, cand, q, scoring, c_hat, cq, prep, c_r, lc=lc)
+            m = lbg <= thr
+            visit(cand[m], lbg[m])
+        if stats is not None:
+            stats.update(clusters_visited=int(np.unique(ex["gcluster"][cand]).size + 1), groups_scored=int(n_groups),
+                         poses_scored=int(n))
+        thr = self._tie_threshold(best)
+        parts = [(p[0][m], p[1][m], p[2][m], p[3][m]) for p in parts for m in [p[1] <= thr]]
+        return self._finish(q, parts, c_r, method="exact", n=n)
+
+    def _search_exhaustive(self, c, q: Query, sem: str, scoring: str, scale_target: bool = True, *,
+                           method: str = "exhaustive") -> RetrievalResult:
+        c_r = self._c_r(c, q.size_c, scale_target)
+        b = self.sem_block[sem]
+        if scoring == "first":
+            best = self._score_block(b, q, c_r, tie=True)
+            if best is None:
+                raise RetrievalError(f"no {sem!r} clip of an actor compatible with the character")
+            return self._result(q, best, c_r, cluster=-1, fallback="disabled", rank=-1, method=method)
+        if not scale_target:
+            raise RetrievalError("scoring='start' needs scale_target=True (Eq. 1)")
+        out = self._eval_block(b, q, c_r, scoring, self._c_hat(c, q), self._cq(q))
+        if out is None:
             raise RetrievalError(f"no {sem!r} clip of an actor compatible with the character")
-        return self._result(q, best, c_r, cluster=-1, fallback="disabled", rank=-1, method="exhaustive")
+        return self._finish(q, [out[:4]], c_r, method=method, n=out[4])
 
     def _kdtree(self, sem: str):
         if sem not in self._kd:
@@ -769,7 +1384,7 @@ def make_queries(db: MotionDatabase, n: int, seed: int = 0, *, noise: float = 0.
 
 
 def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retriever: MotionRetriever | None = None,
-                methods: Sequence[str] = ("pruned", "exhaustive", "kdtree"), repeats: int = 3, noise: float = 0.05,
+                methods: Sequence[str] = ("pruned", "exact", "exhaustive", "kdtree"), repeats: int = 3, noise: float = 0.05,
                 **retriever_kw) -> dict:
     """Latency of the three searches on random queries (no assertion; for the figures).
 
@@ -789,7 +1404,8 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
         "mean_ms"}}`` under ``"latency"``, and ``"agreement"``: for ``pruned`` and
         ``kdtree``, the fraction of queries whose selection (clip, start frame) differs
         from the exhaustive optimum and the mean / max relative excess of ``d``; plus the
-        fallback counts of the pruned search.
+        fallback counts of the pruned search.  ``"exact"`` (the branch and bound,
+        :meth:`MotionRetriever.search_exact`) should differ in 0 queries (``n_differs``).
 
     Raises
     ------
@@ -822,7 +1438,7 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
         qq = r.prepare(pose, ch)
         prep_t.append(time.perf_counter() - t)
         prepared.append((c, qq, sem))
-    fns = {"pruned": r.search, "exhaustive": r.search_exhaustive, "kdtree": r.search_kdtree}
+    fns = {"pruned": r.search, "exact": r.search_exact, "exhaustive": r.search_exhaustive, "kdtree": r.search_kdtree}
     lat, results = {}, {}
     for mth in methods:
         fn = fns[mth]
@@ -849,7 +1465,8 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
                 continue
             diff = [(a.clip, a.start_frame) != (b.clip, b.start_frame) for a, b in zip(results[mth], ex)]
             excess = np.array([(a.d - b.d) / max(b.d, 1e-12) for a, b in zip(results[mth], ex)])
-            agreement[mth] = {"differs": float(np.mean(diff)), "mean_excess": float(excess.mean()),
+            agreement[mth] = {"differs": float(np.mean(diff)), "n_differs": int(np.sum(diff)),
+                              "mean_excess": float(excess.mean()),
                               "max_excess": float(excess.max()), "same_clip": float(np.mean(
                                   [a.clip == b.clip for a, b in zip(results[mth], ex)]))}
     fb = {}
@@ -860,3 +1477,84 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
             "repeats": repeats, "noise_m": noise, "precompute_s": precompute if retriever is None else None,
             "prepare_ms": {"p50_ms": float(np.percentile(pt, 50)), "p99_ms": float(np.percentile(pt, 99))},
             "latency": lat, "agreement": agreement, "pruned_fallbacks": fb}
+
+
+# ------------------------------------------------------------ frames of scoring, measured
+#: The fighter, stance and grid of ``repro.experiments.pronost.database_vs_adaptation`` (a 1.8 m
+#: fighter in the stance of this clip's first frame; targets x in [-0.3, 0.3] H, y in [0.2, 1.0] H,
+#: depth z = 0.5 H).
+GRID_HEIGHT_M: float = 1.8
+GRID_STANCE_CLIP: str = "actor2_punch_left_high"
+
+
+def _hit_points(motion: Motion, joint: str, where: str) -> np.ndarray:
+    j = motion.joint_index(joint)
+    if where == "joint":
+        return motion.global_positions()[:, j]
+    site = int(np.flatnonzero(np.asarray(motion.end_site_parents) == j)[0])
+    return motion.end_site_positions()[:, site]
+
+
+def scoring_frame_miss(db: MotionDatabase | None = None, *, semantics: Sequence[str] = ("punch",),
+                       grid: tuple[int, int] = (9, 9), height: float = GRID_HEIGHT_M,
+                       configs: Sequence[tuple[str, str]] = (("pruned", "first"), ("exact", "first"),
+                                                             ("exact", "start"))) -> dict:
+    """Before-adaptation miss of the played clip, per (method, scoring), on the adaptation grid.
+
+    The grid of ``database_vs_adaptation`` (full database): a fighter of ``height``
+    metres (the first actor scaled uniformly) in the stance of :data:`GRID_STANCE_CLIP`'s
+    first frame, ordered to strike targets on a ``grid`` of its root frame.  For every
+    target and configuration the clip is retrieved, retargeted to the fighter
+    (``fix_feet=True``), placed where it is played (aligned on the current pose,
+    :meth:`RetrievalResult.place` without the current pose's own frame), and measured:
+    ``before`` the distance of its hit point at the hit frame to the target, ``closest``
+    the closest approach of the hit point after the start frame.  No assertion: a
+    measurement (for the notes and the claims ledger).
+
+    Returns
+    -------
+    dict
+        ``{"method/scoring": {"before_mean_m", "before_median_m", "closest_mean_m",
+        "d_cr_mean_m" (what the retrieval scored, actor metres), "n_targets"}}``.
+    """
+    from repro.motion.database import default_database
+    from repro.motion.skeleton import scale_skeleton
+
+    db = default_database("synthetic") if db is None else db
+    if not isinstance(db, MotionDatabase):
+        raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
+    ch = scale_skeleton(db.actors[0], height=height)
+    names = [str(x) for x in db.names]
+    if GRID_STANCE_CLIP not in names:
+        raise RetrievalError(f"the database has no clip {GRID_STANCE_CLIP!r} for the stance")
+    stance = _pose_motion(retarget(db.motion(names.index(GRID_STANCE_CLIP)), ch), 0)
+    H = ch.size
+    xs = np.linspace(-0.3, 0.3, grid[0]) * H
+    ys = np.linspace(0.2, 1.0, grid[1]) * H
+    z = 0.5 * H
+    r = MotionRetriever(db, seed=0)
+    q = r.prepare(stance, ch)
+    played: dict = {}
+    out = {}
+    for method, scoring in configs:
+        before, closest, dcr = [], [], []
+        for sem in semantics:
+            for x in xs:
+                for y in ys:
+                    c = np.array([x, y, z])
+                    res = r.search(c, q, semantics=sem, method=method, scoring=scoring)
+                    i = res.clip
+                    if i not in played:
+                        m = retarget(db.motion(i), ch, fix_feet=True)
+                        played[i] = _hit_points(m, str(db.hit_joints[i]), str(db.hit_wheres[i]))
+                    hp = played[i]
+                    k = ch.size / res.size_a
+                    X = rotate_y(c - k * np.asarray(res.translation), -res.rotation_y)  # target in the clip's world
+                    before.append(float(np.linalg.norm(hp[res.hit_frame] - X)))
+                    closest.append(float(np.linalg.norm(hp[res.start_frame:] - X, axis=1).min()))
+                    dcr.append(res.d_cr)
+        out[f"{method}/{scoring}"] = {"before_mean_m": float(np.mean(before)),
+                                      "before_median_m": float(np.median(before)),
+                                      "closest_mean_m": float(np.mean(closest)), "d_cr_mean_m": float(np.mean(dcr)),
+                                      "n_targets": len(before)}
+    return out
