@@ -1517,7 +1517,7 @@ def scoring_frame_miss(db: MotionDatabase | None = None, *, semantics: Sequence[
         ``{"method/scoring": {"before_mean_m", "before_median_m", "closest_mean_m",
         "d_cr_mean_m" (what the retrieval scored, actor metres), "n_targets"}}``.
     """
-    from repro.motion.database import default_database
+    from repro.motion.sources import default_database
     from repro.motion.skeleton import scale_skeleton
 
     db = default_database("synthetic") if db is None else db

@@ -26,7 +26,9 @@ import pytest
 from repro.errors import RetrievalError
 from repro.motion import synthetic
 from repro.motion.clustering import aligned_distance, root_frames, rotate_y
-from repro.motion.database import MotionDatabase, augment, build_database
+from repro.motion.augment import augment
+from repro.motion.database import MotionDatabase
+from repro.motion.sources import build_database
 from repro.motion.retrieval import MotionRetriever, make_queries
 
 
@@ -183,7 +185,7 @@ def test_start_scoring_needs_eq1(retriever, prepared):
 
 @pytest.mark.data("cmu-bvh")
 def test_cmu_triangle_inequality_and_exact_search():
-    from repro.motion.database import build_cmu_database
+    from repro.motion.sources import build_cmu_database
 
     cmu = build_cmu_database()
     rng = np.random.default_rng(1)
