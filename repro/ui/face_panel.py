@@ -119,7 +119,9 @@ class _MatplotlibView:
     """Front view (x, y) of the posed face: flat-shaded triangles coloured by motion, drawn with Agg.
 
     One figure per panel, updated in place (vertices and colours of one
-    PolyCollection, offsets of one scatter) and written to PNG; deterministic.
+    PolyCollection, offsets of one scatter); the picture is the figure's background
+    (drawn once) with the triangles rasterised over it by :func:`repro.ui.raster.rasterize`
+    and written to PNG; deterministic.
     """
 
     def __init__(self, model: BlendshapeModel, clim, cmap: str, size):
@@ -156,8 +158,29 @@ class _MatplotlibView:
         cb.ax.tick_params(labelsize=7)
         cb.ax.xaxis.set_label_position("top")
         cb.set_label(f"motion since the selection ({model.units}); cyan: selected", fontsize=7)
+        self._bg = None  # the figure without the face, drawn on the first render
+
+    def _background(self):
+        """The figure without the face (axes, colour bar, label) as RGB, drawn once; and data -> pixel."""
+        if self._bg is None:
+            self.poly.set_visible(False)
+            self.markers.set_visible(False)
+            self.fig.canvas.draw()
+            self._bg = np.asarray(self.fig.canvas.buffer_rgba())[:, :, :3].copy()
+            self.poly.set_visible(True)
+            self.markers.set_visible(True)
+            self._to_pixels = self.ax.transData.get_affine().get_matrix().copy()
+        return self._bg
 
     def render(self, points: np.ndarray, motion: np.ndarray, selected_vertices) -> bytes:
+        """The posed face as PNG bytes: the triangles rasterised (numpy) over the cached figure background.
+
+        Same colours as an Agg drawing of the figure's PolyCollection (:meth:`sync_figure`
+        puts the last pose into it, e.g. for ``fig.savefig``), about ten times faster on
+        the ICT face (``set_verts`` alone builds one Path per triangle: 0.2 s).
+        """
+        from repro.ui.raster import png_bytes, rasterize, stamp_discs
+
         T = points[self.faces]
         # smooth (vertex-normal) Lambert shading, averaged over each triangle
         fn = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
@@ -167,14 +190,30 @@ class _MatplotlibView:
         shade = (0.35 + 0.65 * np.abs(vn @ self.light))[self.faces].mean(axis=1)
         colours = self.cmap(self.norm(motion[self.faces].mean(axis=1)))
         colours[:, :3] *= shade[:, None]
-        self.poly.set_verts(T[:, :, :2])
-        self.poly.set_facecolors(colours)
-        self.poly.set_edgecolors(colours)
         sel = np.asarray(selected_vertices if selected_vertices is not None else [], dtype=np.int64)
-        self.markers.set_offsets(points[sel, :2] if sel.size else np.zeros((0, 2)))
-        buf = io.BytesIO()
-        self.fig.savefig(buf, format="png")
-        return buf.getvalue()
+        self._last = (T[:, :, :2], colours, points[sel, :2] if sel.size else np.zeros((0, 2)))
+        bg = self._background()
+        H = bg.shape[0]
+        M = self._to_pixels
+        xy = points[:, :2] @ M[:2, :2].T + M[:2, 2]
+        xy[:, 1] = H - xy[:, 1]  # image rows run down
+        img = bg.copy()
+        rgb = np.clip(np.rint(colours[:, :3] * 255), 0, 255).astype(np.uint8)
+        # painter's order as the PolyCollection draws it: later triangles (nearer) on top
+        rasterize(xy, self.faces, rgb, np.arange(len(self.faces), dtype=float), img)
+        if sel.size:
+            stamp_discs(img, xy[sel], 3.25, (0, 255, 255), edge=(0, 0, 0), edge_width=0.85)
+        return png_bytes(img)
+
+    def sync_figure(self):
+        """Put the last rendered pose into the figure's artists (the live view does not need them); the figure."""
+        if getattr(self, "_last", None) is not None:
+            verts, colours, marks = self._last
+            self.poly.set_verts(verts)
+            self.poly.set_facecolors(colours)
+            self.poly.set_edgecolors(colours)
+            self.markers.set_offsets(marks)
+        return self.fig
 
     def close(self) -> None:
         self.fig.clear()
