@@ -131,10 +131,11 @@ def numbers_html(text: str) -> str:
     """The numbers line as HTML: each ``name: value unit`` kept on one line, breaks only between fields.
 
     The text the browser shows (``innerText``) is ``text`` itself, so
-    :func:`parse_fighter_numbers` reads the page as it reads the panel.
+    :func:`parse_fighter_numbers` reads the page as it reads the panel; the whole line
+    is also the element's tooltip (``title``).
     """
     parts = [f'<span style="white-space:nowrap">{html.escape(p)}</span>' for p in text.split(" | ")]
-    return '<code style="white-space:normal">' + " | ".join(parts) + "</code>"
+    return f'<code style="white-space:normal" title="{html.escape(text)}">' + " | ".join(parts) + "</code>"
 
 
 #: Labels for the icon-only buttons of the ``Play`` widget (play/pause, stop, loop) and the panel's layout.

@@ -28,6 +28,9 @@ def rasterize(xy: np.ndarray, faces: np.ndarray, colours: np.ndarray, depth: np.
     """
     H, W = image.shape[:2]
     T = xy[faces]  # (t, 3, 2)
+    finite = np.isfinite(T).all(axis=(1, 2))
+    if not finite.all():  # a NaN vertex: its triangles are not drawn (their box would be undefined)
+        T = np.where(finite[:, None, None], T, -1.0)
     x0 = np.ceil(T[:, :, 0].min(axis=1) - 0.5).astype(np.int64)
     x1 = np.floor(T[:, :, 0].max(axis=1) - 0.5).astype(np.int64)
     y0 = np.ceil(T[:, :, 1].min(axis=1) - 0.5).astype(np.int64)
@@ -37,7 +40,7 @@ def rasterize(xy: np.ndarray, faces: np.ndarray, colours: np.ndarray, depth: np.
     np.clip(x1, -1, W - 1, out=x1)
     np.clip(y1, -1, H - 1, out=y1)
     bw, bh = x1 - x0 + 1, y1 - y0 + 1
-    ok = (bw > 0) & (bh > 0) & np.isfinite(T).all(axis=(1, 2))
+    ok = (bw > 0) & (bh > 0) & finite
     ok &= bw * bh <= MAX_BOX_PIXELS
     tri = np.flatnonzero(ok)
     if tri.size == 0:
