@@ -466,7 +466,11 @@ def test_fighter_numbers_line_breaks_only_between_fields(strike):
     import html as html_module
     import re
 
-    from repro.ui.fighter_panel import format_fighter_numbers, numbers_html, parse_fighter_numbers
+    from repro.ui.fighter_panel import (
+        format_fighter_numbers,
+        numbers_html,
+        parse_fighter_numbers,
+    )
 
     text = format_fighter_numbers(strike)
     shown = numbers_html(text)

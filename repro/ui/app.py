@@ -25,8 +25,17 @@ from pathlib import Path
 
 from repro.errors import ReproError
 
-__all__ = ["APPS", "DEFAULT_HOST", "DEFAULT_PORT", "AppError", "app_notebook", "port_problem", "voila_command",
-           "has_display", "run_app"]
+__all__ = [
+    "APPS",
+    "DEFAULT_HOST",
+    "DEFAULT_PORT",
+    "AppError",
+    "app_notebook",
+    "has_display",
+    "port_problem",
+    "run_app",
+    "voila_command",
+]
 
 APPS = {
     "face": "Lewis et al. 2005: sliders, selection, alpha and attenuation on a blendshape face",

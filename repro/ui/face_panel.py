@@ -298,6 +298,11 @@ class BlendshapePanel(PanelCallbacks):
         its step-snapped value as soon as the browser draws it).
     alpha_on_top : bool
         Put the alpha slider and the numbers line above the sliders.
+    defer_view : bool
+        In a running kernel, draw the view once the widget messages already queued
+        are handled (quick slider moves: the numbers follow every value, the picture
+        skips to the last one).  Outside a kernel (or False) every update draws at
+        once.  :meth:`image_png` always returns the current picture.
 
     Attributes
     ----------
@@ -329,6 +334,7 @@ class BlendshapePanel(PanelCallbacks):
         image_size=(360, 420),
         continuous_update: bool = True,
         alpha_on_top: bool = False,
+        defer_view: bool = True,
     ):
         if isinstance(model, str):
             model = load_model(model)
@@ -351,6 +357,9 @@ class BlendshapePanel(PanelCallbacks):
         self._numbers: dict = {}
         self._numbers_text = ""
         self.last_update_seconds = {"numbers": float("nan"), "view": float("nan")}
+        self.defer_view = bool(defer_view)
+        self._view_state = None
+        self._render_scheduled = False
 
         first = region if region is not None else next(iter(self._regions))
         if first not in self._regions:
@@ -634,11 +643,34 @@ class BlendshapePanel(PanelCallbacks):
         self.last_update_seconds["numbers"] = t1 - t0
         self.numbers_html.value = f"<code>{html.escape(self._numbers_text)}</code>"
         self.status_html.value = self._status()
-        if self._view is not None:
-            motion = np.linalg.norm((d - self._d_base).reshape(-1, 3), axis=1)
-            points = self.model.f0 + d.reshape(-1, 3)
-            self.view_image.value = self._view.render(points, motion, self._sel_vertices)
-        self.last_update_seconds["view"] = time.perf_counter() - t1
+        if self._view is None:
+            self.last_update_seconds["view"] = time.perf_counter() - t1
+            return
+        self._view_state = (d, self._d_base, self._sel_vertices)
+        loop = _kernel_loop() if self.defer_view else None
+        if loop is None:
+            self._render_view()
+        elif not self._render_scheduled:
+            # in a kernel: draw once the messages already queued (e.g. quick key presses) are handled,
+            # so intermediate slider values are skipped and the last one is always the one drawn
+            self._render_scheduled = True
+            loop.call_soon(self._guarded(self._render_scheduled_view))
+
+    def _render_scheduled_view(self) -> None:
+        if self._render_scheduled:
+            self._render_view()
+
+    def _render_view(self) -> None:
+        """Draw the state of the last update into the view (and the image widget)."""
+        self._render_scheduled = False
+        if self._view is None or self._view_state is None:
+            return
+        t = time.perf_counter()
+        d, d_base, sel_vertices = self._view_state
+        motion = np.linalg.norm((d - d_base).reshape(-1, 3), axis=1)
+        points = self.model.f0 + d.reshape(-1, 3)
+        self.view_image.value = self._view.render(points, motion, sel_vertices)
+        self.last_update_seconds["view"] = time.perf_counter() - t
 
     def _status(self) -> str:
         if self.error:
@@ -792,6 +824,8 @@ class BlendshapePanel(PanelCallbacks):
 
     def image_png(self) -> bytes:
         """The current view as PNG bytes (empty without a view)."""
+        if self._render_scheduled:
+            self._render_view()
         return bytes(self.view_image.value)
 
     def __repr__(self) -> str:
@@ -803,6 +837,20 @@ class BlendshapePanel(PanelCallbacks):
         if isinstance(bundle, dict):
             bundle["text/plain"] = repr(self)
         return bundle
+
+
+def _kernel_loop():
+    """The running event loop of an IPython kernel we are called from, or None (plain Python, tests)."""
+    import asyncio
+    import sys
+
+    try:
+        loop = asyncio.get_running_loop()
+    except RuntimeError:
+        return None
+    ipython = sys.modules.get("IPython")
+    shell = ipython.get_ipython() if ipython is not None else None
+    return loop if getattr(shell, "kernel", None) is not None else None
 
 
 def _nan_quiet(func, *args):

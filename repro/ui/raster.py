@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["rasterize", "stamp_discs", "png_bytes"]
+__all__ = ["png_bytes", "rasterize", "stamp_discs"]
 
 #: Triangles whose bounding box covers more pixels than this are skipped (a guard
 #: against a degenerate pose blowing up the candidate count; a face triangle covers a few).
@@ -58,18 +58,24 @@ def rasterize(xy: np.ndarray, faces: np.ndarray, colours: np.ndarray, depth: np.
     eb = (Q[:, :, 0] - P[:, :, 0]) * s
     ec = ((Q[:, :, 1] - P[:, :, 1]) * P[:, :, 0] - (Q[:, :, 0] - P[:, :, 0]) * P[:, :, 1]) * s
     ec += 1e-6 * np.abs(area)[:, None]
+    # relative to each box's first pixel centre, so float32 is exact enough per candidate pixel
+    ox, oy = x0[tri] + 0.5, y0[tri] + 0.5
+    ec = ec + ea * ox[:, None] + eb * oy[:, None]
     counts = (bw * bh)[tri]
-    local = np.repeat(np.arange(tri.size), counts)
-    start = np.repeat(np.cumsum(counts) - counts, counts)
-    off = np.arange(local.size, dtype=np.int64) - start
-    w = bw[tri][local]
-    px = x0[tri][local] + off % w
-    py = y0[tri][local] + off // w
-    cx, cy = px + 0.5, py + 0.5
-    inside = np.ones(local.size, dtype=bool)
+    start = np.repeat((np.cumsum(counts) - counts).astype(np.int32), counts)
+    off = np.arange(start.size, dtype=np.int32) - start
+    w = np.repeat(bw[tri].astype(np.int32), counts)
+    i, j = off % w, off // w  # column and row inside the box
+    fi, fj = i.astype(np.float32), j.astype(np.float32)
+    inside = np.ones(start.size, dtype=bool)
     for k in range(3):
-        inside &= ea[:, k][local] * cx + eb[:, k][local] * cy + ec[:, k][local] >= 0
-    cand, pix = tri[local[inside]], (py * W + px)[inside]
+        e = np.repeat(ea[:, k].astype(np.float32), counts) * fi
+        e += np.repeat(eb[:, k].astype(np.float32), counts) * fj
+        e += np.repeat(ec[:, k].astype(np.float32), counts)
+        inside &= e >= 0
+    local = np.repeat(np.arange(tri.size, dtype=np.int32), counts)[inside]
+    cand = tri[local]
+    pix = (y0[tri][local] + j[inside]) * W + x0[tri][local] + i[inside]
     # nearest triangle per pixel: depth rank, max over the candidates of a pixel
     rank = np.empty(len(faces), dtype=np.int64)
     rank[np.argsort(depth, kind="stable")] = np.arange(len(faces))

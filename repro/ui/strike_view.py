@@ -24,7 +24,7 @@ import numpy as np
 
 from repro.motion.roles import find_roles
 
-__all__ = ["StrikeCamera", "FilmstripView", "strike_animation", "animation_html", "animation_png", "key_frames"]
+__all__ = ["FilmstripView", "StrikeCamera", "animation_html", "animation_png", "key_frames", "strike_animation"]
 
 ADAPTED, ORIGINAL, TARGET, PATH = "tab:blue", "0.62", "navy", "tab:red"
 
@@ -294,10 +294,10 @@ def animation_png(strike, *, every: int = 2, loop: int = 0, hold: float = 0.8, *
     """
     from PIL import Image
 
-    frames, images = animation_frames(strike, every=every, **kw)
+    _, images = animation_frames(strike, every=every, **kw)
     ms = 1000.0 * strike.motion.frame_time * max(1, int(every))
-    durations = [int(round(ms))] * len(images)
-    durations[-1] = int(round(ms + 1000.0 * hold))
+    durations = [round(ms)] * len(images)
+    durations[-1] = round(ms + 1000.0 * hold)
     pil = [Image.fromarray(im) for im in images]
     buf = io.BytesIO()
     pil[0].save(buf, format="png", save_all=True, append_images=pil[1:], duration=durations, loop=int(loop),
