@@ -20,7 +20,12 @@ import time
 
 import pytest
 
-from tests.browser.conftest import ARTIFACTS, CHROMIUM, CHROMIUM_ARGS, browser_unavailable_reason
+from tests.browser.conftest import (
+    ARTIFACTS,
+    CHROMIUM,
+    CHROMIUM_ARGS,
+    browser_unavailable_reason,
+)
 from tests.conftest import REPO
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
@@ -121,9 +126,9 @@ class App:
 def page(request):
     if (why := browser_unavailable_reason()) is not None:
         pytest.skip(why)
-    from playwright.sync_api import sync_playwright
-
     import tempfile
+
+    from playwright.sync_api import sync_playwright
 
     pw = sync_playwright().start()
     ctx = pw.chromium.launch_persistent_context(tempfile.mkdtemp(prefix="repro-app-chromium-"),
