@@ -494,3 +494,7 @@ def test_fighter_panel_labels_its_icon_buttons_and_animates_on_request(strike):
     p.kick()
     assert p.image_png().startswith(b"\x89PNG") and b"acTL" in p.animation_png()[:200]
     p.close()
+    # without animate, one picture in the panel (pages select it as the panel's <img>)
+    q = FighterPanel(KungFuFighter("synthetic", seed=0))
+    assert [w for w in q.widget.children if isinstance(w, widgets.Image)] == [q.image]
+    q.close()

@@ -260,8 +260,9 @@ class FighterPanel(PanelCallbacks):
             widgets.HBox([self.kick_button, self.punch_button, self.user_toggle, self.play, self.step_button]),
             self.numbers_html,
             self.status_html,
-            self.animation,
             self.image,
+            # the animation only where asked: without it the panel shows one picture (one <img>)
+            *([self.animation] if self.animate else []),
             widgets.HTML(PANEL_CSS),
         ])
         self.widget.add_class("repro-fighter-panel")
