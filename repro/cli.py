@@ -9,6 +9,7 @@
     repro claims                    the claims ledger (figures/claims.md, figures/claims.csv)
     repro data list                 each dataset: present? verified?
     repro data fetch NAME           download (and verify) a dataset into the data folder
+    repro app face|fighter          a paper's panel as a web page without code (Voila; --port, --host)
 
 Exit status: 0 on success, 2 for an unknown name or bad usage (e.g. ``--out``
 naming a file), 1 when a run fails with one of repro's own errors (the message
@@ -52,6 +53,12 @@ def _parser() -> argparse.ArgumentParser:
     dsub.add_parser("list", help="each dataset, whether present and verified")
     f = dsub.add_parser("fetch", help="download and verify datasets")
     f.add_argument("datasets", nargs="+", metavar="NAME")
+    a = sub.add_parser("app", help="a paper's panel as a web page without code (Voila)")
+    a.add_argument("which", choices=("face", "fighter"), help="face: Lewis et al. 2005; fighter: Pronost et al.")
+    a.add_argument("--port", type=int, default=8866, help="port to serve on (default: 8866)")
+    a.add_argument("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1, this machine only)")
+    a.add_argument("--no-browser", action="store_true",
+                   help="do not open a browser (never opened without a display; the address is printed)")
     return p
 
 
@@ -191,6 +198,10 @@ def _main(args) -> int:
             return _claims(args)
         if args.command == "data":
             return _data(args)
+        if args.command == "app":
+            from repro.ui.app import run_app
+
+            return run_app(args.which, args.host, args.port, no_browser=args.no_browser)
     except UnknownFigureError as exc:
         print(f"repro: {exc}", file=sys.stderr)
         return 2

@@ -36,3 +36,19 @@ def test_probe_failure_becomes_a_reason_and_an_error(monkeypatch):
             render.require_render()
     finally:
         render.render_unavailable_reason.cache_clear()
+
+
+@pytest.mark.render
+@pytest.mark.slow
+def test_rejected_alternatives_legend_is_legible_at_100_percent():
+    """``ra.draw()`` (notebook 01): a 14-inch figure, so its text must be large to read in a notebook column."""
+    import repro.experiments as E
+
+    ra = E.get("rejected_alternatives").func(quick=True)
+    fig = ra.draw()
+    legends = [lg for sub in fig.subfigs for lg in sub.legends] + [ax.get_legend() for ax in fig.axes
+                                                                   if ax.get_legend() is not None]
+    assert legends, "the methods need a legend"
+    sizes = [t.get_fontsize() for lg in legends for t in lg.get_texts()]
+    assert min(sizes) >= 10, sizes
+    assert min(ax.title.get_fontsize() for ax in fig.axes if ax.get_title()) >= 9

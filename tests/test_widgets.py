@@ -364,3 +364,137 @@ def test_ict_panel_matches_evaluate_and_times_its_updates():
     # the panel records what each update cost (shown to the user); how fast it is, is measured by
     # `repro bench attenuation` against a bare D @ w in one process, never asserted here
     assert len(times) == 20 and all(np.isfinite(t) and t >= 0 for t in times), times
+
+
+# ------------------------------------------------------------ drawing less (issue 15: responsive views)
+def test_rasterizer_fills_shared_edges_without_cracks_and_the_nearest_triangle_wins():
+    from repro.ui.raster import rasterize
+
+    # a 20 x 20 px square as two triangles sharing the diagonal, and a small triangle in front of it
+    xy = np.array([[2.0, 2.0], [22.0, 2.0], [22.0, 22.0], [2.0, 22.0], [5.0, 5.0], [12.0, 5.0], [5.0, 12.0]])
+    faces = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6]])
+    colours = np.array([[255, 0, 0], [0, 255, 0], [0, 0, 255]], dtype=np.uint8)
+    img = np.zeros((30, 30, 3), dtype=np.uint8)
+    mask = np.zeros((30, 30), dtype=bool)
+    rasterize(xy, faces, colours, np.array([0.0, 0.0, 1.0]), img, mask=mask)
+    assert mask[2:22, 2:22].all() and mask.sum() == 400  # every pixel centre of the square, none outside
+    assert (img[6, 6] == [0, 0, 255]).all()  # the near triangle covers the square
+    assert (img[20, 3] == [0, 255, 0]).all() and (img[3, 20] == [255, 0, 0]).all()
+    img2 = np.zeros_like(img)
+    rasterize(xy, faces, colours, np.array([0.0, 0.0, -1.0]), img2)  # now behind: not drawn at all
+    assert not (img2 == [0, 0, 255]).all(axis=2).any()
+    # NaN points and huge (degenerate) triangles are skipped, not drawn or raised on
+    bad = xy.copy()
+    bad[4] = np.nan
+    rasterize(bad, faces, colours, np.zeros(3), np.zeros((30, 30, 3), np.uint8))
+
+
+def test_matplotlib_view_draws_what_agg_draws_of_its_figure(face):
+    """The rasterised picture is the figure's own drawing (same pixels but for triangle edges), without Agg."""
+    import io
+    import time
+
+    from PIL import Image
+
+    p = BlendshapePanel(face, region="under_left_eye", attenuation=True, values={"Wince": 0.3})
+    p.set_sliders(SneerLeft=0.7, JawOpen=0.4)
+    fast = np.asarray(Image.open(io.BytesIO(p.image_png())).convert("RGB"), dtype=int)
+    t0 = time.perf_counter()
+    buf = io.BytesIO()
+    p._view.sync_figure().savefig(buf, format="png")
+    t_agg = time.perf_counter() - t0
+    agg = np.asarray(Image.open(buf).convert("RGB"), dtype=int)
+    assert fast.shape == agg.shape
+    diff = np.abs(fast - agg).max(axis=2)
+    assert np.mean(diff <= 8) > 0.93 and diff.mean() < 4, (np.mean(diff <= 8), diff.mean())  # edges differ
+    assert (fast != 255).any(axis=2).sum() == pytest.approx((agg != 255).any(axis=2).sum(), rel=0.03)
+    t0 = time.perf_counter()
+    p.sliders["JawOpen"].value = 0.5
+    t_fast = time.perf_counter() - t0
+    print(f"\nbench face view ({face.name}): slider update {1e3 * t_fast:.1f} ms vs Agg redraw of the figure "
+          f"{1e3 * t_agg:.1f} ms (ratio {t_agg / max(t_fast, 1e-9):.1f})")
+    p.close()
+
+
+@pytest.fixture(scope="module")
+def strike():
+    from repro.motion.fighter import KungFuFighter
+
+    f = KungFuFighter("synthetic", seed=0)
+    f.follow((0.3, 1.3, 0.4), 0.0, snap=True)
+    return f.order("kick", (0.3, 1.3, 0.4))
+
+
+def test_filmstrip_fighter_has_a_head_and_is_drawn_large(strike):
+    from repro.ui.strike_view import FilmstripView, _Geometry
+
+    view = FilmstripView()
+    png = view.render(strike)
+    assert png.startswith(b"\x89PNG") and png == FilmstripView().render(strike)  # deterministic
+    scene = view.scenes[0]
+    assert scene.head.get_visible() and scene.head.radius > 0.05  # a head (metres)
+    geo = _Geometry(strike, 0.1)
+    # the head is drawn on the head joint's end of the neck, above the shoulders
+    assert geo.head[0][1] > np.percentile(geo.adapted[0][..., 1], 85)
+    # the standing fighter's height in pixels of the shown figure (was about 130 px)
+    ax = scene.ax
+    ends = geo.adapted[0].reshape(-1, 2)
+    px = ax.transData.transform(ends)
+    assert np.ptp(px[:, 1]) > 170, np.ptp(px[:, 1])
+    # every order redraws the same figure (artists updated, nothing added)
+    n_artists = sum(len(a.get_children()) for a in view.fig.axes)
+    view.render(strike)
+    assert sum(len(a.get_children()) for a in view.fig.axes) == n_artists
+
+
+def test_strike_animation_has_every_frame_and_an_apng_plays_them(strike):
+    from repro.ui.strike_view import animation_frames, animation_png, strike_animation
+
+    anim = strike_animation(strike, every=4)
+    assert anim.repro_frames[0] == 0 and anim.repro_frames[-1] == strike.n_frames - 1
+    player = anim.to_jshtml()  # the notebook's player
+    assert "<script" in player and player.count("data:image/png;base64") == len(anim.repro_frames)
+    frames, images = animation_frames(strike, every=4)
+    assert frames == anim.repro_frames and len({im.tobytes() for im in images}) == len(images)  # all different
+    apng = animation_png(strike, every=4)
+    i = apng.index(b"acTL")
+    assert int.from_bytes(apng[i + 4:i + 8], "big") == len(frames)  # an animated PNG of every frame drawn
+    assert int.from_bytes(apng[i + 8:i + 12], "big") == 0  # looping
+
+
+def test_fighter_numbers_line_breaks_only_between_fields(strike):
+    import html as html_module
+    import re
+
+    from repro.ui.fighter_panel import (
+        format_fighter_numbers,
+        numbers_html,
+        parse_fighter_numbers,
+    )
+
+    text = format_fighter_numbers(strike)
+    shown = numbers_html(text)
+    spans = re.findall(r'<span style="white-space:nowrap">(.*?)</span>', shown)
+    assert [html_module.unescape(s) for s in spans] == text.split(" | ")  # "hit error: 7.8e-11 m" stays whole
+    assert any(s.endswith(" ms") for s in spans) and any(s.endswith(" m") for s in spans)
+    visible = html_module.unescape(re.sub(r"<[^>]+>", "", shown))
+    assert visible == text and parse_fighter_numbers(visible)
+
+
+def test_fighter_panel_labels_its_icon_buttons_and_animates_on_request(strike):
+    from repro.motion.fighter import KungFuFighter
+    from repro.ui.fighter_panel import PANEL_CSS, FighterPanel
+
+    assert 'content: " play / pause"' in PANEL_CSS and 'content: " stop"' in PANEL_CSS
+    assert 'content: " loop"' in PANEL_CSS
+    p = FighterPanel(KungFuFighter("synthetic", seed=0), animate=True)
+    assert "repro-fighter-play" in p.play._dom_classes
+    assert any(isinstance(w, widgets.HTML) and w.value == PANEL_CSS for w in p.widget.children)
+    p.set_target(0.3, 1.3, 0.4)
+    p.kick()
+    assert p.image_png().startswith(b"\x89PNG") and b"acTL" in p.animation_png()[:200]
+    p.close()
+    # without animate, one picture in the panel (pages select it as the panel's <img>)
+    q = FighterPanel(KungFuFighter("synthetic", seed=0))
+    assert [w for w in q.widget.children if isinstance(w, widgets.Image)] == [q.image]
+    q.close()

@@ -22,8 +22,10 @@ paper's experiment (Section 4, figure 1):
   0.284 ms | load+convert: 3.149 ms | adapt: 5.689 ms | adapt per frame: 0.082 ms |
   first frame: 12.778 ms | budget: 33.333 ms | within budget: yes``.
 
-:func:`animation_html` renders a strike as a ``matplotlib.animation`` JavaScript player,
-only when asked (it embeds every frame).  Everything is drawn with matplotlib's Agg
+:func:`animation_html` renders a strike as a ``matplotlib.animation`` JavaScript player
+(notebooks), :func:`animation_png` as an animated PNG that the browser plays by itself
+(the panel with ``animate=True``, the app); both from :mod:`repro.ui.strike_view`.
+Everything is drawn with matplotlib's Agg
 backend and is deterministic for a given strike.  No widget callback raises: errors are
 shown in the panel.
 """
@@ -32,13 +34,13 @@ from __future__ import annotations
 
 import html
 import io
-import math
 import re
 
 import ipywidgets as widgets
 import numpy as np
 
 from repro.ui.panel import PanelCallbacks
+from repro.ui.strike_view import FilmstripView, animation_html, animation_png, key_frames
 from repro.motion.fighter import AREA, KungFuFighter, Strike, character_from, simulated_user
 
 __all__ = [
@@ -49,6 +51,8 @@ __all__ = [
     "filmstrip_figure",
     "key_frames",
     "animation_html",
+    "animation_png",
+    "numbers_html",
 ]
 
 #: The panel's numbers line (times in milliseconds, distances in metres).
@@ -100,143 +104,49 @@ def parse_fighter_numbers(text: str) -> dict:
 
 
 # ----------------------------------------------------------------------- drawing
-def key_frames(strike: Strike, n: int = 5) -> list[int]:
-    """``n`` frames of a strike from the order to the contact, plus one after it (distinct, sorted)."""
-    F, tc = strike.n_frames, strike.tc
-    before = np.linspace(0, tc, max(2, n - 1)).round().astype(int).tolist()
-    after = min(F - 1, tc + max(1, (F - 1 - tc) // 2))
-    return sorted(set(before + [after]))
-
-
-def _bones(motion, f):
-    g = motion.global_positions()[f]
-    e = motion.end_site_positions()[f]
-    segs = [(g[p], g[j]) for j, p in enumerate(motion.parents) if p >= 0]
-    segs += [(g[p], e[k]) for k, p in enumerate(motion.end_site_parents)]
-    return np.array(segs)
-
-
-def _sphere(ax, centre, radius, color):
-    u, v = np.mgrid[0:2 * np.pi:16j, 0:np.pi:9j]
-    ax.plot_wireframe(centre[0] + radius * np.cos(u) * np.sin(v), centre[2] + radius * np.sin(u) * np.sin(v),
-                      centre[1] + radius * np.cos(v), color=color, linewidth=0.5)
-
-
-def _floor(ax, c, half, step: float = 0.5):
-    """Grid lines on the floor (y = 0) every ``step`` metres."""
-    xs = np.arange(math.ceil((c[0] - half) / step), math.floor((c[0] + half) / step) + 1) * step
-    zs = np.arange(math.ceil((c[2] - half) / step), math.floor((c[2] + half) / step) + 1) * step
-    for x in xs:
-        ax.plot([x, x], [c[2] - half, c[2] + half], [0, 0], color="0.85", linewidth=0.6)
-    for z in zs:
-        ax.plot([c[0] - half, c[0] + half], [z, z], [0, 0], color="0.85", linewidth=0.6)
-
-
 def filmstrip_figure(strike: Strike, frames=None, *, n: int = 5, head_radius: float = 0.1, width: float = 11.0,
                      title: str | None = None, original: bool = True):
-    """Key frames of a strike side by side: the stick figure reaching the target sphere.
+    """Key frames of a strike side by side: the stick figure reaching the target (Fig. 10).
 
-    Each panel is a 3D view (matplotlib ``mplot3d``, a fixed camera beside the fighter)
-    of one frame: the adapted skeleton (blue), the unadapted one (grey, thin; the clip
-    retrieved, placed and blended, before the constraint solver), the target (a blue
-    sphere of ``head_radius`` metres around the stored head position) and the hit
-    point's path so far (dashed).  Titles give the time from the order.
+    Each panel is the same fixed side view (:class:`repro.ui.strike_view.StrikeCamera`)
+    of one frame: the adapted skeleton (blue, with a head), the unadapted one (grey,
+    thinner; the clip retrieved, placed and blended, before the constraint solver), the
+    target (a navy circle of ``head_radius`` metres around the stored head position) and
+    the hit point's path so far (dashed).  Titles give the time from the order.
 
     Returns
     -------
     matplotlib.figure.Figure
         Not attached to pyplot (draw it with ``display(fig)`` or save it).
     """
-    from matplotlib.figure import Figure
-
     frames = key_frames(strike, n) if frames is None else [int(f) for f in frames]
     F = strike.n_frames
     if not frames or min(frames) < 0 or max(frames) >= F:
         raise ValueError(f"frames must be in [0, {F - 1}], got {frames}")
-    fig = Figure(figsize=(width, width / len(frames) * 1.3 + 0.5), dpi=90)
-    g = strike.motion.global_positions()
-    hit = strike.hit_positions()
-    X = strike.target
-    pts = np.concatenate([g.reshape(-1, 3), X[None]])
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    c = (lo + hi) / 2
-    half = max(float((hi - lo)[[0, 2]].max()) / 2, float(hi[1]) / 2, 0.5) + 0.05
-    fps = 1.0 / strike.motion.frame_time
-    # look at the fighter from its left side, a little from the front
-    facing = math.degrees(math.atan2(X[0] - g[0, 0, 0], X[2] - g[0, 0, 2]))
-    azim = -facing + 20.0
-    for k, f in enumerate(frames):
-        ax = fig.add_subplot(1, len(frames), k + 1, projection="3d")
-        if original:
-            for a, b in _bones(strike.original, f):
-                ax.plot([a[0], b[0]], [a[2], b[2]], [a[1], b[1]], color="0.7", linewidth=1.0)
-        for a, b in _bones(strike.motion, f):
-            ax.plot([a[0], b[0]], [a[2], b[2]], [a[1], b[1]], color="tab:blue", linewidth=2.0)
-        _sphere(ax, X, head_radius, "navy")
-        ax.plot(hit[: f + 1, 0], hit[: f + 1, 2], hit[: f + 1, 1], "--", color="tab:red", linewidth=1.0)
-        ax.scatter([hit[f, 0]], [hit[f, 2]], [hit[f, 1]], color="tab:red", s=12)
-        _floor(ax, c, half)
-        ax.set_xlim(c[0] - half, c[0] + half)
-        ax.set_ylim(c[2] - half, c[2] + half)
-        ax.set_zlim(0.0, 2 * half)
-        ax.set_box_aspect((1, 1, 1), zoom=1.35)
-        ax.view_init(elev=12, azim=azim)
-        ax.set_axis_off()
-        label = " (contact)" if f == strike.tc else (" (order)" if f == 0 else "")
-        ax.set_title(f"t = {f / fps:+.2f} s{label}", fontsize=9)
-    if title is None:
-        title = (f"{strike.kind}: {strike.clip_name}; hit error at contact {1000 * strike.hit_error:.1f} mm"
-                 f" ({'reached' if strike.reached else 'NOT reached'}; unadapted clip misses by "
-                 f"{100 * strike.unadapted_error:.1f} cm)")
-    fig.suptitle(title, fontsize=10)
-    fig.subplots_adjust(left=0.0, right=1.0, bottom=0.0, top=0.88, wspace=0.0)
-    return fig
+    view = FilmstripView(len(frames), width=width, head_radius=head_radius)
+    return view.draw(strike, frames, title=title, original=original)
 
 
-def animation_html(strike: Strike, *, every: int = 1, head_radius: float = 0.1) -> str:
-    """The strike as a ``matplotlib.animation`` JavaScript player (HTML string; embeds every frame)."""
-    from matplotlib.animation import FuncAnimation
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+def numbers_html(text: str) -> str:
+    """The numbers line as HTML: each ``name: value unit`` kept on one line, breaks only between fields.
 
-    fig = Figure(figsize=(4.0, 4.0), dpi=72)
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot(projection="3d")
-    frames = list(range(0, strike.n_frames, max(1, int(every))))
-    g = strike.motion.global_positions()
-    X = strike.target
-    lo, hi = g.reshape(-1, 3).min(axis=0), g.reshape(-1, 3).max(axis=0)
-    c = (lo + hi) / 2
-    half = max(float((hi - lo)[[0, 2]].max()) / 2, float(hi[1]) / 2, 0.5) + 0.05
-    facing = math.degrees(math.atan2(X[0] - g[0, 0, 0], X[2] - g[0, 0, 2]))
-
-    def draw(f):
-        ax.cla()
-        for a, b in _bones(strike.motion, f):
-            ax.plot([a[0], b[0]], [a[2], b[2]], [a[1], b[1]], color="tab:blue", linewidth=2.0)
-        _sphere(ax, X, head_radius, "navy")
-        _floor(ax, c, half)
-        ax.set_xlim(c[0] - half, c[0] + half)
-        ax.set_ylim(c[2] - half, c[2] + half)
-        ax.set_zlim(0.0, 2 * half)
-        ax.set_box_aspect((1, 1, 1), zoom=1.35)
-        ax.view_init(elev=12, azim=-facing + 20.0)
-        ax.set_axis_off()
-        ax.set_title(f"{strike.kind}, frame {f}" + (" (contact)" if f == strike.tc else ""), fontsize=9)
-        return []
-
-    anim = FuncAnimation(fig, draw, frames=frames, interval=1000.0 * strike.motion.frame_time * max(1, int(every)),
-                         blit=False)
-    return anim.to_jshtml(default_mode="once")
+    The text the browser shows (``innerText``) is ``text`` itself, so
+    :func:`parse_fighter_numbers` reads the page as it reads the panel; the whole line
+    is also the element's tooltip (``title``).
+    """
+    parts = [f'<span style="white-space:nowrap">{html.escape(p)}</span>' for p in text.split(" | ")]
+    return f'<code style="white-space:normal" title="{html.escape(text)}">' + " | ".join(parts) + "</code>"
 
 
-def _png(fig) -> bytes:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-    FigureCanvasAgg(fig)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    return buf.getvalue()
+#: Labels for the icon-only buttons of the ``Play`` widget (play/pause, stop, loop) and the panel's layout.
+PANEL_CSS = """<style>
+.repro-fighter-play button { width: auto !important; padding: 0 8px; }
+.repro-fighter-play button:nth-of-type(1)::after { content: " play / pause"; }
+.repro-fighter-play button:nth-of-type(2)::after { content: " stop"; }
+.repro-fighter-play button:nth-of-type(3)::after { content: " loop"; }
+.repro-fighter-numbers code { font-size: 12px; line-height: 1.5; }
+.repro-fighter-panel img { max-width: 100%; height: auto; }
+</style>"""
 
 
 # ----------------------------------------------------------------------- panel
@@ -257,6 +167,10 @@ class FighterPanel(PanelCallbacks):
         reach: best effort, "reached: no").
     view : bool, default True
         Draw the filmstrip after each order (False: numbers only, faster).
+    animate : bool, default False
+        After the filmstrip, also play the strike as an animation (an animated PNG in
+        :attr:`animation`, drawn after the filmstrip is shown; about half a second more
+        of kernel time per order).
     user_seed, user_duration : int, float
         The simulated user's trajectory (:func:`simulated_user` at 30 Hz).
 
@@ -272,9 +186,11 @@ class FighterPanel(PanelCallbacks):
     """
 
     def __init__(self, fighter: KungFuFighter | None = None, *, target=(0.0, 1.65, 0.0), follow: bool = True,
-                 view: bool = True, user_seed: int = 0, user_duration: float = 20.0):
+                 view: bool = True, animate: bool = False, user_seed: int = 0, user_duration: float = 20.0):
         self.fighter = fighter if fighter is not None else KungFuFighter()
         self.view = bool(view)
+        self.animate = bool(animate)
+        self._filmstrip: FilmstripView | None = None
         self.user = simulated_user(user_seed, user_duration, 30.0)
         self._user_index = 0
         self.last_strike: Strike | None = None
@@ -310,10 +226,15 @@ class FighterPanel(PanelCallbacks):
                                                 tooltip="drive the target from a simulated user's head")
         self.user_toggle.add_class("repro-fighter-user")
         self.play = widgets.Play(value=0, min=0, max=len(self.user) - 1, step=3, interval=100,
-                                 description="play the user")
+                                 description="the user", tooltip="play the simulated user's head")
+        self.play.add_class("repro-fighter-play")
         self.step_button = widgets.Button(description="step 1 s", tooltip="advance the simulated user by one second")
-        self.image = widgets.Image(format="png", layout=widgets.Layout(width="880px",
-                                                                       display=None if self.view else "none"))
+        self.image = widgets.Image(format="png", layout=widgets.Layout(
+            width="990px", max_width="100%", display=None if self.view else "none"))
+        self.image.add_class("repro-fighter-filmstrip")
+        self.animation = widgets.Image(format="png", layout=widgets.Layout(
+            width="400px", display=None if self.view and self.animate else "none"))
+        self.animation.add_class("repro-fighter-animation")
         self.numbers_html = widgets.HTML()
         self.numbers_html.add_class("repro-fighter-numbers")
         self.status_html = widgets.HTML()
@@ -340,6 +261,9 @@ class FighterPanel(PanelCallbacks):
             self.numbers_html,
             self.status_html,
             self.image,
+            # the animation only where asked: without it the panel shows one picture (one <img>)
+            *([self.animation] if self.animate else []),
+            widgets.HTML(PANEL_CSS),
         ])
         self.widget.add_class("repro-fighter-panel")
         self._show()
@@ -354,7 +278,7 @@ class FighterPanel(PanelCallbacks):
         msg = str(exc) if isinstance(exc, ValueError) else f"{type(exc).__name__}: {exc}"
         self.error = msg
         self._numbers_text = f"error: {msg}"
-        self.numbers_html.value = f"<code>{html.escape(self._numbers_text)}</code>"
+        self.numbers_html.value = numbers_html(self._numbers_text)
         self.status_html.value = f'<span style="color:#b00020">error: {html.escape(msg)}</span>'
 
     def _status(self) -> str:
@@ -368,7 +292,7 @@ class FighterPanel(PanelCallbacks):
             f"target ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f}) from {src}")
 
     def _show(self) -> None:
-        self.numbers_html.value = f"<code>{html.escape(self._numbers_text)}</code>"
+        self.numbers_html.value = numbers_html(self._numbers_text)
         self.status_html.value = self._status()
 
     # ------------------------------------------------------------- callbacks
@@ -476,8 +400,11 @@ class FighterPanel(PanelCallbacks):
         self._numbers_text = format_fighter_numbers(strike)
         self._show()
         if self.view:
-            fig = filmstrip_figure(strike)
-            self.image.value = _png(fig)
+            if self._filmstrip is None:
+                self._filmstrip = FilmstripView()
+            self.image.value = self._filmstrip.render(strike)  # sent to the browser now
+            if self.animate:
+                self.animation.value = animation_png(strike)
         return strike
 
     def kick(self) -> Strike | None:
@@ -492,9 +419,13 @@ class FighterPanel(PanelCallbacks):
         """The filmstrip shown (PNG bytes; empty before the first order or with ``view=False``)."""
         return bytes(self.image.value)
 
+    def animation_png(self) -> bytes:
+        """The animation shown (APNG bytes; empty unless ``animate``)."""
+        return bytes(self.animation.value)
+
     def close(self) -> None:
         for w in [*self.sliders.values(), self.kick_button, self.punch_button, self.follow_box, self.user_toggle,
-                  self.play, self.step_button, self.image, self.numbers_html, self.status_html, self.widget]:
+                  self.play, self.step_button, self.image, self.animation, self.numbers_html, self.status_html, self.widget]:
             w.close()
 
     def __repr__(self) -> str:

@@ -47,9 +47,13 @@ def draw(pairs, table):
             for j, method in enumerate(methods):
                 vals = [t[(t.scenario == k) & (t.method == method)][col].iloc[0] for k in keys]
                 ax.bar(np.arange(len(keys)) + 0.2 * (j - 1.5), vals, 0.2, label=method)
-            ax.set_xticks(range(len(keys)), [k.replace("_", "\n") for k in keys], fontsize=6)
-            ax.set_title(f"{model.name}: {label}", fontsize=8)
-        row[0].legend(fontsize=6)
+            ax.set_xticks(range(len(keys)), [k.replace("_", "\n") for k in keys], fontsize=8)
+            ax.tick_params(axis="y", labelsize=8)
+            ax.set_title(f"{model.name}: {label}", fontsize=10)
+    # one legend for every panel, above them, at a size that reads at 100 % (the figure is 14 in wide)
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    sub[0].legend(handles, [m.replace("_", " ") for m in labels], loc="outside upper center", ncols=len(methods),
+                  fontsize=11, frameon=False)
     # where zeroing tears: Laplacian magnitude of the motion, procedural face, Fig. 5 session
     model, att = pairs[0]
     sc = S.scenario("wince_sneer_under_eye")
@@ -65,6 +69,6 @@ def draw(pairs, table):
     for ax, img, title, l in zip(bottom, imgs, ["no attenuation", "attenuation", "zeroed rows"], lap):
         ax.imshow(img)
         ax.axis("off")
-        ax.set_title(f"{model.name} {sc.figure}, {title}: max |L d| = {l.max():.3g}", fontsize=8)
-    sub[1].suptitle("Laplacian magnitude of the displacement (bright = surface torn)", fontsize=8)
+        ax.set_title(f"{model.name} {sc.figure}, {title}: max |L d| = {l.max():.3g}", fontsize=10)
+    sub[1].suptitle("Laplacian magnitude of the displacement (bright = surface torn)", fontsize=10)
     return fig
