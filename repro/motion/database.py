@@ -57,7 +57,6 @@ import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from functools import lru_cache
 
 import numpy as np
 
@@ -1483,7 +1482,6 @@ def augment(db: MotionDatabase, factor: int, seed: int = 0, *, scale_range=(0.85
 
 
 # ============================================================= the two default databases
-@lru_cache(maxsize=4)
 def default_database(name: str = "synthetic", seed: int = 0) -> MotionDatabase:
     """A ready database by name, built once per process.
 
@@ -1492,22 +1490,36 @@ def default_database(name: str = "synthetic", seed: int = 0) -> MotionDatabase:
     ``"cmu"``: :func:`build_cmu_database` from the staged CMU takes (needs dataset
     ``cmu-bvh``; raises :class:`~repro.errors.DataError` saying how to get it).
     """
+    import copy
+
     if name == "synthetic":
-        import tempfile
-
-        from repro.motion.synthetic import synthetic_database
-
-        with tempfile.TemporaryDirectory(prefix="repro-synthetic-") as tmp:
-            synthetic_database(tmp, seed=seed)
-            return build_database(tmp)
-    if name == "cmu":
+        key = ("synthetic", int(seed))
+    elif name == "cmu":
         from repro import data
 
         reason = data.missing_reason("cmu-bvh")
         if reason:
             raise DataError(reason)
-        return build_cmu_database()
-    raise RetrievalError(f"unknown database {name!r}; known: 'synthetic', 'cmu'")
+        key = ("cmu", str(data.data_dir()))
+    else:
+        raise RetrievalError(f"unknown database {name!r}; known: 'synthetic', 'cmu'")
+    if key not in _DEFAULT_DATABASES:
+        if name == "synthetic":
+            import tempfile
+
+            from repro.motion.synthetic import synthetic_database
+
+            with tempfile.TemporaryDirectory(prefix="repro-synthetic-") as tmp:
+                synthetic_database(tmp, seed=seed)
+                _DEFAULT_DATABASES[key] = build_database(tmp)
+        else:
+            _DEFAULT_DATABASES[key] = build_cmu_database()
+    # a copy each call (~20 ms): a caller changing its database cannot change the next caller's
+    return copy.deepcopy(_DEFAULT_DATABASES[key])
+
+
+#: :func:`default_database`'s builds, by (name, seed or data folder): built once per process
+_DEFAULT_DATABASES: dict = {}
 
 
 # ============================================================= the other real sources
