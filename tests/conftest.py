@@ -171,3 +171,90 @@ class ColdBusyNotebooks:
             terminalreporter.write_line(
                 f"REPRO_NBVAL_COLD_BUSY: {self.notebooks} notebook(s) ran with cold caches "
                 f"({', '.join(COLD_VARS)} fresh per notebook) and {os.cpu_count()} CPU-bound processes running")
+
+
+# ------------------------------------------------------------------ shared computations
+class QuickFigures:
+    """Every registered figure computed at most once per test session, in quick mode.
+
+    ``quick_figures(name)`` is the figure's :class:`~repro.experiments.registry.Result`; each
+    call hands out copies of its tables, so no test can change what another reads.  The figure
+    tests, the CLI tests, the claims test and the determinism test all read these.
+    """
+
+    def __init__(self):
+        self._results: dict = {}
+
+    def __call__(self, name: str):
+        import dataclasses
+
+        from repro.experiments import get
+        from repro.experiments.registry import call_experiment
+
+        if name not in self._results:
+            self._results[name] = call_experiment(get(name), quick=True)
+        r = self._results[name]
+        return dataclasses.replace(r, table=_copy_table(r.table),
+                                   extra_tables={k: _copy_table(t) for k, t in r.extra_tables.items()})
+
+    def computed(self, name: str) -> bool:
+        return name in self._results
+
+    def serve(self, monkeypatch, *names: str) -> None:
+        """Make the registry (``repro run``, :func:`repro.experiments.run`) answer ``names`` from here.
+
+        For tests of the plumbing (files written, manifest, drawing), not of the numbers: the
+        registered function is replaced by one of the same name that returns the shared result.
+        """
+        import dataclasses
+        import functools
+        import importlib
+
+        registry = importlib.import_module("repro.experiments.registry")
+        for name in names:
+            self(name)  # computed before the registry answers from here
+            exp = registry.get(name)
+
+            @functools.wraps(exp.func)
+            def served(quick=False, progress=False, _name=name, **kw):
+                assert quick and not kw, "served figures are the quick ones with default arguments"
+                return self(_name)
+
+            monkeypatch.setitem(registry._REGISTRY, name, dataclasses.replace(exp, func=served))
+
+
+def _copy_table(t):
+    return t.copy(deep=True) if hasattr(t, "copy") else t
+
+
+@pytest.fixture(scope="session")
+def quick_figures() -> QuickFigures:
+    return QuickFigures()
+
+
+@pytest.fixture(scope="session")
+def synthetic_dir(tmp_path_factory) -> Path:
+    """The embedded motion database (75 BVH files and manifest.csv), written once per session.
+
+    Tests must not change the folder (a test that writes takes its own copy).
+    """
+    from repro.motion.synthetic import synthetic_database
+
+    d = tmp_path_factory.mktemp("synthetic")
+    synthetic_database(d, seed=0)
+    return d
+
+
+@pytest.fixture(scope="session")
+def _synthetic_db(synthetic_dir):
+    from repro.motion.sources import build_database
+
+    return build_database(synthetic_dir)
+
+
+@pytest.fixture(scope="module")
+def synthetic_db(_synthetic_db):
+    """``build_database(synthetic_dir)``, built once per session; each module gets its own copy."""
+    import copy
+
+    return copy.deepcopy(_synthetic_db)

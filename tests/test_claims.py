@@ -8,8 +8,8 @@ DATASET = {"lewis2005": "ict", "pronost2008": "cmu-bvh"}
 
 
 @pytest.fixture(scope="module")
-def rows():
-    return claims.evaluate(quick=True)
+def rows(quick_figures):
+    return claims.evaluate(quick=True, results=quick_figures)  # the session's quick figures
 
 
 def test_every_claim_has_a_statement_figure_notebook_and_values(rows):

@@ -61,9 +61,10 @@ def test_atomic_write_keeps_the_old_file_when_writing_fails(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["out.csv"]
 
 
-def test_manifest_records_provenance_and_reruns_only_what_changed(tmp_path, capsys):
+def test_manifest_records_provenance_and_reruns_only_what_changed(tmp_path, capsys, quick_figures, monkeypatch):
     import json
 
+    quick_figures.serve(monkeypatch, "fig4_axis_selection")  # the plumbing: test_run_writes_png_and_csv runs for real
     out = str(tmp_path)
     assert cli.main(["run", "fig4_axis_selection", "--quick", "--out", out]) == 0
     entry = json.loads((tmp_path / "manifest.json").read_text())["fig4_axis_selection"]
@@ -87,9 +88,12 @@ def test_manifest_records_provenance_and_reruns_only_what_changed(tmp_path, caps
 TIMING_COLUMN = r"(_ms|_us|_s|speedup|ratio|_over_|meets_goal|within_budget|machine|bench)"
 
 
-def test_two_runs_give_identical_csvs_except_timing_columns():
+def test_two_runs_give_identical_csvs_except_timing_columns(quick_figures):
     """Two runs write the same CSV bytes: whole tables for figures without wall-clock numbers, and
-    every non-timing column for the timing figures (nbval and reviewers rely on it)."""
+    every non-timing column for the timing figures (nbval and reviewers rely on it).
+
+    The first run is the session's (``quick_figures``, computed earlier in this process by the
+    tests that read it), the second a fresh call."""
     import re
 
     from repro.experiments import registry
@@ -98,7 +102,7 @@ def test_two_runs_give_identical_csvs_except_timing_columns():
     names = list(registry())
     assert sum(not registry()[n].timing for n in names) >= 5
     for name in names:
-        first, second = (registry()[name].func(quick=True) for _ in range(2))
+        first, second = quick_figures(name), registry()[name].func(quick=True)
         tables = [("", first.table, second.table)] + [
             (suffix, t, second.extra_tables[suffix]) for suffix, t in first.extra_tables.items()]
         for suffix, a, b in tables:

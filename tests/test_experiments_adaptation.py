@@ -35,14 +35,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from repro.experiments import get, registry, run
+from repro.experiments import registry, run
 
 NAMES = ["retargeting_morphologies", "database_vs_adaptation", "adapted_motions"]
 
 
 @pytest.fixture(scope="module")
-def results():
-    return {name: get(name).func(quick=True) for name in NAMES}
+def results(quick_figures):
+    return {name: quick_figures(name) for name in NAMES}
 
 
 def _pivot(t: pd.DataFrame, value: str) -> pd.DataFrame:
@@ -146,7 +146,8 @@ def test_adapted_motions_reach_their_targets(results):
     assert t.max_foot_slide_m.max() < 5e-3
 
 
-def test_run_writes_png_and_csv(tmp_path):
+def test_run_writes_png_and_csv(tmp_path, quick_figures, monkeypatch):
+    quick_figures.serve(monkeypatch, *NAMES)  # the session's numbers: this tests the writing and drawing
     for name in NAMES:
         written = run(name, tmp_path, quick=True)
         png = tmp_path / f"{name}.png"
@@ -208,7 +209,7 @@ def test_adapted_motions_figure_is_rendered_with_pyvista(results):
         plt.close(fig)
 
 
-def test_adapted_motions_falls_back_to_matplotlib(monkeypatch, tmp_path):
+def test_adapted_motions_falls_back_to_matplotlib(monkeypatch, tmp_path, quick_figures):
     import matplotlib.pyplot as plt
 
     from repro.ui import render
@@ -218,10 +219,11 @@ def test_adapted_motions_falls_back_to_matplotlib(monkeypatch, tmp_path):
 
     monkeypatch.setattr(render, "render_unavailable_reason", lambda: "VTK off-screen rendering unavailable (test)")
     monkeypatch.setattr(render, "skeleton_images", no_render)
+    quick_figures.serve(monkeypatch, "adapted_motions")  # the renderer is chosen when drawing
     written = run("adapted_motions", tmp_path, quick=True)
     assert tmp_path / "adapted_motions.png" in written
     assert len(pd.read_csv(tmp_path / "adapted_motions.csv")) > 0  # the numbers never depend on rendering
-    r = get("adapted_motions").func(quick=True)
+    r = quick_figures("adapted_motions")
     fig = r.draw()
     try:
         title = fig._suptitle.get_text()

@@ -5,14 +5,14 @@ import pandas as pd
 import pytest
 
 from repro import cli
-from repro.experiments import get, registry
+from repro.experiments import registry
 
 LEWIS = ["fig2_interference", "fig3_attenuation", "fig4_axis_selection", "fig5_alpha", "alpha_sweep", "rejected_alternatives"]
 
 
 @pytest.fixture(scope="module")
-def results():
-    return {name: get(name).func(quick=True) for name in LEWIS}
+def results(quick_figures):
+    return {name: quick_figures(name) for name in LEWIS}
 
 
 def test_all_registered():
@@ -67,7 +67,8 @@ def test_rejected_alternatives_numbers(results):
 
 
 @pytest.mark.render
-def test_repro_run_writes_every_lewis_figure(tmp_path):
+def test_repro_run_writes_every_lewis_figure(tmp_path, quick_figures, monkeypatch):
+    quick_figures.serve(monkeypatch, *LEWIS)  # the session's numbers: this tests the writing and drawing
     assert cli.main(["run", *LEWIS, "--quick", "--out", str(tmp_path)]) == 0
     for name in LEWIS:
         assert (tmp_path / f"{name}.png").read_bytes()[:4] == b"\x89PNG"

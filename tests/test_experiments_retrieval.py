@@ -11,14 +11,11 @@ What is asserted, on the data the experiments return (quick mode, as CI runs the
   holds one row per clip with non-negative extents;
 * both experiments are registered (paper "pronost2008"), and ``run`` writes their PNG and CSVs.
 
-``retrieval_latency`` is computed once for the module (about 25 s with the CMU data); the
-``run`` test writes that same result through the registry instead of measuring again.
+Both are computed once for the session (``quick_figures``, tests/conftest.py; about 25 s with
+the CMU data); the ``run`` test writes those same results through the registry.
 """
 
 from __future__ import annotations
-
-import dataclasses
-import importlib
 
 import numpy as np
 import pandas as pd
@@ -27,18 +24,15 @@ import pytest
 import repro.experiments as E
 from repro.motion.sources import default_database
 
-# the module (the package exports a function of the same name)
-registry = importlib.import_module("repro.experiments.registry")
+
+@pytest.fixture(scope="module")
+def latency(quick_figures):
+    return quick_figures("retrieval_latency")
 
 
 @pytest.fixture(scope="module")
-def latency():
-    return E.get("retrieval_latency").func(quick=True)
-
-
-@pytest.fixture(scope="module")
-def clusters():
-    return E.get("clusters").func(quick=True)
+def clusters(quick_figures):
+    return quick_figures("clusters")
 
 
 def test_both_registered_for_pronost():
@@ -114,13 +108,11 @@ def test_cluster_sizes_sum_to_poses(clusters):
         assert (b.boxes_containing_hit >= 1).all()
 
 
-def test_run_writes_png_and_csvs(tmp_path, monkeypatch, latency):
-    # clusters: a real run through the registry
+def test_run_writes_png_and_csvs(tmp_path, monkeypatch, quick_figures):
+    # both: the session's results, written and drawn through the registry (no second measurement)
+    quick_figures.serve(monkeypatch, "clusters", "retrieval_latency")
     written = {p.name for p in E.run("clusters", tmp_path, quick=True)}
     assert {"clusters.csv", "clusters-boxes.csv", "clusters.png"} <= written
-    # retrieval_latency: the module's result, written through the registry (no second measurement)
-    exp = registry.get("retrieval_latency")
-    monkeypatch.setitem(registry._REGISTRY, "retrieval_latency", dataclasses.replace(exp, func=lambda quick: latency))
     written = {p.name for p in E.run("retrieval_latency", tmp_path, quick=True)}
     assert {"retrieval_latency.csv", "retrieval_latency-k_sweep.csv", "retrieval_latency.png"} <= written
     for name in written | {"clusters.png"}:

@@ -17,13 +17,13 @@ the database rate on a grid through the hit time (so the hit stays on a frame).
 
 from __future__ import annotations
 
+import copy
 import csv
 import dataclasses
 import math
 import re
 import tempfile
 from collections.abc import Iterable, Mapping, Sequence
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -449,9 +449,8 @@ def load_or_build(path, build=build_cmu_database, **kw) -> MotionDatabase:
     return db
 
 
-@lru_cache(maxsize=4)
 def default_database(name: str = "synthetic", seed: int = 0) -> MotionDatabase:
-    """A ready database by name, built once per process.
+    """A ready database by name, built once per process (each call returns its own copy).
 
     ``"synthetic"``: the embedded set of :func:`repro.motion.synthetic.synthetic_database`
     (75 clips written to a temporary folder, built from its manifest), always available.
@@ -459,15 +458,27 @@ def default_database(name: str = "synthetic", seed: int = 0) -> MotionDatabase:
     ``cmu-bvh``; raises :class:`~repro.errors.DataError` saying how to get it).
     """
     if name == "synthetic":
-        with tempfile.TemporaryDirectory(prefix="repro-synthetic-") as tmp:
-            synthetic_database(tmp, seed=seed)
-            return build_database(tmp)
-    if name == "cmu":
+        key = ("synthetic", int(seed))
+    elif name == "cmu":
         reason = data.missing_reason("cmu-bvh")
         if reason:
             raise DataError(reason)
-        return build_cmu_database()
-    raise RetrievalError(f"unknown database {name!r}; known: 'synthetic', 'cmu'")
+        key = ("cmu", str(data.data_dir()))
+    else:
+        raise RetrievalError(f"unknown database {name!r}; known: 'synthetic', 'cmu'")
+    if key not in _DEFAULT_DATABASES:
+        if name == "synthetic":
+            with tempfile.TemporaryDirectory(prefix="repro-synthetic-") as tmp:
+                synthetic_database(tmp, seed=seed)
+                _DEFAULT_DATABASES[key] = build_database(tmp)
+        else:
+            _DEFAULT_DATABASES[key] = build_cmu_database()
+    # a copy each call (~20 ms): a caller changing its database cannot change the next caller's
+    return copy.deepcopy(_DEFAULT_DATABASES[key])
+
+
+#: :func:`default_database`'s builds, by (name, seed or data folder): built once per process
+_DEFAULT_DATABASES: dict = {}
 
 
 def clip_source_dataset(db: MotionDatabase) -> np.ndarray:

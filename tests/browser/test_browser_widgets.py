@@ -118,8 +118,6 @@ def test_alpha_slider_in_the_fig5_panel(open_notebook):
 
 
 def test_kick_button_in_the_fighter_panel(open_notebook):
-    if not FIGHTER_NB.is_file():
-        pytest.skip(f"{FIGHTER_NB.relative_to(REPO)} does not exist yet")
     from repro.ui.fighter_panel import parse_fighter_numbers
 
     nb = open_notebook(FIGHTER_NB)

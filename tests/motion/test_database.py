@@ -41,15 +41,14 @@ from repro.motion import synthetic  # noqa: E402  (a broken import must fail, no
 
 
 @pytest.fixture(scope="module")
-def syn_dir(tmp_path_factory):
-    d = tmp_path_factory.mktemp("synthetic")
-    synthetic.synthetic_database(d, seed=0)
+def syn_dir(synthetic_dir):
+    d = synthetic_dir  # the session's synthetic folder (tests/conftest.py): read, never written
     return d
 
 
 @pytest.fixture(scope="module")
-def syn_db(syn_dir):
-    return build_database(syn_dir)
+def syn_db(synthetic_db):
+    return synthetic_db  # build_database(synthetic_dir), this module's copy
 
 
 def _manifest(d):

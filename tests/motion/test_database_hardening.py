@@ -21,16 +21,11 @@ import pytest
 
 from repro.errors import DataError, MotionError
 from repro.motion.database import MotionDatabase
-from repro.motion.sources import build_database
-
-from repro.motion import synthetic  # noqa: E402  (a broken import must fail, not skip)
 
 
 @pytest.fixture(scope="module")
-def small(tmp_path_factory):
-    d = tmp_path_factory.mktemp("synthetic")
-    synthetic.synthetic_database(d, seed=0)
-    db = build_database(d)
+def small(synthetic_db):
+    db = synthetic_db  # the session's synthetic database (tests/conftest.py), this module's copy
     punch = np.flatnonzero(db.semantics == "punch")[:2]
     kick = np.flatnonzero(db.semantics == "kick")[:2]
     return db.select(np.concatenate([punch, kick]))

@@ -29,19 +29,14 @@ import pytest
 from repro.errors import MotionError, RetrievalError
 from repro.motion.clustering import aligned_distance, rotate_y
 from repro.motion.database import MotionDatabase
-from repro.motion.sources import build_database
 from repro.motion.morphology import retarget
 from repro.motion.retrieval import MotionRetriever, Query, search, time_search
 from repro.motion.skeleton import Skeleton, rescale_constraint, scale_skeleton
 
-from repro.motion import synthetic  # noqa: E402  (a broken import must fail, not skip)
-
 
 @pytest.fixture(scope="module")
-def db(tmp_path_factory):
-    d = tmp_path_factory.mktemp("synthetic")
-    synthetic.synthetic_database(d, seed=0)
-    return build_database(d)
+def db(synthetic_db):
+    return synthetic_db  # the session's synthetic database (tests/conftest.py), this module's copy
 
 
 @pytest.fixture(scope="module")

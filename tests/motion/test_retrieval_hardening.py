@@ -20,19 +20,27 @@ import numpy as np
 import pytest
 
 from repro.errors import MotionError, ReproError, ReproWarning, RetrievalError
-from repro.motion.clustering import AlignedPoseIndex, aligned_distance, cluster_poses, pose_points, pose_weights
+from repro.motion.clustering import (
+    AlignedPoseIndex,
+    aligned_distance,
+    cluster_poses,
+    pose_points,
+    pose_weights,
+)
 from repro.motion.database import Clip
-from repro.motion.sources import build_database
-from repro.motion.retrieval import MAX_TARGET_M, MotionRetriever, Query, make_queries, search, time_search
-
-from repro.motion import synthetic  # noqa: E402  (a broken import must fail, not skip)
+from repro.motion.retrieval import (
+    MAX_TARGET_M,
+    MotionRetriever,
+    Query,
+    make_queries,
+    search,
+    time_search,
+)
 
 
 @pytest.fixture(scope="module")
-def db(tmp_path_factory):
-    d = tmp_path_factory.mktemp("synthetic")
-    synthetic.synthetic_database(d, seed=0)
-    full = build_database(d)
+def db(synthetic_db):
+    full = synthetic_db  # the session's synthetic database (tests/conftest.py), this module's copy
     punch = np.flatnonzero(full.semantics == "punch")[:3]
     kick = np.flatnonzero(full.semantics == "kick")[:3]
     return full.select(np.concatenate([punch, kick]))
