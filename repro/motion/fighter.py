@@ -322,7 +322,8 @@ class KungFuFighter:
 
     def __init__(self, database="synthetic", character: Skeleton | None = None, *, height: float = 1.75,
                  arm_scale: float = 1.0, leg_scale: float = 1.0, seed: int = 0, position=(0.0, -0.8),
-                 heading: float = 0.0, retriever: MotionRetriever | None = None):
+                 heading: float = 0.0, retriever: MotionRetriever | None = None, method: str = "exact",
+                 scoring: str = "first"):
         from repro.motion.sources import default_database
 
         t0 = time.perf_counter()
@@ -342,6 +343,9 @@ class KungFuFighter:
         t2 = time.perf_counter()
         self.db = db
         self.seed = int(seed)
+        # the retrieval of every order: the exact optimum of Eq. 1's d by default (Section 3.3's
+        # pruned search is method="pruned"); checked once here, not at the first order
+        self.method, self.scoring = self.retriever.check_method(method, scoring)
         self._base = db.actors[0]
         self._make_stance()
         self.set_character(character if character is not None else
@@ -514,7 +518,8 @@ class KungFuFighter:
                 "the playing strike keeps its stored target (the paper does not refresh it)")
         X = check_target(target)
         pose = self.current_pose((self.db.window - 1) * self.db.step + 1)
-        s = strike(self.retriever, self.character, pose, X, kind, blend_s=BLEND_S, t_order=t_order)
+        s = strike(self.retriever, self.character, pose, X, kind, blend_s=BLEND_S, t_order=t_order,
+                   method=self.method, scoring=self.scoring)
         if commit == "play":
             self.playing = s
             self._play_end = self.time + (s.n_frames - 1) / self.db.fps

@@ -683,7 +683,7 @@ class MotionRetriever:
         c = _check_target(target)
         sem = self._semantics(semantics)
         prune, scale_target = _check_flag("prune", prune), _check_flag("scale_target", scale_target)
-        method, scoring = self._method(method, scoring)
+        method, scoring = self.check_method(method, scoring)
         q = self._query(current_pose, character, frame)
         if method == "exact":
             return self._search_exact(c, q, sem, scoring, scale_target)
@@ -693,7 +693,8 @@ class MotionRetriever:
             return self.search_kdtree(c, q, None, sem)
         return self._search_pruned(c, q, sem, prune=prune, scale_target=scale_target)
 
-    def _method(self, method, scoring) -> tuple[str, str]:
+    def check_method(self, method, scoring) -> tuple[str, str]:
+        """``(method, scoring)`` checked: one of :data:`METHODS`, one of :data:`SCORINGS`, and a valid pair."""
         if not isinstance(method, str) or method not in METHODS:
             raise RetrievalError(f"unknown method {method!r}; expected one of {list(METHODS)}")
         if not isinstance(scoring, str) or scoring not in SCORINGS:
@@ -727,7 +728,7 @@ class MotionRetriever:
         c = _check_target(target)
         sem = self._semantics(semantics)
         scale_target = _check_flag("scale_target", scale_target)
-        _, scoring = self._method("exact", scoring)
+        _, scoring = self.check_method("exact", scoring)
         if scoring == "start" and not scale_target:
             raise RetrievalError("scoring='start' needs scale_target=True (Eq. 1)")
         q = self._query(current_pose, character, frame)
@@ -773,7 +774,7 @@ class MotionRetriever:
         c = _check_target(target)
         sem = self._semantics(semantics)
         scale_target = _check_flag("scale_target", scale_target)
-        _, scoring = self._method("exhaustive", scoring)
+        _, scoring = self.check_method("exhaustive", scoring)
         if scoring == "start" and not scale_target:
             raise RetrievalError("scoring='start' needs scale_target=True (Eq. 1)")
         q = self._query(current_pose, character, frame)

@@ -301,6 +301,8 @@ def strike(
     *,
     frame: str = "world",
     query=None,
+    method: str = "pruned",
+    scoring: str = "first",
     blend_s: float = BLEND_S,
     fix_feet: bool = False,
     reach: str = "root",
@@ -331,6 +333,10 @@ def strike(
         ``"punch"`` or ``"kick"``.
     query : Query, optional
         :meth:`MotionRetriever.prepare` of ``current_motion`` already made.
+    method, scoring : str
+        :meth:`MotionRetriever.search`'s: the paper's ``"pruned"`` search (default, what the
+        figures reproduce) or ``"exact"`` / ``"exhaustive"``; ``scoring="first"`` (the paper's
+        first-frame hit trajectories) or ``"start"`` (scored as played from the start pose).
     blend_s : float
         Seconds of the blend with the current pose (at most up to the contact).
     fix_feet : bool
@@ -373,7 +379,7 @@ def strike(
     _check_inside_body(X, c, ch)
     t_search = time.perf_counter()
     # ---- 2. search
-    res = retriever.search(c, q, semantics=semantics)
+    res = retriever.search(c, q, semantics=semantics, method=method, scoring=scoring)
     t_load = time.perf_counter()
     # ---- 3. load + convert; the contacts, once, on the retrieved clip
     effector = clip_effector(db, res.clip, ch)
