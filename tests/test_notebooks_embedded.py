@@ -10,6 +10,7 @@ compared (they differ from the stored real-data ones by design).  Slow: every no
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import nbformat
@@ -77,6 +78,25 @@ def test_notebook_runs_on_the_embedded_data_without_a_data_folder(path, fresh_cl
     assert "Data: real" not in text
     assert "embedded" in text.split("Data: ", 1)[1].splitlines()[0]
     assert not list(fresh_clone.iterdir()), "nothing was downloaded or written into the data folder"
+    bars = [c.source.splitlines()[0] for c in done.cells if c.cell_type == "code" and _progress_bars(c)]
+    assert not bars, f"progress bars left in the outputs of the cells starting {bars}"
+
+
+def _progress_bars(cell) -> bool:
+    """Whether a cell's outputs hold a tqdm bar (text ``12%|###   | 3/25`` on a stream, or a tqdm widget)."""
+    for o in cell.get("outputs", []):
+        if o.get("output_type") == "stream" and re.search(r"\d+%\|", o.get("text", "")):
+            return True
+        if "application/vnd.jupyter.widget-view+json" in o.get("data", {}) and "it/s" in o["data"].get("text/plain", ""):
+            return True
+    return False
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
+def test_stored_outputs_hold_no_progress_bars(path):
+    nb = nbformat.read(path, as_version=4)
+    bars = [c.source.splitlines()[0] for c in nb.cells if c.cell_type == "code" and _progress_bars(c)]
+    assert not bars, f"{path.name}: progress bars stored in the outputs of the cells starting {bars}"
 
 
 @pytest.mark.parametrize("value, message", [
