@@ -20,7 +20,7 @@ def test_every_figure_module_has_a_summary():
 
 @pytest.mark.parametrize("x, text", [(0.0057172, "0.00572"), (1007.0, "1,007"), (335, "335"), (0.9488, "0.949"),
                                      (0.12534, "0.125"), (1567.1667, "1,567"), (0, "0"), (-0.1253, "-0.125"),
-                                     (2.5e-6, "2.50e-06"), (12.34, "12.3")])
+                                     (2.5e-6, "2.50e-06"), (12.34, "12.3"), (3.3e-16, "0"), (-2e-11, "0")])
 def test_num_formats_significant_figures(x, text):
     assert summaries.num(x) == text
 

@@ -30,12 +30,20 @@ def summary(name: str, result) -> str:
     return module.summary(result)
 
 
+#: below this magnitude a number is rounding noise (e.g. a foot slide of 3e-16 m): printed as ``0``, so that
+#: the stored outputs do not depend on the last bits of a machine's floating point
+TINY = 1e-9
+
+
 def num(x, digits: int = 3) -> str:
-    """``x`` to ``digits`` significant figures, without exponent for ordinary magnitudes (``0.0057``, ``1007``)."""
+    """``x`` to ``digits`` significant figures, without exponent for ordinary magnitudes (``0.0057``, ``1007``).
+
+    Magnitudes below :data:`TINY` are rounding noise and print as ``0``.
+    """
     x = float(x)
     if not math.isfinite(x):
         return str(x)
-    if x == 0:
+    if abs(x) < TINY:
         return "0"
     if abs(x) >= 10 ** digits:
         return f"{x:,.0f}"
