@@ -42,6 +42,9 @@ __all__ = [
     "status",
     "require",
     "missing_reason",
+    "DATA_CHOICES",
+    "DataChoice",
+    "choose",
 ]
 
 #: What each dataset is and where its licence and provenance live.
@@ -278,6 +281,9 @@ def missing_reason(dataset: str) -> str | None:
 
     Only presence is checked here (cheap); :func:`fetch` verifies hashes on use.
     """
+    if dataset in _switched_off:
+        return (f"dataset {dataset!r} is switched off in this process (DATA = 'embedded', "
+                f"repro.data.choose); choose('auto') uses it again")
     missing = [e for e in files(dataset) if locate(e.path) is None]
     if not missing:
         return None
@@ -300,3 +306,101 @@ def require(dataset: str, *, download: bool | None = None, progressbar: bool = F
     for e in it:
         fetch(e.path, download=download)
     return data_dir() / _FOLDER[dataset]
+
+
+# ------------------------------------------------------------------ what a notebook runs on
+#: The values of a notebook's ``DATA`` parameter (see :func:`choose`).
+DATA_CHOICES = ("auto", "embedded", "real")
+#: The embedded stand-in for each real dataset a notebook may use.
+EMBEDDED = {"ict": "the procedural 2,016-vertex face", "cmu-bvh": "the synthetic kung-fu database"}
+#: Datasets switched off in this process by ``choose("embedded")`` (:func:`missing_reason` reports them absent).
+_switched_off: set[str] = set()
+
+
+@dataclass(frozen=True)
+class DataChoice:
+    """What a notebook runs on, as :func:`choose` resolved it."""
+
+    requested: str  #: the ``DATA`` parameter: "auto", "embedded" or "real"
+    real: tuple  #: the real datasets in use (present and not switched off)
+    embedded: tuple  #: the datasets replaced by their embedded stand-in
+    message: str  #: one line saying so, for the notebook to print
+
+    @property
+    def mode(self) -> str:
+        """``"real"`` (every dataset asked for is real), ``"embedded"`` (none is) or ``"mixed"``."""
+        return "embedded" if not self.real else "mixed" if self.embedded else "real"
+
+    @property
+    def face(self) -> str:
+        """The face model to load: ``"ict"`` when its data is in use, else ``"procedural"``."""
+        return "ict" if "ict" in self.real else "procedural"
+
+    @property
+    def database(self) -> str:
+        """The motion database to build: ``"cmu"`` when its takes are in use, else ``"synthetic"``."""
+        return "cmu" if "cmu-bvh" in self.real else "synthetic"
+
+    def uses(self, dataset: str) -> bool:
+        """Whether the real ``dataset`` is in use (the notebook shows its real-data sections)."""
+        return dataset in self.real
+
+    def __str__(self) -> str:
+        return self.message
+
+
+def choose(choice: str = "auto", needs=("ict", "cmu-bvh")) -> DataChoice:
+    """Resolve a notebook's ``DATA`` parameter against what is in the data folder.
+
+    ``needs``: the real datasets the notebook's real-data sections use.
+
+    - ``"auto"``: each dataset of ``needs`` that is present is used, the others are
+      replaced by their embedded stand-in (:data:`EMBEDDED`);
+    - ``"embedded"``: the embedded data only, even where real data is present: the
+      datasets of ``needs`` are switched off in this process, so that
+      :func:`missing_reason` reports them absent and every figure computed afterwards
+      runs on the embedded data alone;
+    - ``"real"``: every dataset of ``needs`` must be present, else one :class:`DataError`
+      saying what is missing and how to get it.
+
+    Each call replaces the previous call's switch.  Raises :class:`DataError` for a value
+    that is none of :data:`DATA_CHOICES`.
+    """
+    if not isinstance(choice, str) or choice.strip().lower() not in DATA_CHOICES:
+        raise DataError(f"DATA = {choice!r} is not a known choice; expected one of "
+                        f"{', '.join(repr(c) for c in DATA_CHOICES)}")
+    choice = choice.strip().lower()
+    needs = tuple(needs)
+    for name in needs:
+        if name not in DATASETS:
+            raise DataError(f"unknown dataset {name!r}; known: {sorted(DATASETS)}")
+    _switched_off.clear()
+    if choice == "embedded":
+        real, embedded = (), needs
+        _switched_off.update(needs)
+    else:
+        missing = {n: missing_reason(n) for n in needs}
+        missing = {n: r for n, r in missing.items() if r is not None}
+        if choice == "real" and missing:
+            raise DataError(f"DATA = 'real' but {len(missing)} of the {len(needs)} datasets this notebook needs "
+                            f"{'is' if len(missing) == 1 else 'are'} missing: " + "; ".join(missing.values())
+                            + ". Use DATA = 'auto' or 'embedded' to run on the embedded data.")
+        real = tuple(n for n in needs if n not in missing)
+        embedded = tuple(n for n in needs if n in missing)
+    return DataChoice(choice, real, embedded, _choice_message(choice, real, embedded))
+
+
+def _choice_message(choice: str, real: tuple, embedded: tuple) -> str:
+    if not real and not embedded:
+        return "Data: this notebook uses only embedded data."
+    parts = [f"real: {_SHORT.get(n, n)}" for n in real]
+    parts += [f"embedded: {EMBEDDED.get(n, n)} instead of {_SHORT.get(n, n)}" for n in embedded]
+    why = ""
+    if embedded:
+        why = (" (DATA = 'embedded')" if choice == "embedded" else
+               " (not in the data folder; `repro data fetch` or REPRO_DATA_DIR brings it, and the real-data sections)")
+    return "Data: " + "; ".join(parts) + why + "."
+
+
+_SHORT = {"ict": "the ICT Face Model", "cmu-bvh": "the CMU karate takes (subject 135)",
+          "cmu-asfamc": "the CMU ASF/AMC originals", "bandai": "the Bandai Namco clips"}

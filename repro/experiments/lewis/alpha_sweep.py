@@ -87,3 +87,33 @@ def draw(sweep: pd.DataFrame):
         col[2].set_title("trade-off, parametrised by alpha", fontsize=9)
         col[2].grid(alpha=0.3)
     return fig
+
+
+def summary(result) -> str:
+    """Markdown: the sweep's extent, and both limits over every session (the numbers of notebook 02's Section 3)."""
+    from repro.experiments.summaries import bullets, num
+
+    t, lim = result.table, result.extra_tables["limits"]
+    hard = lim[lim.high_unselected_fidelity < 0.9]
+    lines = [
+        f"the sweep: {t.alpha.nunique()} values of alpha from {t.alpha.min():g} to {t.alpha.max():g}, "
+        f"{t.scenario.nunique()} sessions on {t.model.nunique()} face(s)",
+        f"alpha = {lim.alpha_low.iloc[0]:g}: ||w2 - w1|| / ||w1|| at most {num(lim.low_w_change_vs_w1.max(), 2)}; "
+        f"selected motion fraction {num(lim.low_selected_motion_fraction.min(), 4)} to "
+        f"{num(lim.low_selected_motion_fraction.max(), 4)}, unselected fidelity {num(lim.low_unselected_fidelity.min(), 4)} "
+        f"to {num(lim.low_unselected_fidelity.max(), 4)}",
+        f"alpha = {lim.alpha_high.iloc[0]:g}: selected motion fraction at most {num(lim.high_selected_motion_fraction.max(), 2)}; "
+        f"unselected fidelity {num(lim.high_unselected_fidelity.min(), 2)} to {num(lim.high_unselected_fidelity.max(), 2)}"
+        + (f" ({num(hard.high_unselected_fidelity.min(), 2)} to {num(hard.high_unselected_fidelity.max(), 2)} without "
+           f"the sessions that keep more than 0.9)" if 0 < len(hard) < len(lim) else ""),
+        f"the body text's low-alpha claim holds in {int(lim.body_text_low_alpha_claim_holds.sum())} of {len(lim)} "
+        f"sessions; the numbers support: {', '.join(sorted(set(lim.supports)))}",
+    ]
+    for r in lim[lim.scenario == "wince_sneer_under_eye"].itertuples():
+        g = t[(t.model == r.model) & (t.scenario == r.scenario)]
+        at_default = g.iloc[(g.alpha - g.default_alpha).abs().argmin()]
+        lines.append(f"*{r.model}*, Fig. 5 session: unselected fidelity {num(at_default.unselected_fidelity, 2)} at "
+                     f"alpha = {at_default.alpha:.4g} (the sweep's value nearest the default, "
+                     f"{at_default.default_alpha:.6g}), {num(r.high_unselected_fidelity, 2)} at "
+                     f"alpha = {r.alpha_high:g}")
+    return bullets(lines)

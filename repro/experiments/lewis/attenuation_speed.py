@@ -55,3 +55,13 @@ def draw(table, scaling):
         ax.legend(fontsize=7)
     fig.suptitle(f"Attenuation speed — {table['machine'].iloc[0]}", fontsize=8)
     return fig
+
+
+def summary(result) -> str:
+    """Markdown: each speed measurement as a ratio, and whether it meets its goal (timings: machine-dependent)."""
+    from repro.experiments.summaries import bullets, num
+
+    lines = [f"*{r.model}*, {r.measurement}: {num(r.method_us)} µs against {num(r.baseline_us)} µs for {r.baseline} "
+             f"({num(r.ratio, 3)}: {r.ratio_meaning}); goal {r.goal}: {'met' if r.meets_goal else 'not met'}"
+             for r in result.table.itertuples()]
+    return bullets(lines + [f"machine: {result.table.machine.iloc[0]}"])

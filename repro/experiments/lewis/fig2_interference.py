@@ -72,3 +72,17 @@ def draw(models):
                        f"further moves; colour = drift since\n(selected drift {drift[sc.vertices(model)].mean():.3g})"]
     return panel_figure(images, titles, clim=(0.0, 0.5), label=common.MOTION_LABEL, ncols=3,
                         suptitle="Interference: cyan = vertices the first move positioned")
+
+
+def summary(result) -> str:
+    """Markdown: per face and session, how far the further moves drag what the first move positioned."""
+    from repro.experiments.summaries import bullets, num, pct
+
+    lines = []
+    for r in result.table.itertuples():
+        way = "down" if r.drift_selected_dy < 0 else "up"
+        lines.append(f"*{r.model}, {r.figure}* (`{r.scenario}`): the first move moved the selected vertices "
+                     f"{num(r.first_move_selected)} {r.units}; the further moves drag them {num(r.drift_selected_mean)} "
+                     f"{r.units} (mean; vertical part {num(r.drift_selected_dy)}, i.e. {way}), "
+                     f"{pct(r.drift_relative, 3)} of the first move")
+    return bullets(lines)

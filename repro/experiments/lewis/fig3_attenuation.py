@@ -45,3 +45,17 @@ def draw(pairs):
                        f"c) no attenuation\nselected motion {m_none[v].mean():.3g}"]
     return panel_figure(images, titles, clim=(0.0, 0.5), label="motion since the selection", ncols=3,
                         suptitle="Selected motion attenuation (colour: motion since the selection was made)")
+
+
+def summary(result) -> str:
+    """Markdown: per face and session, the selection, alpha, the selected motion left and the unselected fidelity."""
+    from repro.experiments.summaries import bullets, num, pct, units
+
+    lines = []
+    for r in result.table.itertuples():
+        u = units(r.model)
+        lines.append(f"*{r.model}, {r.figure}* (`{r.scenario}`): {r.n_selected_vertices} selected vertices = "
+                     f"{r.n_selected_coordinates} coordinates, alpha = {r.alpha:.6g}; the selected motion is "
+                     f"{num(r.attenuated_selected_motion)} instead of {num(r.none_selected_motion)} {u} "
+                     f"({pct(r.reduction)} of it left); unselected fidelity {num(r.attenuated_unselected_fidelity)}")
+    return bullets(lines)

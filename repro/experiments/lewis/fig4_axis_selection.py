@@ -58,3 +58,18 @@ def draw(pairs, table):
         ax.set_title("dx (blue), dy (orange), dz (green)", fontsize=8)
     fig.suptitle("Per-axis selection: only y of the mouth corners is attenuated", fontsize=9)
     return fig
+
+
+def summary(result) -> str:
+    """Markdown: per face, the mouth corners' |dy| and |dx| without and with y-only attenuation."""
+    from repro.experiments.summaries import bullets, num, units
+
+    t = result.table
+    lines = []
+    for model in t.model.unique():
+        none = t[(t.model == model) & (t.method == "none")]
+        att = t[(t.model == model) & (t.method == "attenuated")]
+        lines.append(f"*{model}*: the corners' vertical motion |dy| goes from {num(none.dy.abs().mean())} to "
+                     f"{num(att.dy.abs().mean())} {units(model)}; their sideways motion |dx| from "
+                     f"{num(none.dx.abs().mean())} to {num(att.dx.abs().mean())} (alpha = {att.alpha.iloc[0]:.6g})")
+    return bullets(lines)

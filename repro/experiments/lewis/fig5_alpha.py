@@ -53,3 +53,20 @@ def draw(pairs):
         titles += [f"{model.name} {t}\nselected motion {m[v].mean():.3g}" for (t, _), m in zip(poses, ms)]
     return panel_figure(images, titles, clim=(0.0, 1.0), label=common.MOTION_LABEL, ncols=4,
                         suptitle="Fig. 5: alpha trades selected stillness against unselected freedom (cyan: selected)")
+
+
+def summary(result) -> str:
+    """Markdown: per face, the default alpha, and the selected motion left and the fidelity at each alpha."""
+    from repro.experiments.summaries import bullets, num, pct
+
+    t = result.table
+    lines = []
+    for model in t.model.unique():
+        g = t[t.model == model].sort_values("alpha")
+        d = g[g.alpha_setting == "default"].iloc[0]
+        alphas = ", ".join(f"{a:.6g}" for a in g.alpha)
+        lines.append(f"*{model}*: {d.n_selected_vertices} vertices ({d.n_selected_coordinates} coordinates) selected, "
+                     f"default alpha = {d.alpha:.6g}; at alpha = {alphas} the selection keeps "
+                     f"{', '.join(pct(x) for x in g.reduction)} of its motion and the unselected fidelity is "
+                     f"{', '.join(num(x, 2) for x in g.attenuated_unselected_fidelity)}")
+    return bullets(lines)

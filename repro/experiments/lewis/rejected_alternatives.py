@@ -72,3 +72,23 @@ def draw(pairs, table):
         ax.set_title(f"{model.name} {sc.figure}, {title}: max |L d| = {l.max():.3g}", fontsize=10)
     sub[1].suptitle("Laplacian magnitude of the displacement (bright = surface torn)", fontsize=10)
     return fig
+
+
+def summary(result) -> str:
+    """Markdown: per face and session, the tear of zeroed rows and what orthogonal locking leaves moving."""
+    from repro.experiments.summaries import bullets, num, units
+
+    t = result.table[result.table.applicable]
+    piv = t.pivot(index=["model", "scenario"], columns="method", values="roughness_at_selection")
+    sm = t.pivot(index=["model", "scenario"], columns="method", values="selected_motion")
+    lines = []
+    for (model, scenario), r in piv.iterrows():
+        u = units(model)
+        line = (f"*{model}*, `{scenario}`: roughness at the selection {num(r['zeroed_rows'])} {u} with zeroed rows, "
+                f"{num(r['attenuation'])} with attenuation ({num(r['zeroed_rows'] / r['attenuation'], 2)} times)")
+        s = sm.loc[(model, scenario)]
+        if "orthogonal_lock" in s and s.notna()["orthogonal_lock"]:
+            line += (f"; orthogonal locking leaves the selection moving {num(s['orthogonal_lock'])} {u} against "
+                     f"{num(s['none'])} without correction ({num(s['orthogonal_lock'] / s['none'], 2)} times)")
+        lines.append(line)
+    return bullets(lines)

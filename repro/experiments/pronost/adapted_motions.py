@@ -218,3 +218,20 @@ def _draw_matplotlib(poses, reason: str | None = None):
 def adapted_motions(quick: bool = False) -> Result:
     table, poses = _compute(bool(quick))
     return Result(table=table, draw=lambda: draw(poses))
+
+
+def summary(result) -> str:
+    """Markdown: how many orders are reached, what adaptation costs the body, and the misses."""
+    from repro.experiments.summaries import bullets, num
+
+    t = result.table
+    reached = t[t.reached]
+    lines = [f"{len(reached)} of the {len(t)} orders are reached; pinned feet slide at most "
+             f"{num(1000 * t.max_foot_slide_m.max(), 2)} mm, bone lengths change at most "
+             f"{num(t.bone_length_error_m.max(), 2)} m",
+             f"correction (hit error before adaptation): {num(t.before_m.min(), 2)} to {num(t.before_m.max(), 2)} m"]
+    for r in t.itertuples():
+        lines.append(f"{num(r.height_m, 2)} m fighter, {r.order}: `{r.clip}` from frame {r.start_frame}, "
+                     f"{num(r.before_m, 2)} m off before adaptation, {num(r.after_m, 2)} m after"
+                     + ("" if r.reached else " (**missed**)"))
+    return bullets(lines)

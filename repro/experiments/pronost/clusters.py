@@ -265,3 +265,28 @@ def draw(made, table: pd.DataFrame, boxes: pd.DataFrame):
         _fig4_panel(ax["box3d"], name, db, ex)
         _all_boxes_panel(ax["boxes"], name, db, ex, boxes)
     return fig
+
+
+def summary(result) -> str:
+    """Markdown: per database, the largest clusters, how pure the others are, and how hard the box test prunes."""
+    from repro.experiments.summaries import bullets, num, pct
+
+    t, boxes = result.table, result.extra_tables["boxes"]
+    lines = []
+    for name, g in t.groupby("database", sort=False):
+        big = g.nlargest(3, "size")
+        rest = g.drop(big.index)
+        top_kind = g.dominant_kind.value_counts()
+        lines.append(f"*{name}*: k = {int(g.k.iloc[0])} clusters of {int(g.n_poses.iloc[0]):,} poses; the three largest "
+                     f"hold {', '.join(f'{int(s):,}' for s in big['size'])} poses from {int(big.n_clips.min())}-"
+                     f"{int(big.n_clips.max())} clips; the others' median dominant-kind share is "
+                     f"{pct(rest.dominant_kind_share.median())}; the most common dominant kind is "
+                     f"{top_kind.index[0]} ({top_kind.iloc[0]} of {len(g)} clusters)")
+        b = boxes[boxes.database == name]
+        per = ", ".join(f"{num(s.boxes_containing_hit.median(), 2)} of the {int(s.same_semantics_clips.iloc[0])} {sem}es"
+                        if sem == "punch" else
+                        f"{num(s.boxes_containing_hit.median(), 2)} of the {int(s.same_semantics_clips.iloc[0])} {sem}s"
+                        for sem, s in b.groupby("semantics"))
+        lines.append(f"*{name}*: a target at a clip's own hit point falls in the boxes of a median of {per}; the hit "
+                     f"lies on its own box's boundary for {pct(b.hit_on_box_face.mean())} of the {len(b)} clips")
+    return bullets(lines)

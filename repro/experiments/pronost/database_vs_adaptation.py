@@ -221,3 +221,36 @@ def draw(table: pd.DataFrame, g: pd.DataFrame):
 def database_vs_adaptation(quick: bool = False) -> Result:
     table, g, reach = _compute(bool(quick))
     return Result(table=table, draw=lambda: draw(table, g), extra_tables={"grid": g, "reach": reach})
+
+
+def summary(result) -> str:
+    """Markdown: per strike and database size, the hit error before and after adaptation and the area reached."""
+    from repro.experiments.summaries import bullets, num, pct
+
+    t = result.table
+    lines = []
+    for (sem, size), g in t.groupby(["semantics", "db_size"], sort=False):
+        def span(col, f=num, g=g):
+            lo, hi = f(g[col].min()), f(g[col].max())
+            return lo if lo == hi else f"{lo}-{hi}"
+
+        lines.append(f"*{sem}*, {int(size)} clips ({len(g)} seed{'s' if len(g) > 1 else ''}): hit error "
+                     f"{span('before_mean_m')} m before adaptation (closest approach {span('closest_mean_m')} m), "
+                     f"{span('after_mean_m')} m after; {span('reached_fraction', pct)} of the grid reached, "
+                     f"{span('reached_fraction_of_full_db_area', pct)} of the full database's area")
+    for sem, g in t.groupby("semantics", sort=False):
+        by = g.groupby("db_size").mean(numeric_only=True).sort_index()
+        lines.append(f"*{sem}*, the price of adaptation: mean joint-rotation change "
+                     + ", ".join(f"{num(v, 2)} deg with {int(n)} clips" for n, v in by.rotation_change_mean_deg_mean.items())
+                     + "; joint-limit violations per strike "
+                     + ", ".join(f"{num(v, 2)} with {int(n)}" for n, v in by.joint_limit_violations_per_strike.items()))
+    ratio = t.after_mean_m / t.before_mean_m
+    lines.append(f"after / before adaptation: {num(ratio.min(), 2)} to {num(ratio.max(), 2)} over every size and seed")
+    grid = result.extra_tables.get("grid")
+    if grid is not None and len(grid):
+        full = grid[grid.db_size == grid.db_size.max()]
+        for sem, g in full.groupby("semantics", sort=False):
+            lines.append(f"*{sem}*, full database: targets on the right (x > 0) missed by {num(g[g.x_m > 0].before_m.mean(), 2)} m "
+                         f"before adaptation, on the left (x < 0) by {num(g[g.x_m < 0].before_m.mean(), 2)} m; closest approach "
+                         f"on the left {num(g[g.x_m < 0].closest_m.mean(), 2)} m")
+    return bullets(lines)

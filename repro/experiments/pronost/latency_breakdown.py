@@ -185,3 +185,17 @@ def draw(table: pd.DataFrame):
     ax.legend(loc="upper center", bbox_to_anchor=(0.4, -0.11), ncol=n_bars, fontsize=8, frameon=False)
     fig.tight_layout()
     return fig
+
+
+def summary(result) -> str:
+    """Markdown: each stage's p50 beside the paper's figure (timings: machine-dependent)."""
+    from repro.experiments.summaries import bullets, num
+
+    t = result.table
+    lines = []
+    for r in t.itertuples():
+        paper = "" if r.paper_ms != r.paper_ms else f"; paper {num(r.paper_ms)} ms ({num(r.ratio_paper_over_ours, 2)}x ours)"
+        lines.append(f"*{r.database}*, {r.stage}: p50 {num(r.ours_p50_ms)} ms, p90 {num(r.ours_p90_ms)} ms{paper}")
+    for name, g in t.groupby("database", sort=False):
+        lines.append(f"*{name}*: {int(g.n_orders.iloc[0])} orders, {num(100 * g.reached_fraction.iloc[0], 3)} % reached")
+    return bullets(lines + [f"machine: {t.machine.iloc[0]}"])

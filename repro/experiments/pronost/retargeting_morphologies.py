@@ -353,3 +353,22 @@ def draw(table: pd.DataFrame, eq1: pd.DataFrame):
 def retargeting_morphologies(quick: bool = False) -> Result:
     table, eq1 = _compute(bool(quick))
     return Result(table=table, draw=lambda: draw(table, eq1), extra_tables={"eq1": eq1})
+
+
+def summary(result) -> str:
+    """Markdown: per database and method, hit error, foot slide, toes and reach over the sweep; Eq. 1 on and off."""
+    from repro.experiments.summaries import bullets, num, pct
+
+    t, eq1 = result.table, result.extra_tables["eq1"]
+    lines = []
+    for (name, method), g in t.groupby(["database", "method"], sort=False):
+        lines.append(f"*{name}*, `{method}`: hit error {num(g.hit_error_mean_m.mean())} m on average (at most "
+                     f"{num(g.hit_error_max_m.max(), 2)} m); planted feet slide {num(100 * g.foot_slide_mean_m.mean(), 2)} cm "
+                     f"on average (at most {num(100 * g.foot_slide_max_m.max(), 2)} cm); lowest toe "
+                     f"{num(100 * g.min_toe_height_m.min(), 2)} cm; bone lengths kept to {num(g.bone_length_error_max_m.max(), 1)} m"
+                     + (f"; {pct(g.reached_fraction.mean())} of the targets reached" if g.reached_fraction.notna().any() else ""))
+    for (name, height, on), g in eq1.groupby(["database", "height_m", "eq1"], sort=True):
+        lines.append(f"*{name}*, {num(height, 2)} m fighter, Eq. 1 {'on' if on else 'off'}: the query's own clip in "
+                     f"{int(g.same_clip.sum())} of {len(g)} queries; reach error {num(g.reach_error_m.mean(), 2)} m on "
+                     f"average (at most {num(g.reach_error_m.max(), 2)} m), vertical {num(g.reach_dy_m.mean(), 2)} m")
+    return bullets(lines)

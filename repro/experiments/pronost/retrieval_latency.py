@@ -246,3 +246,28 @@ def draw(table: pd.DataFrame, ks: pd.DataFrame):
     fig.suptitle(f"Retrieval latency and quality (Pronost et al. Sections 3.3, 4) — {table['machine'].iloc[0]}",
                  fontsize=9)
     return fig
+
+
+def summary(result) -> str:
+    """Markdown: quality of the pruned and k-d tree searches against the exhaustive optimum (deterministic),
+    by database size and k; the latencies are in the table (machine-dependent)."""
+    from repro.experiments.summaries import bullets, pct
+
+    t, ks = result.table, result.extra_tables["k_sweep"]
+    lines = []
+    for (name, factor), g in t[t.method != "exhaustive"].groupby(["database", "factor"], sort=False):
+        g = g.set_index("method")
+        parts = [f"`{m}` differs from the optimum in {pct(r.differs_from_exhaustive)} of the queries"
+                 + (f" (d {pct(r.mean_excess_when_differs)} higher when it does)" if r.differs_from_exhaustive > 0 else "")
+                 for m, r in g.iterrows()]
+        first = g.iloc[0]
+        lines.append(f"*{name}* at {factor:g}x ({int(first.n_clips):,} clips, {int(first.n_poses):,} poses, "
+                     f"k = {int(first.k)}): " + "; ".join(parts))
+    for name, g in ks.groupby("database", sort=False):
+        parts = [f"{pct(r.differs_from_exhaustive)} at k = {int(r.k)}{' (default)' if r.is_default_k else ''}"
+                 for r in g.itertuples()]
+        default = g[g.is_default_k]
+        no_box = (f"; {pct(default.fallback_no_box.iloc[0])} of the queries find no box at the default k"
+                  if "fallback_no_box" in g and len(default) else "")
+        lines.append(f"*{name}*, the k sweep: the pruned choice differs in " + ", ".join(parts) + no_box)
+    return bullets(lines)
