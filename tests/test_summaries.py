@@ -52,10 +52,10 @@ def _readme_block() -> str:
 @pytest.mark.slow
 @pytest.mark.data("ict")
 @pytest.mark.data("cmu-bvh")
-def test_readme_claims_block_is_the_generated_one():
+def test_readme_claims_block_is_the_generated_one(quick_figures):
     from repro import claims
 
-    rows = claims.evaluate(quick=True)
+    rows = claims.evaluate(quick=True, results=quick_figures)  # the session's quick figures
     block = summaries.readme_claims_block(rows)
     assert block.splitlines()[0].strip() == claims.summary_line([r for r in rows if not r["timing"]])
     assert _readme_block() == block, f"README.md's claims block should read:\n{block}"
@@ -67,10 +67,8 @@ LEWIS = ["fig2_interference", "fig3_attenuation", "fig4_axis_selection", "fig5_a
 
 
 @pytest.fixture(scope="module")
-def lewis_results():
-    from repro.experiments import get
-
-    return {n: get(n).func(quick=True) for n in LEWIS}
+def lewis_results(quick_figures):
+    return {n: quick_figures(n) for n in LEWIS}  # the session's quick figures
 
 
 def _numbers(text):

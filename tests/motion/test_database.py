@@ -141,7 +141,7 @@ def test_build_from_synthetic_manifest(syn_dir, syn_db):
         assert db.source_time[i] + db.hit_frame[i] / 30.0 == pytest.approx(t_hit, abs=1e-9)
         # hit position = manifest world position in the root frame of the clip's first frame,
         # recomputed from the 60 Hz source at the clip's start time
-        src = read_bvh(syn_dir / r["file"])
+        src = read_bvh(syn_dir / r["file"], unit_m=1.0)  # the synthetic files are in metres
         sk = Skeleton.from_motion(src)
         g = src.global_positions()
         k0 = int(round(db.source_time[i] / ft))
