@@ -140,3 +140,24 @@ def draw(sweep: pd.DataFrame):
             ax.set_xlabel("alpha")
             ax.grid(alpha=0.3)
     return fig
+
+
+def summary(result) -> str:
+    """Markdown: per face and scenario, how often and how far Eq. 3 leaves [0, 1], and what clamping and the bounded solve keep."""
+    from repro.experiments.summaries import bullets, num, pct
+
+    s = result.extra_tables["summary"]
+    lines = []
+    for _, r in s.iterrows():
+        lines.append(f"*{r.model}*, `{r.scenario}`: Eq. 3 leaves [0, 1] at {pct(r.share_of_alphas_out_of_range)} of the "
+                     f"{int(r.n_alphas)} alphas (by up to {num(r.max_excursion, 2)}); at the default alpha "
+                     f"({r.default_alpha:.6g}) the selection keeps {pct(r.at_default_eq3_selected_motion_fraction)} of its "
+                     f"motion with Eq. 3, {pct(r.at_default_clamped_selected_motion_fraction)} once clamped, "
+                     f"{pct(r.at_default_bounded_selected_motion_fraction)} with the bounded solve")
+    ict = result.extra_tables.get("ict_case")
+    if ict is not None and len(ict):
+        e = ict[ict.method == "eq3"].iloc[0]
+        lines.append(f"the issue's ICT case ({e.sliders_moved}; vertices {e.selected_vertices}; alpha {e.alpha:.6g}): "
+                     f"Eq. 3 puts `eyeSquint_L` at {num(e.eyeSquint_L, 2)} (the issue says {num(e.issue_eyeSquint_L, 2)}), "
+                     f"its weights span {num(e.min_weight, 3)} (`{e.min_shape}`) to {num(e.max_weight, 3)} (`{e.max_shape}`)")
+    return bullets(lines)

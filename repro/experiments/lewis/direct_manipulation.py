@@ -102,3 +102,18 @@ def draw(table: pd.DataFrame):
             ax.grid(alpha=0.3, axis="y")
         row[0].legend(fontsize=7)
     return fig
+
+
+def summary(result) -> str:
+    """Markdown: per face and scenario, the sliders each edit moves and how far the pinned region moves."""
+    from repro.experiments.summaries import bullets, num
+
+    t = result.table
+    lines = []
+    for (model, scenario), g in t.groupby(["model", "scenario"], sort=False):
+        g = g.set_index("method")
+        parts = [f"{m}: {int(g.loc[m, 'n_sliders_moved_over_0.05'])} sliders moved by more than 0.05, pinned region "
+                 f"moved {num(g.loc[m, 'pinned_motion_max'], 2)} (max), weights {num(g.loc[m, 'min_weight'], 2)} to "
+                 f"{num(g.loc[m, 'max_weight'], 2)}" for m in g.index]
+        lines.append(f"*{model}*, `{scenario}`: " + "; ".join(parts))
+    return bullets(lines)

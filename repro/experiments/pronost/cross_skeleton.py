@@ -170,3 +170,17 @@ def draw(table: pd.DataFrame):
 def cross_skeleton(quick: bool = False) -> Result:
     table = pd.DataFrame(_synthetic_rows(bool(quick)) + _real_rows(bool(quick)))
     return Result(table=table, draw=lambda: draw(table))
+
+
+def summary(result) -> str:
+    """Markdown: per source and character convention, the worst of each accuracy column."""
+    from repro.experiments.summaries import bullets, num
+
+    t = result.table
+    lines = []
+    for (source, character), g in t.groupby(["source", "character"], sort=False):
+        lines.append(f"{source} onto *{character}* ({int(g.joints.iloc[0])} joints, {len(g)} clips x statures): limb-direction "
+                     f"angle up to {num(g.limb_angle_deg.max(), 2)} deg, hit error {num(g.hit_error_m.max(), 2)} m, foot slide "
+                     f"{num(g.foot_slide_m.max(), 2)} m, ground penetration {num(g.penetration_m.max(), 2)} m, bone-length "
+                     f"error {num(g.bone_length_error.max(), 2)} m")
+    return bullets(lines)
