@@ -47,6 +47,14 @@ Choices the paper leaves open (documented here, all parameters):
   synthetic database has three).  ``c_r`` is computed per clip with its own ``size_a``;
   ``q_r`` is retargeted once per *base* actor (actors that are uniform scalings of one
   another share it, scaled), and pose clouds are compared in units of the actor's size.
+* Several joint trees (a mixed-skeleton database: CMU + Bandai, synthetic clips
+  rewritten onto other rigs, any user BVH): pose clouds are role point clouds
+  (:data:`~repro.motion.clustering.POSE_ROLES`) in units of stature, so they compare
+  across trees.  By default only the actors of the character's own tree are
+  candidates; with ``MotionRetriever(db, across_trees=True)`` ``q_r`` is retargeted
+  across trees (:func:`retarget_to_tree`) to every other actor too, and every clip can
+  be served to any humanoid character (:func:`repro.motion.strike.strike` then
+  retargets the selected clip to the character across trees as well).
 
 Baselines (for the figures): :meth:`MotionRetriever.search_exhaustive` scores every
 startable pose of the semantics with the same ``d`` (no clusters, no boxes: the exact
