@@ -348,8 +348,9 @@ class KungFuFighter:
                 raise RetrievalError("retriever must be a MotionRetriever of the same database")
             self.retriever = retriever
         else:
-            if across_trees is None:
-                across_trees = character is not None and not character_skeleton(character).is_compatible(db.actors[0])
+            if across_trees is None:  # another tree (or a partial skeleton: set_character names what it lacks)
+                across_trees = character is not None and not (
+                    isinstance(character, (Skeleton, Motion)) and db.actors[0].is_compatible(character))
             self.retriever = MotionRetriever(db, seed=seed, across_trees=across_trees)
         t2 = time.perf_counter()
         self.db = db

@@ -243,3 +243,9 @@ def test_cmu_character_gets_a_bandai_clip():
     f.follow(head, 0.0, snap=True)
     s = f.punch(head)
     assert s.motion.joint_names == db.actors[1].joint_names and s.reached
+
+
+def test_a_partial_character_at_construction_is_refused_for_what_it_lacks(synthetic_db, rigs):
+    arms_only = _without(rigs["mixamo"], ("mixamorig:LeftUpLeg", "mixamorig:RightUpLeg"))
+    with pytest.raises(MotionError, match="a kick needs"):
+        KungFuFighter(synthetic_db, character=arms_only, seed=0)
