@@ -97,7 +97,8 @@ from repro.motion.annotation import SEMANTICS
 from repro.motion.database import MotionDatabase
 from repro.motion.morphology import retarget
 from repro.motion.motion import Motion, finite_vector3
-from repro.motion.retrieval import MotionRetriever
+from repro.motion.retrieval import MotionRetriever, character_skeleton, retarget_to_tree
+from repro.motion.units import infer_up
 from repro.motion.skeleton import (
     Skeleton,
     scale_skeleton,
@@ -285,10 +286,12 @@ class KungFuFighter:
     database : "synthetic", "cmu" or MotionDatabase, default "synthetic"
         The motion database (names go through
         :func:`repro.motion.sources.default_database`, built once per process).
-    character : Skeleton, optional
-        The fighter (must share the database actor's joint tree); default
-        :func:`character_from` of ``height``, ``arm_scale``, ``leg_scale`` on the
-        database's actor.
+    character : Skeleton or Motion, optional
+        The fighter: the database actor's joint tree scaled (:func:`character_from`),
+        or any humanoid skeleton of another joint tree (e.g. a BVH read with
+        :func:`~repro.motion.read_bvh`: Mixamo, Bandai ...), which makes the retriever
+        work across trees (``across_trees``); default :func:`character_from` of
+        ``height``, ``arm_scale``, ``leg_scale`` on the database's actor.
     height, arm_scale, leg_scale : float
         Used when ``character`` is None.
     seed : int, default 0
@@ -299,7 +302,13 @@ class KungFuFighter:
         Start facing (radians; 0 faces +z).
     retriever : MotionRetriever, optional
         A prepared retriever of ``database`` to share (its construction is the one-time
-        cost); built here otherwise.
+        cost); built here otherwise.  Its ``across_trees`` decides which characters
+        :meth:`set_character` accepts.
+    across_trees : bool, optional
+        Build the retriever with ``across_trees`` (:class:`MotionRetriever`): characters of
+        any joint tree, every clip a candidate for them.  Default: True when ``character``
+        has another joint tree than the database's first actor, else False (the
+        single-tree behaviour).
 
     Attributes
     ----------
@@ -323,7 +332,7 @@ class KungFuFighter:
     def __init__(self, database="synthetic", character: Skeleton | None = None, *, height: float = 1.75,
                  arm_scale: float = 1.0, leg_scale: float = 1.0, seed: int = 0, position=(0.0, -0.8),
                  heading: float = 0.0, retriever: MotionRetriever | None = None, method: str = "exact",
-                 scoring: str = "first"):
+                 scoring: str = "first", across_trees: bool | None = None):
         from repro.motion.sources import default_database
 
         t0 = time.perf_counter()
@@ -339,7 +348,10 @@ class KungFuFighter:
                 raise RetrievalError("retriever must be a MotionRetriever of the same database")
             self.retriever = retriever
         else:
-            self.retriever = MotionRetriever(db, seed=seed)
+            if across_trees is None:  # another tree (or a partial skeleton: set_character names what it lacks)
+                across_trees = character is not None and not (
+                    isinstance(character, (Skeleton, Motion)) and db.actors[0].is_compatible(character))
+            self.retriever = MotionRetriever(db, seed=seed, across_trees=across_trees)
         t2 = time.perf_counter()
         self.db = db
         self.seed = int(seed)
@@ -389,13 +401,36 @@ class KungFuFighter:
             self._stance_actor = turn_and_move(turn_and_move(still, 0.0, -o[0]), -facing, np.zeros(3))
             self.stance_source = f"first frame of clip {db.names[i]}, held"
 
-    def set_character(self, character: Skeleton) -> None:
-        """Change the fighter's morphology (takes effect at once, as the paper's supervisor does)."""
-        ch = skeleton_of(character)
+    def set_character(self, character) -> None:
+        """Change the fighter's morphology (takes effect at once, as the paper's supervisor does).
+
+        ``character``: a Skeleton or a Motion; of the database actor's joint tree, or --
+        with a retriever made ``across_trees=True`` -- of any humanoid tree (its roles
+        found from its structure, :func:`repro.motion.roles.find_roles`).
+
+        Raises
+        ------
+        repro.errors.MotionError
+            Another joint tree on a single-tree retriever; a character without what a
+            punch (an arm) or a kick (a leg) needs, named (:func:`repro.motion.roles.check_roles`).
+        """
+        ch = character_skeleton(character, ("a punch", "a kick"))
         if not ch.is_compatible(self._base):
-            raise MotionError("the character must have the joint tree of the database's actor (make it with character_from)")
+            if not getattr(self.retriever, "across_trees", False):
+                raise MotionError("the character must have the joint tree of the database's actor (make it with "
+                                  "character_from), or the fighter must be made with across_trees=True")
+            up = getattr(character, "up", None)
+            if up is None:
+                try:
+                    up = infer_up(character if isinstance(character, Motion) else None, ch)
+                except MotionError:  # a rest pose along neither axis (Bandai's lies along +X): the world's
+                    up = "y"
+            if up != "y":
+                raise MotionError(f"the fighter's world is Y-up; the character (root {ch.joint_names[0]!r}) is "
+                                  f"{up.upper()}-up: rotate it to Y-up first")
         self.character = ch
-        self.stance = retarget(self._stance_actor, ch)
+        self.stance = (retarget(self._stance_actor, ch) if ch.is_compatible(self._stance_actor)
+                       else retarget_to_tree(self._stance_actor, ch))
         hp = self.db.hit_position
         punch = (self.db.semantics == "punch") & np.isin(self.db.levels, ["high", "middle"])
         sel = punch if punch.any() else (self.db.semantics == "punch")

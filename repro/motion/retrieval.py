@@ -47,6 +47,14 @@ Choices the paper leaves open (documented here, all parameters):
   synthetic database has three).  ``c_r`` is computed per clip with its own ``size_a``;
   ``q_r`` is retargeted once per *base* actor (actors that are uniform scalings of one
   another share it, scaled), and pose clouds are compared in units of the actor's size.
+* Several joint trees (a mixed-skeleton database: CMU + Bandai, synthetic clips
+  rewritten onto other rigs, any user BVH): pose clouds are role point clouds
+  (:data:`~repro.motion.clustering.POSE_ROLES`) in units of stature, so they compare
+  across trees.  By default only the actors of the character's own tree are
+  candidates; with ``MotionRetriever(db, across_trees=True)`` ``q_r`` is retargeted
+  across trees (:func:`retarget_to_tree`) to every other actor too, and every clip can
+  be served to any humanoid character (:func:`repro.motion.strike.strike` then
+  retargets the selected clip to the character across trees as well).
 
 Baselines (for the figures): :meth:`MotionRetriever.search_exhaustive` scores every
 startable pose of the semantics with the same ``d`` (no clusters, no boxes: the exact
@@ -98,11 +106,16 @@ from repro.motion.annotation import SEMANTICS
 from repro.motion.database import MotionDatabase
 from repro.motion.ops import resample
 from repro.motion.morphology import retarget
+from repro.motion.retarget_tree import retarget_across
+from repro.motion.roles import check_roles, find_roles
 from repro.motion.motion import Motion, finite_vector3
 from repro.motion.skeleton import Skeleton, rescale_constraint, skeleton_of
 
 __all__ = [
     "FALLBACKS",
+    "character_skeleton",
+    "rest_motion_y_up",
+    "retarget_to_tree",
     "METHODS",
     "SCORINGS",
     "MAX_TARGET_M",
@@ -304,6 +317,84 @@ def _check_flag(name: str, v) -> bool:
     return bool(v)
 
 
+_ROT_CH = ("Zrotation", "Xrotation", "Yrotation")
+_POS_CH = ("Xposition", "Yposition", "Zposition")
+
+
+def character_skeleton(character, purposes: Sequence[str] = ()) -> Skeleton:
+    """The Skeleton of a character (Skeleton or Motion) that must be able to do ``purposes``.
+
+    ``purposes``: keys of :data:`repro.motion.roles.ROLES_FOR` (``"a punch"``, ``"a kick"``).
+    A partial skeleton (legs only, arms only) is refused naming what is missing *for
+    what* (:func:`repro.motion.roles.check_roles`: "a punch needs an arm ...") rather
+    than only the roles a Skeleton needs.
+
+    Raises
+    ------
+    repro.errors.MotionError
+    """
+    try:
+        ch = skeleton_of(character)
+    except MotionError as e:
+        names, par, off = (getattr(character, k, None) for k in ("joint_names", "parents", "offsets"))
+        if names is not None and par is not None and off is not None:
+            try:
+                partial = find_roles(list(names), np.asarray(par), offsets=np.asarray(off, dtype=float), required=())
+            except MotionError:
+                raise e from None
+            _check_purposes(partial, purposes, list(names))
+        raise
+    _check_purposes(ch.roles, purposes, ch.joint_names)
+    return ch
+
+
+def _check_purposes(roles, purposes, names) -> None:
+    """:func:`check_roles` of every purpose; one MotionError naming every purpose that fails."""
+    why = []
+    for purpose in purposes:
+        try:
+            check_roles(roles, purpose, names)
+        except MotionError as e:
+            why.append(str(e).split("; joints:")[0])
+    if why:
+        raise MotionError("; ".join(why) + f"; joints: {list(names)}")
+
+
+def rest_motion_y_up(character) -> Motion:
+    """The rest pose of ``character`` (Skeleton or Motion) as a one-frame Motion in the database
+    world (Y up): the target :func:`retarget_to_tree` decodes onto.  A database actor's rest
+    pose need not stand along Y (Bandai's lies along +X), but its clips do."""
+    sk = skeleton_of(character)
+    J = sk.n_joints
+    rot = np.zeros((1, J, 4))
+    rot[..., 3] = 1.0
+    channels = list(sk.channels) if sk.channels is not None else [_POS_CH + _ROT_CH] + [_ROT_CH] * (J - 1)
+    return Motion.from_unit_rotations(
+        joint_names=list(sk.joint_names), parents=sk.parents, offsets=sk.offsets, channels=channels,
+        frame_time=1.0 / 30.0, rotations=rot, positions=np.asarray(sk.offsets, dtype=float)[None].copy(),
+        end_site_parents=sk.end_site_parents, end_site_offsets=sk.end_site_offsets, unit_m=sk.unit_m, up="y")
+
+
+def retarget_to_tree(motion: Motion, character, *, roles=None, target=None) -> Motion:
+    """``motion`` (database world: Y up, metres) played by ``character`` of another joint tree.
+
+    Through the body-part roles (:func:`repro.motion.retarget_tree.retarget_across`), the
+    character's own role table (``character.roles``; an explicit one is kept) and its
+    rest pose decoded in the Y-up world (:func:`rest_motion_y_up`, or ``target`` when
+    already made).  ``roles``: the motion's role table (default: found).  The result is a
+    Motion on the character's skeleton, Y up.
+
+    Raises
+    ------
+    repro.errors.MotionError
+        Missing roles on either side (named), a rest pose whose facing cannot be told.
+    """
+    ch = skeleton_of(character)
+    src = motion if motion.up is not None else dataclasses.replace(motion, up="y")
+    tgt = rest_motion_y_up(ch) if target is None else target
+    return retarget_across(src, tgt, roles=roles, character_roles=dict(ch.roles))
+
+
 class MotionRetriever:
     """The database organised for the search: clusters, indices, per-clip arrays.
 
@@ -327,6 +418,14 @@ class MotionRetriever:
     kd_neighbours : int, default 32
         Neighbours fetched by :meth:`search_kdtree` before rescoring (>= 1; at most the
         startable poses of the semantics are fetched).
+    across_trees : bool, default False
+        Also serve characters of *other joint trees* than the actors' (a mixed-skeleton
+        database, any humanoid character): :meth:`prepare` retargets the current pose
+        across trees (:func:`repro.motion.retarget_tree.retarget_across`, through the
+        body-part roles) to every actor the character does not share a tree with, so
+        every clip is a candidate (poses are compared as role point clouds in units of
+        the actor's stature).  False (default): only the actors of the character's own
+        joint tree are candidates, as before.
 
     Raises
     ------
@@ -336,7 +435,7 @@ class MotionRetriever:
     """
 
     def __init__(self, db: MotionDatabase, *, k: int | None = None, seed: int = 0, weights=None,
-                 w_q: float = 1.0, w_c: float = 1.0, kd_neighbours: int = 32):
+                 w_q: float = 1.0, w_c: float = 1.0, kd_neighbours: int = 32, across_trees: bool = False):
         if not isinstance(db, MotionDatabase):
             raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
         if db.n_clips == 0 or db.n_poses == 0:
@@ -350,6 +449,7 @@ class MotionRetriever:
         self.db = db
         self.w_q, self.w_c = w_q, w_c
         self.kd_neighbours = check_int(kd_neighbours, "kd_neighbours", 1, None, RetrievalError)
+        self.across_trees = _check_flag("across_trees", across_trees)
         try:
             self.index = AlignedPoseIndex(db.pose_points, weights)
             self.clusters: PoseClusters = cluster_poses(db.pose_points, k, weights=weights, seed=seed)
@@ -371,6 +471,7 @@ class MotionRetriever:
         self.traj_padded = db.traj[idx]  # (C, L, 3), each padded with its last sample
         self._kd: dict = {}
         self._prep_cache: dict = {}
+        self._actor_rest: dict = {}  # actor -> its rest pose, Y up (retargeting across trees)
         self._start: dict | None = None
         self._qm_cache = None
         self._bounds_setup()
@@ -394,13 +495,17 @@ class MotionRetriever:
         character : Skeleton or Motion
             The character (its ``size`` is ``size_c`` of Eq. 1); must have the joint tree
             of the database actor(s) it is compared with (e.g. made by
-            :func:`~repro.motion.skeleton.scale_skeleton`).
+            :func:`~repro.motion.skeleton.scale_skeleton`), unless the retriever was made
+            with ``across_trees=True``: then any humanoid skeleton, the pose retargeted
+            across trees to the other actors (whether an actor can be, per character, is
+            cached).
 
         Raises
         ------
         repro.errors.RetrievalError
-            No database actor shares the character's joint tree; a pose that is not a
-            Motion.
+            No database actor shares the character's joint tree (``across_trees=False``),
+            or none can be retargeted to (``across_trees=True``: the message names the
+            roles missing); a pose that is not a Motion.
         """
         if not isinstance(current_pose, Motion):
             raise RetrievalError(f"current_pose must be a repro.motion.Motion, got {type(current_pose).__name__}")
@@ -431,9 +536,26 @@ class MotionRetriever:
             m = m.to_metres(unit)
         q_n = {}
         gc = m.global_positions()
+        refused: dict[int, str] = {}
         for a in self.actors_present.tolist():
             actor = db.actors[a]
-            if self._compatible(ch, a) is None:
+            mode = self._compatible(ch, a)
+            if mode is None:
+                continue
+            if mode == "across":
+                try:  # q on the character -> the actor's tree, through the roles (character's own table)
+                    if a not in self._actor_rest:
+                        self._actor_rest[a] = rest_motion_y_up(actor)
+                    qr = retarget_to_tree(m, actor, roles=dict(ch.roles), target=self._actor_rest[a])
+                except MotionError as e:
+                    refused[a] = str(e)
+                    self._prep_cache[(id(ch), a)] = (ch, None, str(e))  # not again for this character
+                    continue
+                g = qr.global_positions()
+                idx = [actor.index(r) for r in db.pose_roles]
+                pts = pose_points(g, idx, actor.index("pelvis"), actor.index("left_hip"), actor.index("right_hip"),
+                                  window=db.window, step=db.step)[-1]
+                q_n[a] = pts / actor.size
                 continue
             k = self._scaling_of(m, a)
             if k is not None:  # a uniform scaling of the actor: q_r is the pose scaled, no retargeting needed
@@ -451,6 +573,10 @@ class MotionRetriever:
             pts = pose_points(g, idx, actor.index("pelvis"), actor.index("left_hip"), actor.index("right_hip"),
                               window=db.window, step=db.step)[-1]
             q_n[a] = pts / actor.size
+        if not q_n and (refused or self._refusals(ch)):
+            why = refused or self._refusals(ch)
+            raise RetrievalError("the current pose cannot be retargeted to any actor of the database: "
+                                 + "; ".join(f"actor {a}: {e}" for a, e in sorted(why.items())))
         if not q_n:
             raise RetrievalError(
                 "the character shares no joint tree with the database's actors; make it from an actor "
@@ -458,17 +584,30 @@ class MotionRetriever:
         th, o = root_frames(gc[-1:], ch.index("pelvis"), ch.index("left_hip"), ch.index("right_hip"))
         return Query(q_n=q_n, size_c=float(size_c), heading=float(th[0]), origin=o[0], actors=tuple(q_n))
 
-    def _compatible(self, ch: Skeleton, a: int) -> bool | None:
-        """True if the character shares actor ``a``'s joint tree, else None; cached per (character, actor)."""
+    def _compatible(self, ch: Skeleton, a: int) -> bool | str | None:
+        """How the pose reaches actor ``a``; cached per (character, actor).
+
+        True: the character shares the actor's joint tree; ``"across"``: another tree,
+        retargeted through the roles (``across_trees=True``); None: not at all (another
+        tree without ``across_trees``, or a retargeting across trees that failed before
+        for this character).
+        """
         key = (id(ch), a)
         hit = self._prep_cache.get(key)
         if hit is not None and hit[0] is ch:
             return hit[1]
-        out = True if self.db.actors[a].is_compatible(ch) else None
+        if self.db.actors[a].is_compatible(ch):
+            out = True
+        else:
+            out = "across" if self.across_trees else None
         if len(self._prep_cache) > 64:
             self._prep_cache.clear()
-        self._prep_cache[key] = (ch, out)
+        self._prep_cache[key] = (ch, out, "")
         return out
+
+    def _refusals(self, ch: Skeleton) -> dict[int, str]:
+        """Cached reasons why the pose of ``ch`` could not be retargeted across trees, per actor."""
+        return {a: v[2] for (i, a), v in self._prep_cache.items() if i == id(ch) and v[0] is ch and v[2]}
 
     def _scaling_of(self, m: Motion, a: int) -> float | None:
         """The factor ``k`` if the pose's skeleton (metres) is actor ``a``'s scaled by ``k``, else None.

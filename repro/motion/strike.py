@@ -63,8 +63,8 @@ from repro.motion.morphology import retarget
 from repro.motion.motion import Motion, finite_vector3
 from repro.motion.paper import REACTION_BUDGET_S
 from repro.motion.quaternion import quat_multiply
-from repro.motion.retrieval import MotionRetriever, RetrievalResult
-from repro.motion.skeleton import Skeleton, rescale_constraint, skeleton_of
+from repro.motion.retrieval import MotionRetriever, RetrievalResult, character_skeleton, retarget_to_tree
+from repro.motion.skeleton import Skeleton, rescale_constraint
 
 __all__ = [
     "BLEND_S",
@@ -367,7 +367,8 @@ def strike(
         raise MotionError(f"blend_s must be a finite number of seconds >= 0, got {blend_s!r}")
     retriever = _retriever_of(source, seed)
     db = retriever.db
-    ch = skeleton_of(character)
+    # a character of any tree: what the strike needs, named (an arm for a punch, a leg for a kick)
+    ch = character_skeleton(character, {"punch": ("a punch",), "kick": ("a kick",)}.get(semantics, ()))
     # ---- 1. the query: q_r, c in the root frame, Eq. 1 validated
     v = finite_vector3(target, "target (x, y, z) in metres", RetrievalError)
     q = retriever.prepare(current_motion, ch) if query is None else query
@@ -386,7 +387,7 @@ def strike(
     m = cut(db.motion(res.clip), res.start_frame, int(db.n_frames[res.clip]))
     contacts = foot_contacts(m)
     t_rt = time.perf_counter()
-    mc = retarget(m, ch, fix_feet=fix_feet)
+    mc = retarget(m, ch, fix_feet=fix_feet) if ch.is_compatible(m) else retarget_to_tree(m, ch)
     t_adapt = time.perf_counter()
     # ---- 4. place on the current pose, blend with the current motion
     k = res.size_c / res.size_a
