@@ -1,4 +1,4 @@
-"""The interactive fighter (repro.motion.fighter) and its panel (repro.ui.fighter_panel), Sections 3-4.
+"""The interactive fighter (repro.motion.fighter), Sections 3-4 (its panel: tests/ui/test_fighter_panel.py).
 
 What is asserted (no timing is asserted, only that the timings exist):
 
@@ -13,10 +13,7 @@ What is asserted (no timing is asserted, only that the timings exist):
 * following keeps the fighter at striking distance of a walking, crouching head and
   facing it;
 * the simulated user is deterministic, stays in the 3 m x 3 m area and crouches;
-* bad orders, targets and characters raise the library's errors;
-* FighterPanel: kick / punch (by method and by button) update the parseable numbers
-  line (CSS class ``repro-fighter-numbers``) with the strike's numbers; the simulated
-  user drives the target; the character sliders change the fighter; no callback raises.
+* bad orders, targets and characters raise the library's errors.
 """
 
 from __future__ import annotations
@@ -287,125 +284,6 @@ def test_importing_the_fighter_does_not_import_widget_or_plot_libraries():
             "assert not bad, bad\n")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
-
-
-# ------------------------------------------------------------------ the panel
-@pytest.fixture()
-def panel(fighter):
-    from repro.ui.fighter_panel import FighterPanel
-
-    p = FighterPanel(fresh(fighter), view=False)
-    yield p
-    p.close()
-
-
-def test_panel_kick_and_punch_update_the_numbers(panel):
-    from repro.ui.fighter_panel import format_fighter_numbers, parse_fighter_numbers
-
-    assert panel.numbers == {}
-    assert "repro-fighter-numbers" in panel.numbers_html._dom_classes
-    panel.set_target(0.3, 1.3, 0.2)
-    s = panel.kick()
-    n = panel.numbers
-    assert n["kind"] == "kick" and n["clip"] == s.clip_name and "kick" in n["clip"]
-    assert n["d"] == pytest.approx(s.retrieval.d, abs=1e-4)
-    assert n["d_qr"] == pytest.approx(s.retrieval.d_qr, abs=1e-4)
-    assert n["d_cr"] == pytest.approx(s.retrieval.d_cr, abs=1e-4)
-    assert n["hit_error"] < 0.01 and n["reached"] == "yes"
-    assert n["budget"] == pytest.approx(1000 / 30, abs=1e-3)
-    for k in ("prepare", "search", "load_convert", "adapt", "adapt_per_frame", "first_frame"):
-        assert n[k] > 0
-    assert n["within_budget"] == ("yes" if s.within_budget else "no")
-    assert panel.numbers_text == format_fighter_numbers(s)
-    assert panel.numbers_text in panel.numbers_html.value.replace("&gt;", ">")
-    # the button does the same as the method
-    panel.set_target(0.0, 1.6, 0.0)
-    panel.punch_button.click()
-    assert panel.numbers["kind"] == "punch" and "punch" in panel.numbers["clip"]
-    assert panel.last_strike.kind == "punch"
-    assert parse_fighter_numbers(panel.numbers_text)["reached"] == "yes"
-    panel.kick_button.click()
-    assert panel.numbers["kind"] == "kick"
-
-
-def test_panel_without_following_reports_unreachable_targets(fighter):
-    from repro.ui.fighter_panel import FighterPanel
-
-    p = FighterPanel(fresh(fighter, position=(0.0, -1.4)), view=False, follow=False)
-    p.set_target(0.0, 1.7, 1.5)
-    s = p.punch()
-    assert not s.reached and p.numbers["reached"] == "no" and p.numbers["hit_error"] > 1.0
-    p.close()
-
-
-def test_panel_simulated_user_drives_the_target(panel):
-    panel.step_user(30)
-    assert panel.user_toggle.value
-    np.testing.assert_array_equal(panel.target, panel.user[30])
-    assert panel.fighter.time == pytest.approx(1.0)
-    assert panel.sliders["x"].value == pytest.approx(panel.user[30][0], abs=0.006)
-    panel.play.value = 90  # the Play widget moves the user on
-    np.testing.assert_array_equal(panel.target, panel.user[90])
-    s = panel.punch()
-    np.testing.assert_array_equal(s.target, panel.user[90])
-    panel.use_simulated_user(False)
-    assert panel.target[0] == panel.sliders["x"].value
-
-
-def test_panel_character_sliders_change_the_fighter(panel):
-    panel.set_character(height=1.5, arm_scale=0.8, leg_scale=1.2)
-    ch = panel.fighter.character
-    assert ch.size == pytest.approx(1.5, abs=1e-9)
-    ref = character_from(1.5, 0.8, 1.2, base=panel.fighter.db.actors[0])
-    np.testing.assert_allclose(ch.offsets, ref.offsets)
-    panel.sliders["height"].value = 2.0
-    assert panel.fighter.character.size == pytest.approx(2.0)
-    assert "2.00 m" in panel.status_html.value
-
-
-def test_panel_view_draws_a_filmstrip_and_parse_rejects_other_text(fighter):
-    from repro.ui.fighter_panel import (
-        FighterPanel,
-        filmstrip_figure,
-        key_frames,
-        parse_fighter_numbers,
-    )
-
-    p = FighterPanel(fresh(fighter), view=True)
-    assert p.image_png() == b""
-    s = p.punch()
-    png = p.image_png()
-    assert png.startswith(b"\x89PNG")
-    frames = key_frames(s)
-    assert frames[0] == 0 and s.tc in frames and frames == sorted(set(frames))
-    fig = filmstrip_figure(s)
-    assert len(fig.axes) == len(frames)
-    with pytest.raises(ValueError):
-        filmstrip_figure(s, frames=[s.n_frames])
-    for text in ("press kick or punch", "error: boom", p.numbers_text + " | extra: 1"):
-        with pytest.raises(ValueError):
-            parse_fighter_numbers(text)
-    p.close()
-
-
-def test_panel_callbacks_show_errors_instead_of_raising(panel, monkeypatch):
-    def boom(*a, **k):
-        raise RetrievalError("no clip for you")
-
-    monkeypatch.setattr(panel.fighter, "order", boom)
-    panel.kick_button.click()  # must not raise
-    assert panel.numbers_text.startswith("error: no clip for you")
-    assert panel.numbers == {}
-
-
-def test_animation_html_is_a_player(fighter):
-    from repro.ui.fighter_panel import animation_html
-
-    f = fresh(fighter)
-    f.follow((0, 1.6, 0), 0.0, snap=True)
-    s = f.punch((0, 1.6, 0))
-    out = animation_html(s, every=8)  # every 8th frame keeps it small
-    assert "<script" in out and "animation" in out.lower()
 
 
 def test_a_second_order_while_a_strike_plays_is_refused_and_keeps_the_target(fighter):

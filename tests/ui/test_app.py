@@ -100,7 +100,7 @@ def test_app_notebooks_ship_with_the_package_and_hold_no_outputs(which):
     import tomllib
     from pathlib import Path
 
-    pyproject = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())
+    pyproject = tomllib.loads((Path(__file__).resolve().parents[2] / "pyproject.toml").read_text())
     assert "ui/apps/*.ipynb" in pyproject["tool"]["setuptools"]["package-data"]["repro"]
     assert any(d.startswith("voila") for d in pyproject["project"]["dependencies"])
 
