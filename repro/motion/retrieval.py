@@ -1031,6 +1031,16 @@ class MotionRetriever:
         self._start = {"exgroups": exgroups, "phi": phi, "u": u, "rho": rho, "y": yr, "blocks": blocks, "groups": groups}
         return self._start
 
+    def _d_cr_start_per_actor(self, q: Query, rows: np.ndarray, alpha: np.ndarray, actor: np.ndarray,
+                              c_hat: np.ndarray, cq) -> np.ndarray:
+        """:meth:`_d_cr_start` for poses of several actors (each with its own ``q_r`` centroid ``cq[a]``)."""
+        dcr = np.empty(rows.size)
+        for a in q.q_n:
+            sel = actor == a
+            if np.any(sel):
+                dcr[sel] = self._d_cr_start(rows[sel], alpha[sel], c_hat, cq[a])
+        return dcr
+
     def _d_cr_start(self, rows: np.ndarray, alpha: np.ndarray, c_hat: np.ndarray, cq: np.ndarray,
                     chunk: int = 8192) -> np.ndarray:
         """Exact ``d_cr`` (actor metres) of poses ``rows`` scored in their start frame.
@@ -1172,12 +1182,7 @@ class MotionRetriever:
             pos[uk] = np.arange(uk.size)
             dcr = self._d_cr(b.uclips[uk], c_r)[pos[inv[keep]]]
         else:
-            dcr = np.empty(keep.size)
-            act = actor[keep]
-            for a in q.q_n:
-                sel = act == a
-                if np.any(sel):
-                    dcr[sel] = self._d_cr_start(rows[keep[sel]], alpha[keep[sel]], c_hat, cq[a])
+            dcr = self._d_cr_start_per_actor(q, rows[keep], alpha[keep], actor[keep], c_hat, cq)
         d = self.w_q * dqr[keep] + self.w_c * dcr
         return rows[keep], d, dqr[keep], dcr, keep.size
 
@@ -1304,12 +1309,7 @@ class MotionRetriever:
             uc, inv = np.unique(clip[keep], return_inverse=True)
             dcr = self._d_cr(uc, c_r)[inv]
         else:
-            dcr = np.empty(keep.size)
-            act = actor[keep]
-            for a in q.q_n:
-                sel = act == a
-                if np.any(sel):
-                    dcr[sel] = self._d_cr_start(rows[keep[sel]], alpha[keep[sel]], c_hat, cq[a])
+            dcr = self._d_cr_start_per_actor(q, rows[keep], alpha[keep], actor[keep], c_hat, cq)
         d = self.w_q * dqr[keep] + self.w_c * dcr
         return rows[keep], d, dqr[keep], dcr, keep.size
 
