@@ -407,8 +407,11 @@ def strike(
         tried.append("root")
         for frac in ROOT_SHIFT_TRIALS:  # the support leg must still reach its pinned foot
             off = _root_shift(ad, frac, max_root_shift * leg, kind, n_rel)
-            ad2 = adapt(blended, effector, X, 0, tc, root_offsets=off, max_iter=ROOT_MAX_ITER, **opts)
-            if ad2.foot_error <= max(foot_tol, ad.foot_error) and ad2.residual < ad.residual:
+            foot_max = max(foot_tol, ad.foot_error)
+            # max_foot_error: a trial whose support foot fails stops before its hit solve when it can (None)
+            ad2 = adapt(blended, effector, X, 0, tc, root_offsets=off, max_iter=ROOT_MAX_ITER,
+                        max_foot_error=foot_max, **opts)
+            if ad2 is not None and ad2.foot_error <= foot_max and ad2.residual < ad.residual:
                 ad = ad2
                 break
     t_end = time.perf_counter()
