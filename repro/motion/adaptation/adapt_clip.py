@@ -192,7 +192,9 @@ def adapt(
 :func:`repro.motion.strike.strike` keeps a root shift only if the support foot still
 follows): when the feet do not depend on the hit solve (an arm effector whose chain and
 limb leave both legs alone) they are solved first, and a foot error above it returns
-None at once, before the hit solve; the result is otherwise the same.  Frames ``<= t0``
+None at once, before the hit solve; for a leg effector the feet are first solved on the
+frames CCD will not touch (those the limb step reaches, and those not edited), and a
+foot error above the bound there returns None; the result is otherwise the same.  Frames ``<= t0``
 never change (but ``tc`` when ``t0 == tc``).  Lengths in
     the motion's units; ``tol`` defaults to 1e-4 of the limb length.  The package
     docstring (:mod:`repro.motion.adaptation`) tells the whole method and its limits.
@@ -271,6 +273,20 @@ never change (but ``tc`` when ``t0 == tc``).  Lengths in
     if feet_first:
         foot_err, n_feet = solve_feet()
         if foot_err > float(max_foot_error):
+            return None
+    elif max_foot_error is not None and feet is not None and edit.size:
+        # a leg effector: CCD turns the pelvis, which moves the support leg, but only on the
+        # frames the limb step cannot reach; on every other frame the feet are independent
+        # of the hit solve, and a foot error above the bound there is one of the result
+        r = rot[edit].copy()
+        trans = rig.trans[edit]
+        _, res = solve_limb(ch, r, trans, goals[edit], dmax=limb_dmax(ch, r, trans, ext))
+        safe = np.ones(F, dtype=bool)
+        safe[edit[res > tol]] = False
+        probe, _ = _solve_feet(rig, ch, motion, rot.copy(), feet, foot_blend, t0, stop, np.zeros((F, 2), dtype=bool),
+                               [], contacts=contacts, ref_gp=ref_gp, shifted=shifted, floor=floor, t_start=t_start,
+                               only=safe)
+        if probe > float(max_foot_error) * (1.0 + 1e-9):  # a margin far above any rounding
             return None
     if edit.size:
         _solve_hit(rig, ch, motion, rot, edit, goals, spec, max_iter, tol, ext, solver, iters, timings)
@@ -420,10 +436,11 @@ def _check_offsets(offsets, F: int) -> np.ndarray:
 
 
 def _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors, *, contacts, ref_gp,
-                shifted, floor, t_start) -> tuple[float, int]:
+                shifted, floor, t_start, only=None) -> tuple[float, int]:
     """Keep the other feet planted (``"pin"``, ``"plant"``) or on their trajectories (in place).
 
     Goals come from ``ref_gp`` (the input's joint positions, before a root shift).
+    ``only`` (F,) bool: solve on those frames alone (a probe of :func:`adapt`'s bound).
     Returns the largest ankle error and the number of solved frames.
     """
     gq = rig.globals[0]
@@ -470,6 +487,8 @@ def _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchor
             need |= shifted
             need |= np.any(rot[:, anc] != np.asarray(motion.rotations)[:, anc], axis=(1, 2))
         need[: t0 + 1] = False
+        if only is not None:
+            need &= only
         fr = np.flatnonzero(need)
         if fr.size:
             n_feet += fr.size
