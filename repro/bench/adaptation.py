@@ -12,7 +12,7 @@ import time
 from repro.bench import machine, median_time
 from repro.motion.paper import PAPER_ADAPT_PER_FRAME_S, PAPER_LOAD_CONVERT_S
 
-__all__ = ["GOAL_BATCH_PER_FRAME_US", "bench_adaptation", "format_adaptation"]
+__all__ = ["GOAL_BATCH_PER_FRAME_US", "bench_adaptation", "bench_order_latency", "format_adaptation"]
 
 #: retarget + adapt per frame, as a batch, microseconds (this reproduction's goal)
 GOAL_BATCH_PER_FRAME_US: float = 20.0
@@ -93,3 +93,55 @@ def format_adaptation(table) -> str:
             f"{r.retarget_plus_adapt_over_fk:.1f}x one FK pass (paper {r.paper_adapt_per_frame_us:.0f} us; goal < {GOAL_BATCH_PER_FRAME_US:g} us batched); "
             f"limb reach on a single frame {r.limb_adapt_single_frame_us:.0f} us; CCD {r.ccd_batch_per_frame_us:.0f} us/frame")
     return "\n".join(lines)
+
+
+def bench_order_latency(*, n_orders: int = 12, repeats: int = 3, database: str = "synthetic", seed: int = 0,
+                        progress: bool = True) -> dict:
+    """Order -> first adapted frame of the fighter (claim K4), the slow path against the fast one, in one process.
+
+    The fighter's orders (alternating kick / punch at the simulated user's head, as
+    ``KungFuFighter.order`` makes them, nothing committed) run through
+    :func:`repro.motion.strike.strike` with ``early_stop=False`` (every root-shift trial
+    solved in full) and ``early_stop=True`` (the default), interleaved order by order so
+    both see the same load; the two strikes are checked equal.  Returns and prints the
+    p50 / p99 of ``timings["first_frame"]`` and of the whole call (ms) per path and the
+    ratios slow / fast.  No pass/fail: the machine is named.
+    """
+    import numpy as np
+
+    from repro.motion.fighter import KungFuFighter, check_target, simulated_user
+    from repro.motion.strike import BLEND_S, strike
+
+    f = KungFuFighter(database, seed=seed)
+    user = simulated_user(seed=seed, duration=20.0, fps=30.0)
+    pose = f.current_pose((f.db.window - 1) * f.db.step + 1)
+    times = {"slow": ([], []), "fast": ([], [])}
+    for _ in range(int(repeats)):
+        for k in range(int(n_orders)):
+            X = check_target(user[(k * 37) % len(user)])
+            kind = "punch" if k % 2 else "kick"
+            out = {}
+            for path in (("slow", "fast") if k % 2 else ("fast", "slow")):
+                t = time.perf_counter()
+                s = strike(f.retriever, f.character, pose, X, kind, blend_s=BLEND_S, t_order=t, method=f.method,
+                           scoring=f.scoring, early_stop=path == "fast")
+                times[path][1].append(time.perf_counter() - t)
+                times[path][0].append(s.timings["first_frame"])
+                out[path] = s
+            if not np.array_equal(out["slow"].motion.rotations, out["fast"].motion.rotations) or \
+                    out["slow"].summary(timings=False) != out["fast"].summary(timings=False):
+                raise AssertionError(f"order {k}: the fast path changed the strike")
+    res = {"machine": machine(), "orders": len(times["fast"][0])}
+    for path, (first, whole) in times.items():
+        for name, v in (("first_frame", first), ("order", whole)):
+            res[f"{path}_{name}_p50_ms"] = 1e3 * float(np.percentile(v, 50))
+            res[f"{path}_{name}_p99_ms"] = 1e3 * float(np.percentile(v, 99))
+    for name in ("first_frame", "order"):
+        res[f"{name}_p50_ratio"] = res[f"slow_{name}_p50_ms"] / res[f"fast_{name}_p50_ms"]
+    if progress:
+        print(f"machine: {res['machine']}; {res['orders']} orders per path")
+        for name in ("first_frame", "order"):
+            print(f"{name}: slow p50 {res[f'slow_{name}_p50_ms']:.1f} ms p99 {res[f'slow_{name}_p99_ms']:.1f} ms; "
+                  f"fast p50 {res[f'fast_{name}_p50_ms']:.1f} ms p99 {res[f'fast_{name}_p99_ms']:.1f} ms; "
+                  f"slow / fast {res[f'{name}_p50_ratio']:.2f}x")
+    return res

@@ -31,15 +31,26 @@ __all__ = [
 _AXIS = {"X": 0, "Y": 1, "Z": 2}
 
 
+def _lead_shape(a: np.ndarray, b: np.ndarray) -> tuple:
+    """The broadcast leading shape of two (..., k) arrays (the common case, equal shapes, without numpy's helper)."""
+    return a.shape[:-1] if a.shape == b.shape else np.broadcast_shapes(a.shape[:-1], b.shape[:-1])
+
+
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a x b`` over the last axis, broadcast; the same numbers as :func:`numpy.cross`.
 
     Component-wise, without ``np.cross``'s axis juggling, which dominates the cost of
     short (online) clips.
     """
+    a, b = np.asarray(a), np.asarray(b)
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+    # filled in place (not np.stack): the same numbers, a third of the calls' overhead
+    out = np.empty(_lead_shape(a, b) + (3,), dtype=np.result_type(a, b))
+    out[..., 0] = a1 * b2 - a2 * b1
+    out[..., 1] = a2 * b0 - a0 * b2
+    out[..., 2] = a0 * b1 - a1 * b0
+    return out
 
 
 def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -55,17 +66,17 @@ def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     (..., 4) array
         The quaternion of the rotation "first ``b``, then ``a``" (matrix ``R(a) R(b)``).
     """
-    ax, ay, az, aw = np.moveaxis(a, -1, 0)
-    bx, by, bz, bw = np.moveaxis(b, -1, 0)
-    return np.stack(
-        [
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz,
-        ],
-        axis=-1,
-    )
+    a, b = np.asarray(a), np.asarray(b)
+    ax, ay, az, aw = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+    bx, by, bz, bw = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
+    # filled in place (not moveaxis + np.stack): the same numbers, less per-call overhead,
+    # which dominates the short clips the adaptation solves (repro.bench.adaptation)
+    out = np.empty(_lead_shape(a, b) + (4,), dtype=np.result_type(a, b))
+    out[..., 0] = aw * bx + ax * bw + ay * bz - az * by
+    out[..., 1] = aw * by - ax * bz + ay * bw + az * bx
+    out[..., 2] = aw * bz + ax * by - ay * bx + az * bw
+    out[..., 3] = aw * bw - ax * bx - ay * by - az * bz
+    return out
 
 
 def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -313,6 +313,7 @@ def strike(
     release: float | None = 0.25,
     seed: int = 0,
     t_order: float | None = None,
+    early_stop: bool = True,
 ) -> Strike:
     """Carry out an order: retrieve, convert, place and blend, solve (Sections 3.3-3.4; module docstring).
 
@@ -349,6 +350,11 @@ def strike(
         :func:`repro.motion.adaptation.adapt` options.
     t_order : float, optional
         ``time.perf_counter()`` at the order (default: now).
+    early_stop : bool, default True
+        A root-shift trial whose support foot fails is stopped before its hit solve when
+        the feet do not depend on it (a punch; ``adapt(max_foot_error=...)``).  False
+        solves every trial in full: the slow path, with the same results (kept for
+        :func:`repro.bench.adaptation.bench_order_latency` and the tests).
 
     Raises
     ------
@@ -408,8 +414,11 @@ def strike(
         tried.append("root")
         for frac in ROOT_SHIFT_TRIALS:  # the support leg must still reach its pinned foot
             off = _root_shift(ad, frac, max_root_shift * leg, kind, n_rel)
-            ad2 = adapt(blended, effector, X, 0, tc, root_offsets=off, max_iter=ROOT_MAX_ITER, **opts)
-            if ad2.foot_error <= max(foot_tol, ad.foot_error) and ad2.residual < ad.residual:
+            foot_max = max(foot_tol, ad.foot_error)
+            # max_foot_error: a trial whose support foot fails stops before its hit solve when it can (None)
+            ad2 = adapt(blended, effector, X, 0, tc, root_offsets=off, max_iter=ROOT_MAX_ITER,
+                        max_foot_error=foot_max if early_stop else None, **opts)
+            if ad2 is not None and ad2.foot_error <= foot_max and ad2.residual < ad.residual:
                 ad = ad2
                 break
     t_end = time.perf_counter()

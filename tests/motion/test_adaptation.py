@@ -535,3 +535,20 @@ def test_synthetic_punch_end_site_hit_point():
     np.testing.assert_allclose(a.original_hit[tc], ann["hit_position"], atol=1e-9)
     assert max(a.foot_slide.values()) < 1e-6
     assert a.bone_length_error < 1e-12
+
+
+def test_quat_multiply_and_cross_fill_in_place_with_the_same_numbers():
+    """The solvers' products (filled in place, no moveaxis/stack) equal the stacked formulas bit for bit, broadcast."""
+    from repro.motion.quaternion import cross
+
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(5, 7, 4))
+    for b in (rng.normal(size=(5, 7, 4)), rng.normal(size=(7, 4)), rng.normal(size=4), rng.normal(size=(5, 1, 4))):
+        ax, ay, az, aw = np.moveaxis(a, -1, 0)
+        bx, by, bz, bw = np.moveaxis(np.broadcast_to(b, a.shape), -1, 0)
+        want = np.stack([aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+                         aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz], axis=-1)
+        np.testing.assert_array_equal(quat_multiply(a, b), want)
+        np.testing.assert_array_equal(quat_multiply(b, a).shape, want.shape)
+        np.testing.assert_array_equal(cross(a[..., :3], b[..., :3]), np.cross(a[..., :3], b[..., :3]))
+    assert quat_multiply([0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 1.0]).tolist() == [0.0, 0.0, 0.0, 1.0]

@@ -180,3 +180,56 @@ def test_reach_by_distance_adds_up():
     assert rows[0]["reached_fraction"] == 1.0 and rows[-1]["reached_fraction"] < 1.0
     with pytest.raises(MotionError):
         reach_by_distance(d, ok, ["walk"] * 6)
+
+
+def _same_strike(a, b):
+    assert a.level == b.level and a.levels_tried == b.levels_tried and a.reached == b.reached
+    assert a.hit_error == b.hit_error and a.foot_slide == b.foot_slide and a.tc == b.tc
+    np.testing.assert_array_equal(a.motion.rotations, b.motion.rotations)
+    np.testing.assert_array_equal(a.motion.positions, b.motion.positions)
+    np.testing.assert_array_equal(a.adaptation.hit_positions, b.adaptation.hit_positions)
+    assert a.adaptation.foot_error == b.adaptation.foot_error
+    assert a.cost.keys() == b.cost.keys() and all(a.cost[k] == b.cost[k] for k in a.cost)
+    assert a.summary(timings=False) == b.summary(timings=False)
+
+
+@pytest.mark.parametrize("sem", ["punch", "kick"])
+@pytest.mark.parametrize("c", [[0.0, 0.9, 1.2], [0.0, 1.4, 3.0], [0.3, 1.5, 1.6], [-0.2, 1.0, 0.9]])
+def test_early_stop_of_root_trials_changes_no_result(setup, sem, c, monkeypatch):
+    """The fast path (a failing trial stops before its hit solve) equals solving every trial in full, bit for bit."""
+    import repro.motion.strike as strike_module
+
+    calls = {"full": 0, "stopped": 0}
+    real = strike_module.adapt
+
+    def counting(*a, **kw):
+        out = real(*a, **kw)
+        calls["stopped" if out is None else "full"] += 1
+        return out
+
+    monkeypatch.setattr(strike_module, "adapt", counting)
+    slow = run(setup, c, sem, early_stop=False)
+    assert calls["stopped"] == 0
+    fast = run(setup, c, sem)
+    _same_strike(fast, slow)
+
+
+def test_early_stop_skips_the_hit_solve_of_failing_punch_trials(setup, monkeypatch):
+    """A far punch: the root trials' support foot fails; the fast path stops them before the hit solve."""
+    import repro.motion.adaptation.adapt_clip as adapt_module
+
+    n = {"hit": 0}
+    real = adapt_module._solve_hit
+
+    def counting(*a, **kw):
+        n["hit"] += 1
+        return real(*a, **kw)
+
+    monkeypatch.setattr(adapt_module, "_solve_hit", counting)
+    c = [0.0, 1.4, 3.0]
+    slow = run(setup, c, "punch", early_stop=False)
+    n_slow, n["hit"] = n["hit"], 0
+    fast = run(setup, c, "punch")
+    _same_strike(fast, slow)
+    assert slow.level == "root" and not slow.reached
+    assert n["hit"] < n_slow  # the spine level's solve and the trials that passed the foot test only

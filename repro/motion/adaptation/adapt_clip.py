@@ -168,7 +168,8 @@ def adapt(
     contacts=None,
     root_offsets=None,
     floor: float | None = None,
-) -> Adaptation:
+    max_foot_error: float | None = None,
+) -> Adaptation | None:
     """Adapt a selected motion so that its hit point reaches ``target`` at the contact ``tc`` (Section 3.4.2).
 
     ``d(t)`` (:func:`offset_curve`, eased by ``kind``) grows from ``t_start`` (``t0``, or
@@ -187,7 +188,14 @@ def adapt(
     whole-body level of :func:`repro.motion.strike.strike`); ``p(t)`` and the planted-foot
     anchors stay those of the input, so the support foot does not move with the root.
     ``floor``: on pinned frames the ankle goal is lifted so the foot's toe joint stays at
-    or above this height.  Frames ``<= t0`` never change (but ``tc`` when ``t0 == tc``).  Lengths in
+    or above this height.  ``max_foot_error``: a trial's bound (the root level of
+:func:`repro.motion.strike.strike` keeps a root shift only if the support foot still
+follows): when the feet do not depend on the hit solve (an arm effector whose chain and
+limb leave both legs alone) they are solved first, and a foot error above it returns
+None at once, before the hit solve; for a leg effector the feet are first solved on the
+frames CCD will not touch (those the limb step reaches, and those not edited), and a
+foot error above the bound there returns None; the result is otherwise the same.  Frames ``<= t0``
+never change (but ``tc`` when ``t0 == tc``).  Lengths in
     the motion's units; ``tol`` defaults to 1e-4 of the limb length.  The package
     docstring (:mod:`repro.motion.adaptation`) tells the whole method and its limits.
 
@@ -233,7 +241,7 @@ def adapt(
         pos = np.array(motion.positions)
         pos[:, 0] += off
         motion = dataclasses.replace(motion, positions=pos)
-        rig = rig_of(motion, roles)
+        rig = rig.moved(motion)  # skeleton, roles and chains shared with the input's rig
         ch = rig.chain(effector, hit_point)
         gq, gp = rig.globals
     t_start = _start_frame(contacts, ch, t0, tc)
@@ -247,17 +255,43 @@ def adapt(
     solver = np.full(F, "", dtype="<U4")
     iters = np.zeros(F, dtype=np.intp)
     timings = {"limb": 0.0, "ccd": 0.0, "feet": 0.0}
-    if edit.size:
-        _solve_hit(rig, ch, motion, rot, edit, goals, spec, max_iter, tol, ext, solver, iters, timings)
-    t1 = time.perf_counter()
     pinned = np.zeros((F, 2), dtype=bool)
     anchors: list[tuple[int, int, int]] = []  # (side, first pinned frame, stop)
     foot_err, n_feet = 0.0, 0
-    if feet is not None:
-        foot_err, n_feet = _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors,
-                                       contacts=contacts, ref_gp=ref_gp, shifted=shifted, floor=floor,
-                                       t_start=t_start)
-    timings["feet"] = time.perf_counter() - t1
+
+    def solve_feet():
+        t1 = time.perf_counter()
+        out = _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors, contacts=contacts,
+                          ref_gp=ref_gp, shifted=shifted, floor=floor, t_start=t_start)
+        timings["feet"] = time.perf_counter() - t1
+        return out
+
+    # the feet first when they cannot depend on the hit solve: the two passes then read and
+    # write disjoint joints, so the order does not change a number, and a bounded trial
+    # whose support foot no longer follows stops before the (costly) hit solve
+    feet_first = max_foot_error is not None and feet is not None and _feet_independent(rig, ch, spec)
+    if feet_first:
+        foot_err, n_feet = solve_feet()
+        if foot_err > float(max_foot_error):
+            return None
+    elif max_foot_error is not None and feet is not None and edit.size:
+        # a leg effector: CCD turns the pelvis, which moves the support leg, but only on the
+        # frames the limb step cannot reach; on every other frame the feet are independent
+        # of the hit solve, and a foot error above the bound there is one of the result
+        r = rot[edit].copy()
+        trans = rig.trans[edit]
+        _, res = solve_limb(ch, r, trans, goals[edit], dmax=limb_dmax(ch, r, trans, ext))
+        safe = np.ones(F, dtype=bool)
+        safe[edit[res > tol]] = False
+        probe, _ = _solve_feet(rig, ch, motion, rot.copy(), feet, foot_blend, t0, stop, np.zeros((F, 2), dtype=bool),
+                               [], contacts=contacts, ref_gp=ref_gp, shifted=shifted, floor=floor, t_start=t_start,
+                               only=safe)
+        if probe > float(max_foot_error) * (1.0 + 1e-9):  # a margin far above any rounding
+            return None
+    if edit.size:
+        _solve_hit(rig, ch, motion, rot, edit, goals, spec, max_iter, tol, ext, solver, iters, timings)
+    if feet is not None and not feet_first:
+        foot_err, n_feet = solve_feet()
 
     changed = np.any(rot != np.asarray(motion.rotations), axis=(1, 2)) | shifted
     out = _adapted_motion(motion, rot, changed)
@@ -359,6 +393,26 @@ def _solve_hit(rig, ch, motion, rot, edit, goals, spec, max_iter, tol, ext, solv
     rot[edit] = r
 
 
+def _feet_independent(rig: Rig, ch: Chain, spec) -> bool:
+    """Whether the foot pass cannot depend on the hit solve (nor the hit solve on it).
+
+    True for an arm effector when no joint the hit solve may turn (the CCD chain, the
+    limb's three joints) lies on either leg's path root .. ankle: the passes then read and
+    write disjoint joints (both only read the root).
+    """
+    if ch.kind != "arm":
+        return False
+    turned = {int(ch.path[k]) for k, _, _ in spec} | {ch.prox, ch.mid, ch.dist}
+    for side in ("left", "right"):
+        try:
+            leg = rig.chain(f"{side}_ankle")
+        except MotionError:
+            return False
+        if turned & {int(j) for j in leg.path[: leg.k_dist + 1]}:
+            return False
+    return True
+
+
 def _check_contacts(contacts, F: int) -> np.ndarray:
     try:
         c = np.asarray(contacts)
@@ -382,10 +436,11 @@ def _check_offsets(offsets, F: int) -> np.ndarray:
 
 
 def _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors, *, contacts, ref_gp,
-                shifted, floor, t_start) -> tuple[float, int]:
+                shifted, floor, t_start, only=None) -> tuple[float, int]:
     """Keep the other feet planted (``"pin"``, ``"plant"``) or on their trajectories (in place).
 
     Goals come from ``ref_gp`` (the input's joint positions, before a root shift).
+    ``only`` (F,) bool: solve on those frames alone (a probe of :func:`adapt`'s bound).
     Returns the largest ankle error and the number of solved frames.
     """
     gq = rig.globals[0]
@@ -432,6 +487,8 @@ def _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchor
             need |= shifted
             need |= np.any(rot[:, anc] != np.asarray(motion.rotations)[:, anc], axis=(1, 2))
         need[: t0 + 1] = False
+        if only is not None:
+            need &= only
         fr = np.flatnonzero(need)
         if fr.size:
             n_feet += fr.size

@@ -129,6 +129,27 @@ class Rig:
     def motion(self) -> Motion:
         return self._motion()
 
+    def moved(self, motion: Motion) -> Rig:
+        """The rig of ``motion``, the same clip with only its root positions changed (a root shift).
+
+        Shares what does not depend on the root trajectory: the skeleton and its roles,
+        the depth levels and the effector chains (their paths, hit offsets and hinge axes
+        come from the joint tree, the rotations and the non-root translations); the local
+        translations and the global transforms are the new motion's.  Not cached in
+        :func:`rig_of` (one root-shift trial uses it once).
+        """
+        new = Rig.__new__(Rig)
+        new._motion = weakref.ref(motion)
+        new.sk = self.sk
+        new.trans = motion.local_translations()
+        new.trans.flags.writeable = False
+        new.chains = dict(self.chains)
+        new.levels = self.levels
+        new._globals = None
+        new._contacts = None
+        new.full_rotation = self.full_rotation
+        return new
+
     @property
     def globals(self) -> tuple[np.ndarray, np.ndarray]:
         if self._globals is None:
