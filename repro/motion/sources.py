@@ -44,7 +44,7 @@ from repro.motion.database import DATABASE_FPS, Clip, MotionDatabase
 from repro.motion.motion import BANDAI_UNIT_M, CMU_UNIT_M, Motion
 from repro.motion.ops import resample
 from repro.motion.rest_pose import match_rest_pose
-from repro.motion.skeleton import Skeleton, skeleton_of
+from repro.motion.skeleton import Skeleton, infer_unit, skeleton_of
 from repro.motion.synthetic import synthetic_database
 
 __all__ = [
@@ -141,15 +141,13 @@ def _cut_around(motion: Motion, hit_time: float, window: tuple[float, float] | N
 
 
 def _infer_unit(motion: Motion) -> float:
-    """Metres per unit guessed from the stature in file units (metres, cm, CMU units)."""
-    h = Skeleton.from_motion(motion).height
-    if 0.5 <= h <= 3.0:
-        return 1.0
-    if 50.0 <= h <= 300.0:
-        return 0.01
-    if 20.0 <= h <= 45.0:
-        return CMU_UNIT_M
-    raise MotionError(f"cannot guess the length unit of {motion.source!r} (stature {h:.4g} units); pass unit_m")
+    """Metres per unit from the stature in file units (:func:`repro.motion.skeleton.infer_unit`), silently:
+    a database build says nothing per file (its clips record ``unit_m``)."""
+    h = Skeleton.from_motion(dataclasses.replace(motion, unit_m=1.0)).height  # the stature in file units
+    try:
+        return infer_unit(h)[0]
+    except MotionError as exc:
+        raise MotionError(f"cannot guess the length unit of {motion.source!r}: {exc}") from None
 
 
 def _read(path: Path, unit_m: float | None) -> Motion:
