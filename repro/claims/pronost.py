@@ -172,7 +172,7 @@ def k5(get):
         played = feet[feet.database == name]
         if not len(played):
             return ("partially" if no_slide else "not reproduced", vals, decoder + "; the played strikes are not measured")
-        vals.update({"played_clips": int(len(played)),
+        vals.update({"played_clips": len(played),
                      "played_min_toe_height_m": float(played.min_toe_height_m.min()),
                      "played_max_foot_slide_m": float(played.max_foot_slide_m.max())})
         toe_ok = vals["played_min_toe_height_m"] >= PLAYED_TOE_FLOOR_M
@@ -181,8 +181,8 @@ def k5(get):
                    f"{vals['played_min_toe_height_m'] * 1e3:.1f} mm, support foot slides at most "
                    f"{vals['played_max_foot_slide_m'] * 1e3:.1f} mm")
         if no_slide and toe_ok and slide_ok:
-            return ("reproduced", vals, f"{decoder}; {strikes}: within {-PLAYED_TOE_FLOOR_M * 1e3:g} mm of the floor "
-                    f"and {PLAYED_FOOT_SLIDE_M * 1e2:g} cm of slide on every clip")
+            return ("reproduced", vals, (f"{decoder}; {strikes}: within {-PLAYED_TOE_FLOOR_M * 1e3:g} mm of the floor "
+                                         f"and {PLAYED_FOOT_SLIDE_M * 1e2:g} cm of slide on every clip"))
         if no_slide or (toe_ok and slide_ok):
             return ("partially", vals, f"{decoder}; {strikes}"
                     + ("" if toe_ok and slide_ok else f" (limits: {-PLAYED_TOE_FLOOR_M * 1e3:g} mm, "
