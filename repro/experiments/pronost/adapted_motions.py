@@ -24,6 +24,15 @@ the clip chosen, the hit error at contact before and after adaptation, whether i
 reached and the reach level needed (limb / spine / root), how many frames needed CCD, the
 largest slide of a planted foot, the bone-length error of the adapted motion and the cost
 of the adaptation (:func:`repro.motion.adaptation.cost.adaptation_cost`).
+
+``extra_tables["feet"]``: the feet of played strikes over a whole database (issue 12, item 4;
+claim K5).  Every clip of the synthetic database (and of the CMU one when ``cmu-bvh`` is
+staged) goes through the pipeline's retarget + adapt path: the clip's foot contacts are
+detected once on the clip, it is retargeted with ``fix_feet=True`` to its actor scaled to
+:data:`FEET_HEIGHT`, and adapted (``feet="plant"``, ``floor=0``) to a target
+:data:`FEET_TARGET_OFFSET` beyond its own hit point at its hit frame.  One row per clip: the
+lowest toe during the contact phases and the largest slide of a planted ankle.
+``quick=True``: every :data:`FEET_QUICK_STEP`-th clip of each database.
 """
 
 from __future__ import annotations
@@ -46,6 +55,11 @@ TARGETS = (
     ("kick to the hip, right", "kick", 0.35, 0.70, 0.50),
 )
 TARGETS_QUICK = (TARGETS[0], TARGETS[2], TARGETS[3], TARGETS[5])
+#: The feet table: character stature (m), target offset from the clip's own hit point (m, root frame
+#: of the world: forward), and the quick mode's stride through each database's clips.
+FEET_HEIGHT = 1.8
+FEET_TARGET_OFFSET = (0.0, 0.0, 0.05)
+FEET_QUICK_STEP = 6
 
 
 def _segments(sk) -> list[tuple[int, int]]:
@@ -94,6 +108,57 @@ def _compute(quick: bool):
                 "before_m": s.unadapted_error, "after_m": s.hit_error, "clip": r.name,
             })
     return pd.DataFrame(rows), tuple(poses)
+
+
+def _feet_databases() -> dict:
+    """``{"synthetic": db, "cmu": db}`` (CMU only when the dataset is staged)."""
+    from repro import data
+    from repro.motion.sources import default_database
+
+    out = {"synthetic": default_database("synthetic")}
+    if data.missing_reason("cmu-bvh") is None:
+        out["cmu"] = default_database("cmu")
+    return out
+
+
+def feet_of_played_strikes(db, name: str, clips=None) -> pd.DataFrame:
+    """One row per clip of ``db`` (or of ``clips``): its feet once played (module docstring, the feet table)."""
+    from repro.motion.adaptation import adapt
+    from repro.motion.annotation import hit_point_trajectory
+    from repro.motion.feet import foot_contacts, max_foot_slide, min_toe_height
+    from repro.motion.morphology import retarget
+    from repro.motion.skeleton import scale_skeleton
+    from repro.motion.strike import clip_effector
+
+    rows = []
+    for i in (range(db.n_clips) if clips is None else clips):
+        i = int(i)
+        m = db.motion(i)
+        ch = scale_skeleton(db.actor_skeleton(i), height=FEET_HEIGHT)
+        contacts = foot_contacts(m)  # once, on the retrieved clip, carried through
+        mc = retarget(m, ch, fix_feet=True)
+        tc, where = int(db.hit_frame[i]), str(db.hit_wheres[i])
+        X = hit_point_trajectory(mc, str(db.hit_joints[i]), where)[tc] + np.asarray(FEET_TARGET_OFFSET)
+        a = adapt(mc, clip_effector(db, i, ch), X, 0, tc, hit_point=where, contacts=contacts,
+                  feet="plant", floor=0.0)
+        g = a.motion.global_positions()
+        rows.append({
+            "database": name, "clip": str(db.names[i]), "semantics": str(db.semantics[i]),
+            "frames": int(m.n_frames), "contact_frames": int(contacts.any(axis=1).sum()),
+            "min_toe_height_m": min_toe_height(a.motion, contacts, skeleton=ch, global_positions=g),
+            "max_foot_slide_m": max_foot_slide(a.motion, contacts, skeleton=ch, global_positions=g),
+            "reached": bool(a.reached),
+        })
+    return pd.DataFrame(rows)
+
+
+def feet_table(quick: bool) -> pd.DataFrame:
+    """The feet table over every database present (every clip; every ``FEET_QUICK_STEP``-th when quick)."""
+    parts = []
+    for name, db in _feet_databases().items():
+        clips = range(0, db.n_clips, FEET_QUICK_STEP) if quick else None
+        parts.append(feet_of_played_strikes(db, name, clips))
+    return pd.concat(parts, ignore_index=True)
 
 
 #: Colours of the figure (the paper's Fig. 10: "the modified posture is depicted in light blue and the target is
@@ -213,11 +278,11 @@ def _draw_matplotlib(poses, reason: str | None = None):
     "Fig. 10 analog: punches and kicks selected into the database and adapted to targets, for a 1.5 m and a "
     "2.0 m fighter (original pose grey, adapted light blue, target as a sphere)",
     paper="pronost2008",
-    data=(),  # the synthetic database only
+    data=("cmu-bvh",),  # the orders: the synthetic database only; the feet table: CMU too when staged
 )
 def adapted_motions(quick: bool = False) -> Result:
     table, poses = _compute(bool(quick))
-    return Result(table=table, draw=lambda: draw(poses))
+    return Result(table=table, draw=lambda: draw(poses), extra_tables={"feet": feet_table(bool(quick))})
 
 
 def summary(result) -> str:
@@ -234,4 +299,10 @@ def summary(result) -> str:
         lines.append(f"{num(r.height_m, 2)} m fighter, {r.order}: `{r.clip}` from frame {r.start_frame}, "
                      f"{num(r.before_m, 2)} m off before adaptation, {num(r.after_m, 2)} m after"
                      + ("" if r.reached else " (**missed**)"))
+    feet = result.extra_tables.get("feet")
+    if feet is not None and len(feet):
+        for name, g in feet.groupby("database", sort=False):
+            lines.append(f"feet of the played clips, {name} ({len(g)} clips): lowest toe during contacts "
+                         f"{num(1000 * g.min_toe_height_m.min(), 2)} mm, planted feet slide at most "
+                         f"{num(1000 * g.max_foot_slide_m.max(), 2)} mm")
     return bullets(lines)
