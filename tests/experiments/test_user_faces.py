@@ -6,8 +6,8 @@ import pytest
 
 from repro.blendshapes import BlendshapeModel, load_model
 from repro.errors import ModelError
-from repro.experiments.registry import call_experiment, get, run_many
 from repro.experiments.lewis import common
+from repro.experiments.registry import call_experiment, get, run_many
 
 ARKIT = {
     "BrowInnerUp": "browInnerUp", "BrowUpLeft": "browOuterUp_L", "BrowUpRight": "browOuterUp_R",
