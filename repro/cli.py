@@ -41,6 +41,8 @@ def _parser() -> argparse.ArgumentParser:
         sp.add_argument("--out", default=DEFAULT_OUT, help="output folder (default: figures)")
         sp.add_argument("--quick", action="store_true", help="reduced sweeps (as CI runs them)")
         sp.add_argument("--force", action="store_true", help="rerun even when inputs and outputs are unchanged")
+        sp.add_argument("--face", action="append", default=[], metavar="FILE",
+                        help="a .gltf/.glb face (ARKit shape names) added to every Lewis figure; repeatable")
     b = sub.add_parser("bench", help="benchmarks printing ratios against an in-process baseline")
     b.add_argument("which", choices=BENCHES)
     b.add_argument("--quick", action="store_true")
@@ -73,7 +75,7 @@ def _bad_out(out: str) -> str | None:
     return None
 
 
-def _run(names, out: str, quick: bool, force: bool = False) -> int:
+def _run(names, out: str, quick: bool, force: bool = False, faces=()) -> int:
     from tqdm import tqdm  # a plain bar on stderr (never a notebook widget)
 
     from repro.experiments import registry
@@ -96,7 +98,7 @@ def _run(names, out: str, quick: bool, force: bool = False) -> int:
             tqdm.write(f"repro: {name} {status}", file=sys.stderr)
         bar.update()
 
-    status = run_many(names, out, quick=quick, force=force, on_result=report, progress=True)
+    status = run_many(names, out, quick=quick, force=force, on_result=report, progress=True, faces=faces)
     bar.close()
     failed = [n for n, s in status.items() if s not in ("ran", "cached")]
     if failed:
@@ -176,11 +178,11 @@ def _main(args) -> int:
                 print(f"{exp.name:28s} [{exp.paper}] {exp.caption}")
             return 0
         if args.command == "run":
-            return _run(args.names, args.out, args.quick, args.force)
+            return _run(args.names, args.out, args.quick, args.force, args.face)
         if args.command == "all":
             from repro.experiments import registry
 
-            return _run(list(registry()), args.out, args.quick, args.force)
+            return _run(list(registry()), args.out, args.quick, args.force, args.face)
         if args.command == "bench":
             from repro.bench import adaptation, attenuation, retrieval
             from repro.io import write_csv

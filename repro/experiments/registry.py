@@ -243,13 +243,20 @@ def _notebooks_using(name: str) -> list[str]:
 
 
 def input_key(exp: Experiment, *, quick: bool, code: str | None = None) -> dict:
-    """Everything a figure's outputs depend on: code, datasets present, mode, library versions."""
-    return {
+    """Everything a figure's outputs depend on: code, datasets present, mode, library versions,
+    and the user's faces in use (``faces``, by content hash; only when there are any)."""
+    key = {
         "code_sha256": code or _code_fingerprint(),
         "data": {d: _dataset_fingerprint(d) for d in exp.data},
         "quick": bool(quick),
         "versions": _versions(),
     }
+    if exp.paper.startswith("lewis"):
+        from repro.experiments.lewis import common
+
+        if faces := common.face_inputs():
+            key["faces"] = faces
+    return key
 
 
 def _read_manifest(outdir: Path) -> tuple[dict, str | None]:
@@ -343,7 +350,7 @@ def _up_to_date(entry: dict | None, key: dict, outdir: Path) -> bool:
 
 
 def run_many(names, outdir="figures", *, quick: bool = False, force: bool = False, on_result=None,
-             progress: bool = False) -> dict:
+             progress: bool = False, faces=()) -> dict:
     """Run several figures, skipping those whose inputs and outputs are unchanged; update the manifest.
 
     The manifest (``outdir/manifest.json``) records for every figure: name,
@@ -355,13 +362,22 @@ def run_many(names, outdir="figures", *, quick: bool = False, force: bool = Fals
     paths)`` is called after each.  Each entry is merged into the manifest under
     a lock, so concurrent runs into one folder keep each other's entries; a
     damaged manifest is rebuilt from its valid entries, with a warning.
-    ``progress``: progress bars (stderr) for figures that have them.
+    ``progress``: progress bars (stderr) for figures that have them.  ``faces``: glTF
+    faces added to every Lewis figure (all read first; a bad one is a ModelError
+    before any figure runs), part of the input key by content hash.
     """
+    from repro.experiments.lewis import common
+
+    out = output_folder(outdir)
+    with common.use_faces(faces):
+        return _run_many(names, out, quick=quick, force=force, on_result=on_result, progress=progress)
+
+
+def _run_many(names, out, *, quick, force, on_result, progress) -> dict:
     import datetime
 
     from repro.errors import ReproError
 
-    out = output_folder(outdir)
     manifest = _load_manifest(out)
     code = _code_fingerprint()
     status = {}
