@@ -822,7 +822,7 @@ class MotionRetriever:
         c = _check_target(target)
         sem = self._semantics(semantics)
         prune, scale_target = _check_flag("prune", prune), _check_flag("scale_target", scale_target)
-        method, scoring = self.check_method(method, scoring)
+        method, scoring = self.check_method(method, scoring, scale_target)
         q = self._query(current_pose, character, frame)
         if method == "exact":
             return self._search_exact(c, q, sem, scoring, scale_target)
@@ -832,8 +832,9 @@ class MotionRetriever:
             return self.search_kdtree(c, q, None, sem)
         return self._search_pruned(c, q, sem, prune=prune, scale_target=scale_target)
 
-    def check_method(self, method, scoring) -> tuple[str, str]:
-        """``(method, scoring)`` checked: one of :data:`METHODS`, one of :data:`SCORINGS`, and a valid pair."""
+    def check_method(self, method, scoring, scale_target: bool = True) -> tuple[str, str]:
+        """``(method, scoring)`` checked: one of :data:`METHODS`, one of :data:`SCORINGS`, a valid pair, and
+        ``scoring="start"`` only with ``scale_target`` (Eq. 1)."""
         if not isinstance(method, str) or method not in METHODS:
             raise RetrievalError(f"unknown method {method!r}; expected one of {list(METHODS)}")
         if not isinstance(scoring, str) or scoring not in SCORINGS:
@@ -841,6 +842,8 @@ class MotionRetriever:
         if scoring == "start" and method in ("pruned", "kdtree"):
             raise RetrievalError(f"scoring='start' is for method 'exact' or 'exhaustive', not {method!r} "
                                  "(the paper's pruning tests one first-frame box per clip)")
+        if scoring == "start" and not scale_target:
+            raise RetrievalError("scoring='start' needs scale_target=True (Eq. 1)")
         return method, scoring
 
     def search_exact(self, target, current_pose, character=None, semantics: str = "punch", *,
@@ -867,9 +870,7 @@ class MotionRetriever:
         c = _check_target(target)
         sem = self._semantics(semantics)
         scale_target = _check_flag("scale_target", scale_target)
-        _, scoring = self.check_method("exact", scoring)
-        if scoring == "start" and not scale_target:
-            raise RetrievalError("scoring='start' needs scale_target=True (Eq. 1)")
+        _, scoring = self.check_method("exact", scoring, scale_target)
         q = self._query(current_pose, character, frame)
         return self._search_exact(c, q, sem, scoring, scale_target, stats=stats)
 
@@ -913,9 +914,7 @@ class MotionRetriever:
         c = _check_target(target)
         sem = self._semantics(semantics)
         scale_target = _check_flag("scale_target", scale_target)
-        _, scoring = self.check_method("exhaustive", scoring)
-        if scoring == "start" and not scale_target:
-            raise RetrievalError("scoring='start' needs scale_target=True (Eq. 1)")
+        _, scoring = self.check_method("exhaustive", scoring, scale_target)
         q = self._query(current_pose, character, frame)
         return self._search_exhaustive(c, q, sem, scoring, scale_target)
 

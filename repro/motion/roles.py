@@ -725,7 +725,7 @@ def _roles_from_structure(names: list[str], par: np.ndarray, off: np.ndarray) ->
                 f"cannot tell left from right for {names[g1['prox']]!r} / {names[g2['prox']]!r}: no side in "
                 "the names and no toes to tell the facing direction"
             )
-        left = cross_np(up, fwd / nf)
+        left = np.cross(up, fwd / nf)
         s1 = float((P[g1["prox"]] - P[g2["prox"]]) @ left)
         sides[t1], sides[t2] = ("left", "right") if s1 > 0 else ("right", "left")
     for t, lg in legs.items():
@@ -747,10 +747,6 @@ def _roles_from_structure(names: list[str], par: np.ndarray, off: np.ndarray) ->
     named = [j for j in hchain if _alnum(_strip(names[j])).lstrip("m") in ("head", "head1", "headbone")]
     roles["head"] = names[named[-1] if named else head]
     return roles
-
-
-def cross_np(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.cross(a, b)
 
 
 def check_roles(roles: Mapping[str, str], purpose: str, joint_names: Sequence[str] = ()) -> None:
