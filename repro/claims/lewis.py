@@ -177,17 +177,23 @@ def l6(get):
     return per_model(judge, get("fig5_alpha").table)
 
 
+def over_attenuation(g, method: str, column: str) -> list[float]:
+    """Per session with motion at the selection: ``column`` of ``method`` over attenuation's (L7, L8)."""
+    ratios = []
+    for _, s in g.groupby("scenario"):
+        s = s.set_index("method")
+        if method in s.index and s.loc["none", "selected_motion"] > NO_MOTION:
+            ratios.append(float(s.loc[method, column] / max(s.loc["attenuation", column], 1e-12)))
+    return ratios
+
+
 @claim("L7", "Zeroing rows of D 'disrupt[s] the smoothness of the surface' (Section 3)",
        figure="rejected_alternatives", notebook=NB1,
        criterion=f"roughness at the selection > {WORSE_FACTOR}x attenuation's in every session with motion",
        expected={"embedded": "reproduced", "real": "reproduced"})
 def l7(get):
     def judge(g, model):
-        ratios = []
-        for _, s in g.groupby("scenario"):
-            s = s.set_index("method")
-            if s.loc["none", "selected_motion"] > NO_MOTION:
-                ratios.append(s.loc["zeroed_rows", "roughness_at_selection"] / max(s.loc["attenuation", "roughness_at_selection"], 1e-12))
+        ratios = over_attenuation(g, "zeroed_rows", "roughness_at_selection")
         vals = {"min_roughness_ratio_zeroed_over_attenuation": float(min(ratios))}
         if min(ratios) > WORSE_FACTOR:
             return ("reproduced", vals, f"zeroed rows tear the surface at the selection (> {WORSE_FACTOR}x attenuation's roughness) in every session with motion")
@@ -202,12 +208,7 @@ def l7(get):
        expected={"embedded": "reproduced", "real": "reproduced"})
 def l8(get):
     def judge(g, model):
-        g = g[g.applicable]
-        ratios = []
-        for _, s in g.groupby("scenario"):
-            s = s.set_index("method")
-            if "orthogonal_lock" in s.index and s.loc["none", "selected_motion"] > NO_MOTION:
-                ratios.append(s.loc["orthogonal_lock", "selected_motion"] / max(s.loc["attenuation", "selected_motion"], 1e-12))
+        ratios = over_attenuation(g[g.applicable], "orthogonal_lock", "selected_motion")
         if not ratios:
             return ("not applicable", {}, "no session with a base pose to lock moves the selection")
         vals = {"min_selected_motion_ratio_lock_over_attenuation": float(min(ratios))}

@@ -43,7 +43,7 @@ def channel_layout(channels: Sequence[Sequence[str]]) -> tuple[np.ndarray, list[
 
 def joint_columns(motion) -> list[np.ndarray]:
     """Per joint, its (F, n_channels_j) block of channel values (degrees for angles)."""
-    F, J = motion.n_frames, motion.n_joints
+    F = motion.n_frames
     blocks: list[np.ndarray] = [np.zeros((F, len(c))) for c in motion.channels]
     quats = motion.rotations
     groups: dict[str, list[int]] = {}

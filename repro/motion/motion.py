@@ -45,9 +45,9 @@ from functools import cached_property
 import numpy as np
 
 from repro.errors import BVHError, MotionError
-from repro.motion.channels import POSITION_CHANNELS, ROTATION_CHANNELS, channel_layout, channel_table
+from repro.motion.channels import channel_layout, channel_table
 from repro.motion.kinematics import depth_levels, fk_arrays
-from repro.motion.quaternion import euler_to_quat, quat_multiply, quat_rotate
+from repro.motion.quaternion import quat_multiply, quat_rotate
 
 __all__ = [
     "Motion",

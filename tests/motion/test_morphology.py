@@ -203,7 +203,7 @@ def test_fully_folded_equal_limb_no_nan():
     # frame 0: wrist exactly on the shoulder, the limb axis is undefined and the elbow's
     # direction is lost (the representation keeps one angle, the elbow has a sphere of
     # positions): only ask for a valid pose there; frame 1 (1 degree open) is exact
-    g, g0 = out.global_positions(), m.global_positions()
+    g = out.global_positions()
     sh, wr = NAMES.index("LeftArm"), NAMES.index("LeftHand")
     assert np.linalg.norm(g[0, wr] - g[0, sh]) < 1e-12
     np.testing.assert_allclose(_fk_bone_lengths(out)[0], np.linalg.norm(off[1:], axis=1), atol=1e-12)
