@@ -125,7 +125,7 @@ def test_kick_button_in_the_fighter_panel(open_notebook):
     panel, numbers_sel = ".repro-fighter-panel", ".repro-fighter-panel .repro-fighter-numbers"
     nb.page.wait_for_selector(numbers_sel)
     nb.page.locator(f"{panel} .repro-fighter-kick").scroll_into_view_if_needed()
-    image = f"{panel} img"
+    image = f"{panel} img.repro-fighter-filmstrip"
     src = nb.page.locator(image).get_attribute("src")
     nb.screenshot("1-start", panel)
 
