@@ -36,6 +36,8 @@ from pathlib import Path
 import ipywidgets as widgets
 import numpy as np
 
+from repro.errors import ReproError
+
 __all__ = ["MeshWebView", "StrikeWebView", "WebView", "mesh_frame", "pack", "strike_scene", "unpack"]
 
 MAGIC = b"RPV1"
@@ -59,7 +61,8 @@ def pack(header: dict, arrays: dict) -> bytes:
         a = np.asarray(a)
         code = next((k for k, t in _DTYPES.items() if a.dtype == t), None)
         if code is None:
-            raise TypeError(f"array {name!r} has dtype {a.dtype}; expected one of {list(_DTYPES)}")
+            raise ReproError(f"view message array {name!r} has dtype {a.dtype}; expected one of "
+                             f"{[np.dtype(t).name for t in _DTYPES.values()]}")
         blobs.append(np.ascontiguousarray(a, dtype=a.dtype.newbyteorder("<")).tobytes())
         specs.append([name, code, 0, int(a.size)])
     text = b""
@@ -84,7 +87,7 @@ def unpack(data: bytes) -> tuple[dict, dict]:
     """:func:`pack` read back: the header and the arrays (numpy)."""
     data = bytes(data)
     if data[:4] != MAGIC:
-        raise ValueError("not a view message (no RPV1 magic)")
+        raise ReproError(f"not a view message: starts with {data[:4]!r}, not {MAGIC!r}")
     n = int.from_bytes(data[4:8], "little")
     head = json.loads(data[8:8 + n])
     arrays = {}
