@@ -127,8 +127,7 @@ class WebView:
             f'<span class="repro-webview-note" style="color:#555">{html.escape(note)}</span></div>'
             f'<img alt="" width="1" height="1" style="display:none" src="{_PIXEL}" '
             f'onload="{html.escape(start, quote=True)}"></div>')
-        hidden = widgets.Layout(display="none")
-        self.static = widgets.Image(format="x-repro-view", layout=hidden)
+        self.static = widgets.Image(format="x-repro-view", layout=widgets.Layout(display="none"))
         self.static.add_class("repro-webview-static")
         self.frame = widgets.Image(format="x-repro-view", layout=widgets.Layout(display="none"))
         self.frame.add_class("repro-webview-frame")
@@ -146,7 +145,7 @@ class MeshWebView(WebView):
     """The posed face in the browser, same colours as the panel's matplotlib view (front view first).
 
     :meth:`render` sends the vertex positions (int16: ``QUANT_RANGE`` times the rest
-    pose's half extent over 32767 steps, ~0.05 mm on the ICT face) and the motion (uint8
+    pose's half extent over 32767 steps: 6.6e-4 cm on the ICT face) and the motion (uint8
     over ``clim``); the triangles, the colour map and the colour bar's label go once.
     """
 
