@@ -85,7 +85,7 @@ NUMBERS_FORMAT = (
 #: Exponents (base 10) of the alpha slider's range.
 ALPHA_EXPONENTS = (-3.0, 6.0)
 
-VIEWS = ("matplotlib", "pyvista", "auto", "none")
+VIEWS = ("matplotlib", "pyvista", "3d", "auto", "none")
 
 _NUMBER_FIELDS = {
     "selected motion": "selected_motion",
@@ -276,7 +276,9 @@ class BlendshapePanel(PanelCallbacks):
         Slider names (shapes or named combinations of the model).  None: the
         paper's sliders (:data:`PAPER_SLIDERS`) the model has; "all": every
         name the model accepts.
-    view : "matplotlib" (default), "pyvista", "auto" or "none"
+    view : "matplotlib" (default), "pyvista", "3d", "auto" or "none"
+        "3d": drawn in the browser (:class:`repro.ui.webview.MeshWebView`; rotate, zoom;
+        the kernel sends only the vertex positions and motion per move, no picture).
         "auto" uses pyvista when off-screen rendering works here
         (:func:`repro.ui.render.render_unavailable_reason`), else matplotlib.
     region : str, optional
@@ -377,6 +379,12 @@ class BlendshapePanel(PanelCallbacks):
             self._view = _MatplotlibView(model, clim, cmap, image_size)
         elif view == "pyvista":
             self._view = _PyvistaView(model, clim, cmap, image_size)
+        elif view == "3d":
+            from repro.ui.webview import MeshWebView
+
+            self._view = MeshWebView(model, clim, cmap, image_size)
+        self._picture_args = (clim, cmap, image_size)
+        self._picture_view = None  # a matplotlib view for image_png() when the live view is drawn in the browser
 
         # widgets
         style = {"description_width": "110px"}
@@ -410,7 +418,7 @@ class BlendshapePanel(PanelCallbacks):
         self.reset_button = widgets.Button(description="reset", tooltip="all sliders to 0, attenuation off")
         self.view_image = widgets.Image(format="png", layout=widgets.Layout(
             width=f"{image_size[0]}px", height=f"{image_size[1]}px",
-            display="none" if self._view is None else None))
+            display="none" if self._view is None or view == "3d" else None))
         self.numbers_html = widgets.HTML()
         self.numbers_html.add_class("repro-numbers")
         self.status_html = widgets.HTML()
@@ -440,7 +448,7 @@ class BlendshapePanel(PanelCallbacks):
             f"<b>{html.escape(model.name)}</b>: {model.n_vertices:,} vertices, {model.n_shapes} shapes "
             f"({html.escape(model.units)})")
         left = widgets.VBox([header, *self.sliders.values()])
-        right = widgets.VBox([self.view_image])
+        right = widgets.VBox([self._view.widget if view == "3d" else self.view_image])
         alpha_row = widgets.HBox([self.alpha_slider, self.default_alpha])
         rows = [
             widgets.HBox([left, right]),
@@ -669,7 +677,10 @@ class BlendshapePanel(PanelCallbacks):
         d, d_base, sel_vertices = self._view_state
         motion = np.linalg.norm((d - d_base).reshape(-1, 3), axis=1)
         points = self.model.f0 + d.reshape(-1, 3)
-        self.view_image.value = self._view.render(points, motion, sel_vertices)
+        if self.view_kind == "3d":
+            self._view.render(points, motion, sel_vertices)  # sent to the page, which draws it
+        else:
+            self.view_image.value = self._view.render(points, motion, sel_vertices)
         self.last_update_seconds["view"] = time.perf_counter() - t
 
     def _status(self) -> str:
@@ -814,19 +825,39 @@ class BlendshapePanel(PanelCallbacks):
 
     def close(self) -> None:
         """Close the widgets and the view's figure or plotter."""
-        if self._view is not None:
-            self._view.close()
-            self._view = None
+        for v in (self._view, self._picture_view):
+            if v is not None:
+                v.close()
+        self._view = self._picture_view = None
         for w in [*self.sliders.values(), self.region, *self.axis_boxes.values(), self.select_button,
                   self.alpha_slider, self.default_alpha, self.attenuation, self.reset_button,
                   self.view_image, self.numbers_html, self.status_html, self.widget]:
             w.close()
 
     def image_png(self) -> bytes:
-        """The current view as PNG bytes (empty without a view)."""
+        """The current view as PNG bytes (empty without a view).
+
+        With ``view="3d"`` (drawn in the browser), the front view drawn here by the
+        matplotlib view, same colours.
+        """
         if self._render_scheduled:
             self._render_view()
+        if self.view_kind == "3d":
+            if self._view_state is None:
+                return b""
+            if self._picture_view is None:
+                self._picture_view = _MatplotlibView(self.model, *self._picture_args)
+            d, d_base, sel_vertices = self._view_state
+            motion = np.linalg.norm((d - d_base).reshape(-1, 3), axis=1)
+            return self._picture_view.render(self.model.f0 + d.reshape(-1, 3), motion, sel_vertices)
         return bytes(self.view_image.value)
+
+    @property
+    def view_digest(self) -> str | None:
+        """With ``view="3d"``: the digest of the last frame sent to the page (its canvas's ``data-drawn``)."""
+        if self._render_scheduled:
+            self._render_view()
+        return getattr(self._view, "digest", None)
 
     def __repr__(self) -> str:
         return (f"BlendshapePanel({self.model.name!r}, {len(self.slider_names)} sliders, "

@@ -140,7 +140,9 @@ def numbers_html(text: str) -> str:
 
 #: Labels for the icon-only buttons of the ``Play`` widget (play/pause, stop, loop) and the panel's layout.
 PANEL_CSS = """<style>
-.repro-fighter-play button { width: auto !important; padding: 0 8px; }
+.repro-fighter-play { width: auto !important; flex: none; }
+.repro-fighter-play button { width: auto !important; min-width: max-content; overflow: visible !important;
+  text-overflow: clip !important; padding: 0 8px; flex: none; }
 .repro-fighter-play button:nth-of-type(1)::after { content: " play / pause"; }
 .repro-fighter-play button:nth-of-type(2)::after { content: " stop"; }
 .repro-fighter-play button:nth-of-type(3)::after { content: " loop"; }
@@ -167,6 +169,10 @@ class FighterPanel(PanelCallbacks):
         reach: best effort, "reached: no").
     view : bool, default True
         Draw the filmstrip after each order (False: numbers only, faster).
+    view3d : bool, default True
+        Also play each strike in a 3D view drawn in the browser
+        (:class:`repro.ui.webview.StrikeWebView`: rotate, zoom, pause), sent before the
+        filmstrip is drawn: the first picture of an order.
     animate : bool, default False
         After the filmstrip, also play the strike as an animation (an animated PNG in
         :attr:`animation`, drawn after the filmstrip is shown; about half a second more
@@ -186,10 +192,15 @@ class FighterPanel(PanelCallbacks):
     """
 
     def __init__(self, fighter: KungFuFighter | None = None, *, target=(0.0, 1.65, 0.0), follow: bool = True,
-                 view: bool = True, animate: bool = False, user_seed: int = 0, user_duration: float = 20.0):
+                 view: bool = True, view3d: bool = True, animate: bool = False, user_seed: int = 0, user_duration: float = 20.0):
         self.fighter = fighter if fighter is not None else KungFuFighter()
         self.view = bool(view)
         self.animate = bool(animate)
+        self.view3d = None
+        if view and view3d:
+            from repro.ui.webview import StrikeWebView
+
+            self.view3d = StrikeWebView()
         self._filmstrip: FilmstripView | None = None
         self.user = simulated_user(user_seed, user_duration, 30.0)
         self._user_index = 0
@@ -260,9 +271,10 @@ class FighterPanel(PanelCallbacks):
             widgets.HBox([self.kick_button, self.punch_button, self.user_toggle, self.play, self.step_button]),
             self.numbers_html,
             self.status_html,
+            # the 3D view and the animation only where asked: without them the panel shows one picture (one <img>)
+            *([widgets.HBox([*([self.view3d.widget] if self.view3d else []),
+                             *([self.animation] if self.animate else [])])] if self.view3d or self.animate else []),
             self.image,
-            # the animation only where asked: without it the panel shows one picture (one <img>)
-            *([self.animation] if self.animate else []),
             widgets.HTML(PANEL_CSS),
         ])
         self.widget.add_class("repro-fighter-panel")
@@ -400,6 +412,8 @@ class FighterPanel(PanelCallbacks):
         self._numbers_text = format_fighter_numbers(strike)
         self._show()
         if self.view:
+            if self.view3d is not None:
+                self.view3d.show(strike)  # sent first: the page draws it while the filmstrip is drawn here
             if self._filmstrip is None:
                 self._filmstrip = FilmstripView()
             self.image.value = self._filmstrip.render(strike)  # sent to the browser now
@@ -427,6 +441,8 @@ class FighterPanel(PanelCallbacks):
         for w in [*self.sliders.values(), self.kick_button, self.punch_button, self.follow_box, self.user_toggle,
                   self.play, self.step_button, self.image, self.animation, self.numbers_html, self.status_html, self.widget]:
             w.close()
+        if self.view3d is not None:
+            self.view3d.close()
 
     def __repr__(self) -> str:
         return f"FighterPanel({self.fighter!r})"

@@ -24,7 +24,10 @@ import numpy as np
 
 from repro.motion.roles import find_roles
 
-__all__ = ["FilmstripView", "StrikeCamera", "animation_html", "animation_png", "key_frames", "strike_animation"]
+__all__ = [
+    "FilmstripView", "StrikeCamera", "animation_html", "animation_png", "key_frames", "scene_geometry",
+    "strike_animation",
+]
 
 ADAPTED, ORIGINAL, TARGET, PATH = "tab:blue", "0.62", "navy", "tab:red"
 
@@ -115,31 +118,50 @@ class _Scene:
         return [self.original, self.adapted, self.original_head, self.head, self.path, self.hit, self.title]
 
 
+def scene_geometry(strike, head_radius: float = 0.1) -> dict:
+    """A strike in world coordinates (metres), forward kinematics once: what every view of it draws.
+
+    Keys: ``adapted`` / ``original`` (F, bones, 2, 3) bone segments, ``head`` /
+    ``original_head`` (F, 3) head centres, ``head_r`` (m), ``hit`` (F, 3) the hit point,
+    ``target`` (3,), ``floor`` (lines, 2, 3) a 0.5 m grid on the floor around the fighter,
+    ``root`` (3,) the root at frame 0.
+    """
+    g, e = strike.motion.global_positions(), strike.motion.end_site_positions()
+    go, eo = strike.original.global_positions(), strike.original.end_site_positions()
+    hc, head_r = _head(strike.motion, g, e)
+    oc, _ = _head(strike.original, go, eo)
+    c = (g.reshape(-1, 3).min(axis=0) + g.reshape(-1, 3).max(axis=0)) / 2
+    half = 0.5 * float(max(np.ptp(g[..., 0]), np.ptp(g[..., 2]))) + 0.6
+    step = 0.5
+    xs = np.arange(math.ceil((c[0] - half) / step), math.floor((c[0] + half) / step) + 1) * step
+    zs = np.arange(math.ceil((c[2] - half) / step), math.floor((c[2] + half) / step) + 1) * step
+    lines = [[(x, 0.0, c[2] - half), (x, 0.0, c[2] + half)] for x in xs]
+    lines += [[(c[0] - half, 0.0, z), (c[0] + half, 0.0, z)] for z in zs]
+    return {
+        "adapted": _segments(strike.motion, g, e), "original": _segments(strike.original, go, eo),
+        "head": hc, "original_head": oc, "head_r": head_r, "hit": np.asarray(strike.hit_positions(), dtype=float),
+        "target": np.asarray(strike.target, dtype=float), "floor": np.array(lines).reshape(-1, 2, 3),
+        "root": g[0, 0].copy(), "centre": c,
+    }
+
+
 class _Geometry:
     """A strike projected once: segments, heads, hit path, target and the limits every picture shares."""
 
     def __init__(self, strike, head_radius: float, camera: StrikeCamera | None = None):
         self.strike = strike
-        g, e = strike.motion.global_positions(), strike.motion.end_site_positions()  # forward kinematics once
-        cam = camera or StrikeCamera(strike, root=g[0, 0])
-        go, eo = strike.original.global_positions(), strike.original.end_site_positions()
-        self.adapted = cam.project(_segments(strike.motion, g, e))
-        self.original = cam.project(_segments(strike.original, go, eo))
-        hc, self.head_r = _head(strike.motion, g, e)
-        oc, _ = _head(strike.original, go, eo)
-        self.head, self.original_head = cam.project(hc), cam.project(oc)
-        self.hit = cam.project(strike.hit_positions())
-        self.target = cam.project(strike.target)
+        w = scene_geometry(strike, head_radius)
+        cam = camera or StrikeCamera(strike, root=w["root"])
+        self.adapted = cam.project(w["adapted"])
+        self.original = cam.project(w["original"])
+        self.head_r = w["head_r"]
+        self.head, self.original_head = cam.project(w["head"]), cam.project(w["original_head"])
+        self.hit = cam.project(w["hit"])
+        self.target = cam.project(w["target"])
         self.target_r = head_radius
         pts = np.vstack([self.adapted.reshape(-1, 2), self.original.reshape(-1, 2), self.target[None]])
-        c = (g.reshape(-1, 3).min(axis=0) + g.reshape(-1, 3).max(axis=0)) / 2
-        half = 0.5 * float(max(np.ptp(g[..., 0]), np.ptp(g[..., 2]))) + 0.6
-        step = 0.5
-        xs = np.arange(math.ceil((c[0] - half) / step), math.floor((c[0] + half) / step) + 1) * step
-        zs = np.arange(math.ceil((c[2] - half) / step), math.floor((c[2] + half) / step) + 1) * step
-        lines = [[(x, 0.0, c[2] - half), (x, 0.0, c[2] + half)] for x in xs]
-        lines += [[(c[0] - half, 0.0, z), (c[0] + half, 0.0, z)] for z in zs]
-        self.floor = cam.project(np.array(lines)) if lines else np.zeros((0, 2, 2))
+        c = w["centre"]
+        self.floor = cam.project(w["floor"]) if len(w["floor"]) else np.zeros((0, 2, 2))
         pad = max(self.head_r, head_radius) + 0.06
         lo, hi = pts.min(axis=0) - pad, pts.max(axis=0) + pad
         lo[1] = min(lo[1], cam.project(np.array([c[0], 0.0, c[2]]))[1] - 0.05)

@@ -185,96 +185,182 @@ def _face_model():
         return load_model("procedural")
 
 
+# The client-side view (repro.ui.webview): every picture it puts on screen, with the digest of the frame drawn.
+WATCH_CANVAS_JS = """() => {
+  window.__inputs = window.__inputs || [];
+  if (!window.__watching) {
+    const note = e => window.__inputs.push(performance.now());
+    document.addEventListener('keydown', note, true);
+    document.addEventListener('pointerdown', note, true);
+    document.addEventListener('pointermove', e => { if (e.buttons) note(e); }, true);
+    window.__watching = true;
+  }
+  window.__canvas = [];
+  document.addEventListener('repro-painted', e => window.__canvas.push(e.detail));
+}"""
+CANVAS = "canvas.repro-webview-canvas"
+
+
+def _canvas_paints(page, reason=None):
+    paints = page.evaluate("() => window.__canvas")
+    return [p for p in paints if reason is None or p["reason"] == reason]
+
+
+def _wait_canvas_paint(page, n_before, reason="data", timeout=STEP_TIMEOUT):
+    page.wait_for_function("([n, r]) => window.__canvas.filter(p => p.reason === r).length > n",
+                           arg=[n_before, reason], timeout=timeout * 1000)
+    return _canvas_paints(page, reason)
+
+
+def _pixels(page) -> str:
+    return page.evaluate(f"() => document.querySelector('{CANVAS}').toDataURL()")
+
+
 def test_face_app_slider_moves_redraw_and_the_last_value_is_drawn(app, page):
+    """Slider presses -> the face redrawn in the page (client-side view), the last value drawn; turn and zoom."""
     from repro.ui.face_panel import BlendshapePanel
 
     a = app("face")
     page.goto(a.url, wait_until="domcontentloaded")
-    img = ".repro-blendshape-panel img"
-    page.wait_for_selector(img, timeout=START_TIMEOUT * 1000)
-    page.wait_for_function("(s) => { const e = document.querySelector(s); return e && e.src; }", arg=img)
+    page.wait_for_selector(CANVAS, timeout=START_TIMEOUT * 1000)
+    page.wait_for_function(f"() => document.querySelector('{CANVAS}').dataset.painted", timeout=STEP_TIMEOUT * 1000)
     page.screenshot(path=str(ARTIFACTS / "app-face-1-start.png"))
     slider = page.locator(".repro-blendshape-panel .widget-slider", has_text="JawOpen")
     handle = slider.locator(".noUi-handle")
     handle.scroll_into_view_if_needed()
-    page.evaluate(WATCH_JS, img)
+    page.evaluate(WATCH_CANVAS_JS)
     handle.focus()
 
     # single presses: each one a new picture; latency from the key press to the painted picture
     latencies = []
-    src = page.locator(img).get_attribute("src")
+    before = _pixels(page)
     for _ in range(8):
-        n = len(page.evaluate("(s) => window.__paints[s]", img))
+        n = len(_canvas_paints(page, "data"))
         page.keyboard.press("ArrowRight")
-        paints = _new_paint(page, img, n)
+        paints = _wait_canvas_paint(page, n)
         key_t = page.evaluate("() => window.__inputs[window.__inputs.length - 1]")
         latencies.append(paints[-1]["t"] - key_t)
         time.sleep(0.3)  # let the user rest between presses
-    assert page.locator(img).get_attribute("src") != src, "slider moves must change the picture"
+    assert _pixels(page) != before, "slider moves must change the picture"
 
     # ten quick presses: intermediate values may be skipped, the last one must be drawn
+    n_quick = len(_canvas_paints(page, "data"))
     for _ in range(10):
         page.keyboard.press("ArrowRight", delay=0)
     want_value = 0.18
     model = _face_model()
-    ref = BlendshapePanel(model, view="matplotlib")
+    ref = BlendshapePanel(model, view="3d")
     ref.set_sliders(JawOpen=want_value)
-    want = ref.image_png()
+    want = ref.view_digest
+    ref_frame = bytes(ref._view.frame.value)
     ref.close()
     deadline = time.monotonic() + STEP_TIMEOUT
     while True:
         readout = slider.locator(".widget-readout").inner_text().strip()
-        shown = _image_bytes(page, img)
-        if readout == f"{want_value:.2f}" and shown == want:
+        painted = page.evaluate(f"() => document.querySelector('{CANVAS}').dataset.painted")
+        if readout == f"{want_value:.2f}" and painted == want:
             break
         if time.monotonic() > deadline:
             page.screenshot(path=str(ARTIFACTS / "app-face-2-last-value.png"))
-            (ARTIFACTS / "app-face-shown.png").write_bytes(shown)
-            (ARTIFACTS / "app-face-wanted.png").write_bytes(want)
-            pytest.fail(f"after 18 presses the slider shows {readout!r} and the picture is "
-                        f"{'the' if shown == want else 'not the'} face of JawOpen = {want_value}", pytrace=False)
+            pytest.fail(f"after 18 presses the slider shows {readout!r} and the canvas shows frame {painted!r}, "
+                        f"not the face of JawOpen = {want_value} ({want!r})", pytrace=False)
         time.sleep(0.2)
-    paints = page.evaluate("(s) => window.__paints[s]", img)
+    # what the page drew from is the kernel's frame for that value, byte for byte
+    assert _image_bytes(page, "img.repro-webview-frame") == ref_frame
+    n_pictures = len(_canvas_paints(page, "data")) - n_quick
     page.screenshot(path=str(ARTIFACTS / "app-face-2-after.png"))
-    print(f"\nbench app face ({model.name}, {model.n_vertices} vertices): slider press -> painted picture "
-          f"p50 {_p50(latencies):.0f} ms (min {min(latencies):.0f}, max {max(latencies):.0f}, n={len(latencies)}); "
-          f"10 quick presses gave {len(paints) - 8} pictures, the last one the value stopped on")
+
+    # turn the face (drag on the canvas) and zoom (wheel): drawn in the page, no kernel round trip
+    box = page.locator(CANVAS).bounding_box()
+    x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 3
+    front = _pixels(page)
+    turn = []
+    page.mouse.move(x, y)
+    page.mouse.down()
+    for k in range(1, 9):
+        n = len(_canvas_paints(page, "view"))
+        page.mouse.move(x + 12 * k, y + 2 * k)
+        paints = _wait_canvas_paint(page, n, "view")
+        turn.append(paints[-1]["t"] - page.evaluate("() => window.__inputs[window.__inputs.length - 1]"))
+    page.mouse.up()
+    turned = _pixels(page)
+    assert turned != front, "dragging the face must turn it"
+    page.screenshot(path=str(ARTIFACTS / "app-face-3-turned.png"))
+    n = len(_canvas_paints(page, "view"))
+    page.mouse.wheel(0, -240)
+    _wait_canvas_paint(page, n, "view")
+    assert _pixels(page) != turned, "the wheel must zoom"
+    n = len(_canvas_paints(page, "view"))
+    page.mouse.dblclick(x, y)
+    _wait_canvas_paint(page, n, "view")
+    assert _pixels(page) == front, "a double-click must bring back the front view"
+    assert page.evaluate(f"() => document.querySelector('{CANVAS}').dataset.painted") == want  # still that face
+    print(f"\nbench app face ({model.name}, {model.n_vertices} vertices, client-side view): slider press -> painted "
+          f"picture p50 {_p50(latencies):.0f} ms (min {min(latencies):.0f}, max {max(latencies):.0f}, "
+          f"n={len(latencies)}); 10 quick presses gave {n_pictures} pictures, the last one the value stopped on; "
+          f"drag -> turned picture p50 {_p50(turn):.0f} ms (n={len(turn)})")
 
 
 def test_fighter_app_orders_play_a_strike(app, page):
+    """Orders -> the strike first drawn in the page's 3D view (then the filmstrip); it plays; turn it."""
     from repro.ui.fighter_panel import parse_fighter_numbers
 
     a = app("fighter")
     page.goto(a.url, wait_until="domcontentloaded")
-    film, anim = "img.repro-fighter-filmstrip", "img.repro-fighter-animation"
+    film = "img.repro-fighter-filmstrip"
     numbers = ".repro-fighter-panel .repro-fighter-numbers"
     page.wait_for_selector(numbers, timeout=START_TIMEOUT * 1000)
-    page.wait_for_function("(s) => { const e = document.querySelector(s); return e && e.src; }", arg=anim,
+    page.wait_for_function(f"() => {{ const c = document.querySelector('{CANVAS}'); return c && c.dataset.painted; }}",
                            timeout=START_TIMEOUT * 1000)
+    page.wait_for_function("(s) => { const e = document.querySelector(s); return e && e.src; }", arg=film)
     page.screenshot(path=str(ARTIFACTS / "app-fighter-1-start.png"))
-    page.evaluate(WATCH_JS, film)
-    page.evaluate(WATCH_JS.replace("window.__inputs = [];", ""), anim)
-    # the icon buttons of the simulated user's player carry words
+    page.evaluate(WATCH_CANVAS_JS)
+    page.evaluate(WATCH_JS.replace("window.__inputs = [];", ""), film)
+    # the icon buttons of the simulated user's player carry words, not cut off
     labels = page.evaluate("""() => [...document.querySelectorAll('.repro-fighter-play button')].map(
-        b => getComputedStyle(b, '::after').content)""")
-    assert any("play" in t for t in labels) and any("stop" in t for t in labels), labels
+        b => [getComputedStyle(b, '::after').content, b.scrollWidth <= b.clientWidth + 1])""")
+    assert any("play" in t for t, _ in labels) and any("stop" in t for t, _ in labels), labels
+    assert all(fits for _, fits in labels), f"a player button's label is cut off: {labels}"
 
-    latencies = []
+    first, film_lat = [], []
     for kind in ("punch", "kick", "punch", "kick"):
+        n_canvas = len(_canvas_paints(page, "data"))
         n_film = len(page.evaluate("(s) => window.__paints[s]", film))
-        n_anim = len(page.evaluate("(s) => window.__paints[s]", anim))
         page.locator(f".repro-fighter-panel .repro-fighter-{kind}").click()
-        paints = _new_paint(page, film, n_film)
+        paints = _wait_canvas_paint(page, n_canvas)
         click_t = page.evaluate("() => window.__inputs[window.__inputs.length - 1]")
-        latencies.append(paints[n_film]["t"] - click_t)
-        _new_paint(page, anim, n_anim)  # then the strike plays
+        first.append(paints[n_canvas]["t"] - click_t)
+        film_paints = _new_paint(page, film, n_film)
+        film_lat.append(film_paints[n_film]["t"] - click_t)
         text = page.locator(numbers).inner_text().strip()
         shown = parse_fighter_numbers(text)
         assert shown["kind"] == kind and kind in shown["clip"], shown
-        apng = _image_bytes(page, anim)
-        assert apng.startswith(b"\x89PNG") and b"acTL" in apng[:200], "the strike is an animated PNG"
-        n_frames = int.from_bytes(apng[apng.index(b"acTL") + 4:][:4], "big")
+        # the frame drawn is the strike the kernel sent for this order
+        from repro.ui.webview import unpack
+
+        head, _ = unpack(_image_bytes(page, "img.repro-webview-frame"))
+        assert head["strike"] == kind and head["clip"] == shown["clip"], (head["clip"], shown)
+        assert page.evaluate(f"() => document.querySelector('{CANVAS}').dataset.painted") == head["digest"]
+        n_frames = head["n_frames"]
         assert n_frames > 5, n_frames
+    # it plays: the picture changes by itself
+    shots = {_pixels(page)}
+    for _ in range(5):
+        time.sleep(0.15)
+        shots.add(_pixels(page))
+    assert len(shots) > 2, "the strike must play in the 3D view"
+    # turn it
+    page.locator(".repro-webview [data-act=play]").click()  # pause
+    box = page.locator(CANVAS).bounding_box()
+    x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    still = _pixels(page)
+    page.mouse.move(x, y)
+    page.mouse.down()
+    page.mouse.move(x + 90, y + 10, steps=6)
+    page.mouse.up()
+    time.sleep(0.1)
+    assert _pixels(page) != still, "dragging must turn the 3D view"
     page.screenshot(path=str(ARTIFACTS / "app-fighter-2-after.png"))
-    print(f"\nbench app fighter: order click -> painted filmstrip p50 {_p50(latencies):.0f} ms "
-          f"(min {min(latencies):.0f}, max {max(latencies):.0f}, n={len(latencies)}); animation {n_frames} frames")
+    print(f"\nbench app fighter: order click -> first painted picture (3D view) p50 {_p50(first):.0f} ms "
+          f"(min {min(first):.0f}, max {max(first):.0f}, n={len(first)}); -> painted filmstrip p50 "
+          f"{_p50(film_lat):.0f} ms; strike {n_frames} frames")

@@ -125,7 +125,7 @@ def test_kick_button_in_the_fighter_panel(open_notebook):
     panel, numbers_sel = ".repro-fighter-panel", ".repro-fighter-panel .repro-fighter-numbers"
     nb.page.wait_for_selector(numbers_sel)
     nb.page.locator(f"{panel} .repro-fighter-kick").scroll_into_view_if_needed()
-    image = f"{panel} img"
+    image = f"{panel} img.repro-fighter-filmstrip"
     src = nb.page.locator(image).get_attribute("src")
     nb.screenshot("1-start", panel)
 
@@ -145,6 +145,23 @@ def test_kick_button_in_the_fighter_panel(open_notebook):
 
     # the notebook's fighter uses the synthetic database, whose clip names carry their kind
     assert "punch" in punch["clip"] and "kick" in kick["clip"], (punch, kick)
+
+    # the 3D view (drawn by the page's script, in JupyterLab as in Voila) shows the kick sent for this order
+    import base64
+
+    from repro.ui.webview import unpack
+
+    frame = f"{panel} img.repro-webview-frame"
+    canvas = f"{panel} canvas.repro-webview-canvas"
+    data = base64.b64decode(nb.page.evaluate("""async (sel) => {
+        const buf = new Uint8Array(await (await fetch(document.querySelector(sel).src)).arrayBuffer());
+        let s = ''; for (let i = 0; i < buf.length; i += 0x8000) s += String.fromCharCode.apply(null, buf.subarray(i, i + 0x8000));
+        return btoa(s); }""", frame))
+    head, _ = unpack(data)
+    assert head["strike"] == "kick" and head["clip"] == kick["clip"], head
+    nb.page.wait_for_function("([sel, d]) => document.querySelector(sel).dataset.painted === d",
+                              arg=[canvas, head["digest"]], timeout=STEP_TIMEOUT * 1000)
+    nb.screenshot("4-3d-view", canvas)
 
     for n in (punch, kick):
         assert n["clip"] and n["clip"] != "-", n  # a clip was chosen

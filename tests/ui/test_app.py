@@ -6,6 +6,7 @@ The apps themselves are driven in a browser by ``tests/browser/test_app.py``.
 from __future__ import annotations
 
 import json
+import os
 import socket
 import subprocess
 import sys
@@ -70,8 +71,9 @@ def test_app_defaults_to_loopback_and_no_browser_without_a_display(monkeypatch, 
     seen = {}
 
     class FakeVoila:
-        def __init__(self, cmd):
+        def __init__(self, cmd, env=None):
             seen["cmd"] = cmd
+            seen["env"] = env
 
         def wait(self):
             return 0
@@ -84,6 +86,9 @@ def test_app_defaults_to_loopback_and_no_browser_without_a_display(monkeypatch, 
     out = capsys.readouterr().out
     assert f"http://127.0.0.1:{free}/" in out and "open it in a browser" in out
     assert "--Voila.open_browser=False" in seen["cmd"]
+    # the app's kernel gets one BLAS thread unless the user chose (small products, see app_environment)
+    assert seen["env"]["OPENBLAS_NUM_THREADS"] == os.environ.get("OPENBLAS_NUM_THREADS", "1")
+    assert app.app_environment({"OPENBLAS_NUM_THREADS": "4"})["OPENBLAS_NUM_THREADS"] == "4"
     monkeypatch.setenv("DISPLAY", ":0")
     assert cli.main(["app", "face", "--port", str(free)]) == 0
     assert "--Voila.open_browser=True" in seen["cmd"]
