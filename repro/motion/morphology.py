@@ -500,19 +500,7 @@ def decode_with_report(
     W_final = E1 + qrot(q2, W1 - E1)
     err = float(np.max(np.linalg.norm(W_final - S - qrot(Rp, want), axis=-1), initial=0.0))
 
-    out = Motion(
-        joint_names=list(tgt.joint_names),
-        parents=tgt.parents,
-        offsets=tgt.offsets,
-        channels=channels,
-        frame_time=mi.frame_time,
-        rotations=rot,
-        positions=local_t,
-        end_site_parents=tgt.end_site_parents,
-        end_site_offsets=tgt.end_site_offsets,
-        unit_m=tgt.unit_m,
-        source=None,
-    )
+    out = tgt.motion_with(rot, local_t, frame_time=mi.frame_time, channels=channels)
     report = DecodeReport(
         clamped={k: int(c) for k, c in zip(LIMB_NAMES, clamped.sum(axis=0))},
         max_distal_error=err,
@@ -656,18 +644,8 @@ def naive_retarget(motion: Motion, target, *, scale_root: bool = False) -> Motio
     rp = _root_path(src)
     k = tgt.hip_height / src.hip_height if scale_root else 1.0
     t[:, rp] = motion.local_translations()[:, rp] * k
-    return Motion(
-        joint_names=tgt.joint_names,
-        parents=tgt.parents,
-        offsets=tgt.offsets,
-        channels=channels,
-        frame_time=motion.frame_time,
-        rotations=motion.rotations,
-        positions=np.where(mask[None], t, tgt.offsets[None]),
-        end_site_parents=tgt.end_site_parents,
-        end_site_offsets=tgt.end_site_offsets,
-        unit_m=tgt.unit_m,
-    )
+    return tgt.motion_with(motion.rotations, np.where(mask[None], t, tgt.offsets[None]),
+                           frame_time=motion.frame_time, channels=channels)
 
 
 def time_retarget(motion: Motion, target, *, repeats: int = 5) -> dict[str, float]:

@@ -478,24 +478,34 @@ class Skeleton:
 
     def rest_motion(self, n_frames: int = 1, frame_time: float = 1.0 / 30.0):
         """A :class:`~repro.motion.Motion` holding this skeleton in its rest pose (for :func:`write_bvh`)."""
-        from repro.motion.motion import Motion
-
         if self.channels is None:
             raise MotionError("this skeleton has no channel layout; build it with Skeleton.from_motion")
         J = self.n_joints
         rot = np.zeros((n_frames, J, 4))
         rot[..., 3] = 1.0
+        return self.motion_with(rot, np.broadcast_to(self.offsets, (n_frames, J, 3)), frame_time=frame_time)
+
+    def motion_with(self, rotations, positions, *, frame_time: float, channels=None, up: str | None = None,
+                    source: str | None = None):
+        """A :class:`~repro.motion.Motion` on this skeleton (joints, offsets, End Sites, unit) with
+        the given local ``rotations`` (F, J, 4) and ``positions`` (F, J, 3); ``channels``
+        default this skeleton's.  The one place retargeting results are made
+        (:mod:`repro.motion.morphology`, :mod:`repro.motion.retarget_tree`)."""
+        from repro.motion.motion import Motion
+
         return Motion(
-            joint_names=self.joint_names,
+            joint_names=list(self.joint_names),
             parents=self.parents,
             offsets=self.offsets,
-            channels=self.channels,
+            channels=self.channels if channels is None else channels,
             frame_time=frame_time,
-            rotations=rot,
-            positions=np.broadcast_to(self.offsets, (n_frames, J, 3)),
+            rotations=rotations,
+            positions=positions,
             end_site_parents=self.end_site_parents,
             end_site_offsets=self.end_site_offsets,
             unit_m=self.unit_m,
+            up=up,
+            source=source,
         )
 
     def __repr__(self) -> str:
