@@ -42,7 +42,7 @@ from repro.motion.roles import check_roles
 from repro.motion.skeleton import Skeleton, skeleton_of
 from repro.motion.units import infer_up
 
-__all__ = ["body_frame", "retarget_across"]
+__all__ = ["body_frame", "rest_axes", "retarget_across"]
 
 _ROT = ("Zrotation", "Xrotation", "Yrotation")
 _POS = ("Xposition", "Yposition", "Zposition")
@@ -50,9 +50,18 @@ _AXIS = {"y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
 
 
 def body_frame(sk: Skeleton, up: str) -> np.ndarray:
-    """(3, 3) columns left, up, forward of a skeleton's rest pose (``up`` = world axis)."""
+    """(3, 3) columns left, up, forward of a skeleton's rest pose (``up`` = world axis).
+
+    Left comes from the rest hips and shoulders (across the up axis).  A rest pose whose
+    trunk does not stand along the world up axis (Bandai Namco's lies along +X, every
+    bone on its local X) cannot tell where the body faces in the world: then left is the
+    world X axis (forward = left x up: +Z when Y is up, -Y when Z is up)."""
     u = _AXIS[up]
     p = sk.rest_positions()
+    trunk = _unit(p[sk.index("head")] - p[sk.index("pelvis")])
+    if abs(float(trunk @ u)) < np.cos(np.radians(45.0)):
+        left = np.array([1.0, 0.0, 0.0])
+        return np.stack([left, u, np.cross(left, u)], axis=1)
     lat = p[sk.index("left_hip")] - p[sk.index("right_hip")]
     lat = lat + p[sk.index("left_shoulder")] - p[sk.index("right_shoulder")]
     lat = lat - (lat @ u) * u
@@ -65,6 +74,43 @@ def body_frame(sk: Skeleton, up: str) -> np.ndarray:
     left = lat / n
     fwd = np.cross(left, u)
     return np.stack([left, u, fwd], axis=1)
+
+
+def rest_axes(sk: Skeleton) -> dict[str, np.ndarray]:
+    """Rest body axes of each part, rig coordinates: ``{"leg": (3, 3), "arm": (3, 3)}``, rows
+    left, up, forward.
+
+    Up is the rest pelvis -> head direction; left is the line between the joints rigidly
+    carried by the part's root (the hips for the pelvis and the legs; the clavicles, else
+    the shoulders, for the chest, the neck, the head and the arms), made orthogonal to up.
+    They fix the twist of a segment about its bone when rest poses differ by more than
+    their bone directions (Bandai Namco: the pelvis' left is -Y at rest, the chest's +Z)."""
+    p = sk.rest_positions()
+    r = sk.roles
+    up = _unit(p[sk.index("head")] - p[sk.index("pelvis")])
+    tol = 1e-6 * max(sk.height, 1e-300)
+    out = {}
+    for part, pairs in (("leg", ("hip",)), ("arm", ("clavicle", "shoulder", "hip"))):
+        for stem in pairs:  # CMU's clavicles both start at the thorax: then the shoulders
+            if f"left_{stem}" not in r or f"right_{stem}" not in r:
+                continue
+            lat = p[sk.index(f"left_{stem}")] - p[sk.index(f"right_{stem}")]
+            lat = lat - (lat @ up) * up
+            if np.linalg.norm(lat) > tol:
+                break
+        else:
+            raise MotionError(f"the rest pose of {r['pelvis']!r}'s skeleton has no left-right extent across "
+                              "its trunk (hips, clavicles and shoulders on the pelvis -> head line)")
+        lat = _unit(lat)
+        out[part] = np.stack([lat, up, np.cross(lat, up)])
+    return out
+
+
+def _frame(d: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """(3, 3) orthonormal columns: ``d``, ``ref`` made orthogonal to it, their cross product."""
+    e1 = _unit(d)
+    e2 = _unit(ref - (ref @ e1) * e1)
+    return np.stack([e1, e2, np.cross(e1, e2)], axis=1)
 
 
 def _mat_to_quat(m: np.ndarray) -> np.ndarray:
@@ -145,11 +191,21 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
     def ref_dir(P, roles_, names, a, b):
         return _unit(P[names.index(roles_[b])] - P[names.index(roles_[a])])
 
+    ax_s, ax_t = rest_axes(src), rest_axes(tgt)
+
     def delta(a, b):
-        """Smallest rotation taking the character's rest bone a->b to the mapped source one."""
+        """Rotation taking the character's rest frame of bone a->b to the mapped source one.
+
+        The frame: the bone direction and the part's rest axis (left, up or forward of
+        :func:`rest_axes`) least aligned with the bone on both skeletons, so the twist
+        about the bone is carried too (the smallest rotation between the bone directions
+        alone would leave it to the rest poses' accident)."""
         dt = ref_dir(Pt, rt, tgt.joint_names, a, b)
         ds = C @ ref_dir(Ps, rs, src.joint_names, a, b)
-        return min_rotation(dt, ds)
+        part = "leg" if any(x in a for x in ("pelvis", "hip", "knee", "ankle", "toe")) else "arm"
+        at, as_ = ax_t[part], ax_s[part] @ C.T
+        k = int(np.argmin(np.maximum(np.abs(at @ dt), np.abs(as_ @ ds))))
+        return _mat_to_quat(_frame(ds, as_[k]) @ _frame(dt, at[k]).T)
 
     def oriented(role, a, b):
         return quat_multiply(mapped(role), delta(a, b)[None])
@@ -236,19 +292,7 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
     channels = tgt.channels if tgt.channels is not None else [_POS + _ROT] + [_ROT] * (J - 1)
     positions = np.broadcast_to(tgt.offsets, (F, J, 3)).copy()
     positions[:, 0] = root_t
-    return Motion(
-        joint_names=list(tgt.joint_names),
-        parents=tgt.parents,
-        offsets=tgt.offsets,
-        channels=channels,
-        frame_time=motion.frame_time,
-        rotations=loc,
-        positions=positions,
-        end_site_parents=tgt.end_site_parents,
-        end_site_offsets=tgt.end_site_offsets,
-        unit_m=tgt.unit_m,
-        up=up_t,
-    )
+    return tgt.motion_with(loc, positions, frame_time=motion.frame_time, channels=channels, up=up_t)
 
 
 def _solve_limb(src, tgt, gp_s, gq_s, C, mapped, delta, S, roles3, si, ti):
