@@ -290,7 +290,7 @@ class KungFuFighter:
         The fighter: the database actor's joint tree scaled (:func:`character_from`),
         or any humanoid skeleton of another joint tree (e.g. a BVH read with
         :func:`~repro.motion.read_bvh`: Mixamo, Bandai ...), which makes the retriever
-        work across trees (``across_trees``); default :func:`character_from` of
+        is played through the body-part roles; default :func:`character_from` of
         ``height``, ``arm_scale``, ``leg_scale`` on the database's actor.
     height, arm_scale, leg_scale : float
         Used when ``character`` is None.
@@ -306,9 +306,8 @@ class KungFuFighter:
         :meth:`set_character` accepts.
     across_trees : bool, optional
         Build the retriever with ``across_trees`` (:class:`MotionRetriever`): characters of
-        any joint tree, every clip a candidate for them.  Default: True when ``character``
-        has another joint tree than the database's first actor, else False (the
-        single-tree behaviour).
+        any joint tree, every clip a candidate for them.  Default: the retriever's (True);
+        False keeps the fighter to characters of the database actors' trees.
 
     Attributes
     ----------
@@ -348,10 +347,8 @@ class KungFuFighter:
                 raise RetrievalError("retriever must be a MotionRetriever of the same database")
             self.retriever = retriever
         else:
-            if across_trees is None:  # another tree (or a partial skeleton: set_character names what it lacks)
-                across_trees = character is not None and not (
-                    isinstance(character, (Skeleton, Motion)) and db.actors[0].is_compatible(character))
-            self.retriever = MotionRetriever(db, seed=seed, across_trees=across_trees)
+            kw = {} if across_trees is None else {"across_trees": across_trees}
+            self.retriever = MotionRetriever(db, seed=seed, **kw)
         t2 = time.perf_counter()
         self.db = db
         self.seed = int(seed)
