@@ -592,7 +592,8 @@ def retarget(motion: Motion, target, *, roles=None, fix_feet: bool = False) -> M
     roles : mapping, optional
         Role table of the source (default: found).
     fix_feet : bool, default False
-        Correct the feet artifacts (see :func:`decode`; same joint tree only).
+        Correct the feet artifacts (see :func:`decode`; across joint trees,
+        :func:`~repro.motion.retarget_tree.retarget_across`'s ``fix_feet``).
 
     A target whose joint tree differs (other joint names with the same parents; or
     another tree, rest pose or up axis) is retargeted too: with the same parents and
@@ -615,7 +616,7 @@ def retarget(motion: Motion, target, *, roles=None, fix_feet: bool = False) -> M
                 out = None  # another rest pose: through the roles
             if out is not None:
                 return dataclasses.replace(out, joint_names=list(tgt.joint_names))
-    return retarget_across(motion, target, roles=roles)
+    return retarget_across(motion, target, roles=roles, fix_feet=fix_feet)
 
 
 def naive_retarget(motion: Motion, target, *, scale_root: bool = False) -> Motion:

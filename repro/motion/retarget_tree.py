@@ -138,7 +138,8 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / n if n > 0 else v
 
 
-def retarget_across(motion: Motion, character, *, roles=None, character_roles=None) -> Motion:
+def retarget_across(motion: Motion, character, *, roles=None, character_roles=None, fix_feet: bool = False,
+                    blend_time: float = 0.1) -> Motion:
     """``motion`` played by ``character``, whose joint tree may differ (see the module docstring).
 
     Parameters
@@ -147,6 +148,14 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
     character : Skeleton or Motion
         Any humanoid skeleton (its own roles are found, or given as ``character_roles``).
     roles, character_roles : mapping role -> joint, optional
+    fix_feet : bool, default False
+        Correct the feet artifacts (Section 3.4) as :func:`repro.motion.morphology.decode`
+        does on one tree: where the source's ankle is planted
+        (:func:`~repro.motion.feet.foot_contacts`) the character's ankle is pinned to its
+        mean position over the contact phase (blended over ``blend_time`` seconds on each
+        side), the root lowered where a pinned ankle is out of the leg's reach, and on
+        every frame an ankle whose ankle or toe joint would be below the floor (the plane
+        through the origin across the up axis) is raised until neither is.
 
     Returns
     -------
@@ -211,9 +220,6 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
         return quat_multiply(mapped(role), delta(a, b)[None])
 
     J = tgt.n_joints
-    G = np.zeros((F, J, 4))
-    G[..., 3] = 1.0
-    P = np.zeros((F, J, 3))
     fixed: dict[int, np.ndarray] = {}  # joint -> global rotation (F, 4)
     fixed[ti("pelvis")] = oriented("pelvis", "pelvis", "chest")
     fixed[ti("chest")] = oriented("chest", "chest", "head")
@@ -259,31 +265,42 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
             f"{list(tgt.channels[0])}); the retargeted motion needs to move it"
         )
     root_t = pel_goal - sum(tgt.offsets[j] for j in root_path[1:]) if len(root_path) > 1 else pel_goal
-    pending: dict[int, np.ndarray] = {}  # middle / distal joint -> world target position
-    for j in range(J):
-        p = tgt.parents[j]
-        if p < 0:
-            P[:, j] = root_t
-            Gp = np.zeros((F, 4))
-            Gp[:, 3] = 1.0
-        else:
-            Gp = G[:, p]
-            P[:, j] = P[:, p] + qrot(Gp, np.broadcast_to(tgt.offsets[j], (F, 3)))
-        if j in fixed:
-            G[:, j] = fixed[j]
-        elif j in limbs:
-            kind, (rp, rm, rd) = limbs[j]
-            G[:, j], pending[ti(rm)], pending[ti(rd)] = _solve_limb(
-                src, tgt, gp_s, gq_s, C, mapped, delta, P[:, j], (rp, rm, rd), si, ti
-            )
-        elif j in pending and tgt.parents[j] >= 0 and any(j == ti(lm[1][1]) for lm in limbs.values()):
-            # middle joint: its forearm/shin to the distal goal
-            kind, (rp, rm, rd) = next(v for v in limbs.values() if ti(v[1][1]) == j)
-            G0 = quat_multiply(mapped(rm), delta(rm, rd)[None])
-            cur = qrot(G0, np.broadcast_to(Pt[ti(rd)] - Pt[j], (F, 3)))
-            G[:, j] = quat_multiply(min_rotation(cur, pending[ti(rd)] - P[:, j]), G0)
-        else:
-            G[:, j] = Gp  # no role: rest rotation relative to the parent
+    def solve(root_t, goals):
+        """Global rotations and positions of every character joint; ``goals``: ankle joint ->
+        (F, 3) world position overriding the representation's (``fix_feet``)."""
+        G = np.zeros((F, J, 4))
+        G[..., 3] = 1.0
+        P = np.zeros((F, J, 3))
+        pending: dict[int, np.ndarray] = {}  # middle / distal joint -> world target position
+        for j in range(J):
+            p = tgt.parents[j]
+            if p < 0:
+                P[:, j] = root_t
+                Gp = np.zeros((F, 4))
+                Gp[:, 3] = 1.0
+            else:
+                Gp = G[:, p]
+                P[:, j] = P[:, p] + qrot(Gp, np.broadcast_to(tgt.offsets[j], (F, 3)))
+            if j in fixed:
+                G[:, j] = fixed[j]
+            elif j in limbs:
+                kind, (rp, rm, rd) = limbs[j]
+                G[:, j], pending[ti(rm)], pending[ti(rd)] = _solve_limb(
+                    src, tgt, gp_s, gq_s, C, mapped, delta, P[:, j], (rp, rm, rd), si, ti, goal=goals.get(ti(rd))
+                )
+            elif j in pending and tgt.parents[j] >= 0 and any(j == ti(lm[1][1]) for lm in limbs.values()):
+                # middle joint: its forearm/shin to the distal goal
+                _, (rp, rm, rd) = next(v for v in limbs.values() if ti(v[1][1]) == j)
+                G0 = quat_multiply(mapped(rm), delta(rm, rd)[None])
+                cur = qrot(G0, np.broadcast_to(Pt[ti(rd)] - Pt[j], (F, 3)))
+                G[:, j] = quat_multiply(min_rotation(cur, pending[ti(rd)] - P[:, j]), G0)
+            else:
+                G[:, j] = Gp  # no role: rest rotation relative to the parent
+        return G, P
+
+    G, P = solve(root_t, {})
+    if fix_feet:
+        root_t, G, P = _fix_feet(motion, src, tgt, gp_s, up_t, _up_of(motion, src), root_t, G, P, solve, blend_time)
     # local rotations
     loc = np.empty_like(G)
     loc[:, 0] = G[:, 0]
@@ -295,16 +312,50 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
     return tgt.motion_with(loc, positions, frame_time=motion.frame_time, channels=channels, up=up_t)
 
 
-def _solve_limb(src, tgt, gp_s, gq_s, C, mapped, delta, S, roles3, si, ti):
+def _fix_feet(motion, src, tgt, gp_s, up_t, up_s, root_t, G, P, solve, blend_time):
+    """``fix_feet`` of :func:`retarget_across`: planted ankles pinned, root lowered, feet above the floor."""
+    from repro.motion.feet import foot_contacts, foot_goals
+
+    kt = 2 if up_t == "z" else 1
+    e_up = _AXIS[up_t]
+    ank = [tgt.index("left_ankle"), tgt.index("right_ankle")]
+    hips = [tgt.index("left_hip"), tgt.index("right_hip")]
+    L = np.array([tgt.limb_lengths[f"{s}_leg"] for s in ("left", "right")])
+    contacts = foot_contacts(motion, skeleton=src, global_positions=gp_s, up_axis=2 if up_s == "z" else 1)
+    A = P[:, ank]
+    n_blend = int(round(blend_time / motion.frame_time))
+    goal, w = foot_goals(A, contacts, A[..., 1], n_blend)  # every coordinate: the phase mean
+    goal = A + w[..., None] * (goal - A)
+    r = goal - P[:, hips]
+    ry = r[..., kt]
+    rh2 = np.sum(r * r, axis=-1) - ry**2
+    drop = np.maximum(0.0, -ry - np.sqrt(np.maximum(L[None] ** 2 - rh2, 0.0))).max(axis=1)
+    root_t = root_t - drop[:, None] * e_up
+    goals = {ank[0]: goal[:, 0], ank[1]: goal[:, 1]}
+    G, P = solve(root_t, goals)
+    # no ankle / toe below the floor: raise the ankle goal by the depth
+    feet = []
+    for s in ("left", "right"):
+        pts = [tgt.index(f"{s}_ankle")] + ([tgt.index(f"{s}_toe")] if f"{s}_toe" in tgt.roles else [])
+        feet.append(pts)
+    depth = np.stack([np.maximum(0.0, -P[:, pts, kt].min(axis=1)) for pts in feet], axis=1)
+    if np.any(depth > 0):
+        goals = {ank[i]: P[:, ank[i]] + (depth[:, i] * (1 + 1e-9))[:, None] * e_up for i in range(2)}
+        G, P = solve(root_t, goals)
+    return root_t, G, P
+
+
+def _solve_limb(src, tgt, gp_s, gq_s, C, mapped, delta, S, roles3, si, ti, goal=None):
     """Proximal global rotation and the middle / distal goals of one limb (Kulpa: normalised
-    distal vector x limb length, middle joint in the source's bend plane)."""
+    distal vector x limb length, middle joint in the source's bend plane); ``goal``: the
+    distal joint's world position instead (``fix_feet``)."""
     rp, rm, rd = roles3
     F = gp_s.shape[0]
     Ss, Es, Ws = gp_s[:, si(rp)], gp_s[:, si(rm)], gp_s[:, si(rd)]
     Ls = src.bone_lengths[si(rm)] + src.bone_lengths[si(rd)]
     l1, l2 = tgt.bone_lengths[ti(rm)], tgt.bone_lengths[ti(rd)]
     n = (Ws - Ss) @ C.T / Ls  # normalised limb vector, character world
-    a, dn = normalize(n * (l1 + l2))
+    a, dn = normalize(n * (l1 + l2) if goal is None else goal - S)
     e = (Es - Ss) @ C.T
     bend = e - np.sum(e * a, axis=-1, keepdims=True) * a
     b, bn = normalize(bend)

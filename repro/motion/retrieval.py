@@ -376,14 +376,15 @@ def rest_motion_y_up(character) -> Motion:
         end_site_parents=sk.end_site_parents, end_site_offsets=sk.end_site_offsets, unit_m=sk.unit_m, up="y")
 
 
-def retarget_to_tree(motion: Motion, character, *, roles=None, target=None) -> Motion:
+def retarget_to_tree(motion: Motion, character, *, roles=None, target=None, fix_feet: bool = False) -> Motion:
     """``motion`` (database world: Y up, metres) played by ``character`` of another joint tree.
 
     Through the body-part roles (:func:`repro.motion.retarget_tree.retarget_across`), the
     character's own role table (``character.roles``; an explicit one is kept) and its
     rest pose decoded in the Y-up world (:func:`rest_motion_y_up`, or ``target`` when
-    already made).  ``roles``: the motion's role table (default: found).  The result is a
-    Motion on the character's skeleton, Y up.
+    already made).  ``roles``: the motion's role table (default: found); ``fix_feet``: see
+    :func:`~repro.motion.retarget_tree.retarget_across`.  The result is a Motion on the
+    character's skeleton, Y up.
 
     Raises
     ------
@@ -393,7 +394,7 @@ def retarget_to_tree(motion: Motion, character, *, roles=None, target=None) -> M
     ch = skeleton_of(character)
     src = motion if motion.up is not None else dataclasses.replace(motion, up="y")
     tgt = rest_motion_y_up(ch) if target is None else target
-    return retarget_across(src, tgt, roles=roles, character_roles=dict(ch.roles))
+    return retarget_across(src, tgt, roles=roles, character_roles=dict(ch.roles), fix_feet=fix_feet)
 
 
 class MotionRetriever:

@@ -185,3 +185,29 @@ def test_bandai_clip_on_cmu_keeps_its_heading():
     d = np.degrees(np.angle(np.exp(1j * (heads[1] - heads[0]))))
     # (the constant 1.2 deg: CMU's rest hips and shoulders face 1.2 deg off +Z, body_frame's map)
     assert np.abs(d - d[0]).max() < 1.0 and abs(d[0]) < 2.0, (d[0], np.abs(d - d[0]).max())
+
+
+@pytest.mark.parametrize("convention", ["mixamo", "unreal"])  # Y-up and Z-up characters
+def test_fix_feet_across_trees(clips, convention):
+    """retarget(..., fix_feet=True) onto another tree: planted ankles stay put (the source's
+    contacts), no ankle/toe below the floor -- even for a source sunk 5 cm into it."""
+    from repro.motion.feet import foot_contacts, max_foot_slide
+
+    ch = build(convention, height=1.6)[0].motion(unit_m=1.0)
+    k = 2 if convention in Z_UP_CONVENTIONS else 1
+    for clip in clips:
+        sunk = dataclasses.replace(clip, positions=clip.positions - np.array([0.0, 0.05, 0.0]))
+        contacts = foot_contacts(sunk)
+        assert contacts.any()
+        plain, fixed = retarget(sunk, ch), retarget(sunk, ch, fix_feet=True)
+        sk = skeleton_of(fixed)
+        feet = [sk.index(r) for r in ("left_ankle", "right_ankle", "left_toe", "right_toe")]
+        assert plain.global_positions()[:, feet, k].min() < -0.01  # the representation alone sinks
+        assert fixed.global_positions()[:, feet, k].min() > -1e-9
+        up = ["x", "y", "z"][k]
+        slide = max_foot_slide(fixed, contacts, skeleton=sk, up_axis=k)
+        assert slide < 1e-9, (up, slide)
+        # bones keep their lengths
+        g = fixed.global_positions()
+        bl = np.linalg.norm(g[:, 1:] - g[:, fixed.parents[1:]], axis=-1)
+        np.testing.assert_allclose(bl, np.broadcast_to(np.linalg.norm(fixed.offsets[1:], axis=1), bl.shape), atol=1e-9)
