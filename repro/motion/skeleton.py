@@ -161,7 +161,8 @@ class Skeleton:
             raise MotionError("end_site_parents / end_site_offsets are inconsistent or not finite")
         if self.unit_m is not None and not (np.isfinite(self.unit_m) and self.unit_m > 0):
             raise MotionError(f"unit_m must be finite and > 0, got {self.unit_m!r}")
-        roles = dict(self.roles) if self.roles is not None else find_roles(names, parents, offsets=offsets)
+        roles = (dict(self.roles) if self.roles is not None
+                 else find_roles(names, parents, offsets=offsets, end_site_parents=esp))
         bad = [f"{r}->{j}" for r, j in roles.items() if j not in names]
         if bad:
             raise MotionError(f"roles name unknown joints: {bad}")
@@ -205,7 +206,8 @@ class Skeleton:
             Passed to :func:`find_roles`.
         """
         if roles is None:
-            roles = find_roles(motion.joint_names, motion.parents, overrides=overrides, offsets=motion.offsets)
+            roles = find_roles(motion.joint_names, motion.parents, overrides=overrides, offsets=motion.offsets,
+                               end_site_parents=motion.end_site_parents)
         sk = cls(
             joint_names=list(motion.joint_names),
             parents=motion.parents,
