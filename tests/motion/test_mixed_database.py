@@ -13,8 +13,8 @@ What is asserted:
   single-tree behaviour is unchanged (the other trees are not candidates);
 * :func:`strike` and :class:`KungFuFighter` play the selected clip on a character of
   another tree (a Mixamo-named rig given as a Motion), hitting the target;
-* bad characters: no arm for a punch / no leg for a kick (named, for what), a Z-up
-  character for the (Y-up) fighter, another tree on a single-tree fighter;
+* bad characters: no arm for a punch / no leg for a kick (named, for what), another
+  tree on a single-tree fighter; a Z-up character is turned to the fighter's Y-up world;
 * on the staged data: the CMU + Bandai database serves a CMU character a Bandai clip,
   and a Bandai character a CMU clip (in the fighter).
 """
@@ -227,9 +227,10 @@ def test_bad_characters_are_refused_naming_what_is_missing(synthetic_db, rigs):
         f.set_character(no_legs)
     with pytest.raises(MotionError, match="a punch needs .*an arm"):
         strike(f.retriever, legs_only, legs_only, np.array([0.0, 1.5, 0.5]), "punch")
-    with pytest.raises(MotionError, match="Y-up"):
-        f.set_character(rigs["unreal"])
     assert f.character.joint_names == rigs["mixamo"].joint_names  # unchanged by the refusals
+    f.set_character(rigs["unreal"])  # a Z-up character is turned to the fighter's Y-up world (no longer refused)
+    assert f.character.joint_names == rigs["unreal"].joint_names
+    assert f.stance.global_positions()[0, f.character.index("head"), 1] > 1.0
     single = KungFuFighter(synthetic_db, retriever=MotionRetriever(synthetic_db, seed=0, across_trees=False), seed=0)
     with pytest.raises(MotionError, match="across_trees"):
         single.set_character(rigs["mixamo"])
