@@ -66,7 +66,7 @@ def body_frame(sk: Skeleton, up: str) -> np.ndarray:
     lat = lat + p[sk.index("left_shoulder")] - p[sk.index("right_shoulder")]
     lat = lat - (lat @ u) * u
     n = np.linalg.norm(lat)
-    if n <= 1e-9 * max(sk.height, 1e-300):
+    if n <= 1e-9 * max(float(np.ptp(p, axis=0).max()), 1e-300):
         raise MotionError(
             f"left and right hips/shoulders coincide across the up axis {up.upper()} in the rest pose of "
             f"{sk.roles['pelvis']!r}'s skeleton; cannot tell its facing direction"
@@ -106,17 +106,38 @@ def rest_axes(sk: Skeleton) -> dict[str, np.ndarray]:
     return out
 
 
+def _cross3(a, b) -> np.ndarray:
+    """Cross product of two 3-vectors (np.cross costs ~50x more on one pair)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
 def _frame(d: np.ndarray, ref: np.ndarray) -> np.ndarray:
     """(3, 3) orthonormal columns: ``d``, ``ref`` made orthogonal to it, their cross product."""
     e1 = _unit(d)
     e2 = _unit(ref - (ref @ e1) * e1)
-    return np.stack([e1, e2, np.cross(e1, e2)], axis=1)
+    out = np.empty((3, 3))
+    out[:, 0], out[:, 1], out[:, 2] = e1, e2, _cross3(e1, e2)
+    return out
 
 
 def _mat_to_quat(m: np.ndarray) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_matrix(m).as_quat()
+    """(x, y, z, w) of a rotation matrix (Shepperd's method: the largest of w, x, y, z first;
+    written out because scipy's Rotation.from_matrix costs ~1 ms per call here)."""
+    t = np.trace(m)
+    i = int(np.argmax([t, m[0, 0], m[1, 1], m[2, 2]]))
+    if i == 0:
+        w = 0.5 * np.sqrt(1.0 + t)
+        q = np.array([(m[2, 1] - m[1, 2]) / (4 * w), (m[0, 2] - m[2, 0]) / (4 * w), (m[1, 0] - m[0, 1]) / (4 * w), w])
+    else:
+        a = i - 1
+        b, c = (a + 1) % 3, (a + 2) % 3
+        s = 2.0 * np.sqrt(1.0 + m[a, a] - m[b, b] - m[c, c])
+        q = np.empty(4)
+        q[a] = 0.25 * s
+        q[b] = (m[b, a] + m[a, b]) / s
+        q[c] = (m[c, a] + m[a, c]) / s
+        q[3] = (m[c, b] - m[b, c]) / s
+    return q / np.linalg.norm(q)
 
 
 def _up_of(x, sk: Skeleton) -> str:
@@ -284,7 +305,7 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
             if j in fixed:
                 G[:, j] = fixed[j]
             elif j in limbs:
-                kind, (rp, rm, rd) = limbs[j]
+                _, (rp, rm, rd) = limbs[j]
                 G[:, j], pending[ti(rm)], pending[ti(rd)] = _solve_limb(
                     src, tgt, gp_s, gq_s, C, mapped, delta, P[:, j], (rp, rm, rd), si, ti, goal=goals.get(ti(rd))
                 )
@@ -323,7 +344,7 @@ def _fix_feet(motion, src, tgt, gp_s, up_t, up_s, root_t, G, P, solve, blend_tim
     L = np.array([tgt.limb_lengths[f"{s}_leg"] for s in ("left", "right")])
     contacts = foot_contacts(motion, skeleton=src, global_positions=gp_s, up_axis=2 if up_s == "z" else 1)
     A = P[:, ank]
-    n_blend = int(round(blend_time / motion.frame_time))
+    n_blend = round(blend_time / motion.frame_time)
     goal, w = foot_goals(A, contacts, A[..., 1], n_blend)  # every coordinate: the phase mean
     goal = A + w[..., None] * (goal - A)
     r = goal - P[:, hips]
