@@ -223,8 +223,9 @@ def find_roles(
         left = up x forward).  Names are not needed (joints named ``j0 .. jN`` or random
         strings get their roles from the structure: the arms are the most lateral tips on
         either side of the trunk, so fingers and twist leaves are not taken for arms; a
-        wrist that branches into fingers has no ``hand`` joint; the joint before the upper
-        arm is the clavicle); a name contradicting the structure makes the names decide,
+        wrist that branches into fingers has no ``hand`` joint (CMU's, branching into the
+        hand and a one-joint thumb, has); an arm's shoulder lies off the trunk's midline
+        (CMU's clavicle joints lie on it); the joint before the upper arm is the clavicle); a name contradicting the structure makes the names decide,
         and a glued ``l``/``r`` prefix is a side only before a body-part word.  When the structure cannot be read (a rest pose with
         every bone along one line, as Bandai Namco's), the names decide as without
         ``offsets``.
@@ -675,14 +676,19 @@ def _stem_votes(name: str, stem: str) -> tuple[int, int]:
     return vote, other
 
 
-def _limb_from_chain(pts: list[int], names: list[str], P: np.ndarray, kind: str) -> dict | None:
-    """Proximal, middle, distal joints of an arm or leg chain of points (None: names disagree)."""
+def _limb_from_chain(pts: list[int], names: list[str], P: np.ndarray, kind: str, prox_ok=None) -> dict | None:
+    """Proximal, middle, distal joints of an arm or leg chain of points (None: names disagree).
+
+    ``prox_ok``: per point of the chain, whether it may be the proximal joint (an arm's
+    shoulder is off the trunk's midline; CMU's clavicle joint is on it)."""
     if len(pts) < 3:
         raise MotionError(f"{kind} chain ending at {names[pts[-1]]!r} has fewer than three joints")
     stems = _ARM_STEMS if kind == "arm" else _LEG_STEMS
     seg = [float(np.linalg.norm(P[pts[i]] - P[pts[i - 1]])) for i in range(1, len(pts))]
     best, key = None, None
     for i in range(1, len(seg)):
+        if prox_ok is not None and not prox_ok[i - 1] and any(prox_ok[: len(seg) - 1]):
+            continue
         trio = (pts[i - 1], pts[i], pts[i + 1])
         votes = [_stem_votes(names[j], st) for j, st in zip(trio, stems)]
         k = (sum(v for v, _ in votes) - sum(c for _, c in votes), seg[i - 1] + seg[i])
@@ -713,7 +719,10 @@ def _roles_from_structure(names: list[str], par: np.ndarray, off: np.ndarray, en
     head = st["head"]
     chest = _lca(st["arms"][0], st["arms"][1], par)
     for t in st["arms"]:
-        arms[t] = _limb_from_chain(_points(_path_down(chest, t, par), P, tol), names, P, "arm")
+        pts = _points(_path_down(chest, t, par), P, tol)
+        v = P[pts] - P[hub]
+        lat = np.linalg.norm(v - np.outer(v @ up, up), axis=1)
+        arms[t] = _limb_from_chain(pts, names, P, "arm", prox_ok=lat >= 0.1 * lat[-1])
     # facing: toes point forward; else names must tell the sides
     fwd = np.zeros(3)
     for lg in legs.values():
@@ -762,9 +771,13 @@ def _roles_from_structure(names: list[str], par: np.ndarray, off: np.ndarray, en
             continue
         s = sides[t]
         roles[f"{s}_shoulder"], roles[f"{s}_elbow"], roles[f"{s}_wrist"] = (names[am[k]] for k in ("prox", "mid", "dist"))
-        # a hand joint after the wrist (CMU lhand), not the first finger of a wrist that branches
-        if am["after"] and n_cand_children[am["dist"]] == 1:
-            roles[f"{s}_hand"] = names[am["after"][0]]
+        # a hand joint after the wrist (CMU lhand, beside a one-joint thumb), not the first
+        # finger of a wrist that branches into fingers
+        if am["after"]:
+            kids = [c for c in range(len(names)) if par[c] == am["dist"] and cand[c]]
+            inner = [c for c in kids if n_cand_children[c] > 0]
+            if len(kids) == 1 or (len(inner) == 1 and inner[0] == am["after"][0]):
+                roles[f"{s}_hand"] = names[am["after"][0]]
         if am["before"]:
             roles[f"{s}_clavicle"] = names[am["before"][-1]]
     # head: a joint named head on the head chain, else the tip

@@ -130,3 +130,27 @@ def _subset(m, keep):
         positions=m.positions[:, keep],
         end_site_parents=np.array([new[int(m.end_site_parents[e])] for e in esp], dtype=np.intp),
         end_site_offsets=m.end_site_offsets[esp].reshape(-1, 3))
+
+
+@pytest.mark.data("cmu-bvh")
+@pytest.mark.parametrize("rel", ["mocap/cmu/135_04.bvh", "mocap/cmu/07_05.bvh", "mocap/formats/pybvh/bvh_test1.bvh",
+                                 "mocap/formats/pybvh/bvh_test2.bvh", "mocap/formats/pybvh/bvh_test3.bvh"])
+def test_real_files_renamed_keep_their_roles(rel):
+    """Real rigs (CMU: clavicle joints on the trunk's midline, a wrist branching into hand and
+    thumb; other tools' Z-up, MotionBuilder-named and 60-joint files) renamed j0..jN: the
+    structure finds the roles their names give."""
+    import warnings
+
+    from repro import data
+    from repro.motion import read_bvh
+
+    path = data.data_dir() / rel
+    if not path.is_file():
+        pytest.skip(f"{rel} not staged")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = read_bvh(path)
+    named = find_roles(m.joint_names, m.parents, offsets=m.offsets, end_site_parents=m.end_site_parents)
+    r, table = renamed(m, "index")
+    roles = find_roles(r.joint_names, r.parents, offsets=r.offsets, end_site_parents=r.end_site_parents)
+    assert roles == {k: table[v] for k, v in named.items()}

@@ -38,7 +38,9 @@ End Site (no head top) and a rest pose that cannot tell the ankle height
 CMU's 1.636 m (ratio 1.26) while their hip heights differ by 1.156 and their legs
 (thigh + shin) by 1.046.  The retargeted root path follows the hip heights and the limbs
 their lengths, so the hit point lands near the hip-ratio point (``hip_ratio_gap_m`` a
-few cm) and the Eq. 1 point is ~20% farther, beyond the CMU leg's reach.  (Before the
+few cm) and the Eq. 1 point is ~20% farther.  This is most, not all, of a strike's miss
+there: :func:`repro.motion.strike.strike` also aligns the clip's start on the character's
+pose and adapts it, and its kick misses a hip-ratio target too, by less.  (Before the
 rest offsets carried each segment's twist, the Bandai pelvis also came out turned ~43
 deg about the trunk on a CMU character.)
 
