@@ -98,7 +98,7 @@ from repro.motion.database import MotionDatabase
 from repro.motion.morphology import retarget
 from repro.motion.motion import Motion, finite_vector3
 from repro.motion.retrieval import MotionRetriever, character_skeleton, retarget_to_tree
-from repro.motion.units import infer_up
+from repro.motion.units import y_up_metres
 from repro.motion.skeleton import (
     Skeleton,
     scale_skeleton,
@@ -290,7 +290,7 @@ class KungFuFighter:
         The fighter: the database actor's joint tree scaled (:func:`character_from`),
         or any humanoid skeleton of another joint tree (e.g. a BVH read with
         :func:`~repro.motion.read_bvh`: Mixamo, Bandai ...), which makes the retriever
-        work across trees (``across_trees``); default :func:`character_from` of
+        is played through the body-part roles; default :func:`character_from` of
         ``height``, ``arm_scale``, ``leg_scale`` on the database's actor.
     height, arm_scale, leg_scale : float
         Used when ``character`` is None.
@@ -306,9 +306,8 @@ class KungFuFighter:
         :meth:`set_character` accepts.
     across_trees : bool, optional
         Build the retriever with ``across_trees`` (:class:`MotionRetriever`): characters of
-        any joint tree, every clip a candidate for them.  Default: True when ``character``
-        has another joint tree than the database's first actor, else False (the
-        single-tree behaviour).
+        any joint tree, every clip a candidate for them.  Default: the retriever's (True);
+        False keeps the fighter to characters of the database actors' trees.
 
     Attributes
     ----------
@@ -348,10 +347,8 @@ class KungFuFighter:
                 raise RetrievalError("retriever must be a MotionRetriever of the same database")
             self.retriever = retriever
         else:
-            if across_trees is None:  # another tree (or a partial skeleton: set_character names what it lacks)
-                across_trees = character is not None and not (
-                    isinstance(character, (Skeleton, Motion)) and db.actors[0].is_compatible(character))
-            self.retriever = MotionRetriever(db, seed=seed, across_trees=across_trees)
+            kw = {} if across_trees is None else {"across_trees": across_trees}
+            self.retriever = MotionRetriever(db, seed=seed, **kw)
         t2 = time.perf_counter()
         self.db = db
         self.seed = int(seed)
@@ -405,8 +402,10 @@ class KungFuFighter:
         """Change the fighter's morphology (takes effect at once, as the paper's supervisor does).
 
         ``character``: a Skeleton or a Motion; of the database actor's joint tree, or --
-        with a retriever made ``across_trees=True`` -- of any humanoid tree (its roles
-        found from its structure, :func:`repro.motion.roles.find_roles`).
+        with a retriever serving ``across_trees`` (the default) -- of any humanoid tree (its
+        roles found from its structure, :func:`repro.motion.roles.find_roles`), in any unit
+        and Y- or Z-up: converted to the fighter's Y-up metres first
+        (:func:`repro.motion.units.y_up_metres`, a UnitWarning naming what was inferred).
 
         Raises
         ------
@@ -415,22 +414,16 @@ class KungFuFighter:
             punch (an arm) or a kick (a leg) needs, named (:func:`repro.motion.roles.check_roles`).
         """
         ch = character_skeleton(character, ("a punch", "a kick"))
-        if not ch.is_compatible(self._base):
-            if not getattr(self.retriever, "across_trees", False):
-                raise MotionError("the character must have the joint tree of the database's actor (make it with "
-                                  "character_from), or the fighter must be made with across_trees=True")
-            up = getattr(character, "up", None)
-            if up is None:
-                try:
-                    up = infer_up(character if isinstance(character, Motion) else None, ch)
-                except MotionError:  # a rest pose along neither axis (Bandai's lies along +X): the world's
-                    up = "y"
-            if up != "y":
-                raise MotionError(f"the fighter's world is Y-up; the character (root {ch.joint_names[0]!r}) is "
-                                  f"{up.upper()}-up: rotate it to Y-up first")
+        if not ch.is_compatible(self._base) and not getattr(self.retriever, "across_trees", False):
+            raise MotionError("the character must have the joint tree of the database's actor (make it with "
+                              "character_from), or the fighter must be made with across_trees=True")
+        conv = y_up_metres(character)  # any unit, Z-up: the fighter's world is Y-up, metres
+        if conv is not character:
+            ch = skeleton_of(conv, roles=dict(ch.roles))
         self.character = ch
+        # another tree: its feet kept on the floor (another foot geometry may put the toes below it)
         self.stance = (retarget(self._stance_actor, ch) if ch.is_compatible(self._stance_actor)
-                       else retarget_to_tree(self._stance_actor, ch))
+                       else retarget_to_tree(self._stance_actor, ch, fix_feet=True))
         hp = self.db.hit_position
         punch = (self.db.semantics == "punch") & np.isin(self.db.levels, ["high", "middle"])
         sel = punch if punch.any() else (self.db.semantics == "punch")

@@ -500,19 +500,7 @@ def decode_with_report(
     W_final = E1 + qrot(q2, W1 - E1)
     err = float(np.max(np.linalg.norm(W_final - S - qrot(Rp, want), axis=-1), initial=0.0))
 
-    out = Motion(
-        joint_names=list(tgt.joint_names),
-        parents=tgt.parents,
-        offsets=tgt.offsets,
-        channels=channels,
-        frame_time=mi.frame_time,
-        rotations=rot,
-        positions=local_t,
-        end_site_parents=tgt.end_site_parents,
-        end_site_offsets=tgt.end_site_offsets,
-        unit_m=tgt.unit_m,
-        source=None,
-    )
+    out = tgt.motion_with(rot, local_t, frame_time=mi.frame_time, channels=channels)
     report = DecodeReport(
         clamped={k: int(c) for k, c in zip(LIMB_NAMES, clamped.sum(axis=0))},
         max_distal_error=err,
@@ -604,7 +592,8 @@ def retarget(motion: Motion, target, *, roles=None, fix_feet: bool = False) -> M
     roles : mapping, optional
         Role table of the source (default: found).
     fix_feet : bool, default False
-        Correct the feet artifacts (see :func:`decode`; same joint tree only).
+        Correct the feet artifacts (see :func:`decode`; across joint trees,
+        :func:`~repro.motion.retarget_tree.retarget_across`'s ``fix_feet``).
 
     A target whose joint tree differs (other joint names with the same parents; or
     another tree, rest pose or up axis) is retargeted too: with the same parents and
@@ -627,7 +616,7 @@ def retarget(motion: Motion, target, *, roles=None, fix_feet: bool = False) -> M
                 out = None  # another rest pose: through the roles
             if out is not None:
                 return dataclasses.replace(out, joint_names=list(tgt.joint_names))
-    return retarget_across(motion, target, roles=roles)
+    return retarget_across(motion, target, roles=roles, fix_feet=fix_feet)
 
 
 def naive_retarget(motion: Motion, target, *, scale_root: bool = False) -> Motion:
@@ -656,18 +645,8 @@ def naive_retarget(motion: Motion, target, *, scale_root: bool = False) -> Motio
     rp = _root_path(src)
     k = tgt.hip_height / src.hip_height if scale_root else 1.0
     t[:, rp] = motion.local_translations()[:, rp] * k
-    return Motion(
-        joint_names=tgt.joint_names,
-        parents=tgt.parents,
-        offsets=tgt.offsets,
-        channels=channels,
-        frame_time=motion.frame_time,
-        rotations=motion.rotations,
-        positions=np.where(mask[None], t, tgt.offsets[None]),
-        end_site_parents=tgt.end_site_parents,
-        end_site_offsets=tgt.end_site_offsets,
-        unit_m=tgt.unit_m,
-    )
+    return tgt.motion_with(motion.rotations, np.where(mask[None], t, tgt.offsets[None]),
+                           frame_time=motion.frame_time, channels=channels)
 
 
 def time_retarget(motion: Motion, target, *, repeats: int = 5) -> dict[str, float]:

@@ -42,7 +42,7 @@ from repro.motion.roles import check_roles
 from repro.motion.skeleton import Skeleton, skeleton_of
 from repro.motion.units import infer_up
 
-__all__ = ["body_frame", "retarget_across"]
+__all__ = ["body_frame", "rest_axes", "retarget_across"]
 
 _ROT = ("Zrotation", "Xrotation", "Yrotation")
 _POS = ("Xposition", "Yposition", "Zposition")
@@ -50,14 +50,23 @@ _AXIS = {"y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
 
 
 def body_frame(sk: Skeleton, up: str) -> np.ndarray:
-    """(3, 3) columns left, up, forward of a skeleton's rest pose (``up`` = world axis)."""
+    """(3, 3) columns left, up, forward of a skeleton's rest pose (``up`` = world axis).
+
+    Left comes from the rest hips and shoulders (across the up axis).  A rest pose whose
+    trunk does not stand along the world up axis (Bandai Namco's lies along +X, every
+    bone on its local X) cannot tell where the body faces in the world: then left is the
+    world X axis (forward = left x up: +Z when Y is up, -Y when Z is up)."""
     u = _AXIS[up]
     p = sk.rest_positions()
+    trunk = _unit(p[sk.index("head")] - p[sk.index("pelvis")])
+    if abs(float(trunk @ u)) < np.cos(np.radians(45.0)):
+        left = np.array([1.0, 0.0, 0.0])
+        return np.stack([left, u, np.cross(left, u)], axis=1)
     lat = p[sk.index("left_hip")] - p[sk.index("right_hip")]
     lat = lat + p[sk.index("left_shoulder")] - p[sk.index("right_shoulder")]
     lat = lat - (lat @ u) * u
     n = np.linalg.norm(lat)
-    if n <= 1e-9 * max(sk.height, 1e-300):
+    if n <= 1e-9 * max(float(np.ptp(p, axis=0).max()), 1e-300):
         raise MotionError(
             f"left and right hips/shoulders coincide across the up axis {up.upper()} in the rest pose of "
             f"{sk.roles['pelvis']!r}'s skeleton; cannot tell its facing direction"
@@ -67,10 +76,68 @@ def body_frame(sk: Skeleton, up: str) -> np.ndarray:
     return np.stack([left, u, fwd], axis=1)
 
 
-def _mat_to_quat(m: np.ndarray) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
+def rest_axes(sk: Skeleton) -> dict[str, np.ndarray]:
+    """Rest body axes of each part, rig coordinates: ``{"leg": (3, 3), "arm": (3, 3)}``, rows
+    left, up, forward.
 
-    return Rotation.from_matrix(m).as_quat()
+    Up is the rest pelvis -> head direction; left is the line between the joints rigidly
+    carried by the part's root (the hips for the pelvis and the legs; the clavicles, else
+    the shoulders, for the chest, the neck, the head and the arms), made orthogonal to up.
+    They fix the twist of a segment about its bone when rest poses differ by more than
+    their bone directions (Bandai Namco: the pelvis' left is -Y at rest, the chest's +Z)."""
+    p = sk.rest_positions()
+    r = sk.roles
+    up = _unit(p[sk.index("head")] - p[sk.index("pelvis")])
+    tol = 1e-6 * max(sk.height, 1e-300)
+    out = {}
+    for part, pairs in (("leg", ("hip",)), ("arm", ("clavicle", "shoulder", "hip"))):
+        for stem in pairs:  # CMU's clavicles both start at the thorax: then the shoulders
+            if f"left_{stem}" not in r or f"right_{stem}" not in r:
+                continue
+            lat = p[sk.index(f"left_{stem}")] - p[sk.index(f"right_{stem}")]
+            lat = lat - (lat @ up) * up
+            if np.linalg.norm(lat) > tol:
+                break
+        else:
+            raise MotionError(f"the rest pose of {r['pelvis']!r}'s skeleton has no left-right extent across "
+                              "its trunk (hips, clavicles and shoulders on the pelvis -> head line)")
+        lat = _unit(lat)
+        out[part] = np.stack([lat, up, np.cross(lat, up)])
+    return out
+
+
+def _cross3(a, b) -> np.ndarray:
+    """Cross product of two 3-vectors (np.cross costs ~50x more on one pair)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def _frame(d: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """(3, 3) orthonormal columns: ``d``, ``ref`` made orthogonal to it, their cross product."""
+    e1 = _unit(d)
+    e2 = _unit(ref - (ref @ e1) * e1)
+    out = np.empty((3, 3))
+    out[:, 0], out[:, 1], out[:, 2] = e1, e2, _cross3(e1, e2)
+    return out
+
+
+def _mat_to_quat(m: np.ndarray) -> np.ndarray:
+    """(x, y, z, w) of a rotation matrix (Shepperd's method: the largest of w, x, y, z first;
+    written out because scipy's Rotation.from_matrix costs ~1 ms per call here)."""
+    t = np.trace(m)
+    i = int(np.argmax([t, m[0, 0], m[1, 1], m[2, 2]]))
+    if i == 0:
+        w = 0.5 * np.sqrt(1.0 + t)
+        q = np.array([(m[2, 1] - m[1, 2]) / (4 * w), (m[0, 2] - m[2, 0]) / (4 * w), (m[1, 0] - m[0, 1]) / (4 * w), w])
+    else:
+        a = i - 1
+        b, c = (a + 1) % 3, (a + 2) % 3
+        s = 2.0 * np.sqrt(1.0 + m[a, a] - m[b, b] - m[c, c])
+        q = np.empty(4)
+        q[a] = 0.25 * s
+        q[b] = (m[b, a] + m[a, b]) / s
+        q[c] = (m[c, a] + m[a, c]) / s
+        q[3] = (m[c, b] - m[b, c]) / s
+    return q / np.linalg.norm(q)
 
 
 def _up_of(x, sk: Skeleton) -> str:
@@ -92,7 +159,8 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / n if n > 0 else v
 
 
-def retarget_across(motion: Motion, character, *, roles=None, character_roles=None) -> Motion:
+def retarget_across(motion: Motion, character, *, roles=None, character_roles=None, fix_feet: bool = False,
+                    blend_time: float = 0.1) -> Motion:
     """``motion`` played by ``character``, whose joint tree may differ (see the module docstring).
 
     Parameters
@@ -101,6 +169,14 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
     character : Skeleton or Motion
         Any humanoid skeleton (its own roles are found, or given as ``character_roles``).
     roles, character_roles : mapping role -> joint, optional
+    fix_feet : bool, default False
+        Correct the feet artifacts (Section 3.4) as :func:`repro.motion.morphology.decode`
+        does on one tree: where the source's ankle is planted
+        (:func:`~repro.motion.feet.foot_contacts`) the character's ankle is pinned to its
+        mean position over the contact phase (blended over ``blend_time`` seconds on each
+        side), the root lowered where a pinned ankle is out of the leg's reach, and on
+        every frame an ankle whose ankle or toe joint would be below the floor (the plane
+        through the origin across the up axis) is raised until neither is.
 
     Returns
     -------
@@ -145,19 +221,26 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
     def ref_dir(P, roles_, names, a, b):
         return _unit(P[names.index(roles_[b])] - P[names.index(roles_[a])])
 
+    ax_s, ax_t = rest_axes(src), rest_axes(tgt)
+
     def delta(a, b):
-        """Smallest rotation taking the character's rest bone a->b to the mapped source one."""
+        """Rotation taking the character's rest frame of bone a->b to the mapped source one.
+
+        The frame: the bone direction and the part's rest axis (left, up or forward of
+        :func:`rest_axes`) least aligned with the bone on both skeletons, so the twist
+        about the bone is carried too (the smallest rotation between the bone directions
+        alone would leave it to the rest poses' accident)."""
         dt = ref_dir(Pt, rt, tgt.joint_names, a, b)
         ds = C @ ref_dir(Ps, rs, src.joint_names, a, b)
-        return min_rotation(dt, ds)
+        part = "leg" if any(x in a for x in ("pelvis", "hip", "knee", "ankle", "toe")) else "arm"
+        at, as_ = ax_t[part], ax_s[part] @ C.T
+        k = int(np.argmin(np.maximum(np.abs(at @ dt), np.abs(as_ @ ds))))
+        return _mat_to_quat(_frame(ds, as_[k]) @ _frame(dt, at[k]).T)
 
     def oriented(role, a, b):
         return quat_multiply(mapped(role), delta(a, b)[None])
 
     J = tgt.n_joints
-    G = np.zeros((F, J, 4))
-    G[..., 3] = 1.0
-    P = np.zeros((F, J, 3))
     fixed: dict[int, np.ndarray] = {}  # joint -> global rotation (F, 4)
     fixed[ti("pelvis")] = oriented("pelvis", "pelvis", "chest")
     fixed[ti("chest")] = oriented("chest", "chest", "head")
@@ -203,31 +286,42 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
             f"{list(tgt.channels[0])}); the retargeted motion needs to move it"
         )
     root_t = pel_goal - sum(tgt.offsets[j] for j in root_path[1:]) if len(root_path) > 1 else pel_goal
-    pending: dict[int, np.ndarray] = {}  # middle / distal joint -> world target position
-    for j in range(J):
-        p = tgt.parents[j]
-        if p < 0:
-            P[:, j] = root_t
-            Gp = np.zeros((F, 4))
-            Gp[:, 3] = 1.0
-        else:
-            Gp = G[:, p]
-            P[:, j] = P[:, p] + qrot(Gp, np.broadcast_to(tgt.offsets[j], (F, 3)))
-        if j in fixed:
-            G[:, j] = fixed[j]
-        elif j in limbs:
-            kind, (rp, rm, rd) = limbs[j]
-            G[:, j], pending[ti(rm)], pending[ti(rd)] = _solve_limb(
-                src, tgt, gp_s, gq_s, C, mapped, delta, P[:, j], (rp, rm, rd), si, ti
-            )
-        elif j in pending and tgt.parents[j] >= 0 and any(j == ti(lm[1][1]) for lm in limbs.values()):
-            # middle joint: its forearm/shin to the distal goal
-            kind, (rp, rm, rd) = next(v for v in limbs.values() if ti(v[1][1]) == j)
-            G0 = quat_multiply(mapped(rm), delta(rm, rd)[None])
-            cur = qrot(G0, np.broadcast_to(Pt[ti(rd)] - Pt[j], (F, 3)))
-            G[:, j] = quat_multiply(min_rotation(cur, pending[ti(rd)] - P[:, j]), G0)
-        else:
-            G[:, j] = Gp  # no role: rest rotation relative to the parent
+    def solve(root_t, goals):
+        """Global rotations and positions of every character joint; ``goals``: ankle joint ->
+        (F, 3) world position overriding the representation's (``fix_feet``)."""
+        G = np.zeros((F, J, 4))
+        G[..., 3] = 1.0
+        P = np.zeros((F, J, 3))
+        pending: dict[int, np.ndarray] = {}  # middle / distal joint -> world target position
+        for j in range(J):
+            p = tgt.parents[j]
+            if p < 0:
+                P[:, j] = root_t
+                Gp = np.zeros((F, 4))
+                Gp[:, 3] = 1.0
+            else:
+                Gp = G[:, p]
+                P[:, j] = P[:, p] + qrot(Gp, np.broadcast_to(tgt.offsets[j], (F, 3)))
+            if j in fixed:
+                G[:, j] = fixed[j]
+            elif j in limbs:
+                _, (rp, rm, rd) = limbs[j]
+                G[:, j], pending[ti(rm)], pending[ti(rd)] = _solve_limb(
+                    src, tgt, gp_s, gq_s, C, mapped, delta, P[:, j], (rp, rm, rd), si, ti, goal=goals.get(ti(rd))
+                )
+            elif j in pending and tgt.parents[j] >= 0 and any(j == ti(lm[1][1]) for lm in limbs.values()):
+                # middle joint: its forearm/shin to the distal goal
+                _, (rp, rm, rd) = next(v for v in limbs.values() if ti(v[1][1]) == j)
+                G0 = quat_multiply(mapped(rm), delta(rm, rd)[None])
+                cur = qrot(G0, np.broadcast_to(Pt[ti(rd)] - Pt[j], (F, 3)))
+                G[:, j] = quat_multiply(min_rotation(cur, pending[ti(rd)] - P[:, j]), G0)
+            else:
+                G[:, j] = Gp  # no role: rest rotation relative to the parent
+        return G, P
+
+    G, P = solve(root_t, {})
+    if fix_feet:
+        root_t, G, P = _fix_feet(motion, src, tgt, gp_s, up_t, _up_of(motion, src), root_t, G, P, solve, blend_time)
     # local rotations
     loc = np.empty_like(G)
     loc[:, 0] = G[:, 0]
@@ -236,31 +330,53 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
     channels = tgt.channels if tgt.channels is not None else [_POS + _ROT] + [_ROT] * (J - 1)
     positions = np.broadcast_to(tgt.offsets, (F, J, 3)).copy()
     positions[:, 0] = root_t
-    return Motion(
-        joint_names=list(tgt.joint_names),
-        parents=tgt.parents,
-        offsets=tgt.offsets,
-        channels=channels,
-        frame_time=motion.frame_time,
-        rotations=loc,
-        positions=positions,
-        end_site_parents=tgt.end_site_parents,
-        end_site_offsets=tgt.end_site_offsets,
-        unit_m=tgt.unit_m,
-        up=up_t,
-    )
+    return tgt.motion_with(loc, positions, frame_time=motion.frame_time, channels=channels, up=up_t)
 
 
-def _solve_limb(src, tgt, gp_s, gq_s, C, mapped, delta, S, roles3, si, ti):
+def _fix_feet(motion, src, tgt, gp_s, up_t, up_s, root_t, G, P, solve, blend_time):
+    """``fix_feet`` of :func:`retarget_across`: planted ankles pinned, root lowered, feet above the floor."""
+    from repro.motion.feet import foot_contacts, foot_goals
+
+    kt = 2 if up_t == "z" else 1
+    e_up = _AXIS[up_t]
+    ank = [tgt.index("left_ankle"), tgt.index("right_ankle")]
+    hips = [tgt.index("left_hip"), tgt.index("right_hip")]
+    L = np.array([tgt.limb_lengths[f"{s}_leg"] for s in ("left", "right")])
+    contacts = foot_contacts(motion, skeleton=src, global_positions=gp_s, up_axis=2 if up_s == "z" else 1)
+    A = P[:, ank]
+    n_blend = round(blend_time / motion.frame_time)
+    goal, w = foot_goals(A, contacts, A[..., 1], n_blend)  # every coordinate: the phase mean
+    goal = A + w[..., None] * (goal - A)
+    r = goal - P[:, hips]
+    ry = r[..., kt]
+    rh2 = np.sum(r * r, axis=-1) - ry**2
+    drop = np.maximum(0.0, -ry - np.sqrt(np.maximum(L[None] ** 2 - rh2, 0.0))).max(axis=1)
+    root_t = root_t - drop[:, None] * e_up
+    goals = {ank[0]: goal[:, 0], ank[1]: goal[:, 1]}
+    G, P = solve(root_t, goals)
+    # no ankle / toe below the floor: raise the ankle goal by the depth
+    feet = []
+    for s in ("left", "right"):
+        pts = [tgt.index(f"{s}_ankle")] + ([tgt.index(f"{s}_toe")] if f"{s}_toe" in tgt.roles else [])
+        feet.append(pts)
+    depth = np.stack([np.maximum(0.0, -P[:, pts, kt].min(axis=1)) for pts in feet], axis=1)
+    if np.any(depth > 0):
+        goals = {ank[i]: P[:, ank[i]] + (depth[:, i] * (1 + 1e-9))[:, None] * e_up for i in range(2)}
+        G, P = solve(root_t, goals)
+    return root_t, G, P
+
+
+def _solve_limb(src, tgt, gp_s, gq_s, C, mapped, delta, S, roles3, si, ti, goal=None):
     """Proximal global rotation and the middle / distal goals of one limb (Kulpa: normalised
-    distal vector x limb length, middle joint in the source's bend plane)."""
+    distal vector x limb length, middle joint in the source's bend plane); ``goal``: the
+    distal joint's world position instead (``fix_feet``)."""
     rp, rm, rd = roles3
     F = gp_s.shape[0]
     Ss, Es, Ws = gp_s[:, si(rp)], gp_s[:, si(rm)], gp_s[:, si(rd)]
     Ls = src.bone_lengths[si(rm)] + src.bone_lengths[si(rd)]
     l1, l2 = tgt.bone_lengths[ti(rm)], tgt.bone_lengths[ti(rd)]
     n = (Ws - Ss) @ C.T / Ls  # normalised limb vector, character world
-    a, dn = normalize(n * (l1 + l2))
+    a, dn = normalize(n * (l1 + l2) if goal is None else goal - S)
     e = (Es - Ss) @ C.T
     bend = e - np.sum(e * a, axis=-1, keepdims=True) * a
     b, bn = normalize(bend)

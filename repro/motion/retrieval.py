@@ -50,10 +50,11 @@ Choices the paper leaves open (documented here, all parameters):
 * Several joint trees (a mixed-skeleton database: CMU + Bandai, synthetic clips
   rewritten onto other rigs, any user BVH): pose clouds are role point clouds
   (:data:`~repro.motion.clustering.POSE_ROLES`) in units of stature, so they compare
-  across trees.  By default only the actors of the character's own tree are
-  candidates; with ``MotionRetriever(db, across_trees=True)`` ``q_r`` is retargeted
-  across trees (:func:`retarget_to_tree`) to every other actor too, and every clip can
-  be served to any humanoid character (:func:`repro.motion.strike.strike` then
+  across trees.  The actors of the character's own tree take ``q_r`` as before (same
+  numbers); where an actor's tree differs, ``q_r`` is retargeted across trees
+  (:func:`retarget_to_tree`), so every clip can be served to any humanoid character
+  without asking (``MotionRetriever(db, across_trees=False)`` keeps a character to the
+  actors of its own tree) (:func:`repro.motion.strike.strike` then
   retargets the selected clip to the character across trees as well).
 
 Baselines (for the figures): :meth:`MotionRetriever.search_exhaustive` scores every
@@ -375,14 +376,15 @@ def rest_motion_y_up(character) -> Motion:
         end_site_parents=sk.end_site_parents, end_site_offsets=sk.end_site_offsets, unit_m=sk.unit_m, up="y")
 
 
-def retarget_to_tree(motion: Motion, character, *, roles=None, target=None) -> Motion:
+def retarget_to_tree(motion: Motion, character, *, roles=None, target=None, fix_feet: bool = False) -> Motion:
     """``motion`` (database world: Y up, metres) played by ``character`` of another joint tree.
 
     Through the body-part roles (:func:`repro.motion.retarget_tree.retarget_across`), the
     character's own role table (``character.roles``; an explicit one is kept) and its
     rest pose decoded in the Y-up world (:func:`rest_motion_y_up`, or ``target`` when
-    already made).  ``roles``: the motion's role table (default: found).  The result is a
-    Motion on the character's skeleton, Y up.
+    already made).  ``roles``: the motion's role table (default: found); ``fix_feet``: see
+    :func:`~repro.motion.retarget_tree.retarget_across`.  The result is a Motion on the
+    character's skeleton, Y up.
 
     Raises
     ------
@@ -392,7 +394,7 @@ def retarget_to_tree(motion: Motion, character, *, roles=None, target=None) -> M
     ch = skeleton_of(character)
     src = motion if motion.up is not None else dataclasses.replace(motion, up="y")
     tgt = rest_motion_y_up(ch) if target is None else target
-    return retarget_across(src, tgt, roles=roles, character_roles=dict(ch.roles))
+    return retarget_across(src, tgt, roles=roles, character_roles=dict(ch.roles), fix_feet=fix_feet)
 
 
 class MotionRetriever:
@@ -418,14 +420,15 @@ class MotionRetriever:
     kd_neighbours : int, default 32
         Neighbours fetched by :meth:`search_kdtree` before rescoring (>= 1; at most the
         startable poses of the semantics are fetched).
-    across_trees : bool, default False
-        Also serve characters of *other joint trees* than the actors' (a mixed-skeleton
-        database, any humanoid character): :meth:`prepare` retargets the current pose
-        across trees (:func:`repro.motion.retarget_tree.retarget_across`, through the
-        body-part roles) to every actor the character does not share a tree with, so
-        every clip is a candidate (poses are compared as role point clouds in units of
-        the actor's stature).  False (default): only the actors of the character's own
-        joint tree are candidates, as before.
+    across_trees : bool, default True
+        Serve characters of *other joint trees* than the actors' (a mixed-skeleton
+        database, any humanoid character): where the character's tree differs from an
+        actor's, :meth:`prepare` retargets the current pose across trees
+        (:func:`repro.motion.retarget_tree.retarget_across`, through the body-part
+        roles), so every clip is a candidate (poses are compared as role point clouds in
+        units of the actor's stature); actors of the character's own tree are reached as
+        without it (same numbers).  False: only the actors of the character's own joint
+        tree are candidates (the behaviour before mixed-skeleton databases).
 
     Raises
     ------
@@ -435,7 +438,7 @@ class MotionRetriever:
     """
 
     def __init__(self, db: MotionDatabase, *, k: int | None = None, seed: int = 0, weights=None,
-                 w_q: float = 1.0, w_c: float = 1.0, kd_neighbours: int = 32, across_trees: bool = False):
+                 w_q: float = 1.0, w_c: float = 1.0, kd_neighbours: int = 32, across_trees: bool = True):
         if not isinstance(db, MotionDatabase):
             raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
         if db.n_clips == 0 or db.n_poses == 0:
@@ -495,8 +498,8 @@ class MotionRetriever:
         character : Skeleton or Motion
             The character (its ``size`` is ``size_c`` of Eq. 1); must have the joint tree
             of the database actor(s) it is compared with (e.g. made by
-            :func:`~repro.motion.skeleton.scale_skeleton`), unless the retriever was made
-            with ``across_trees=True``: then any humanoid skeleton, the pose retargeted
+            :func:`~repro.motion.skeleton.scale_skeleton`), unless the retriever
+            serves across trees (``across_trees``, the default): then any humanoid skeleton, the pose retargeted
             across trees to the other actors (whether an actor can be, per character, is
             cached).
 

@@ -176,6 +176,7 @@ def find_roles(
     overrides: Mapping[str, str] | None = None,
     required: Sequence[str] = REQUIRED_ROLES,
     offsets: Sequence | np.ndarray | None = None,
+    end_site_parents: Sequence[int] | np.ndarray | None = None,
 ) -> dict[str, str]:
     """Map body-part roles to the joints of a skeleton, by name patterns and tree structure.
 
@@ -219,9 +220,19 @@ def find_roles(
         a joint before them is the clavicle and one after them the hand (toe).  The
         side comes from the names (``Left``/``L_``/``_l``/``l``/``.L``/``...Left``)
         and, when the names say nothing, from the rest pose (the toes point forward,
-        left = up x forward).  When the structure cannot be read (a rest pose with
+        left = up x forward).  Names are not needed (joints named ``j0 .. jN`` or random
+        strings get their roles from the structure: the arms are the most lateral tips on
+        either side of the trunk, so fingers and twist leaves are not taken for arms; a
+        wrist that branches into fingers has no ``hand`` joint (CMU's, branching into the
+        hand and a one-joint thumb, has); an arm's shoulder lies off the trunk's midline
+        (CMU's clavicle joints lie on it); the joint before the upper arm is the clavicle); a name contradicting the structure makes the names decide,
+        and a glued ``l``/``r`` prefix is a side only before a body-part word.  When the structure cannot be read (a rest pose with
         every bone along one line, as Bandai Namco's), the names decide as without
         ``offsets``.
+    end_site_parents : (E,) int array, optional
+        Joints carrying an End Site.  With meaningless names, a head chain ending in a
+        leaf joint *without* an End Site (a head-top marker joint, Mixamo
+        ``HeadTop_End``) has its head at that joint's parent.
 
     Returns
     -------
@@ -244,8 +255,9 @@ def find_roles(
     key = None
     try:
         off_key = None if offsets is None else np.asarray(offsets, dtype=float).tobytes()
+        es = None if end_site_parents is None else tuple(int(e) for e in np.asarray(end_site_parents).reshape(-1))
         key = (tuple(names), None if par is None else par.tobytes(), off_key,
-               tuple(sorted((overrides or {}).items())), tuple(required))
+               tuple(sorted((overrides or {}).items())), tuple(required), es)
         hash(key)
     except (TypeError, ValueError):
         key = None
@@ -256,7 +268,8 @@ def find_roles(
             return dict(hit)
         except KeyError:
             pass
-    roles = _find_roles(names, par, overrides, required, offsets)
+    es_set = None if end_site_parents is None else {int(e) for e in np.asarray(end_site_parents).reshape(-1)}
+    roles = _find_roles(names, par, overrides, required, offsets, es_set)
     if key is not None:
         _CACHE[key] = dict(roles)
         while len(_CACHE) > 256:
@@ -271,7 +284,7 @@ def find_roles(
 _CACHE: OrderedDict = OrderedDict()
 
 
-def _find_roles(names, par, overrides, required, offsets) -> dict[str, str]:
+def _find_roles(names, par, overrides, required, offsets, end_sites=None) -> dict[str, str]:
     index = {n: i for i, n in enumerate(names)}
     if par is not None and par.shape != (len(names),):
         raise MotionError(f"parents must have one entry per joint ({len(names)}), got shape {par.shape}")
@@ -293,7 +306,7 @@ def _find_roles(names, par, overrides, required, offsets) -> dict[str, str]:
         if off.shape != (len(names), 3) or not np.all(np.isfinite(off)):
             raise MotionError(f"offsets must be a finite ({len(names)}, 3) array, got shape {off.shape}")
         try:
-            found = _roles_from_structure(names, par, off)
+            found = _roles_from_structure(names, par, off, end_sites)
         except _AmbiguousLimbs:
             raise
         except MotionError:
@@ -301,7 +314,7 @@ def _find_roles(names, par, overrides, required, offsets) -> dict[str, str]:
         if found is not None:
             used0 = set(roles.values())
             for role, joint in found.items():
-                if role not in roles and joint not in used0 and _has_body_word(joint):
+                if role not in roles and joint not in used0:
                     roles[role] = joint
                     used0.add(joint)
     used = set(roles.values())
@@ -487,7 +500,8 @@ def _name_side(name: str) -> str | None:
         return "left"
     if re.search(r"(?<![a-z])right|right$", n) or a.endswith("right") or a.startswith("right"):
         return "right"
-    sides = {s for s, _ in _side_and_base(name)}
+    # a glued l/r prefix or suffix (CMU lfemur) counts only before a body-part word: "lXqT" is no left
+    sides = {s for s, b in _side_and_base(name) if any(w in b for w in _BODY_WORDS)}
     if re.search(rf"(^|{_SEP})l({_SEP}|$)", n):
         sides.add("left")
     if re.search(rf"(^|{_SEP})r({_SEP}|$)", n):
@@ -499,13 +513,6 @@ _BODY_WORDS = tuple(
     sorted({b for bs in _SIDE_BASES.values() for b in bs} | {b for bs in _CENTER_BASES.values() for b in bs}
            | {"collar", "shldr", "calf", "ball", "clav", "upper", "lower", "fore", "thigh", "abdomen", "torso"})
 )
-
-
-@lru_cache(maxsize=8192)
-def _has_body_word(name: str) -> bool:
-    """Names confirm the structure: a joint named ``Something`` is no knee until ``overrides`` says so."""
-    n = _alnum(_strip(name))
-    return any(w in n for w in _BODY_WORDS)
 
 
 def _rest_positions(parents: np.ndarray, offsets: np.ndarray) -> np.ndarray:
@@ -606,8 +613,19 @@ def _structure(names: list[str], par: np.ndarray, off: np.ndarray) -> dict:
     others.sort(key=lateral, reverse=True)
     if len(others) < 2:
         raise MotionError("the upper body has fewer than two arms")
-    arms = others[:2]
-    return {"P": P, "bl": bl, "tol": tol, "up": up, "hub": hub, "head": head, "arms": arms, "legs": legs}
+
+    def lat_vec(t):
+        v = P[t] - chest_ref
+        return v - (v @ up) * up
+
+    # the second arm: the most lateral tip on the other side (fingers of one hand are all lateral)
+    first = others[0]
+    opposite = [t for t in others[1:] if float(lat_vec(t) @ lat_vec(first)) < 0]
+    if not opposite:
+        raise MotionError(f"the upper body has no arm on the other side of {names[first]!r}")
+    arms = [first, opposite[0]]
+    return {"P": P, "bl": bl, "tol": tol, "up": up, "hub": hub, "head": head, "arms": arms, "legs": legs,
+            "has_cand": has_cand}
 
 
 def _points(chain: list[int], P: np.ndarray, tol: float) -> list[int]:
@@ -658,14 +676,19 @@ def _stem_votes(name: str, stem: str) -> tuple[int, int]:
     return vote, other
 
 
-def _limb_from_chain(pts: list[int], names: list[str], P: np.ndarray, kind: str) -> dict | None:
-    """Proximal, middle, distal joints of an arm or leg chain of points (None: names disagree)."""
+def _limb_from_chain(pts: list[int], names: list[str], P: np.ndarray, kind: str, prox_ok=None) -> dict | None:
+    """Proximal, middle, distal joints of an arm or leg chain of points (None: names disagree).
+
+    ``prox_ok``: per point of the chain, whether it may be the proximal joint (an arm's
+    shoulder is off the trunk's midline; CMU's clavicle joint is on it)."""
     if len(pts) < 3:
         raise MotionError(f"{kind} chain ending at {names[pts[-1]]!r} has fewer than three joints")
     stems = _ARM_STEMS if kind == "arm" else _LEG_STEMS
     seg = [float(np.linalg.norm(P[pts[i]] - P[pts[i - 1]])) for i in range(1, len(pts))]
     best, key = None, None
     for i in range(1, len(seg)):
+        if prox_ok is not None and not prox_ok[i - 1] and any(prox_ok[: len(seg) - 1]):
+            continue
         trio = (pts[i - 1], pts[i], pts[i + 1])
         votes = [_stem_votes(names[j], st) for j, st in zip(trio, stems)]
         k = (sum(v for v, _ in votes) - sum(c for _, c in votes), seg[i - 1] + seg[i])
@@ -678,9 +701,14 @@ def _limb_from_chain(pts: list[int], names: list[str], P: np.ndarray, kind: str)
             "after": pts[best + 2:]}
 
 
-def _roles_from_structure(names: list[str], par: np.ndarray, off: np.ndarray) -> dict[str, str]:
+def _roles_from_structure(names: list[str], par: np.ndarray, off: np.ndarray, end_sites=None) -> dict[str, str]:
     st = _structure(names, par, off)
     P, tol, up, hub = st["P"], st["tol"], st["up"], st["hub"]
+    cand = st["has_cand"]
+    n_cand_children = np.zeros(len(names), dtype=int)
+    for j in range(1, len(names)):
+        if cand[j]:
+            n_cand_children[par[j]] += 1
     roles: dict[str, str] = {}
     # legs
     legs = {}
@@ -691,7 +719,10 @@ def _roles_from_structure(names: list[str], par: np.ndarray, off: np.ndarray) ->
     head = st["head"]
     chest = _lca(st["arms"][0], st["arms"][1], par)
     for t in st["arms"]:
-        arms[t] = _limb_from_chain(_points(_path_down(chest, t, par), P, tol), names, P, "arm")
+        pts = _points(_path_down(chest, t, par), P, tol)
+        v = P[pts] - P[hub]
+        lat = np.linalg.norm(v - np.outer(v @ up, up), axis=1)
+        arms[t] = _limb_from_chain(pts, names, P, "arm", prox_ok=lat >= 0.1 * lat[-1])
     # facing: toes point forward; else names must tell the sides
     fwd = np.zeros(3)
     for lg in legs.values():
@@ -740,11 +771,21 @@ def _roles_from_structure(names: list[str], par: np.ndarray, off: np.ndarray) ->
             continue
         s = sides[t]
         roles[f"{s}_shoulder"], roles[f"{s}_elbow"], roles[f"{s}_wrist"] = (names[am[k]] for k in ("prox", "mid", "dist"))
+        # a hand joint after the wrist (CMU lhand, beside a one-joint thumb), not the first
+        # finger of a wrist that branches into fingers
         if am["after"]:
-            roles[f"{s}_hand"] = names[am["after"][0]]
+            kids = [c for c in range(len(names)) if par[c] == am["dist"] and cand[c]]
+            inner = [c for c in kids if n_cand_children[c] > 0]
+            if len(kids) == 1 or (len(inner) == 1 and inner[0] == am["after"][0]):
+                roles[f"{s}_hand"] = names[am["after"][0]]
+        if am["before"]:
+            roles[f"{s}_clavicle"] = names[am["before"][-1]]
     # head: a joint named head on the head chain, else the tip
     hchain = _path_down(hub, head, par)
     named = [j for j in hchain if _alnum(_strip(names[j])).lstrip("m") in ("head", "head1", "headbone")]
+    if not named and end_sites is not None and head not in end_sites and not np.any(par == head) \
+            and len(hchain) >= 3:
+        head = int(par[head])  # a head-top marker joint (no End Site, no child): the head is its parent
     roles["head"] = names[named[-1] if named else head]
     return roles
 

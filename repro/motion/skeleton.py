@@ -161,7 +161,8 @@ class Skeleton:
             raise MotionError("end_site_parents / end_site_offsets are inconsistent or not finite")
         if self.unit_m is not None and not (np.isfinite(self.unit_m) and self.unit_m > 0):
             raise MotionError(f"unit_m must be finite and > 0, got {self.unit_m!r}")
-        roles = dict(self.roles) if self.roles is not None else find_roles(names, parents, offsets=offsets)
+        roles = (dict(self.roles) if self.roles is not None
+                 else find_roles(names, parents, offsets=offsets, end_site_parents=esp))
         bad = [f"{r}->{j}" for r, j in roles.items() if j not in names]
         if bad:
             raise MotionError(f"roles name unknown joints: {bad}")
@@ -205,7 +206,8 @@ class Skeleton:
             Passed to :func:`find_roles`.
         """
         if roles is None:
-            roles = find_roles(motion.joint_names, motion.parents, overrides=overrides, offsets=motion.offsets)
+            roles = find_roles(motion.joint_names, motion.parents, overrides=overrides, offsets=motion.offsets,
+                               end_site_parents=motion.end_site_parents)
         sk = cls(
             joint_names=list(motion.joint_names),
             parents=motion.parents,
@@ -478,24 +480,34 @@ class Skeleton:
 
     def rest_motion(self, n_frames: int = 1, frame_time: float = 1.0 / 30.0):
         """A :class:`~repro.motion.Motion` holding this skeleton in its rest pose (for :func:`write_bvh`)."""
-        from repro.motion.motion import Motion
-
         if self.channels is None:
             raise MotionError("this skeleton has no channel layout; build it with Skeleton.from_motion")
         J = self.n_joints
         rot = np.zeros((n_frames, J, 4))
         rot[..., 3] = 1.0
+        return self.motion_with(rot, np.broadcast_to(self.offsets, (n_frames, J, 3)), frame_time=frame_time)
+
+    def motion_with(self, rotations, positions, *, frame_time: float, channels=None, up: str | None = None,
+                    source: str | None = None):
+        """A :class:`~repro.motion.Motion` on this skeleton (joints, offsets, End Sites, unit) with
+        the given local ``rotations`` (F, J, 4) and ``positions`` (F, J, 3); ``channels``
+        default this skeleton's.  The one place retargeting results are made
+        (:mod:`repro.motion.morphology`, :mod:`repro.motion.retarget_tree`)."""
+        from repro.motion.motion import Motion
+
         return Motion(
-            joint_names=self.joint_names,
+            joint_names=list(self.joint_names),
             parents=self.parents,
             offsets=self.offsets,
-            channels=self.channels,
+            channels=self.channels if channels is None else channels,
             frame_time=frame_time,
-            rotations=rot,
-            positions=np.broadcast_to(self.offsets, (n_frames, J, 3)),
+            rotations=rotations,
+            positions=positions,
             end_site_parents=self.end_site_parents,
             end_site_offsets=self.end_site_offsets,
             unit_m=self.unit_m,
+            up=up,
+            source=source,
         )
 
     def __repr__(self) -> str:

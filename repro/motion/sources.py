@@ -381,20 +381,17 @@ def build_real_database(include: Sequence[str] = REAL_SOURCES, *, cmu_takes=None
     clouds are divided by sizes that the two rigs measure differently).
 
     What the retrieval (:class:`repro.motion.retrieval.MotionRetriever`) does with it:
-    by default the current pose is retargeted (Section 3.4.1) to every actor *with the character's
-    joint tree*, and only the clips of those actors are candidates (clusters without
-    such poses are skipped: the result then says ``fallback="neighbour_clusters"``).  A
-    CMU character (subject 135 and its :func:`~repro.motion.scale_skeleton`
-    derivatives; subjects 131, 7 and 9 only after :func:`match_rest_pose`) therefore
-    retrieves only CMU clips and a Bandai character only Bandai clips; nothing is retargeted across joint trees
-    (:func:`repro.motion.morphology.decode` requires the same topology), and Eq. 1 is
-    never applied between a CMU character and a Bandai actor, whose sizes are not
-    measured alike.  Mixing the sources in one file is for bookkeeping (one database,
-    one save, one retriever); it gives no character more clips.  With
-    ``MotionRetriever(db, across_trees=True)`` it does: the pose is retargeted across
+    by default (``across_trees=True``) the current pose is retargeted (Section 3.4.1) to
+    every actor -- to the actors of the character's joint tree as on one tree, across
     joint trees (:func:`repro.motion.retrieval.retarget_to_tree`) to the other family's
-    actor too, so a CMU character can be served a Bandai clip and the reverse (Eq. 1
-    is then applied between the two rigs' statures).
+    -- so a CMU character can be served a Bandai clip and the reverse (Eq. 1 is then
+    applied between the two rigs' statures, which are not measured alike: the Bandai
+    skeleton has no head top and no ankle height, see the ``cross_skeleton`` figure).
+    With ``MotionRetriever(db, across_trees=False)`` a CMU character (subject 135 and
+    its :func:`~repro.motion.scale_skeleton` derivatives; subjects 131, 7 and 9 only
+    after :func:`match_rest_pose`) retrieves only CMU clips and a Bandai character only
+    Bandai clips (clusters without such poses are skipped: the result then says
+    ``fallback="neighbour_clusters"``).
 
     ``"cmu-walks"`` (non-fighting takes) cannot be included: a database clip needs a hit;
     use :func:`non_fighting_poses`.

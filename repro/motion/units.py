@@ -26,11 +26,15 @@ from repro.motion.skeleton import (
     STATURE_RANGE_M,
     TYPICAL_STATURE_M,
     UNITS,
+    Skeleton,
     infer_unit,
     skeleton_of,
 )
 
-__all__ = ["STATURE_RANGE_M", "TYPICAL_STATURE_M", "UNITS", "infer_unit", "infer_units", "infer_up"]
+__all__ = ["STATURE_RANGE_M", "TYPICAL_STATURE_M", "UNITS", "infer_unit", "infer_units", "infer_up", "y_up_metres"]
+
+#: Z-up world -> Y-up world: +Z -> +Y, -Y -> +Z (a Z-up character facing -Y faces +Z after).
+_Z_TO_Y = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 def _axis_of(v: np.ndarray) -> str | None:
     n = np.linalg.norm(v)
@@ -103,3 +107,53 @@ def infer_units(motion: Motion, *, unit_m: float | None = None, up: str | None =
     if unit_m == motion.unit_m and up == motion.up:
         return motion
     return dataclasses.replace(motion, unit_m=unit_m, up=up)
+
+
+def y_up_metres(character, *, warn: bool = True):
+    """``character`` (Skeleton or Motion) in the Y-up, metre convention of the databases.
+
+    The unit is ``unit_m`` when known, else inferred from the stature (:func:`infer_unit`);
+    the up axis ``motion.up`` when known, else inferred (:func:`infer_up`; a rest pose along
+    neither axis, as Bandai Namco's, counts as Y-up).  A Z-up character is turned about X
+    (+Z -> +Y, -Y -> +Z): offsets and End Sites ``R o``, local rotations ``R L R^-1``,
+    position channels ``R p`` -- the same body and motion in the turned world, its rest
+    pose upright in it.  Returns ``character`` itself when it already is Y-up in metres;
+    a :class:`~repro.errors.UnitWarning` names what was inferred (``warn``).
+
+    Raises
+    ------
+    repro.errors.MotionError
+        No body-part roles, a stature that fits no unit.
+    """
+    sk = skeleton_of(character)
+    said = []
+    unit_m = character.unit_m
+    if unit_m is None:
+        unit_m, name = infer_unit(sk.height)
+        said.append(f"unit {name} ({unit_m:g} m per unit)")
+    up = getattr(character, "up", None)
+    if up is None:
+        try:
+            up = infer_up(character if isinstance(character, Motion) else None, sk)
+        except MotionError:
+            up = "y"
+        if up != "y":
+            said.append(f"up axis {up.upper()}")
+    if said and warn:
+        warnings.warn(f"character {sk.joint_names[0]!r}: inferred {' and '.join(said)}; converted to Y-up metres",
+                      UnitWarning, stacklevel=2)
+    if unit_m == 1.0 and up == "y":
+        return character
+    R = _Z_TO_Y if up == "z" else np.eye(3)
+    off = np.asarray(character.offsets, dtype=float) @ R.T * unit_m
+    es = np.asarray(character.end_site_offsets, dtype=float).reshape(-1, 3) @ R.T * unit_m
+    if isinstance(character, Skeleton):
+        return character.with_offsets(off, es, unit_m=1.0)
+    from scipy.spatial.transform import Rotation
+
+    q = Rotation.from_matrix(R)
+    rot = np.asarray(character.rotations, dtype=float)
+    rot = (q * Rotation.from_quat(rot.reshape(-1, 4)) * q.inv()).as_quat().reshape(rot.shape)
+    pos = np.asarray(character.positions, dtype=float) @ R.T * unit_m
+    return dataclasses.replace(character, offsets=off, end_site_offsets=es, rotations=rot, positions=pos,
+                               unit_m=1.0, up="y")

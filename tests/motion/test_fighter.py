@@ -35,6 +35,7 @@ from repro.motion.fighter import (
 )
 from repro.motion.paper import REACTION_BUDGET_S
 from repro.motion.skeleton import Skeleton, scale_skeleton
+from repro.motion.retrieval import MotionRetriever
 from repro.motion.annotation import hit_point_trajectory
 
 TIMING_KEYS = ("prepare", "search", "load_convert", "retarget", "adapt", "solver", "first_frame",
@@ -245,8 +246,9 @@ def test_bad_inputs_raise_the_librarys_errors(fighter):
     other = Skeleton(joint_names=[("Chest" if n == "Spine1" else n) for n in sk.joint_names], parents=sk.parents,
                      offsets=sk.offsets, channels=sk.channels, end_site_parents=sk.end_site_parents,
                      end_site_offsets=sk.end_site_offsets, unit_m=1.0)
+    single = KungFuFighter(f.db, retriever=MotionRetriever(f.db, seed=0, across_trees=False))
     with pytest.raises(MotionError):
-        f.set_character(other)
+        single.set_character(other)
     with pytest.raises(MotionError):
         simulated_user(0, duration=0.0)
     with pytest.raises(MotionError):

@@ -7,13 +7,14 @@ What is asserted:
   :mod:`repro.motion.synthetic.conventions`): one base actor per tree, role-based pose
   clouds in units of stature that agree across the trees, and its ``.npz`` file
   round-trips;
-* ``MotionRetriever(..., across_trees=True)`` retargets the current pose to every actor
-  (the rest pose per actor made once, cached), so a clip of another tree is served;
-  without it the single-tree behaviour is unchanged (the other trees are not candidates);
+* ``MotionRetriever`` retargets the current pose to every actor (the rest pose per actor
+  made once, cached), so a clip of another tree is served, by default (without the
+  caller asking: ``across_trees=True`` is the default); with ``across_trees=False`` the
+  single-tree behaviour is unchanged (the other trees are not candidates);
 * :func:`strike` and :class:`KungFuFighter` play the selected clip on a character of
   another tree (a Mixamo-named rig given as a Motion), hitting the target;
-* bad characters: no arm for a punch / no leg for a kick (named, for what), a Z-up
-  character for the (Y-up) fighter, another tree on a single-tree fighter;
+* bad characters: no arm for a punch / no leg for a kick (named, for what), another
+  tree on a single-tree fighter; a Z-up character is turned to the fighter's Y-up world;
 * on the staged data: the CMU + Bandai database serves a CMU character a Bandai clip,
   and a Bandai character a CMU clip (in the fighter).
 """
@@ -103,11 +104,29 @@ def test_actors_of_several_trees_coexist_and_round_trip(mixed, synthetic_db, tmp
 # ------------------------------------------------------------------ the retrieval
 def test_single_tree_retriever_keeps_to_the_characters_tree(mixed):
     db, _ = mixed
-    r = MotionRetriever(db, seed=0)
+    r = MotionRetriever(db, seed=0, across_trees=False)
     assert r.across_trees is False
     pose = frame_of(db.motion(1), 0)  # a Mixamo clip's pose, on the Mixamo character
     q = r.prepare(pose, Skeleton.from_motion(pose))
     assert q.actors == (int(db.actor[1]),)
+
+
+def test_the_default_retriever_serves_every_tree(mixed, across):
+    """Nobody has to know to ask: the default retriever compares the other trees' poses too,
+    and its q_r on every actor is the across-trees one."""
+    db, _ = mixed
+    r = MotionRetriever(db, seed=0)
+    assert r.across_trees is True
+    pose = frame_of(db.motion(1), 0)
+    ch = Skeleton.from_motion(pose)
+    q, qa = r.prepare(pose, ch), across.prepare(pose, ch)
+    assert sorted(q.actors) == [0, 1, 2]
+    for a in q.actors:
+        np.testing.assert_array_equal(q.q_n[a], qa.q_n[a])
+    # the own tree's q_r is what the single-tree retriever computes (same numbers)
+    q1 = MotionRetriever(db, seed=0, across_trees=False).prepare(pose, ch)
+    a1 = int(db.actor[1])
+    np.testing.assert_array_equal(q.q_n[a1], q1.q_n[a1])
 
 
 def test_across_trees_serves_clips_of_every_tree(mixed, across):
@@ -161,7 +180,8 @@ def test_a_strike_on_a_character_of_another_tree(synthetic_db, rigs):
     assert s.motion.joint_names == ch.joint_names
     assert s.reached and s.hit_error < 0.01
     with pytest.raises(RetrievalError, match="joint tree"):  # the single-tree retriever refuses it
-        strike(MotionRetriever(db.select(np.arange(6)), seed=0), ch, stance, c, "punch", frame="root")
+        strike(MotionRetriever(db.select(np.arange(6)), seed=0, across_trees=False), ch, stance, c, "punch",
+               frame="root")
 
 
 # ------------------------------------------------------------------ the fighter
@@ -207,10 +227,11 @@ def test_bad_characters_are_refused_naming_what_is_missing(synthetic_db, rigs):
         f.set_character(no_legs)
     with pytest.raises(MotionError, match="a punch needs .*an arm"):
         strike(f.retriever, legs_only, legs_only, np.array([0.0, 1.5, 0.5]), "punch")
-    with pytest.raises(MotionError, match="Y-up"):
-        f.set_character(rigs["unreal"])
     assert f.character.joint_names == rigs["mixamo"].joint_names  # unchanged by the refusals
-    single = KungFuFighter(synthetic_db, retriever=MotionRetriever(synthetic_db, seed=0), seed=0)
+    f.set_character(rigs["unreal"])  # a Z-up character is turned to the fighter's Y-up world (no longer refused)
+    assert f.character.joint_names == rigs["unreal"].joint_names
+    assert f.stance.global_positions()[0, f.character.index("head"), 1] > 1.0
+    single = KungFuFighter(synthetic_db, retriever=MotionRetriever(synthetic_db, seed=0, across_trees=False), seed=0)
     with pytest.raises(MotionError, match="across_trees"):
         single.set_character(rigs["mixamo"])
 
@@ -235,8 +256,9 @@ def test_cmu_character_gets_a_bandai_clip():
     s = strike(r, ch, pose, c, "punch", frame="root", query=q)
     assert src[s.retrieval.clip] == "bandai"
     assert s.motion.joint_names == ch.joint_names and s.reached and s.hit_error < 0.01
-    # the single-tree retriever still keeps the CMU character to CMU clips
-    assert MotionRetriever(db, seed=0).prepare(pose, ch).actors == (0,)
+    # the single-tree retriever still keeps the CMU character to CMU clips; the default one does not
+    assert MotionRetriever(db, seed=0, across_trees=False).prepare(pose, ch).actors == (0,)
+    assert sorted(MotionRetriever(db, seed=0).prepare(pose, ch).actors) == [0, 1]
     # and the fighter takes the Bandai skeleton as its character, served a CMU clip
     f = KungFuFighter(db, character=db.actors[1], retriever=r)
     head = (0.0, 0.85 * f.character.size, 0.0)

@@ -246,8 +246,14 @@ def test_errors_missing_roles():
     names = [n.replace("LeftLeg", "Something") for n in NAMES]
     m = random_motion(1)
     m2 = dataclasses.replace(m, joint_names=names)
+    # roles come from the structure first (issue 11): a knee named "Something" is still the
+    # knee of a leg; it is missing when the structure has no knee either (a zero-length shin)
+    assert Skeleton.from_motion(m2).roles["left_knee"] == "Something"
+    off = np.array(m2.offsets)
+    off[names.index("LeftFoot")] = 0.0
+    m3 = dataclasses.replace(m2, offsets=off, positions=np.broadcast_to(off, m2.positions.shape).copy())
     with pytest.raises(MotionError, match="left_knee"):
-        encode(m2)
+        encode(m3)
 
 
 def test_errors_nan_in_representation():

@@ -132,3 +132,82 @@ def test_real_cmu_and_bandai_swap_skeletons():
         lengths = np.linalg.norm(g[:, 1:] - g[:, out.parents[1:]], axis=-1)
         np.testing.assert_allclose(lengths, np.broadcast_to(np.linalg.norm(tgt.offsets[1:], axis=1), lengths.shape),
                                    atol=1e-6 * skeleton_of(tgt).height)
+
+
+def _rest_rotated(m, q):
+    """``m`` on a rig whose rest pose is the original one turned rigidly by rotation ``q``
+    (Bandai Namco's lies along +X): offsets ``q o``, local rotations ``q L q^-1``, the root's
+    ``G q^-1``; the same body and the same world positions."""
+    from scipy.spatial.transform import Rotation
+
+    Q = Rotation.from_quat(q)
+    rot = (Q * Rotation.from_quat(np.array(m.rotations).reshape(-1, 4)) * Q.inv()).as_quat().reshape(m.rotations.shape)
+    rot[:, 0] = (Rotation.from_quat(np.array(m.rotations[:, 0])) * Q.inv()).as_quat()
+    pos = Q.apply(np.array(m.positions).reshape(-1, 3)).reshape(m.positions.shape)
+    pos[:, 0] = m.positions[:, 0]
+    return dataclasses.replace(m, offsets=Q.apply(np.array(m.offsets)), rotations=rot, positions=pos,
+                               end_site_offsets=Q.apply(np.array(m.end_site_offsets).reshape(-1, 3)).reshape(-1, 3), up="y")
+
+
+def test_a_rest_pose_lying_and_twisted_gives_the_same_body(clips):
+    """The twist about each bone comes from the rest frames, not from the bone directions alone:
+    a character whose rest pose is the source's lying along +X and rolled about it (every
+    bone direction changed, hips and shoulders turned about the trunk) plays the clip with
+    the same world joint positions (0.1 mm)."""
+    from scipy.spatial.transform import Rotation
+
+    q = (Rotation.from_euler("x", 90, degrees=True) * Rotation.from_euler("z", -90, degrees=True)).as_quat()
+    for clip in clips:
+        lying = _rest_rotated(clip, q)
+        np.testing.assert_allclose(lying.global_positions(), clip.global_positions(), atol=1e-9)
+        assert abs(Skeleton.from_motion(lying).trunk_axis[1]) < 1e-9  # the rest trunk is horizontal
+        out = retarget_across(clip, lying)
+        err = np.abs(out.global_positions() - clip.global_positions()).max()
+        assert err < 1e-4, err
+
+
+@pytest.mark.data("cmu-bvh", "bandai")
+def test_bandai_clip_on_cmu_keeps_its_heading():
+    """Bandai Namco's rest pose lies along +X with the pelvis' left along -Y and the chest's
+    along +Z: the retargeted CMU pelvis faces where the Bandai one does, every frame."""
+    from repro.motion.clustering import root_frames
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cmu = read_bvh(data.fetch("mocap/cmu/135_04.bvh"), unit_m=CMU_UNIT_M)
+        ban = read_bvh(data.fetch("mocap/bandai/dataset-1_kick_normal_001.bvh"), unit_m=BANDAI_UNIT_M)
+    out = retarget(ban, cmu)
+    heads = []
+    for m in (ban, out):
+        sk = Skeleton.from_motion(m)
+        th, _ = root_frames(m.global_positions(), sk.index("pelvis"), sk.index("left_hip"), sk.index("right_hip"))
+        heads.append(th)
+    d = np.degrees(np.angle(np.exp(1j * (heads[1] - heads[0]))))
+    # (the constant 1.2 deg: CMU's rest hips and shoulders face 1.2 deg off +Z, body_frame's map)
+    assert np.abs(d - d[0]).max() < 1.0 and abs(d[0]) < 2.0, (d[0], np.abs(d - d[0]).max())
+
+
+@pytest.mark.parametrize("convention", ["mixamo", "unreal"])  # Y-up and Z-up characters
+def test_fix_feet_across_trees(clips, convention):
+    """retarget(..., fix_feet=True) onto another tree: planted ankles stay put (the source's
+    contacts), no ankle/toe below the floor -- even for a source sunk 5 cm into it."""
+    from repro.motion.feet import foot_contacts, max_foot_slide
+
+    ch = build(convention, height=1.6)[0].motion(unit_m=1.0)
+    k = 2 if convention in Z_UP_CONVENTIONS else 1
+    for clip in clips:
+        sunk = dataclasses.replace(clip, positions=clip.positions - np.array([0.0, 0.05, 0.0]))
+        contacts = foot_contacts(sunk)
+        assert contacts.any()
+        plain, fixed = retarget(sunk, ch), retarget(sunk, ch, fix_feet=True)
+        sk = skeleton_of(fixed)
+        feet = [sk.index(r) for r in ("left_ankle", "right_ankle", "left_toe", "right_toe")]
+        assert plain.global_positions()[:, feet, k].min() < -0.01  # the representation alone sinks
+        assert fixed.global_positions()[:, feet, k].min() > -1e-9
+        up = ["x", "y", "z"][k]
+        slide = max_foot_slide(fixed, contacts, skeleton=sk, up_axis=k)
+        assert slide < 1e-9, (up, slide)
+        # bones keep their lengths
+        g = fixed.global_positions()
+        bl = np.linalg.norm(g[:, 1:] - g[:, fixed.parents[1:]], axis=-1)
+        np.testing.assert_allclose(bl, np.broadcast_to(np.linalg.norm(fixed.offsets[1:], axis=1), bl.shape), atol=1e-9)

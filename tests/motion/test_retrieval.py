@@ -231,7 +231,7 @@ def test_bad_inputs(db, retriever):
     renamed = [{"Spine1": "Chest"}.get(n, n) for n in pose.joint_names]
     odd_pose = dataclasses.replace(pose, joint_names=renamed)
     with pytest.raises(RetrievalError, match="joint tree"):
-        retriever.search(c, odd_pose, Skeleton.from_motion(odd_pose), "punch")
+        MotionRetriever(db, seed=0, across_trees=False).search(c, odd_pose, Skeleton.from_motion(odd_pose), "punch")
     with pytest.raises(RetrievalError, match="not on the character"):
         retriever.search(c, odd_pose, ch, "punch")
     with pytest.raises(RetrievalError):
