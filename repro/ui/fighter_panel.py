@@ -33,7 +33,6 @@ shown in the panel.
 from __future__ import annotations
 
 import html
-import io
 import re
 
 import ipywidgets as widgets
