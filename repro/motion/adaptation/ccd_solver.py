@@ -211,16 +211,24 @@ def ccd_sweeps(
     ``dmax`` (n,): largest proximal->distal distance the limb step may use (default the
     limb length); with ``finish`` the objective is the distance of the goal beyond it.
     """
-    P = ch.path
+    kp, km, kd = ch.k_prox, ch.k_mid, ch.k_dist
     n = goal.shape[0]
+    l1 = np.linalg.norm(trans[:, ch.path[km]], axis=-1)
+    l2 = np.linalg.norm(trans[:, ch.path[kd]], axis=-1)
+    if finish:
+        # the sweeps turn only joints above the limb and read only its root (shoulder / hip):
+        # forward kinematics stops there; the hand / foot keeps its start world orientation
+        # (the limb step restores it), so the distal joint's goal does not move while the trunk turns
+        rw, pw = path_fk(quat_to_matrix(rot[:, ch.path]), trans[:, ch.path])
+        Wg_fixed = goal - (pw[:, -1] + matvec(rw[:, -1], ch.hit_offset) - pw[:, kd])
+        P = ch.path[: kp + 1]
+    else:
+        P = ch.path
     ql = rot[:, P].copy()
     q0 = ref[:, P]
     ml = quat_to_matrix(ql)
     tl = trans[:, P]
     rw, pw = path_fk(ml, tl)
-    kp, km, kd = ch.k_prox, ch.k_mid, ch.k_dist
-    l1 = np.linalg.norm(tl[:, km], axis=-1)
-    l2 = np.linalg.norm(tl[:, kd], axis=-1)
     L = l1 + l2
     reach_max = L if dmax is None else np.minimum(dmax, L)
     tiny = 1e-9 * L
@@ -236,11 +244,7 @@ def ccd_sweeps(
     def hitpos():
         return pw[:, -1] + matvec(rw[:, -1], ch.hit_offset)
 
-    # with the finish, the hand / foot keeps its start world orientation (the limb step
-    # restores it), so the distal joint's goal does not move while the trunk turns
-    Wg_fixed = goal - (hitpos() - pw[:, kd])
     for it in range(max_iter + 1):
-        hit = hitpos()
         if finish:
             # objective: how far the goal is out of the limb's reach (the analytic limb
             # step then places the hit point exactly)
@@ -248,7 +252,7 @@ def ccd_sweeps(
             err = np.maximum(np.maximum(dW - reach_max, np.abs(l1 - l2) - dW), 0.0)
             done = err <= 0.0
         else:
-            err = np.linalg.norm(hit - goal, axis=-1)
+            err = np.linalg.norm(hitpos() - goal, axis=-1)
             done = err <= tol
         better = err < best_err
         worse = active & ~better
@@ -266,7 +270,6 @@ def ccd_sweeps(
             break
         iters += active
         for k, kind, lim in sweep:
-            hit = hitpos()
             pj = pw[:, k]
             if finish and k < kp:
                 # above the limb: bring the proximal joint (shoulder / hip) to the nearest
@@ -278,7 +281,7 @@ def ccd_sweeps(
                 e = S - pj
                 g = Wg_fixed + (want / np.maximum(dist, 1e-300))[:, None] * sw - pj
             else:
-                e = hit - pj
+                e = hitpos() - pj
                 g = goal - pj
             if kind == "hinge":
                 qn = _hinge_step(e, g, rw[:, k - 1], ml[:, k], tl[:, k], tl[:, k + 1], h_loc, lim, active, ql[:, k])
@@ -289,6 +292,8 @@ def ccd_sweeps(
             ml[:, k] = quat_to_matrix(qn)
             path_fk_from(ml, tl, rw, pw, k)
     rot[:, P] = ql
+    if finish:  # the hit point of the turned trunk, the limb as it was
+        rw, pw = path_fk(quat_to_matrix(rot[:, ch.path]), trans[:, ch.path])
     return iters, hitpos()
 
 
