@@ -20,6 +20,10 @@ character's current motion it
 5. **solves the constraints** frame by frame (Section 3.4.2,
    :func:`~repro.motion.adaptation.adapt`): ``d(t)`` from ``t0`` (= frame 0, now) to
    ``tc`` (the hit), the limb, CCD when the limb cannot reach, feet kept on the ground.
+   Every frame is solved on its own, so the level is decided on ``tc`` and frame
+   ``t0 + 1`` is final (``timings["first_frame"]``) before the rest of the clip is solved
+   (``timings["rest"]``); a kick that needs the root level is the exception: its support
+   foot depends on CCD's pelvis on every frame CCD solves, so its trials are solved in full.
 
 Whole-body reach (``reach``, :data:`LEVELS`): ``"limb"`` is the two-bone IK alone,
 ``"spine"`` adds the paper's CCD (elbow, shoulder, clavicle and the spine for a punch;
@@ -184,9 +188,11 @@ class Strike:
         Largest horizontal slide (m) of a planted ankle over the contacts of the retrieved clip.
     timings : dict
         Seconds: ``prepare``, ``search``, ``load_convert`` (of which ``retarget``), ``adapt``
-        (placement, blend, solver at every level tried; of which ``solver``),
-        ``first_frame`` (order -> first adapted frame), ``adapt_per_frame``,
-        ``retarget_adapt_per_frame`` (the paper's 88 µs).
+        (placement, blend, solver at every level tried, whole clip; of which ``solver``),
+        ``first_frame`` (order -> frame ``t0 + 1`` final: the level decided on ``tc``),
+        ``rest`` (the rest of the clip solved after it; ``first_frame + rest = order``),
+        ``order`` (the whole call), ``adapt_per_frame``, ``retarget_adapt_per_frame``
+        (the paper's 88 µs).
     level : str
         The reach level the contact frame needed (:data:`LEVELS`); for an unreachable
         target the highest level tried.
@@ -401,26 +407,41 @@ def strike(
     tc = res.lead_frames
     nb = min(int(round(blend_s * db.fps)), tc, placed.n_frames - 1)
     blended = blend_into(current_motion, placed, nb) if nb >= 1 else placed
-    # ---- 5. the constraints, level by level
+    # ---- 5. the constraints: the level decided on the contact frame, the next frame, the rest streamed
     t_solver = time.perf_counter()
     hit_point = str(db.hit_wheres[res.clip])
     opts = dict(hit_point=hit_point, contacts=contacts, feet=feet, floor=floor, kind=kind, release=release)
-    ad = adapt(blended, effector, X, 0, tc, max_iter=0 if reach == "limb" else 50, **opts)
+    # every frame is solved on its own (the same pose alone or with the clip): the level is
+    # decided on tc, the first frame after now is final, and the rest follows it
+    first = sorted({min(1, blended.n_frames - 1), tc})
+    max_iter = 0 if reach == "limb" else 50
+    ad = adapt(blended, effector, X, 0, tc, max_iter=max_iter, frames=first, **opts)
     tried = ["limb"] if reach == "limb" else ["limb", "spine"]
+    off, final = None, None
     if not ad.reached and reach == "root":
+        # a trial's support foot is read over the whole clip: exact on the two frames when the
+        # feet do not depend on the hit solve (a punch), else (a kick) every trial is solved in full
+        part = ad.feet_independent
+        if not part:
+            ad = final = adapt(blended, effector, X, 0, tc, max_iter=max_iter, **opts)
         leg = ch.leg_length
         n_rel = None if release is None else int(round(float(release) / blended.frame_time))
         foot_tol = 1e-3 * leg
         tried.append("root")
         for frac in ROOT_SHIFT_TRIALS:  # the support leg must still reach its pinned foot
-            off = _root_shift(ad, frac, max_root_shift * leg, kind, n_rel)
+            shift = _root_shift(ad, frac, max_root_shift * leg, kind, n_rel)
             foot_max = max(foot_tol, ad.foot_error)
             # max_foot_error: a trial whose support foot fails stops before its hit solve when it can (None)
-            ad2 = adapt(blended, effector, X, 0, tc, root_offsets=off, max_iter=ROOT_MAX_ITER,
-                        max_foot_error=foot_max if early_stop else None, **opts)
+            ad2 = adapt(blended, effector, X, 0, tc, root_offsets=shift, max_iter=ROOT_MAX_ITER,
+                        max_foot_error=foot_max if early_stop else None, frames=first if part else None, **opts)
             if ad2 is not None and ad2.foot_error <= foot_max and ad2.residual < ad.residual:
-                ad = ad2
+                ad, off, max_iter = ad2, shift, ROOT_MAX_ITER
+                final = None if part else ad2
                 break
+    t_first = time.perf_counter()
+    if final is None:  # the rest of the clip, at the level decided
+        final = adapt(blended, effector, X, 0, tc, root_offsets=off, max_iter=max_iter, **opts)
+    ad = final
     t_end = time.perf_counter()
     if not ad.reached or reach == "limb":
         level = tried[-1]
@@ -436,7 +457,9 @@ def strike(
         "retarget": t_adapt - t_rt,
         "adapt": t_end - t_adapt,
         "solver": t_end - t_solver,
-        "first_frame": t_end - t_order,
+        "first_frame": t_first - t_order,
+        "rest": t_end - t_first,
+        "order": t_end - t_order,
     }
     timings["adapt_per_frame"] = timings["adapt"] / F
     timings["retarget_adapt_per_frame"] = (timings["retarget"] + timings["adapt"]) / F

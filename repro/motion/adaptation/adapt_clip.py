@@ -17,7 +17,7 @@ from repro.motion.adaptation.ccd_solver import (
 )
 from repro.motion.adaptation.limb import limb_dmax, solve_limb
 from repro.motion.adaptation.offset import offset_curve
-from repro.motion.adaptation.rig import Chain, Rig, check_extension, check_int, default_tol, rig_of, vec3
+from repro.motion.adaptation.rig import Chain, Rig, check_extension, check_frames, check_int, default_tol, rig_of, vec3
 from repro.motion.kinematics import fk_arrays
 from repro.motion.quaternion import quat_rotate as qrot
 from repro.motion.motion import Motion
@@ -83,6 +83,10 @@ class Adaptation:
         The root translation added to the input (None: the root did not move).
     contacts : (F, 2) bool array or None
         The planted frames used.
+    feet_independent : bool
+        Whether the foot pass and the hit solve turn disjoint joints (an arm effector
+        whose CCD chain leaves the legs alone): the feet are then exact on every frame
+        even when the hit was solved on some ``frames`` only.
     """
 
     motion: Motion
@@ -112,6 +116,7 @@ class Adaptation:
     tol: float
     root_offsets: np.ndarray | None = None
     contacts: np.ndarray | None = None
+    feet_independent: bool = False
 
     @property
     def error_at_tc(self) -> float:
@@ -169,6 +174,7 @@ def adapt(
     root_offsets=None,
     floor: float | None = None,
     max_foot_error: float | None = None,
+    frames=None,
 ) -> Adaptation | None:
     """Adapt a selected motion so that its hit point reaches ``target`` at the contact ``tc`` (Section 3.4.2).
 
@@ -250,6 +256,11 @@ never change (but ``tc`` when ``t0 == tc``).  Lengths in
     edit = np.flatnonzero(np.any(d != 0.0, axis=1))
     edit = edit[edit > t0] if tc > t0 else edit[edit >= t0]
     stop = int(edit.max()) + 1 if edit.size else t_start + 1
+    only = None
+    if frames is not None:  # a streamed solve: these frames only (each frame is solved on its own)
+        only = np.zeros(F, dtype=bool)
+        only[check_frames(frames, F)[0]] = True
+        edit = edit[only[edit]]
 
     rot = np.array(motion.rotations)
     solver = np.full(F, "", dtype="<U4")
@@ -262,14 +273,16 @@ never change (but ``tc`` when ``t0 == tc``).  Lengths in
     def solve_feet():
         t1 = time.perf_counter()
         out = _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors, contacts=contacts,
-                          ref_gp=ref_gp, shifted=shifted, floor=floor, t_start=t_start)
+                          ref_gp=ref_gp, shifted=shifted, floor=floor, t_start=t_start,
+                          only=None if independent else only)
         timings["feet"] = time.perf_counter() - t1
         return out
 
     # the feet first when they cannot depend on the hit solve: the two passes then read and
     # write disjoint joints, so the order does not change a number, and a bounded trial
     # whose support foot no longer follows stops before the (costly) hit solve
-    feet_first = max_foot_error is not None and feet is not None and _feet_independent(rig, ch, spec)
+    independent = _feet_independent(rig, ch, spec)
+    feet_first = max_foot_error is not None and feet is not None and independent
     if feet_first:
         foot_err, n_feet = solve_feet()
         if foot_err > float(max_foot_error):
@@ -336,6 +349,7 @@ never change (but ``tc`` when ``t0 == tc``).  Lengths in
         tol=tol,
         root_offsets=None if root_offsets is None else np.where(shifted[:, None], off, 0.0),
         contacts=contacts,
+        feet_independent=independent,
     )
 
 

@@ -287,7 +287,9 @@ def ccd_sweeps(
                 qn = _hinge_step(e, g, rw[:, k - 1], ml[:, k], tl[:, k], tl[:, k + 1], h_loc, lim, active, ql[:, k])
             else:
                 qn = _ball_step(e, g, None if k == 0 else rw[:, k - 1], ql[:, k], q0[:, k], lim, active)
-            qn = qn / np.linalg.norm(qn, axis=-1, keepdims=True)
+            # only the active frames change (not even by the normalisation's ulp): a frame's
+            # solution does not depend on which other frames are solved with it
+            qn = np.where(active[:, None], qn / np.linalg.norm(qn, axis=-1, keepdims=True), ql[:, k])
             ql[:, k] = qn
             ml[:, k] = quat_to_matrix(qn)
             path_fk_from(ml, tl, rw, pw, k)
