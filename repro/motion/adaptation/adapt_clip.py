@@ -252,6 +252,8 @@ never change (but ``tc`` when ``t0 == tc``).  Lengths in
         gq, gp = rig.globals
     t_start = _start_frame(contacts, ch, t0, tc)
     d = offset_curve(t_start, tc, X - p[tc], F, kind=kind, release=n_release)
+    if feet == "plant":
+        d += _liftoff_offset(rig, ch, contacts, ref_gp, t0, t_start, tc, floor, kind)
     goals = p + d
     edit = np.flatnonzero(np.any(d != 0.0, axis=1))
     edit = edit[edit > t0] if tc > t0 else edit[edit >= t0]
@@ -372,6 +374,36 @@ def _start_frame(contacts: np.ndarray, ch: Chain, t0: int, tc: int) -> int:
         if planted.size:
             return int(planted.max())
     return t0
+
+
+def _liftoff_offset(rig, ch, contacts, gp, t0: int, t_start: int, tc: int, floor, kind: str) -> np.ndarray:
+    """(F, 3) the kicking foot's pin at its lift-off, eased out by ``tc``: no jump when the pin lets go.
+
+    The planted kicking foot is pinned up to its lift-off ``t_start`` where it was at the
+    start of the phase (:func:`_solve_feet`); the input's foot has moved meanwhile (the
+    blend with the current pose), so the hit goal starts from the pinned place and eases
+    (``kind``) to the input's by ``tc``, where ``d(tc)`` takes over.  0 for an arm, an
+    unpinned foot or ``t_start == t0``.
+    """
+    F = gp.shape[0]
+    out = np.zeros((F, 3))
+    if ch.kind != "leg" or t_start <= t0:
+        return out
+    s = _SIDE_INDEX[ch.side]
+    phase = [(a, b) for a, b in _phases(contacts[:, s]) if b == t_start + 1 and b > t0 + 1]
+    if not phase:
+        return out
+    ank = ch.dist
+    goal = np.repeat(gp[max(phase[0][0], t0), ank][None], F, axis=0)
+    if floor is not None:  # the pin's own floor lift (as _solve_feet lifts it)
+        on = np.zeros(F, dtype=bool)
+        on[t_start] = True
+        _lift_to_floor(rig, ch.side, ank, gp, goal, on, floor)
+    delta = goal[t_start] - gp[t_start, ank]  # the foot keeps its world orientation: the hit point moves with the ankle
+    w = offset_curve(t_start, tc, np.ones(3), F, kind=kind, release=None)[:, 0]
+    r = np.zeros(F)
+    r[t_start + 1: tc + 1] = 1.0 - w[t_start + 1: tc + 1]
+    return r[:, None] * delta[None, :]
 
 
 def _solve_hit(rig, ch, motion, rot, edit, goals, spec, max_iter, tol, ext, solver, iters, timings) -> None:
