@@ -22,8 +22,8 @@ character's current motion it
    ``tc`` (the hit), the limb, CCD when the limb cannot reach, feet kept on the ground.
    Every frame is solved on its own, so the level is decided on ``tc`` and frame
    ``t0 + 1`` is final (``timings["first_frame"]``) before the rest of the clip is solved
-   (``timings["rest"]``); a kick that needs the root level is the exception: its support
-   foot depends on CCD's pelvis on every frame CCD solves, so its trials are solved in full.
+   (``timings["rest"]``).  A kick that may need the root level is solved whole: its
+   trials read the support foot, which depends on CCD's pelvis on every frame CCD solves.
 
 Whole-body reach (``reach``, :data:`LEVELS`): ``"limb"`` is the two-bone IK alone,
 ``"spine"`` adds the paper's CCD (elbow, shoulder, clavicle and the spine for a punch;
@@ -54,7 +54,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from repro.errors import MotionError, RetrievalError
-from repro.motion.adaptation import Adaptation, adapt
+from repro.motion.adaptation import EFFECTOR_STEMS, Adaptation, adapt
 from repro.motion.adaptation.cost import adaptation_cost
 from repro.motion.adaptation.offset import offset_curve
 from repro.motion.clustering import from_root_frame, rotate_y, to_root_frame
@@ -320,6 +320,7 @@ def strike(
     seed: int = 0,
     t_order: float | None = None,
     early_stop: bool = True,
+    stream: bool = True,
 ) -> Strike:
     """Carry out an order: retrieve, convert, place and blend, solve (Sections 3.3-3.4; module docstring).
 
@@ -361,6 +362,10 @@ def strike(
         the feet do not depend on it (a punch; ``adapt(max_foot_error=...)``).  False
         solves every trial in full: the slow path, with the same results (kept for
         :func:`repro.bench.adaptation.bench_order_latency` and the tests).
+    stream : bool, default True
+        Decide the level on ``tc`` and frame ``t0 + 1`` before solving the rest of the clip
+        (module docstring); False solves every level on the whole clip first (the same
+        strike; ``first_frame`` is then the whole adaptation).
 
     Raises
     ------
@@ -415,14 +420,15 @@ def strike(
     # decided on tc, the first frame after now is final, and the rest follows it
     first = sorted({min(1, blended.n_frames - 1), tc})
     max_iter = 0 if reach == "limb" else 50
-    ad = adapt(blended, effector, X, 0, tc, max_iter=max_iter, frames=first, **opts)
+    # a root trial reads the support foot over the whole clip: exact on two frames when the feet
+    # do not depend on the hit solve (a punch); a kick's trials are solved in full (CCD's pelvis)
+    part = stream and not (reach == "root" and EFFECTOR_STEMS[effector.split("_", 1)[1]] == "leg")
+    ad = adapt(blended, effector, X, 0, tc, max_iter=max_iter, frames=first if part else None, **opts)
     tried = ["limb"] if reach == "limb" else ["limb", "spine"]
-    off, final = None, None
+    off, final = None, (None if part else ad)
     if not ad.reached and reach == "root":
-        # a trial's support foot is read over the whole clip: exact on the two frames when the
-        # feet do not depend on the hit solve (a punch), else (a kick) every trial is solved in full
-        part = ad.feet_independent
-        if not part:
+        if part and not ad.feet_independent:
+            part = False
             ad = final = adapt(blended, effector, X, 0, tc, max_iter=max_iter, **opts)
         leg = ch.leg_length
         n_rel = None if release is None else int(round(float(release) / blended.frame_time))

@@ -1,4 +1,39 @@
-"""The whole Section 3.4.2 edit of a clip: :func:`adapt` and its result :class:`Adaptation`."""
+"""The whole Section 3.4.2 edit of a clip: :func:`adapt` and its result :class:`Adaptation`.
+
+``d(t)`` (:func:`~repro.motion.adaptation.offset.offset_curve`, eased by ``kind``) grows
+from ``t_start`` to ``X - p(tc)`` at ``tc`` and is released over ``release`` seconds (None:
+held).  ``t_start`` is ``t0``, or for a foot effector planted after ``t0`` its lift-off,
+so a planted kicking foot does not slide; that foot is pinned up to its lift-off where
+the phase began, and ``d(t)`` starts from that pin and eases it out by ``tc``, so the
+foot does not jump when the pin lets go.  Every frame with ``d(t) != 0`` is solved for
+the goal ``p(t) + d(t)`` by the limb step (:mod:`.limb`, at most ``max_extension`` of the
+limb length: two-bone IK is singular at full extension), then, where the limb cannot
+reach, by CCD (:mod:`.ccd_solver`) and the limb step again.
+
+Feet: ``"pin"`` pins each other ankle planted in the original motion, for every contact
+phase overlapping the edited frames, at its position at ``max(phase start, t0)`` (so
+frame ``t0`` is unchanged), with the foot's original world orientation, released over
+``foot_blend`` seconds; ``"plant"`` pins every contact phase after ``t0`` (also those
+after the edited frames, and the kicking foot up to its lift-off); ``"track"`` keeps the
+other ankles on their original trajectories; None leaves the legs alone.  ``floor``
+lifts a pinned ankle's goal so that its toe joint stays at or above that height.  The
+contacts come from the caller (detected once on the retrieved clip) or from
+:func:`repro.motion.feet.foot_contacts` on ``motion``.
+
+Whole-body reach: ``root_offsets`` adds a root translation before solving (the root
+level of :func:`repro.motion.strike.strike`); ``p(t)`` and the foot anchors stay the
+input's, so the support foot does not move with the root.  ``max_foot_error`` bounds
+such a trial: when the feet do not depend on the hit solve (an arm whose chain leaves
+both legs alone) they are solved first and a foot error above the bound returns None
+before the hit solve; for a leg effector the feet are first solved on the frames CCD will
+not touch and a foot error above the bound there returns None; the result is otherwise
+the same.
+
+Streaming: every frame is solved on its own (CCD leaves the frames it has finished
+untouched), so ``frames=`` gives, on those frames, the poses of the whole-clip solve
+(tested); the feet on the other frames are solved too when they do not depend on the
+hit solve.
+"""
 
 from __future__ import annotations
 
@@ -176,37 +211,21 @@ def adapt(
     max_foot_error: float | None = None,
     frames=None,
 ) -> Adaptation | None:
-    """Adapt a selected motion so that its hit point reaches ``target`` at the contact ``tc`` (Section 3.4.2).
+    """Edit ``motion`` so that its hit point reaches ``target`` at frame ``tc`` (Section 3.4.2; module docstring).
 
-    ``d(t)`` (:func:`offset_curve`, eased by ``kind``) grows from ``t_start`` (``t0``, or
-    a planted kicking foot's lift-off) to ``X - p(tc)`` at ``tc`` and is released over
-    ``release`` seconds (None: held); every frame with ``d(t) != 0`` is solved for the goal
-    ``p(t) + d(t)`` by the limb step (at most ``max_extension`` of the limb length), then
-    by :func:`ccd` (``chain``, ``limits``, ``hinge_range_deg``, ``max_iter``) and the limb
-    step again where the limb cannot reach.  ``feet="pin"`` pins each other ankle planted
-    in the original motion, for every contact phase overlapping the edited frames, at its
-    position at ``max(phase start, t0)`` (released over ``foot_blend`` seconds);
-    ``"track"`` keeps the other ankles on their original trajectories; ``None`` leaves the
-    legs alone; ``"plant"`` pins like ``"pin"`` every contact phase after ``t0`` (also those
-    after the edited frames).  ``contacts`` (F, 2) bool: the planted frames to use (detected
-    once on the retrieved clip and carried through; default: detected on ``motion``).
-    ``root_offsets`` (F, 3): a root translation added to the input before solving (the
-    whole-body level of :func:`repro.motion.strike.strike`); ``p(t)`` and the planted-foot
-    anchors stay those of the input, so the support foot does not move with the root.
-    ``floor``: on pinned frames the ankle goal is lifted so the foot's toe joint stays at
-    or above this height.  ``max_foot_error``: a trial's bound (the root level of
-:func:`repro.motion.strike.strike` keeps a root shift only if the support foot still
-follows): when the feet do not depend on the hit solve (an arm effector whose chain and
-limb leave both legs alone) they are solved first, and a foot error above it returns
-None at once, before the hit solve; for a leg effector the feet are first solved on the
-frames CCD will not touch (those the limb step reaches, and those not edited), and a
-foot error above the bound there returns None; the result is otherwise the same.  Frames ``<= t0``
-never change (but ``tc`` when ``t0 == tc``).  Lengths in
-    the motion's units; ``tol`` defaults to 1e-4 of the limb length.  The package
-    docstring (:mod:`repro.motion.adaptation`) tells the whole method and its limits.
-
-    Raises :class:`repro.errors.MotionError` for a NaN / non-3-vector target, an unknown
-    effector, ``t0 > tc``, frames out of range or bad options.
+    Contract: frames ``<= t0`` never change (but ``tc`` when ``t0 == tc``); only local
+    rotations change (and the root by ``root_offsets``), so bone lengths are kept; every
+    frame is solved on its own.  ``effector`` is a role (``right_fist``, ``left_foot``, ...);
+    ``target``, ``tol`` (default 1e-4 of the limb length) and ``root_offsets`` (F, 3) are in
+    the motion's units; ``release`` and ``foot_blend`` in seconds; ``kind`` the easing of
+    ``d(t)``; ``chain`` / ``limits`` (degrees) / ``hinge_range_deg`` / ``max_iter`` are
+    :func:`ccd`'s; ``feet`` one of ``"pin"``, ``"plant"``, ``"track"``, None; ``contacts``
+    (F, 2) bool planted frames (default: detected on ``motion``); ``floor`` a height the
+    pinned toes stay above; ``frames`` solve the hit on those frames only (a streamed solve);
+    ``max_foot_error`` a trial's bound: None is returned as soon as the support foot is
+    known to miss it.  Returns an :class:`Adaptation` (unreachable: best effort,
+    ``reached=False``).  Raises :class:`repro.errors.MotionError` for a NaN / non-3-vector
+    target, an unknown effector, ``t0 > tc``, frames out of range or bad options.
     """
     t_total = time.perf_counter()
     rig = rig_of(motion, roles)

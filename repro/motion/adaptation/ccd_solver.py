@@ -1,4 +1,30 @@
-"""Cyclic Coordinate Descent over a longer chain (Section 3.4.2, after Welman 1993): :func:`ccd`."""
+"""Cyclic Coordinate Descent over a longer chain (Section 3.4.2, after Welman 1993, the paper's [21]): :func:`ccd`.
+
+For frames where the limb alone cannot reach.  The default chain (:func:`default_chain`)
+is elbow, shoulder, clavicle and the spine joints up to (not including) the pelvis for a
+punch, and knee, hip and pelvis for a kick.  Each sweep visits the chain from distal to
+proximal and turns each joint by the smallest rotation that points it at its goal.
+
+"Derived from" CCD as in the paper: since the limb has an exact analytic solver
+(:mod:`.limb`), the joints *above* the limb do not aim the hit point at the target but
+the limb's root (shoulder / hip) at the nearest point from which the limb reaches the
+target (the objective is the distance of the target beyond the limb's reach), and the
+limb step then places the hit point exactly.  This converges in a few sweeps where plain
+CCD creeps (measured on CMU 135_09, frame 303, fist moved 5 / 10 cm beyond the extended
+arm: 4 / 8 sweeps to 1e-11 m, against 48 / 65 sweeps of plain CCD to 5e-5 m);
+``finish_with_limb=False`` gives plain CCD on the hit point over the whole chain.  With
+the finish, a sweep's forward kinematics stops at the limb's root, the only point it reads.
+
+Joint limits: the elbow / knee is a hinge (rotation about its clip-wide bending axis only,
+flexion within ``hinge_range_deg``, 0 = straight: it never hyperextends); every other
+joint stays within a cone of ``limits`` degrees around its original local rotation
+(:data:`DEFAULT_LIMITS_DEG`).  A sweep that makes a frame worse is undone; a frame stops
+when its goal is reached, when a sweep gains less than 5 % of the remaining objective
+(creeping along joint limits) or after ``max_iter`` sweeps.  Vectorised over frames, each
+solved independently: a finished frame is left untouched, so a frame's solution does not
+depend on the frames solved with it.  Solutions are per frame (no temporal filtering):
+continuous in the goal, but joint velocities can increase.
+"""
 
 from __future__ import annotations
 
@@ -351,24 +377,18 @@ def ccd(
     hit_point: str = "joint",
     roles=None,
 ) -> CCDSolution:
-    """Cyclic Coordinate Descent over a longer chain (Section 3.4.2, after Welman 1993).
+    """Cyclic Coordinate Descent over a longer chain (Section 3.4.2, after Welman 1993; module docstring).
 
-    For frames "where the constraint is not reachable by only using the corresponding
-    limb".  Sweeps visit ``chain`` (joint names or roles, ancestors of the wrist / ankle;
-    default :func:`default_chain`) distal to proximal; ball joints stay within a cone of
-    ``limits`` degrees (by joint, role or kind; :data:`DEFAULT_LIMITS_DEG`) about the
-    motion's own rotation, the elbow / knee is a hinge within ``hinge_range_deg``.  With
-    ``finish_with_limb`` the trunk brings the goal within the limb's reach (``max_extension``
-    of its length, see :func:`reach_limb`) and the limb step places the hit point;
-    without it, plain CCD on the hit point.  A sweep that makes a frame worse is undone; a
-    frame stops when reached, when a sweep gains less than 5 % or after ``max_iter``
-    sweeps.  ``targets`` (3,) or (n, 3) and ``tol`` (default 1e-4 of the limb length) are
-    in motion units; ``rotations`` (n, J, 4) is the start pose (default the motion's).
-    The package docstring (:mod:`repro.motion.adaptation`) tells the method.
-
-    Returns a :class:`CCDSolution` (unreachable goals: best effort, ``reached=False``).
-    Raises :class:`repro.errors.MotionError` for an unknown effector, frames out of
-    range, NaN targets, a chain joint that is not an ancestor of the limb, bad limits.
+    For the ``frames`` "where the constraint is not reachable by only using the
+    corresponding limb".  ``chain``: joint names or roles, ancestors of the wrist / ankle
+    (default :func:`default_chain`); ``limits``: cone limits in degrees by joint, role or
+    kind (:data:`DEFAULT_LIMITS_DEG`); ``hinge_range_deg``: the elbow / knee flexion range;
+    ``targets`` (3,) or (n, 3) and ``tol`` (default 1e-4 of the limb length) in motion
+    units; ``rotations`` (n, J, 4) the start pose (default the motion's).  Always
+    terminates (at most ``max_iter`` sweeps).  Returns a :class:`CCDSolution`
+    (unreachable: best effort, ``reached=False``).  Raises :class:`repro.errors.MotionError`
+    for an unknown effector, frames out of range, NaN targets, a chain joint that is not
+    an ancestor of the limb, bad limits.
     """
     rig = rig_of(motion, roles)
     ch = rig.chain(effector, hit_point)
