@@ -50,7 +50,7 @@ from repro.motion.adaptation.rig import (
 )
 from repro.motion.kinematics import dot, matvec, matvec_t
 from repro.motion.motion import Motion
-from repro.motion.quaternion import cross, matrix_to_quat, min_rotation, quat_multiply, quat_to_matrix
+from repro.motion.quaternion import cross, matrix_to_quat, min_rotation, quat_multiply, quat_to_matrix, vector_norm
 from repro.motion.quaternion import quat_conjugate as qinv
 
 __all__ = [
@@ -239,8 +239,8 @@ def ccd_sweeps(
     """
     kp, km, kd = ch.k_prox, ch.k_mid, ch.k_dist
     n = goal.shape[0]
-    l1 = np.linalg.norm(trans[:, ch.path[km]], axis=-1)
-    l2 = np.linalg.norm(trans[:, ch.path[kd]], axis=-1)
+    l1 = vector_norm(trans[:, ch.path[km]])
+    l2 = vector_norm(trans[:, ch.path[kd]])
     if finish:
         # the sweeps turn only joints above the limb and read only its root (shoulder / hip):
         # forward kinematics stops there; the hand / foot keeps its start world orientation
@@ -274,11 +274,11 @@ def ccd_sweeps(
         if finish:
             # objective: how far the goal is out of the limb's reach (the analytic limb
             # step then places the hit point exactly)
-            dW = np.linalg.norm(Wg_fixed - pw[:, kp], axis=-1)
+            dW = vector_norm(Wg_fixed - pw[:, kp])
             err = np.maximum(np.maximum(dW - reach_max, np.abs(l1 - l2) - dW), 0.0)
             done = err <= 0.0
         else:
-            err = np.linalg.norm(hitpos() - goal, axis=-1)
+            err = vector_norm(hitpos() - goal)
             done = err <= tol
         better = err < best_err
         worse = active & ~better
@@ -302,7 +302,7 @@ def ccd_sweeps(
                 # point from which the limb reaches the goal
                 S = pw[:, kp]
                 sw = S - Wg_fixed
-                dist = np.linalg.norm(sw, axis=-1)
+                dist = vector_norm(sw)
                 want = np.clip(dist, np.abs(l1 - l2), np.maximum(reach_max, np.abs(l1 - l2)))
                 e = S - pj
                 g = Wg_fixed + (want / np.maximum(dist, 1e-300))[:, None] * sw - pj
@@ -315,7 +315,7 @@ def ccd_sweeps(
                 qn = _ball_step(e, g, None if k == 0 else rw[:, k - 1], ql[:, k], q0[:, k], lim, active)
             # only the active frames change (not even by the normalisation's ulp): a frame's
             # solution does not depend on which other frames are solved with it
-            qn = np.where(active[:, None], qn / np.linalg.norm(qn, axis=-1, keepdims=True), ql[:, k])
+            qn = np.where(active[:, None], qn / vector_norm(qn, keepdims=True), ql[:, k])
             ql[:, k] = qn
             ml[:, k] = quat_to_matrix(qn)
             path_fk_from(ml, tl, rw, pw, k)
@@ -349,7 +349,7 @@ def _ball_step(e, g, r_parent, q, q_orig, lim, active):
     qn = quat_multiply(np.concatenate([v, qm[:, 3:]], axis=-1), q)
     dev = quat_multiply(qn, qinv(q_orig))
     dev = np.where(dev[:, 3:] < 0, -dev, dev)
-    s = np.linalg.norm(dev[:, :3], axis=-1)
+    s = vector_norm(dev[:, :3])
     ang = 2.0 * np.arctan2(s, dev[:, 3])
     over = ang > lim
     if over.any():
@@ -411,7 +411,7 @@ def ccd(
             r = rot[far]
             hit[far], _ = solve_limb(ch, r, trans[far], goal[far], distal_world=dw[far])
             rot[far] = r
-    res = np.linalg.norm(hit - goal, axis=-1)
+    res = vector_norm(hit - goal)
     return CCDSolution(
         frames=idx,
         rotations=rot,
