@@ -31,9 +31,11 @@ knee, hip and pelvis for a kick, within joint limits), ``"root"`` (default) adds
 shift when CCD cannot reach either: the root follows ``d(t)`` by the remaining miss
 (at most ``max_root_shift`` of the leg length, halved until the support leg, pinned on
 its planted foot, still reaches the ground), and the limb / CCD are solved again from
-there.  A step (moving the support foot) is not taken.  ``Strike.level`` says which level
-the contact frame needed; ``reached=False`` with the residual and ``level="root"`` (or the
-level allowed) when nothing reaches.
+there.  ``"step"`` (punches; opt-in) adds a step of the front foot towards the target, the
+root following halfway and the other foot pinned (:func:`_step`); a kick's foot lifts
+within frames of the order, so its support foot never steps.  ``Strike.level`` says which
+level the contact frame needed; ``reached=False`` with the residual and the highest level
+tried (``levels_tried``) when nothing reaches.
 
 Feet: the planted phases after ``t0`` are pinned (``feet="plant"``) with the toe kept at
 or above the floor (``y = 0``).
@@ -87,8 +89,13 @@ __all__ = [
 
 #: Seconds over which a selected clip is blended into the current pose.
 BLEND_S: float = 0.2
-#: Levels of whole-body reach, in order: two-bone limb IK, + CCD over the spine / pelvis, + a root shift.
-LEVELS: tuple[str, ...] = ("limb", "spine", "root")
+#: Levels of whole-body reach, in order: two-bone limb IK, + CCD over the spine / pelvis, + a root shift,
+#: + a step of the front foot (punches).
+LEVELS: tuple[str, ...] = ("limb", "spine", "root", "step")
+#: Longest step of the ``"step"`` level, per metre of leg length; its duration (s) and foot lift (per metre of leg).
+MAX_STEP: float = 0.6
+STEP_S: float = 0.3
+STEP_LIFT: float = 0.06
 #: Largest root shift of the ``"root"`` level, per metre of the character's leg length.
 MAX_ROOT_SHIFT: float = 0.35
 #: Fractions of the miss left by CCD that the root shift tries, in order (the first the support leg follows wins).
@@ -298,6 +305,59 @@ def _root_shift(ad: Adaptation, frac: float, limit: float, kind: str, release) -
     return offset_curve(ad.t_start, tc, frac * miss, F, kind=kind, release=release)
 
 
+def _step(blended, effector, X, tc, ad, contacts, ch, opts, kind, release, max_root_shift):
+    """The ``"step"`` level of a punch: the front foot steps towards the target, the root follows halfway.
+
+    The foot nearer the target (horizontally, at frame 0) leaves the floor at frame 1 and
+    lands ``STEP_S`` seconds later (before ``tc``), moved by twice the horizontal miss left
+    by the lower levels (at most ``MAX_STEP`` x leg length), lifted ``STEP_LIFT`` x leg in
+    between; the root moves by half the step over the same frames; the other foot stays
+    pinned; then the root shift of :func:`strike` on top.  Its contacts are the clip's with
+    the stepping foot's swing unplanted, so it lands on a new contact phase.  Returns
+    ``(adaptation, side, contacts)`` of the best trial whose other foot still follows and
+    that gets closer, else None.
+    """
+    F, fps = blended.n_frames, 1.0 / blended.frame_time
+    leg = ch.leg_length
+    t_land = min(max(2, round(STEP_S * fps)), tc - 1)
+    if t_land < 2:
+        return None
+    g0 = blended.global_positions()[0]
+    ank = [ch.index("left_ankle"), ch.index("right_ankle")]
+    side = int(np.argmin([np.hypot(*(X - g0[a])[[0, 2]]) for a in ank]))
+    miss = X - ad.hit_positions[tc]
+    miss[1] = 0.0
+    foot_tol = max(1e-3 * leg, ad.foot_error)
+    n_rel = None if release is None else int(round(float(release) / blended.frame_time))
+    best = None
+    for scale in (1.0, 0.5):
+        step = 2.0 * scale * miss
+        n = float(np.linalg.norm(step))
+        if n > MAX_STEP * leg:
+            step *= MAX_STEP * leg / n
+        w = offset_curve(0, t_land, np.ones(3), F, kind=kind, release=None)[:, 0]
+        feet_off = np.zeros((F, 2, 3))
+        feet_off[:, side] = w[:, None] * step
+        feet_off[1:t_land, side, 1] += STEP_LIFT * leg * np.sin(np.pi * w[1:t_land])
+        root = 0.5 * w[:, None] * step
+        c2 = np.array(contacts)
+        c2[1:t_land, side] = False
+        o = dict(opts, contacts=c2)
+        trial = adapt(blended, effector, X, 0, tc, root_offsets=root, foot_offsets=feet_off, max_iter=ROOT_MAX_ITER, **o)
+        trials = [trial]
+        if not trial.reached:
+            for frac in ROOT_SHIFT_TRIALS:
+                extra = _root_shift(trial, frac, max_root_shift * leg, kind, n_rel)
+                trials.append(adapt(blended, effector, X, 0, tc, root_offsets=root + extra, foot_offsets=feet_off,
+                                    max_iter=ROOT_MAX_ITER, **o))
+        for t in trials:
+            if t.foot_error <= foot_tol and t.residual < (ad.residual if best is None else best[0].residual):
+                best = (t, ("left", "right")[side], c2)
+        if best is not None:
+            break
+    return best
+
+
 def strike(
     source,
     character,
@@ -349,8 +409,9 @@ def strike(
         Seconds of the blend with the current pose (at most up to the contact).
     fix_feet : bool
         ``retarget(..., fix_feet=...)``: the decoder's own foot pass (Section 3.4.1).
-    reach : {"limb", "spine", "root"}
-        Highest level of whole-body reach allowed.
+    reach : {"limb", "spine", "root", "step"}
+        Highest level of whole-body reach allowed (``"step"``: punches only; a kick's
+        foot lifts within frames of the order, so its support foot never steps).
     max_root_shift : float
         Cap of the root shift, per metre of leg length.
     feet, floor, kind, release
@@ -422,11 +483,12 @@ def strike(
     max_iter = 0 if reach == "limb" else 50
     # a root trial reads the support foot over the whole clip: exact on two frames when the feet
     # do not depend on the hit solve (a punch); a kick's trials are solved in full (CCD's pelvis)
-    part = stream and not (reach == "root" and EFFECTOR_STEMS[effector.split("_", 1)[1]] == "leg")
+    whole_body = reach in ("root", "step")
+    part = stream and not (whole_body and EFFECTOR_STEMS[effector.split("_", 1)[1]] == "leg")
     ad = adapt(blended, effector, X, 0, tc, max_iter=max_iter, frames=first if part else None, **opts)
     tried = ["limb"] if reach == "limb" else ["limb", "spine"]
     off, final = None, (None if part else ad)
-    if not ad.reached and reach == "root":
+    if not ad.reached and whole_body:
         if part and not ad.feet_independent:
             part = False
             ad = final = adapt(blended, effector, X, 0, tc, max_iter=max_iter, **opts)
@@ -444,6 +506,17 @@ def strike(
                 ad, off, max_iter = ad2, shift, ROOT_MAX_ITER
                 final = None if part else ad2
                 break
+    stepped = None
+    if not ad.reached and reach == "step" and EFFECTOR_STEMS[effector.split("_", 1)[1]] == "arm":
+        if final is None:  # the whole clip at the level reached so far: the step starts from it
+            final = adapt(blended, effector, X, 0, tc, root_offsets=off, max_iter=max_iter, **opts)
+            ad = final
+        tried.append("step")
+        best = _step(blended, effector, X, tc, ad, contacts, ch, opts, kind, release, max_root_shift)
+        if best is not None:
+            ad = final = best[0]
+            stepped, contacts = best[1], best[2]
+            opts["contacts"] = contacts
     t_first = time.perf_counter()
     if final is None:  # the rest of the clip, at the level decided
         final = adapt(blended, effector, X, 0, tc, root_offsets=off, max_iter=max_iter, **opts)
@@ -451,6 +524,8 @@ def strike(
     t_end = time.perf_counter()
     if not ad.reached or reach == "limb":
         level = tried[-1]
+    elif stepped is not None:
+        level = "step"
     elif ad.root_offsets is not None and np.any(ad.root_offsets[tc] != 0):
         level = "root"
     else:

@@ -271,3 +271,32 @@ def test_a_streamed_frame_is_the_frame_of_the_whole_clip_solve(setup):
         for f in (1, s.tc):
             np.testing.assert_array_equal(part.motion.rotations[f], s.motion.rotations[f])
         assert part.residual == s.hit_error
+
+
+def test_the_step_level_reaches_what_the_root_shift_cannot(setup):
+    # a punch 0.7 x H in front of the stance, at 1.2 m: the root shift misses; a step of the front
+    # foot (the root following halfway, the other foot pinned) reaches it, feet on the floor
+    _, ch, _, _, _ = setup
+    c = [0.0, 1.2, 0.7 * ch.size]
+    root = run(setup, c, "punch", fix_feet=True)
+    assert not root.reached and root.levels_tried == ("limb", "spine", "root")
+    s = run(setup, c, "punch", fix_feet=True, reach="step")
+    assert s.reached and s.level == "step" and s.levels_tried == ("limb", "spine", "root", "step")
+    assert s.hit_error < 1e-3 < root.hit_error
+    g = s.motion.global_positions()
+    ank = [ch.index("left_ankle"), ch.index("right_ankle")]
+    moved = [float(np.hypot(*(g[-1, a] - g[0, a])[[0, 2]])) for a in ank]
+    assert max(moved) > 0.05  # one foot stepped ...
+    assert s.foot_slide < 0.01  # ... onto a new contact phase; no planted foot slides
+    assert min_toe_height(s.motion, s.contacts, skeleton=ch) > -5e-3
+    assert s.cost["bone_length_error_m"] < 1e-9
+    # the stepping foot's swing is not a contact; the other foot's contacts are the clip's
+    assert (~s.contacts).sum() > (~root.contacts).sum()
+
+
+def test_a_kick_does_not_step_and_an_unreachable_punch_says_what_it_tried(setup):
+    _, ch, _, _, _ = setup
+    k = run(setup, [0.0, 1.9, 1.5], "kick", reach="step")
+    assert k.levels_tried[-1] == "root" and not k.reached and k.hit_error > 0.05
+    p = run(setup, [0.0, 1.5, 0.8 * ch.size], "punch", reach="step")
+    assert not p.reached and p.level == "step" and p.levels_tried[-1] == "step" and p.hit_error > 0.05

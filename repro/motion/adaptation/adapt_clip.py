@@ -210,6 +210,7 @@ def adapt(
     floor: float | None = None,
     max_foot_error: float | None = None,
     frames=None,
+    foot_offsets=None,
 ) -> Adaptation | None:
     """Edit ``motion`` so that its hit point reaches ``target`` at frame ``tc`` (Section 3.4.2; module docstring).
 
@@ -223,7 +224,8 @@ def adapt(
     (F, 2) bool planted frames (default: detected on ``motion``); ``floor`` a height the
     pinned toes stay above; ``frames`` solve the hit on those frames only (a streamed solve);
     ``max_foot_error`` a trial's bound: None is returned as soon as the support foot is
-    known to miss it.  Returns an :class:`Adaptation` (unreachable: best effort,
+    known to miss it; ``foot_offsets`` (F, 2, 3) moves the left / right ankle goals (a
+    step; motion units).  Returns an :class:`Adaptation` (unreachable: best effort,
     ``reached=False``).  Raises :class:`repro.errors.MotionError` for a NaN / non-3-vector
     target, an unknown effector, ``t0 > tc``, frames out of range or bad options.
     """
@@ -239,6 +241,8 @@ def adapt(
     if feet not in ("pin", "plant", "track", None):
         raise MotionError(f"feet must be 'pin', 'plant', 'track' or None, got {feet!r}")
     contacts = rig.contacts if contacts is None else _check_contacts(contacts, F)
+    if foot_offsets is not None:
+        foot_offsets = _check_offsets(foot_offsets, F, (F, 2, 3), "foot_offsets")
     if floor is not None:
         floor = float(floor)
         if not np.isfinite(floor):
@@ -259,7 +263,7 @@ def adapt(
     ref_gp = gp
     shifted = np.zeros(F, dtype=bool)
     if root_offsets is not None:  # solve on the shifted motion; goals and foot anchors from the input
-        off = _check_offsets(root_offsets, F)
+        off = _check_offsets(root_offsets, F, (F, 3), "root_offsets")
         shifted = np.any(off != 0.0, axis=1)
         shifted[: t0 + 1] = False
         off[~shifted] = 0.0
@@ -295,7 +299,7 @@ def adapt(
         t1 = time.perf_counter()
         out = _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors, contacts=contacts,
                           ref_gp=ref_gp, shifted=shifted, floor=floor, t_start=t_start,
-                          only=None if independent else only)
+                          only=None if independent else only, foot_offsets=foot_offsets)
         timings["feet"] = time.perf_counter() - t1
         return out
 
@@ -319,7 +323,7 @@ def adapt(
         safe[edit[res > tol]] = False
         probe, _ = _solve_feet(rig, ch, motion, rot.copy(), feet, foot_blend, t0, stop, np.zeros((F, 2), dtype=bool),
                                [], contacts=contacts, ref_gp=ref_gp, shifted=shifted, floor=floor, t_start=t_start,
-                               only=safe)
+                               only=safe, foot_offsets=foot_offsets)
         if probe > float(max_foot_error) * (1.0 + 1e-9):  # a margin far above any rounding
             return None
     if edit.size:
@@ -489,19 +493,19 @@ def _check_contacts(contacts, F: int) -> np.ndarray:
     return c
 
 
-def _check_offsets(offsets, F: int) -> np.ndarray:
+def _check_offsets(offsets, F: int, shape: tuple, name: str) -> np.ndarray:
     try:
         o = np.array(offsets, dtype=float)
     except (TypeError, ValueError):
         o = None
-    if o is None or o.shape != (F, 3) or not np.all(np.isfinite(o)):
-        raise MotionError(f"root_offsets must be a finite ({F}, 3) array, got "
+    if o is None or o.shape != shape or not np.all(np.isfinite(o)):
+        raise MotionError(f"{name} must be a finite {shape} array, got "
                           f"{getattr(o, 'shape', type(offsets).__name__)}")
     return o
 
 
 def _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors, *, contacts, ref_gp,
-                shifted, floor, t_start, only=None) -> tuple[float, int]:
+                shifted, floor, t_start, only=None, foot_offsets=None) -> tuple[float, int]:
     """Keep the other feet planted (``"pin"``, ``"plant"``) or on their trajectories (in place).
 
     Goals come from ``ref_gp`` (the input's joint positions, before a root shift).
@@ -543,6 +547,9 @@ def _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchor
                     wk = 1.0 - k / (n_blend + 1.0)
                     goal[f] = orig[f] + wk * delta
                     w[f] = max(w[f], wk)
+            if foot_offsets is not None:  # a step: the goals move with the stepping foot
+                goal += foot_offsets[:, s]
+                w = np.maximum(w, np.any(foot_offsets[:, s] != 0.0, axis=1))
             if floor is not None:
                 _lift_to_floor(rig, side, ank, gp, goal, w > 0, floor)
             need |= w > 0
