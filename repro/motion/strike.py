@@ -562,8 +562,8 @@ def reach_by_distance(distances, reached, levels, bins=5) -> list[dict]:
     ``distances`` (n,) metres, ``reached`` (n,) bool, ``levels`` (n,) str of :data:`LEVELS`
     (:attr:`Strike.level`, one per strike); ``bins`` an int (equal-count bins) or the bin
     edges.  One dict per non-empty bin: ``distance_min_m``, ``distance_max_m``, ``n``,
-    ``reached_fraction``, and ``limb_fraction`` / ``spine_fraction`` / ``root_fraction``:
-    the fraction of the bin's targets reached at that level (they add up to
+    ``reached_fraction``, and ``limb_fraction`` / ``spine_fraction`` / ``root_fraction`` /
+    ``step_fraction``: the fraction of the bin's targets reached at that level (they add up to
     ``reached_fraction``), ``unreached_fraction``.
     """
     d = np.asarray(distances, dtype=float).reshape(-1)
