@@ -300,3 +300,16 @@ def test_a_kick_does_not_step_and_an_unreachable_punch_says_what_it_tried(setup)
     assert k.levels_tried[-1] == "root" and not k.reached and k.hit_error > 0.05
     p = run(setup, [0.0, 1.5, 0.8 * ch.size], "punch", reach="step")
     assert not p.reached and p.level == "step" and p.levels_tried[-1] == "step" and p.hit_error > 0.05
+
+
+def test_adapt_streaming_and_step_options_refuse_bad_input(setup):
+    s = run(setup, [0.0, 1.2, 1.0], "punch")
+    F = s.original.n_frames
+    with pytest.raises(MotionError, match="foot_offsets"):
+        adapt(s.original, s.effector, s.target, 0, s.tc, foot_offsets=np.zeros((F, 3)))
+    with pytest.raises(MotionError, match="foot_offsets"):
+        adapt(s.original, s.effector, s.target, 0, s.tc, foot_offsets=np.full((F, 2, 3), np.nan))
+    with pytest.raises(MotionError, match="out of range"):
+        adapt(s.original, s.effector, s.target, 0, s.tc, frames=[F + 3])
+    with pytest.raises(MotionError, match="frames"):
+        adapt(s.original, s.effector, s.target, 0, s.tc, frames=[0.5])
