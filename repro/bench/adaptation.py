@@ -99,13 +99,14 @@ def bench_order_latency(*, n_orders: int = 12, repeats: int = 3, database: str =
                         progress: bool = True) -> dict:
     """Order -> first adapted frame of the fighter (claim K4), the slow path against the fast one, in one process.
 
-    The fighter's orders (alternating kick / punch at the simulated user's head, as
-    ``KungFuFighter.order`` makes them, nothing committed) run through
-    :func:`repro.motion.strike.strike` with ``early_stop=False`` (every root-shift trial
-    solved in full) and ``early_stop=True`` (the default), interleaved order by order so
-    both see the same load; the two strikes are checked equal.  Returns and prints the
-    p50 / p99 of ``timings["first_frame"]`` and of the whole call (ms) per path and the
-    ratios slow / fast.  No pass/fail: the machine is named.
+    The fighter's orders (alternating kick / punch at the simulated user's head, nothing
+    committed) run through :func:`repro.motion.strike.strike` the slow way
+    (``early_stop=False, stream=False``: every level and root-shift trial solved on the
+    whole clip before the first frame) and the default way (trials stopped early, the
+    level decided on the contact frame and the first frame solved before the rest),
+    interleaved order by order so both see the same load; the two strikes are checked
+    equal.  Returns and prints the p50 / p99 of ``timings["first_frame"]`` and of the
+    whole call (ms) per path and the ratios slow / fast.  No pass/fail: the machine is named.
     """
     import numpy as np
 
@@ -124,7 +125,7 @@ def bench_order_latency(*, n_orders: int = 12, repeats: int = 3, database: str =
             for path in (("slow", "fast") if k % 2 else ("fast", "slow")):
                 t = time.perf_counter()
                 s = strike(f.retriever, f.character, pose, X, kind, blend_s=BLEND_S, t_order=t, method=f.method,
-                           scoring=f.scoring, early_stop=path == "fast")
+                           scoring=f.scoring, early_stop=path == "fast", stream=path == "fast")
                 times[path][1].append(time.perf_counter() - t)
                 times[path][0].append(s.timings["first_frame"])
                 out[path] = s

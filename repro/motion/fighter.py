@@ -64,9 +64,9 @@ Choices the paper leaves open (all documented, all parameters)
 * **After a strike** the fighter moves by the strike's root displacement (a punch lunges)
   and resumes its stance loop there, still facing the same way (no blend back: the
   synthetic clips end in the stance they started from).
-* **Latency.** ``order -> first adapted frame`` is the sum of the stages: the adaptation
-  is solved for the whole clip at once (vectorised over frames), so the first frame is
-  available when all of them are.  The paper ran the search in a thread of its own
+* **Latency.** ``order -> first adapted frame`` is the stages up to frame ``t0 + 1``
+  final: the reach level is decided on the contact frame and that frame solved, the rest
+  of the clip after it (:func:`repro.motion.strike.strike`).  The paper ran the search in a thread of its own
   while the animation went on; here every stage runs in the caller's thread, one after
   the other.
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from repro.motion.quaternion import cross, quat_multiply, quat_rotate
+from repro.motion.quaternion import cross, quat_multiply, quat_rotate, vector_norm
 
 __all__ = [
     "dot",
@@ -32,7 +32,7 @@ def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def normalize(v: np.ndarray, eps: float = 1e-300) -> tuple[np.ndarray, np.ndarray]:
     """``(v / |v|, |v|)`` over the last axis (``|v|`` floored at ``eps`` in the division)."""
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    n = vector_norm(v, keepdims=True)
     return v / np.maximum(n, eps), n[..., 0]
 
 

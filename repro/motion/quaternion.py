@@ -36,6 +36,15 @@ def _lead_shape(a: np.ndarray, b: np.ndarray) -> tuple:
     return a.shape[:-1] if a.shape == b.shape else np.broadcast_shapes(a.shape[:-1], b.shape[:-1])
 
 
+def vector_norm(v: np.ndarray, keepdims: bool = False) -> np.ndarray:
+    """``|v|`` over the last axis: the same numbers as ``np.linalg.norm(v, axis=-1)`` (real ``v``).
+
+    numpy's own formula (``sqrt(add.reduce(v * v))``) without its argument handling, which
+    dominates the cost on the few frames the adaptation solves at once.
+    """
+    return np.sqrt(np.add.reduce(v * v, axis=-1, keepdims=keepdims))
+
+
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a x b`` over the last axis, broadcast; the same numbers as :func:`numpy.cross`.
 
@@ -125,11 +134,12 @@ def min_rotation(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     ``q = normalise(u x v, |u||v| + u.v)``; for (nearly) opposite vectors, a half turn
     about an axis perpendicular to ``u``.  Zero vectors give the identity.
     """
-    u, v = np.broadcast_arrays(u, v)
-    nu = np.linalg.norm(u, axis=-1)
-    nv = np.linalg.norm(v, axis=-1)
+    if u.shape != v.shape:
+        u, v = np.broadcast_arrays(u, v)
+    nu = vector_norm(u)
+    nv = vector_norm(v)
     q = np.concatenate([cross(u, v), (nu * nv + np.sum(u * v, axis=-1))[..., None]], axis=-1)
-    qn = np.linalg.norm(q, axis=-1)
+    qn = vector_norm(q)
     scale = nu * nv
     bad = qn <= 1e-12 * np.maximum(scale, 1e-300)
     if np.any(bad):
@@ -144,7 +154,7 @@ def min_rotation(u: np.ndarray, v: np.ndarray) -> np.ndarray:
         zero = scale[bad] <= 1e-300
         qb[zero] = [0.0, 0.0, 0.0, 1.0]
         q[bad] = qb
-        qn = np.linalg.norm(q, axis=-1)
+        qn = vector_norm(q)
     return q / qn[..., None]
 
 

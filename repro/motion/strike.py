@@ -20,6 +20,10 @@ character's current motion it
 5. **solves the constraints** frame by frame (Section 3.4.2,
    :func:`~repro.motion.adaptation.adapt`): ``d(t)`` from ``t0`` (= frame 0, now) to
    ``tc`` (the hit), the limb, CCD when the limb cannot reach, feet kept on the ground.
+   Every frame is solved on its own, so the level is decided on ``tc`` and frame
+   ``t0 + 1`` is final (``timings["first_frame"]``) before the rest of the clip is solved
+   (``timings["rest"]``).  A kick that may need the root level is solved whole: its
+   trials read the support foot, which depends on CCD's pelvis on every frame CCD solves.
 
 Whole-body reach (``reach``, :data:`LEVELS`): ``"limb"`` is the two-bone IK alone,
 ``"spine"`` adds the paper's CCD (elbow, shoulder, clavicle and the spine for a punch;
@@ -27,9 +31,11 @@ knee, hip and pelvis for a kick, within joint limits), ``"root"`` (default) adds
 shift when CCD cannot reach either: the root follows ``d(t)`` by the remaining miss
 (at most ``max_root_shift`` of the leg length, halved until the support leg, pinned on
 its planted foot, still reaches the ground), and the limb / CCD are solved again from
-there.  A step (moving the support foot) is not taken.  ``Strike.level`` says which level
-the contact frame needed; ``reached=False`` with the residual and ``level="root"`` (or the
-level allowed) when nothing reaches.
+there.  ``"step"`` (punches; opt-in) adds a step of the front foot towards the target, the
+root following halfway and the other foot pinned (:func:`_step`); a kick's foot lifts
+within frames of the order, so its support foot never steps.  ``Strike.level`` says which
+level the contact frame needed; ``reached=False`` with the residual and the highest level
+tried (``levels_tried``) when nothing reaches.
 
 Feet: the planted phases after ``t0`` are pinned (``feet="plant"``) with the toe kept at
 or above the floor (``y = 0``).
@@ -50,7 +56,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from repro.errors import MotionError, RetrievalError
-from repro.motion.adaptation import Adaptation, adapt
+from repro.motion.adaptation import EFFECTOR_STEMS, Adaptation, adapt
 from repro.motion.adaptation.cost import adaptation_cost
 from repro.motion.adaptation.offset import offset_curve
 from repro.motion.clustering import from_root_frame, rotate_y, to_root_frame
@@ -83,8 +89,13 @@ __all__ = [
 
 #: Seconds over which a selected clip is blended into the current pose.
 BLEND_S: float = 0.2
-#: Levels of whole-body reach, in order: two-bone limb IK, + CCD over the spine / pelvis, + a root shift.
-LEVELS: tuple[str, ...] = ("limb", "spine", "root")
+#: Levels of whole-body reach, in order: two-bone limb IK, + CCD over the spine / pelvis, + a root shift,
+#: + a step of the front foot (punches).
+LEVELS: tuple[str, ...] = ("limb", "spine", "root", "step")
+#: Longest step of the ``"step"`` level, per metre of leg length; its duration (s) and foot lift (per metre of leg).
+MAX_STEP: float = 0.6
+STEP_S: float = 0.3
+STEP_LIFT: float = 0.06
 #: Largest root shift of the ``"root"`` level, per metre of the character's leg length.
 MAX_ROOT_SHIFT: float = 0.35
 #: Fractions of the miss left by CCD that the root shift tries, in order (the first the support leg follows wins).
@@ -184,9 +195,11 @@ class Strike:
         Largest horizontal slide (m) of a planted ankle over the contacts of the retrieved clip.
     timings : dict
         Seconds: ``prepare``, ``search``, ``load_convert`` (of which ``retarget``), ``adapt``
-        (placement, blend, solver at every level tried; of which ``solver``),
-        ``first_frame`` (order -> first adapted frame), ``adapt_per_frame``,
-        ``retarget_adapt_per_frame`` (the paper's 88 µs).
+        (placement, blend, solver at every level tried, whole clip; of which ``solver``),
+        ``first_frame`` (order -> frame ``t0 + 1`` final: the level decided on ``tc``),
+        ``rest`` (the rest of the clip solved after it; ``first_frame + rest = order``),
+        ``order`` (the whole call), ``adapt_per_frame``, ``retarget_adapt_per_frame``
+        (the paper's 88 µs).
     level : str
         The reach level the contact frame needed (:data:`LEVELS`); for an unreachable
         target the highest level tried.
@@ -292,6 +305,59 @@ def _root_shift(ad: Adaptation, frac: float, limit: float, kind: str, release) -
     return offset_curve(ad.t_start, tc, frac * miss, F, kind=kind, release=release)
 
 
+def _step(blended, effector, X, tc, ad, contacts, ch, opts, kind, release, max_root_shift):
+    """The ``"step"`` level of a punch: the front foot steps towards the target, the root follows halfway.
+
+    The foot nearer the target (horizontally, at frame 0) leaves the floor at frame 1 and
+    lands ``STEP_S`` seconds later (before ``tc``), moved by twice the horizontal miss left
+    by the lower levels (at most ``MAX_STEP`` x leg length), lifted ``STEP_LIFT`` x leg in
+    between; the root moves by half the step over the same frames; the other foot stays
+    pinned; then the root shift of :func:`strike` on top.  Its contacts are the clip's with
+    the stepping foot's swing unplanted, so it lands on a new contact phase.  Returns
+    ``(adaptation, side, contacts)`` of the best trial whose other foot still follows and
+    that gets closer, else None.
+    """
+    F, fps = blended.n_frames, 1.0 / blended.frame_time
+    leg = ch.leg_length
+    t_land = min(max(2, round(STEP_S * fps)), tc - 1)
+    if t_land < 2:
+        return None
+    g0 = blended.global_positions()[0]
+    ank = [ch.index("left_ankle"), ch.index("right_ankle")]
+    side = int(np.argmin([np.hypot(*(X - g0[a])[[0, 2]]) for a in ank]))
+    miss = X - ad.hit_positions[tc]
+    miss[1] = 0.0
+    foot_tol = max(1e-3 * leg, ad.foot_error)
+    n_rel = None if release is None else int(round(float(release) / blended.frame_time))
+    best = None
+    for scale in (1.0, 0.5):
+        step = 2.0 * scale * miss
+        n = float(np.linalg.norm(step))
+        if n > MAX_STEP * leg:
+            step *= MAX_STEP * leg / n
+        w = offset_curve(0, t_land, np.ones(3), F, kind=kind, release=None)[:, 0]
+        feet_off = np.zeros((F, 2, 3))
+        feet_off[:, side] = w[:, None] * step
+        feet_off[1:t_land, side, 1] += STEP_LIFT * leg * np.sin(np.pi * w[1:t_land])
+        root = 0.5 * w[:, None] * step
+        c2 = np.array(contacts)
+        c2[1:t_land, side] = False
+        o = dict(opts, contacts=c2)
+        trial = adapt(blended, effector, X, 0, tc, root_offsets=root, foot_offsets=feet_off, max_iter=ROOT_MAX_ITER, **o)
+        trials = [trial]
+        if not trial.reached:
+            for frac in ROOT_SHIFT_TRIALS:
+                extra = _root_shift(trial, frac, max_root_shift * leg, kind, n_rel)
+                trials.append(adapt(blended, effector, X, 0, tc, root_offsets=root + extra, foot_offsets=feet_off,
+                                    max_iter=ROOT_MAX_ITER, **o))
+        for t in trials:
+            if t.foot_error <= foot_tol and t.residual < (ad.residual if best is None else best[0].residual):
+                best = (t, ("left", "right")[side], c2)
+        if best is not None:
+            break
+    return best
+
+
 def strike(
     source,
     character,
@@ -314,6 +380,7 @@ def strike(
     seed: int = 0,
     t_order: float | None = None,
     early_stop: bool = True,
+    stream: bool = True,
 ) -> Strike:
     """Carry out an order: retrieve, convert, place and blend, solve (Sections 3.3-3.4; module docstring).
 
@@ -342,8 +409,9 @@ def strike(
         Seconds of the blend with the current pose (at most up to the contact).
     fix_feet : bool
         ``retarget(..., fix_feet=...)``: the decoder's own foot pass (Section 3.4.1).
-    reach : {"limb", "spine", "root"}
-        Highest level of whole-body reach allowed.
+    reach : {"limb", "spine", "root", "step"}
+        Highest level of whole-body reach allowed (``"step"``: punches only; a kick's
+        foot lifts within frames of the order, so its support foot never steps).
     max_root_shift : float
         Cap of the root shift, per metre of leg length.
     feet, floor, kind, release
@@ -355,6 +423,10 @@ def strike(
         the feet do not depend on it (a punch; ``adapt(max_foot_error=...)``).  False
         solves every trial in full: the slow path, with the same results (kept for
         :func:`repro.bench.adaptation.bench_order_latency` and the tests).
+    stream : bool, default True
+        Decide the level on ``tc`` and frame ``t0 + 1`` before solving the rest of the clip
+        (module docstring); False solves every level on the whole clip first (the same
+        strike; ``first_frame`` is then the whole adaptation).
 
     Raises
     ------
@@ -401,29 +473,59 @@ def strike(
     tc = res.lead_frames
     nb = min(int(round(blend_s * db.fps)), tc, placed.n_frames - 1)
     blended = blend_into(current_motion, placed, nb) if nb >= 1 else placed
-    # ---- 5. the constraints, level by level
+    # ---- 5. the constraints: the level decided on the contact frame, the next frame, the rest streamed
     t_solver = time.perf_counter()
     hit_point = str(db.hit_wheres[res.clip])
     opts = dict(hit_point=hit_point, contacts=contacts, feet=feet, floor=floor, kind=kind, release=release)
-    ad = adapt(blended, effector, X, 0, tc, max_iter=0 if reach == "limb" else 50, **opts)
+    # every frame is solved on its own (the same pose alone or with the clip): the level is
+    # decided on tc, the first frame after now is final, and the rest follows it
+    first = sorted({min(1, blended.n_frames - 1), tc})
+    max_iter = 0 if reach == "limb" else 50
+    # a root trial reads the support foot over the whole clip: exact on two frames when the feet
+    # do not depend on the hit solve (a punch); a kick's trials are solved in full (CCD's pelvis)
+    whole_body = reach in ("root", "step")
+    part = stream and not (whole_body and EFFECTOR_STEMS[effector.split("_", 1)[1]] == "leg")
+    ad = adapt(blended, effector, X, 0, tc, max_iter=max_iter, frames=first if part else None, **opts)
     tried = ["limb"] if reach == "limb" else ["limb", "spine"]
-    if not ad.reached and reach == "root":
+    off, final = None, (None if part else ad)
+    if not ad.reached and whole_body:
+        if part and not ad.feet_independent:
+            part = False
+            ad = final = adapt(blended, effector, X, 0, tc, max_iter=max_iter, **opts)
         leg = ch.leg_length
         n_rel = None if release is None else int(round(float(release) / blended.frame_time))
         foot_tol = 1e-3 * leg
         tried.append("root")
         for frac in ROOT_SHIFT_TRIALS:  # the support leg must still reach its pinned foot
-            off = _root_shift(ad, frac, max_root_shift * leg, kind, n_rel)
+            shift = _root_shift(ad, frac, max_root_shift * leg, kind, n_rel)
             foot_max = max(foot_tol, ad.foot_error)
             # max_foot_error: a trial whose support foot fails stops before its hit solve when it can (None)
-            ad2 = adapt(blended, effector, X, 0, tc, root_offsets=off, max_iter=ROOT_MAX_ITER,
-                        max_foot_error=foot_max if early_stop else None, **opts)
+            ad2 = adapt(blended, effector, X, 0, tc, root_offsets=shift, max_iter=ROOT_MAX_ITER,
+                        max_foot_error=foot_max if early_stop else None, frames=first if part else None, **opts)
             if ad2 is not None and ad2.foot_error <= foot_max and ad2.residual < ad.residual:
-                ad = ad2
+                ad, off, max_iter = ad2, shift, ROOT_MAX_ITER
+                final = None if part else ad2
                 break
+    stepped = None
+    if not ad.reached and reach == "step" and EFFECTOR_STEMS[effector.split("_", 1)[1]] == "arm":
+        if final is None:  # the whole clip at the level reached so far: the step starts from it
+            final = adapt(blended, effector, X, 0, tc, root_offsets=off, max_iter=max_iter, **opts)
+            ad = final
+        tried.append("step")
+        best = _step(blended, effector, X, tc, ad, contacts, ch, opts, kind, release, max_root_shift)
+        if best is not None:
+            ad = final = best[0]
+            stepped, contacts = best[1], best[2]
+            opts["contacts"] = contacts
+    t_first = time.perf_counter()
+    if final is None:  # the rest of the clip, at the level decided
+        final = adapt(blended, effector, X, 0, tc, root_offsets=off, max_iter=max_iter, **opts)
+    ad = final
     t_end = time.perf_counter()
     if not ad.reached or reach == "limb":
         level = tried[-1]
+    elif stepped is not None:
+        level = "step"
     elif ad.root_offsets is not None and np.any(ad.root_offsets[tc] != 0):
         level = "root"
     else:
@@ -436,7 +538,9 @@ def strike(
         "retarget": t_adapt - t_rt,
         "adapt": t_end - t_adapt,
         "solver": t_end - t_solver,
-        "first_frame": t_end - t_order,
+        "first_frame": t_first - t_order,
+        "rest": t_end - t_first,
+        "order": t_end - t_order,
     }
     timings["adapt_per_frame"] = timings["adapt"] / F
     timings["retarget_adapt_per_frame"] = (timings["retarget"] + timings["adapt"]) / F
@@ -458,8 +562,8 @@ def reach_by_distance(distances, reached, levels, bins=5) -> list[dict]:
     ``distances`` (n,) metres, ``reached`` (n,) bool, ``levels`` (n,) str of :data:`LEVELS`
     (:attr:`Strike.level`, one per strike); ``bins`` an int (equal-count bins) or the bin
     edges.  One dict per non-empty bin: ``distance_min_m``, ``distance_max_m``, ``n``,
-    ``reached_fraction``, and ``limb_fraction`` / ``spine_fraction`` / ``root_fraction``:
-    the fraction of the bin's targets reached at that level (they add up to
+    ``reached_fraction``, and ``limb_fraction`` / ``spine_fraction`` / ``root_fraction`` /
+    ``step_fraction``: the fraction of the bin's targets reached at that level (they add up to
     ``reached_fraction``), ``unreached_fraction``.
     """
     d = np.asarray(distances, dtype=float).reshape(-1)

@@ -17,54 +17,20 @@ solver driven by continuous constraints*:
     algorithm derived from the Cyclic Coordinate Descent method [21]. [...] If only the
     limb is involved, this method only requires 88 us."
 
-This package implements that pipeline, one module per step:
+This package implements that pipeline, one module per step (each module's docstring
+tells its part of the method):
 
-* :mod:`.offset`, :func:`offset_curve` -- ``d(t)``: 0 up to ``t_0``, ``d(t_c)`` at ``t_c``, an easing
-  curve (linear, smoothstep or smootherstep) in between, and after ``t_c`` either held or
-  released back to 0 over a given number of frames (the paper does not say what happens
-  after the contact; holding the offset forever would displace the whole rest of a long
-  clip, so :func:`adapt` releases it by default).
-* :mod:`.limb`, :func:`reach_limb` -- the limb step: analytic two-bone IK of the arm
-  (shoulder-elbow-wrist) or leg (hip-knee-ankle), vectorised over frames.  The hand /
-  foot keeps its world orientation, so the hit point (the fist = CMU ``rhand`` joint, the
-  ball of the foot = ``rtoes``, or an End Site) keeps its offset from the wrist / ankle
-  and the wrist goal is ``goal - (hit - wrist)``; the elbow / knee stays in the plane it
-  had in the original pose (its *swivel* is parallel-transported from the original
-  shoulder->wrist axis to the new one, the same construction as the swivel reference of
-  :mod:`repro.motion.morphology`), and the shoulder and elbow rotations are changed by
-  the smallest rotations that place the elbow and wrist (as
-  :func:`repro.motion.morphology.decode` does), so the upper-arm twist is kept.  One
-  frame is solved with a scalar (pure Python float) implementation, several at once with
-  numpy; the two agree to rounding (tested).
-* :mod:`.ccd_solver`, :func:`ccd` -- Cyclic Coordinate Descent (Welman 1993, the paper's [21]) over a longer
-  chain, for frames where the limb alone cannot reach: by default elbow, shoulder,
-  clavicle and the spine joints up to (not including) the pelvis for a punch, and knee,
-  hip and pelvis for a kick (:func:`default_chain`).  Each sweep visits the chain from
-  distal to proximal and turns each joint by the smallest rotation that points it at its
-  goal.  "Derived from" CCD as in the paper: since the limb has an exact analytic solver,
-  the joints *above* the limb do not aim the hit point at the target but the limb's root
-  (shoulder / hip) at the nearest point from which the limb reaches the target (the
-  objective is the distance of the target beyond the limb's reach), and the limb step
-  then places the hit point exactly; this converges in a few sweeps where plain CCD
-  creeps (measured on CMU 135_09, frame 303, fist moved 5 / 10 cm beyond the extended
-  arm: 4 / 8 sweeps to 1e-11 m, against 48 / 65 sweeps of plain CCD to 5e-5 m).  ``finish_with_limb=False`` gives plain CCD on the hit point over the
-  whole chain.  Joint limits: the elbow / knee is a hinge (rotation about its clip-wide
-  bending axis only, flexion kept within ``hinge_range_deg``, 0 = straight: it bends one
-  way and never hyperextends); every other joint stays within a cone of ``limits``
-  degrees around its original local rotation (:data:`DEFAULT_LIMITS_DEG`).  A sweep that
-  makes a frame worse is undone; a frame stops when its goal is reached, when it stalls
-  (joint limits) or after ``max_iter`` sweeps, so CCD always terminates.  Vectorised over
-  frames (the frames of a clip are solved together, each independently).
-* :mod:`.adapt_clip`, :func:`adapt` -- the whole Section 3.4.2 edit of a clip: ``d(t)``, per frame the limb
-  step and CCD where needed, then the feet: the actor's planted feet (contacts detected
-  on the original motion by :func:`repro.motion.feet.foot_contacts`) are kept on
-  the ground without sliding by a leg IK (the same two-bone solver) that pins each
-  planted ankle, for every contact phase overlapping the edited frames, at its position
-  at the start of the phase (or at ``t_0`` if the phase started earlier, so the frame
-  ``t_0`` is unchanged), with the foot's original world orientation.  Returns an
-  :class:`Adaptation` with the adapted motion (same skeleton; only local rotations
-  change, so bone lengths are unchanged by construction -- and checked), per-frame hit
-  errors and solver used, and summary numbers.
+* :mod:`.offset`, :func:`offset_curve` -- ``d(t)``: 0 up to ``t_0``, ``d(t_c)`` at ``t_c``, an
+  easing in between, then held or released (the paper does not say what happens after
+  the contact; :func:`adapt` releases it by default);
+* :mod:`.limb`, :func:`reach_limb` -- the limb step: analytic two-bone IK of the arm or leg,
+  the hand / foot keeping its world orientation and the elbow / knee its swivel;
+* :mod:`.ccd_solver`, :func:`ccd` -- CCD over a longer chain (spine, pelvis) within joint
+  limits, for frames the limb alone cannot reach;
+* :mod:`.adapt_clip`, :func:`adapt` -- the whole edit of a clip: ``d(t)``, per frame the limb
+  step and CCD where needed, the feet kept planted; returns an :class:`Adaptation`;
+* :mod:`.cost` -- what an adaptation costs against the clip (rotation change, added
+  acceleration, bone lengths, joint limits).
 
 :mod:`.rig` holds what the solvers share (the per-motion :class:`~.rig.Rig` and its
 effector :class:`~.rig.Chain`, argument checks); :mod:`.timing` the wall-clock measure
@@ -90,9 +56,8 @@ leaves the rest to CCD.
 Limitations: CCD solutions are computed per frame independently (no temporal
 filtering); they are continuous in the goal, but joint velocities can still increase
 (measured on 135_09 with the fist moved 10 cm forward: at most ~9 degrees/frame more than
-the original at 120 fps).  The root *position* is never moved, only rotations change:
-a kick cannot gain reach by pushing the hips forward, so kick targets more than a few
-centimetres beyond the extended leg are not reached (best effort).  Balance is not
+the original at 120 fps).  :func:`adapt` moves the root only by the ``root_offsets`` it
+is given (the root level of :func:`repro.motion.strike.strike`).  Balance is not
 considered; the swing foot is not checked against the floor; the contact frames of the
 feet come from a threshold detector on the original motion.
 """

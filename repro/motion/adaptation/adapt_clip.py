@@ -1,4 +1,39 @@
-"""The whole Section 3.4.2 edit of a clip: :func:`adapt` and its result :class:`Adaptation`."""
+"""The whole Section 3.4.2 edit of a clip: :func:`adapt` and its result :class:`Adaptation`.
+
+``d(t)`` (:func:`~repro.motion.adaptation.offset.offset_curve`, eased by ``kind``) grows
+from ``t_start`` to ``X - p(tc)`` at ``tc`` and is released over ``release`` seconds (None:
+held).  ``t_start`` is ``t0``, or for a foot effector planted after ``t0`` its lift-off,
+so a planted kicking foot does not slide; that foot is pinned up to its lift-off where
+the phase began, and ``d(t)`` starts from that pin and eases it out by ``tc``, so the
+foot does not jump when the pin lets go.  Every frame with ``d(t) != 0`` is solved for
+the goal ``p(t) + d(t)`` by the limb step (:mod:`.limb`, at most ``max_extension`` of the
+limb length: two-bone IK is singular at full extension), then, where the limb cannot
+reach, by CCD (:mod:`.ccd_solver`) and the limb step again.
+
+Feet: ``"pin"`` pins each other ankle planted in the original motion, for every contact
+phase overlapping the edited frames, at its position at ``max(phase start, t0)`` (so
+frame ``t0`` is unchanged), with the foot's original world orientation, released over
+``foot_blend`` seconds; ``"plant"`` pins every contact phase after ``t0`` (also those
+after the edited frames, and the kicking foot up to its lift-off); ``"track"`` keeps the
+other ankles on their original trajectories; None leaves the legs alone.  ``floor``
+lifts a pinned ankle's goal so that its toe joint stays at or above that height.  The
+contacts come from the caller (detected once on the retrieved clip) or from
+:func:`repro.motion.feet.foot_contacts` on ``motion``.
+
+Whole-body reach: ``root_offsets`` adds a root translation before solving (the root
+level of :func:`repro.motion.strike.strike`); ``p(t)`` and the foot anchors stay the
+input's, so the support foot does not move with the root.  ``max_foot_error`` bounds
+such a trial: when the feet do not depend on the hit solve (an arm whose chain leaves
+both legs alone) they are solved first and a foot error above the bound returns None
+before the hit solve; for a leg effector the feet are first solved on the frames CCD will
+not touch and a foot error above the bound there returns None; the result is otherwise
+the same.
+
+Streaming: every frame is solved on its own (CCD leaves the frames it has finished
+untouched), so ``frames=`` gives, on those frames, the poses of the whole-clip solve
+(tested); the feet on the other frames are solved too when they do not depend on the
+hit solve.
+"""
 
 from __future__ import annotations
 
@@ -17,7 +52,7 @@ from repro.motion.adaptation.ccd_solver import (
 )
 from repro.motion.adaptation.limb import limb_dmax, solve_limb
 from repro.motion.adaptation.offset import offset_curve
-from repro.motion.adaptation.rig import Chain, Rig, check_extension, check_int, default_tol, rig_of, vec3
+from repro.motion.adaptation.rig import Chain, Rig, check_extension, check_frames, check_int, default_tol, rig_of, vec3
 from repro.motion.kinematics import fk_arrays
 from repro.motion.quaternion import quat_rotate as qrot
 from repro.motion.motion import Motion
@@ -83,6 +118,10 @@ class Adaptation:
         The root translation added to the input (None: the root did not move).
     contacts : (F, 2) bool array or None
         The planted frames used.
+    feet_independent : bool
+        Whether the foot pass and the hit solve turn disjoint joints (an arm effector
+        whose CCD chain leaves the legs alone): the feet are then exact on every frame
+        even when the hit was solved on some ``frames`` only.
     """
 
     motion: Motion
@@ -112,6 +151,7 @@ class Adaptation:
     tol: float
     root_offsets: np.ndarray | None = None
     contacts: np.ndarray | None = None
+    feet_independent: bool = False
 
     @property
     def error_at_tc(self) -> float:
@@ -169,38 +209,25 @@ def adapt(
     root_offsets=None,
     floor: float | None = None,
     max_foot_error: float | None = None,
+    frames=None,
+    foot_offsets=None,
 ) -> Adaptation | None:
-    """Adapt a selected motion so that its hit point reaches ``target`` at the contact ``tc`` (Section 3.4.2).
+    """Edit ``motion`` so that its hit point reaches ``target`` at frame ``tc`` (Section 3.4.2; module docstring).
 
-    ``d(t)`` (:func:`offset_curve`, eased by ``kind``) grows from ``t_start`` (``t0``, or
-    a planted kicking foot's lift-off) to ``X - p(tc)`` at ``tc`` and is released over
-    ``release`` seconds (None: held); every frame with ``d(t) != 0`` is solved for the goal
-    ``p(t) + d(t)`` by the limb step (at most ``max_extension`` of the limb length), then
-    by :func:`ccd` (``chain``, ``limits``, ``hinge_range_deg``, ``max_iter``) and the limb
-    step again where the limb cannot reach.  ``feet="pin"`` pins each other ankle planted
-    in the original motion, for every contact phase overlapping the edited frames, at its
-    position at ``max(phase start, t0)`` (released over ``foot_blend`` seconds);
-    ``"track"`` keeps the other ankles on their original trajectories; ``None`` leaves the
-    legs alone; ``"plant"`` pins like ``"pin"`` every contact phase after ``t0`` (also those
-    after the edited frames).  ``contacts`` (F, 2) bool: the planted frames to use (detected
-    once on the retrieved clip and carried through; default: detected on ``motion``).
-    ``root_offsets`` (F, 3): a root translation added to the input before solving (the
-    whole-body level of :func:`repro.motion.strike.strike`); ``p(t)`` and the planted-foot
-    anchors stay those of the input, so the support foot does not move with the root.
-    ``floor``: on pinned frames the ankle goal is lifted so the foot's toe joint stays at
-    or above this height.  ``max_foot_error``: a trial's bound (the root level of
-:func:`repro.motion.strike.strike` keeps a root shift only if the support foot still
-follows): when the feet do not depend on the hit solve (an arm effector whose chain and
-limb leave both legs alone) they are solved first, and a foot error above it returns
-None at once, before the hit solve; for a leg effector the feet are first solved on the
-frames CCD will not touch (those the limb step reaches, and those not edited), and a
-foot error above the bound there returns None; the result is otherwise the same.  Frames ``<= t0``
-never change (but ``tc`` when ``t0 == tc``).  Lengths in
-    the motion's units; ``tol`` defaults to 1e-4 of the limb length.  The package
-    docstring (:mod:`repro.motion.adaptation`) tells the whole method and its limits.
-
-    Raises :class:`repro.errors.MotionError` for a NaN / non-3-vector target, an unknown
-    effector, ``t0 > tc``, frames out of range or bad options.
+    Contract: frames ``<= t0`` never change (but ``tc`` when ``t0 == tc``); only local
+    rotations change (and the root by ``root_offsets``), so bone lengths are kept; every
+    frame is solved on its own.  ``effector`` is a role (``right_fist``, ``left_foot``, ...);
+    ``target``, ``tol`` (default 1e-4 of the limb length) and ``root_offsets`` (F, 3) are in
+    the motion's units; ``release`` and ``foot_blend`` in seconds; ``kind`` the easing of
+    ``d(t)``; ``chain`` / ``limits`` (degrees) / ``hinge_range_deg`` / ``max_iter`` are
+    :func:`ccd`'s; ``feet`` one of ``"pin"``, ``"plant"``, ``"track"``, None; ``contacts``
+    (F, 2) bool planted frames (default: detected on ``motion``); ``floor`` a height the
+    pinned toes stay above; ``frames`` solve the hit on those frames only (a streamed solve);
+    ``max_foot_error`` a trial's bound: None is returned as soon as the support foot is
+    known to miss it; ``foot_offsets`` (F, 2, 3) moves the left / right ankle goals (a
+    step; motion units).  Returns an :class:`Adaptation` (unreachable: best effort,
+    ``reached=False``).  Raises :class:`repro.errors.MotionError` for a NaN / non-3-vector
+    target, an unknown effector, ``t0 > tc``, frames out of range or bad options.
     """
     t_total = time.perf_counter()
     rig = rig_of(motion, roles)
@@ -214,6 +241,8 @@ never change (but ``tc`` when ``t0 == tc``).  Lengths in
     if feet not in ("pin", "plant", "track", None):
         raise MotionError(f"feet must be 'pin', 'plant', 'track' or None, got {feet!r}")
     contacts = rig.contacts if contacts is None else _check_contacts(contacts, F)
+    if foot_offsets is not None:
+        foot_offsets = _check_offsets(foot_offsets, F, (F, 2, 3), "foot_offsets")
     if floor is not None:
         floor = float(floor)
         if not np.isfinite(floor):
@@ -234,7 +263,7 @@ never change (but ``tc`` when ``t0 == tc``).  Lengths in
     ref_gp = gp
     shifted = np.zeros(F, dtype=bool)
     if root_offsets is not None:  # solve on the shifted motion; goals and foot anchors from the input
-        off = _check_offsets(root_offsets, F)
+        off = _check_offsets(root_offsets, F, (F, 3), "root_offsets")
         shifted = np.any(off != 0.0, axis=1)
         shifted[: t0 + 1] = False
         off[~shifted] = 0.0
@@ -246,10 +275,17 @@ never change (but ``tc`` when ``t0 == tc``).  Lengths in
         gq, gp = rig.globals
     t_start = _start_frame(contacts, ch, t0, tc)
     d = offset_curve(t_start, tc, X - p[tc], F, kind=kind, release=n_release)
+    if feet == "plant":
+        d += _liftoff_offset(rig, ch, contacts, ref_gp, t0, t_start, tc, floor, kind)
     goals = p + d
     edit = np.flatnonzero(np.any(d != 0.0, axis=1))
     edit = edit[edit > t0] if tc > t0 else edit[edit >= t0]
     stop = int(edit.max()) + 1 if edit.size else t_start + 1
+    only = None
+    if frames is not None:  # a streamed solve: these frames only (each frame is solved on its own)
+        only = np.zeros(F, dtype=bool)
+        only[check_frames(frames, F)[0]] = True
+        edit = edit[only[edit]]
 
     rot = np.array(motion.rotations)
     solver = np.full(F, "", dtype="<U4")
@@ -262,14 +298,16 @@ never change (but ``tc`` when ``t0 == tc``).  Lengths in
     def solve_feet():
         t1 = time.perf_counter()
         out = _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors, contacts=contacts,
-                          ref_gp=ref_gp, shifted=shifted, floor=floor, t_start=t_start)
+                          ref_gp=ref_gp, shifted=shifted, floor=floor, t_start=t_start,
+                          only=None if independent else only, foot_offsets=foot_offsets)
         timings["feet"] = time.perf_counter() - t1
         return out
 
     # the feet first when they cannot depend on the hit solve: the two passes then read and
     # write disjoint joints, so the order does not change a number, and a bounded trial
     # whose support foot no longer follows stops before the (costly) hit solve
-    feet_first = max_foot_error is not None and feet is not None and _feet_independent(rig, ch, spec)
+    independent = _feet_independent(rig, ch, spec)
+    feet_first = max_foot_error is not None and feet is not None and independent
     if feet_first:
         foot_err, n_feet = solve_feet()
         if foot_err > float(max_foot_error):
@@ -285,7 +323,7 @@ never change (but ``tc`` when ``t0 == tc``).  Lengths in
         safe[edit[res > tol]] = False
         probe, _ = _solve_feet(rig, ch, motion, rot.copy(), feet, foot_blend, t0, stop, np.zeros((F, 2), dtype=bool),
                                [], contacts=contacts, ref_gp=ref_gp, shifted=shifted, floor=floor, t_start=t_start,
-                               only=safe)
+                               only=safe, foot_offsets=foot_offsets)
         if probe > float(max_foot_error) * (1.0 + 1e-9):  # a margin far above any rounding
             return None
     if edit.size:
@@ -336,6 +374,7 @@ never change (but ``tc`` when ``t0 == tc``).  Lengths in
         tol=tol,
         root_offsets=None if root_offsets is None else np.where(shifted[:, None], off, 0.0),
         contacts=contacts,
+        feet_independent=independent,
     )
 
 
@@ -358,6 +397,36 @@ def _start_frame(contacts: np.ndarray, ch: Chain, t0: int, tc: int) -> int:
         if planted.size:
             return int(planted.max())
     return t0
+
+
+def _liftoff_offset(rig, ch, contacts, gp, t0: int, t_start: int, tc: int, floor, kind: str) -> np.ndarray:
+    """(F, 3) the kicking foot's pin at its lift-off, eased out by ``tc``: no jump when the pin lets go.
+
+    The planted kicking foot is pinned up to its lift-off ``t_start`` where it was at the
+    start of the phase (:func:`_solve_feet`); the input's foot has moved meanwhile (the
+    blend with the current pose), so the hit goal starts from the pinned place and eases
+    (``kind``) to the input's by ``tc``, where ``d(tc)`` takes over.  0 for an arm, an
+    unpinned foot or ``t_start == t0``.
+    """
+    F = gp.shape[0]
+    out = np.zeros((F, 3))
+    if ch.kind != "leg" or t_start <= t0:
+        return out
+    s = _SIDE_INDEX[ch.side]
+    phase = [(a, b) for a, b in _phases(contacts[:, s]) if b == t_start + 1 and b > t0 + 1]
+    if not phase:
+        return out
+    ank = ch.dist
+    goal = np.repeat(gp[max(phase[0][0], t0), ank][None], F, axis=0)
+    if floor is not None:  # the pin's own floor lift (as _solve_feet lifts it)
+        on = np.zeros(F, dtype=bool)
+        on[t_start] = True
+        _lift_to_floor(rig, ch.side, ank, gp, goal, on, floor)
+    delta = goal[t_start] - gp[t_start, ank]  # the foot keeps its world orientation: the hit point moves with the ankle
+    w = offset_curve(t_start, tc, np.ones(3), F, kind=kind, release=None)[:, 0]
+    r = np.zeros(F)
+    r[t_start + 1: tc + 1] = 1.0 - w[t_start + 1: tc + 1]
+    return r[:, None] * delta[None, :]
 
 
 def _solve_hit(rig, ch, motion, rot, edit, goals, spec, max_iter, tol, ext, solver, iters, timings) -> None:
@@ -424,19 +493,19 @@ def _check_contacts(contacts, F: int) -> np.ndarray:
     return c
 
 
-def _check_offsets(offsets, F: int) -> np.ndarray:
+def _check_offsets(offsets, F: int, shape: tuple, name: str) -> np.ndarray:
     try:
         o = np.array(offsets, dtype=float)
     except (TypeError, ValueError):
         o = None
-    if o is None or o.shape != (F, 3) or not np.all(np.isfinite(o)):
-        raise MotionError(f"root_offsets must be a finite ({F}, 3) array, got "
+    if o is None or o.shape != shape or not np.all(np.isfinite(o)):
+        raise MotionError(f"{name} must be a finite {shape} array, got "
                           f"{getattr(o, 'shape', type(offsets).__name__)}")
     return o
 
 
 def _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors, *, contacts, ref_gp,
-                shifted, floor, t_start, only=None) -> tuple[float, int]:
+                shifted, floor, t_start, only=None, foot_offsets=None) -> tuple[float, int]:
     """Keep the other feet planted (``"pin"``, ``"plant"``) or on their trajectories (in place).
 
     Goals come from ``ref_gp`` (the input's joint positions, before a root shift).
@@ -478,6 +547,9 @@ def _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchor
                     wk = 1.0 - k / (n_blend + 1.0)
                     goal[f] = orig[f] + wk * delta
                     w[f] = max(w[f], wk)
+            if foot_offsets is not None:  # a step: the goals move with the stepping foot
+                goal += foot_offsets[:, s]
+                w = np.maximum(w, np.any(foot_offsets[:, s] != 0.0, axis=1))
             if floor is not None:
                 _lift_to_floor(rig, side, ank, gp, goal, w > 0, floor)
             need |= w > 0

@@ -1,4 +1,30 @@
-"""Cyclic Coordinate Descent over a longer chain (Section 3.4.2, after Welman 1993): :func:`ccd`."""
+"""Cyclic Coordinate Descent over a longer chain (Section 3.4.2, after Welman 1993, the paper's [21]): :func:`ccd`.
+
+For frames where the limb alone cannot reach.  The default chain (:func:`default_chain`)
+is elbow, shoulder, clavicle and the spine joints up to (not including) the pelvis for a
+punch, and knee, hip and pelvis for a kick.  Each sweep visits the chain from distal to
+proximal and turns each joint by the smallest rotation that points it at its goal.
+
+"Derived from" CCD as in the paper: since the limb has an exact analytic solver
+(:mod:`.limb`), the joints *above* the limb do not aim the hit point at the target but
+the limb's root (shoulder / hip) at the nearest point from which the limb reaches the
+target (the objective is the distance of the target beyond the limb's reach), and the
+limb step then places the hit point exactly.  This converges in a few sweeps where plain
+CCD creeps (measured on CMU 135_09, frame 303, fist moved 5 / 10 cm beyond the extended
+arm: 4 / 8 sweeps to 1e-11 m, against 48 / 65 sweeps of plain CCD to 5e-5 m);
+``finish_with_limb=False`` gives plain CCD on the hit point over the whole chain.  With
+the finish, a sweep's forward kinematics stops at the limb's root, the only point it reads.
+
+Joint limits: the elbow / knee is a hinge (rotation about its clip-wide bending axis only,
+flexion within ``hinge_range_deg``, 0 = straight: it never hyperextends); every other
+joint stays within a cone of ``limits`` degrees around its original local rotation
+(:data:`DEFAULT_LIMITS_DEG`).  A sweep that makes a frame worse is undone; a frame stops
+when its goal is reached, when a sweep gains less than 5 % of the remaining objective
+(creeping along joint limits) or after ``max_iter`` sweeps.  Vectorised over frames, each
+solved independently: a finished frame is left untouched, so a frame's solution does not
+depend on the frames solved with it.  Solutions are per frame (no temporal filtering):
+continuous in the goal, but joint velocities can increase.
+"""
 
 from __future__ import annotations
 
@@ -24,7 +50,7 @@ from repro.motion.adaptation.rig import (
 )
 from repro.motion.kinematics import dot, matvec, matvec_t
 from repro.motion.motion import Motion
-from repro.motion.quaternion import cross, matrix_to_quat, min_rotation, quat_multiply, quat_to_matrix
+from repro.motion.quaternion import cross, matrix_to_quat, min_rotation, quat_multiply, quat_to_matrix, vector_norm
 from repro.motion.quaternion import quat_conjugate as qinv
 
 __all__ = [
@@ -211,16 +237,24 @@ def ccd_sweeps(
     ``dmax`` (n,): largest proximal->distal distance the limb step may use (default the
     limb length); with ``finish`` the objective is the distance of the goal beyond it.
     """
-    P = ch.path
+    kp, km, kd = ch.k_prox, ch.k_mid, ch.k_dist
     n = goal.shape[0]
+    l1 = vector_norm(trans[:, ch.path[km]])
+    l2 = vector_norm(trans[:, ch.path[kd]])
+    if finish:
+        # the sweeps turn only joints above the limb and read only its root (shoulder / hip):
+        # forward kinematics stops there; the hand / foot keeps its start world orientation
+        # (the limb step restores it), so the distal joint's goal does not move while the trunk turns
+        rw, pw = path_fk(quat_to_matrix(rot[:, ch.path]), trans[:, ch.path])
+        Wg_fixed = goal - (pw[:, -1] + matvec(rw[:, -1], ch.hit_offset) - pw[:, kd])
+        P = ch.path[: kp + 1]
+    else:
+        P = ch.path
     ql = rot[:, P].copy()
     q0 = ref[:, P]
     ml = quat_to_matrix(ql)
     tl = trans[:, P]
     rw, pw = path_fk(ml, tl)
-    kp, km, kd = ch.k_prox, ch.k_mid, ch.k_dist
-    l1 = np.linalg.norm(tl[:, km], axis=-1)
-    l2 = np.linalg.norm(tl[:, kd], axis=-1)
     L = l1 + l2
     reach_max = L if dmax is None else np.minimum(dmax, L)
     tiny = 1e-9 * L
@@ -236,19 +270,15 @@ def ccd_sweeps(
     def hitpos():
         return pw[:, -1] + matvec(rw[:, -1], ch.hit_offset)
 
-    # with the finish, the hand / foot keeps its start world orientation (the limb step
-    # restores it), so the distal joint's goal does not move while the trunk turns
-    Wg_fixed = goal - (hitpos() - pw[:, kd])
     for it in range(max_iter + 1):
-        hit = hitpos()
         if finish:
             # objective: how far the goal is out of the limb's reach (the analytic limb
             # step then places the hit point exactly)
-            dW = np.linalg.norm(Wg_fixed - pw[:, kp], axis=-1)
+            dW = vector_norm(Wg_fixed - pw[:, kp])
             err = np.maximum(np.maximum(dW - reach_max, np.abs(l1 - l2) - dW), 0.0)
             done = err <= 0.0
         else:
-            err = np.linalg.norm(hit - goal, axis=-1)
+            err = vector_norm(hitpos() - goal)
             done = err <= tol
         better = err < best_err
         worse = active & ~better
@@ -266,29 +296,32 @@ def ccd_sweeps(
             break
         iters += active
         for k, kind, lim in sweep:
-            hit = hitpos()
             pj = pw[:, k]
             if finish and k < kp:
                 # above the limb: bring the proximal joint (shoulder / hip) to the nearest
                 # point from which the limb reaches the goal
                 S = pw[:, kp]
                 sw = S - Wg_fixed
-                dist = np.linalg.norm(sw, axis=-1)
+                dist = vector_norm(sw)
                 want = np.clip(dist, np.abs(l1 - l2), np.maximum(reach_max, np.abs(l1 - l2)))
                 e = S - pj
                 g = Wg_fixed + (want / np.maximum(dist, 1e-300))[:, None] * sw - pj
             else:
-                e = hit - pj
+                e = hitpos() - pj
                 g = goal - pj
             if kind == "hinge":
                 qn = _hinge_step(e, g, rw[:, k - 1], ml[:, k], tl[:, k], tl[:, k + 1], h_loc, lim, active, ql[:, k])
             else:
                 qn = _ball_step(e, g, None if k == 0 else rw[:, k - 1], ql[:, k], q0[:, k], lim, active)
-            qn = qn / np.linalg.norm(qn, axis=-1, keepdims=True)
+            # only the active frames change (not even by the normalisation's ulp): a frame's
+            # solution does not depend on which other frames are solved with it
+            qn = np.where(active[:, None], qn / vector_norm(qn, keepdims=True), ql[:, k])
             ql[:, k] = qn
             ml[:, k] = quat_to_matrix(qn)
             path_fk_from(ml, tl, rw, pw, k)
     rot[:, P] = ql
+    if finish:  # the hit point of the turned trunk, the limb as it was
+        rw, pw = path_fk(quat_to_matrix(rot[:, ch.path]), trans[:, ch.path])
     return iters, hitpos()
 
 
@@ -316,7 +349,7 @@ def _ball_step(e, g, r_parent, q, q_orig, lim, active):
     qn = quat_multiply(np.concatenate([v, qm[:, 3:]], axis=-1), q)
     dev = quat_multiply(qn, qinv(q_orig))
     dev = np.where(dev[:, 3:] < 0, -dev, dev)
-    s = np.linalg.norm(dev[:, :3], axis=-1)
+    s = vector_norm(dev[:, :3])
     ang = 2.0 * np.arctan2(s, dev[:, 3])
     over = ang > lim
     if over.any():
@@ -344,24 +377,18 @@ def ccd(
     hit_point: str = "joint",
     roles=None,
 ) -> CCDSolution:
-    """Cyclic Coordinate Descent over a longer chain (Section 3.4.2, after Welman 1993).
+    """Cyclic Coordinate Descent over a longer chain (Section 3.4.2, after Welman 1993; module docstring).
 
-    For frames "where the constraint is not reachable by only using the corresponding
-    limb".  Sweeps visit ``chain`` (joint names or roles, ancestors of the wrist / ankle;
-    default :func:`default_chain`) distal to proximal; ball joints stay within a cone of
-    ``limits`` degrees (by joint, role or kind; :data:`DEFAULT_LIMITS_DEG`) about the
-    motion's own rotation, the elbow / knee is a hinge within ``hinge_range_deg``.  With
-    ``finish_with_limb`` the trunk brings the goal within the limb's reach (``max_extension``
-    of its length, see :func:`reach_limb`) and the limb step places the hit point;
-    without it, plain CCD on the hit point.  A sweep that makes a frame worse is undone; a
-    frame stops when reached, when a sweep gains less than 5 % or after ``max_iter``
-    sweeps.  ``targets`` (3,) or (n, 3) and ``tol`` (default 1e-4 of the limb length) are
-    in motion units; ``rotations`` (n, J, 4) is the start pose (default the motion's).
-    The package docstring (:mod:`repro.motion.adaptation`) tells the method.
-
-    Returns a :class:`CCDSolution` (unreachable goals: best effort, ``reached=False``).
-    Raises :class:`repro.errors.MotionError` for an unknown effector, frames out of
-    range, NaN targets, a chain joint that is not an ancestor of the limb, bad limits.
+    For the ``frames`` "where the constraint is not reachable by only using the
+    corresponding limb".  ``chain``: joint names or roles, ancestors of the wrist / ankle
+    (default :func:`default_chain`); ``limits``: cone limits in degrees by joint, role or
+    kind (:data:`DEFAULT_LIMITS_DEG`); ``hinge_range_deg``: the elbow / knee flexion range;
+    ``targets`` (3,) or (n, 3) and ``tol`` (default 1e-4 of the limb length) in motion
+    units; ``rotations`` (n, J, 4) the start pose (default the motion's).  Always
+    terminates (at most ``max_iter`` sweeps).  Returns a :class:`CCDSolution`
+    (unreachable: best effort, ``reached=False``).  Raises :class:`repro.errors.MotionError`
+    for an unknown effector, frames out of range, NaN targets, a chain joint that is not
+    an ancestor of the limb, bad limits.
     """
     rig = rig_of(motion, roles)
     ch = rig.chain(effector, hit_point)
@@ -384,7 +411,7 @@ def ccd(
             r = rot[far]
             hit[far], _ = solve_limb(ch, r, trans[far], goal[far], distal_world=dw[far])
             rot[far] = r
-    res = np.linalg.norm(hit - goal, axis=-1)
+    res = vector_norm(hit - goal)
     return CCDSolution(
         frames=idx,
         rotations=rot,

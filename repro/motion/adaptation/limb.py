@@ -26,7 +26,7 @@ from repro.motion.adaptation.rig import (
 )
 from repro.motion.kinematics import dot, matvec, matvec_t, normalize, transport
 from repro.motion.motion import Motion
-from repro.motion.quaternion import matrix_to_quat, min_rotation, quat_multiply, quat_to_matrix
+from repro.motion.quaternion import matrix_to_quat, min_rotation, quat_multiply, quat_to_matrix, vector_norm
 from repro.motion.quaternion import quat_rotate as qrot
 
 __all__ = ["LimbSolution", "reach_limb", "solve_limb", "limb_dmax"]
@@ -90,8 +90,8 @@ def solve_limb(
     # lengths (from the pose: equal to the offsets unless position channels say otherwise)
     e0 = E0 - S
     le = W0 - E0
-    l1 = np.linalg.norm(e0, axis=-1)
-    l2 = np.linalg.norm(le, axis=-1)
+    l1 = vector_norm(e0)
+    l2 = vector_norm(le)
     w0 = W0 - S
     a_orig, n0 = normalize(w0)
     ax = Wg - S
@@ -99,7 +99,7 @@ def solve_limb(
     a = np.where((dn > 1e-12 * l1)[:, None], a, a_orig)
     # original swivel: side of the elbow / knee w.r.t. the proximal->distal axis
     ep = e0 - dot(e0, a_orig)[:, None] * a_orig
-    r = np.linalg.norm(ep, axis=-1)
+    r = vector_norm(ep)
     fb = matvec(rw[:, kp], ch.bend_loc)
     fb = fb - dot(fb, a_orig)[:, None] * a_orig
     b0 = np.where((r > 1e-6 * l1)[:, None], ep, fb)
@@ -139,8 +139,8 @@ def limb_dmax(ch: Chain, ref: np.ndarray, trans: np.ndarray, max_extension: floa
     """Per frame ``min(L, max(max_extension * L, |distal - proximal|))`` in the pose ``ref``."""
     P = ch.path[: ch.k_dist + 1]
     _, pw = path_fk(quat_to_matrix(ref[:, P]), trans[:, P])
-    L = np.linalg.norm(trans[:, ch.mid], axis=-1) + np.linalg.norm(trans[:, ch.dist], axis=-1)
-    d = np.linalg.norm(pw[:, ch.k_dist] - pw[:, ch.k_prox], axis=-1)
+    L = vector_norm(trans[:, ch.mid]) + vector_norm(trans[:, ch.dist])
+    d = vector_norm(pw[:, ch.k_dist] - pw[:, ch.k_prox])
     return np.minimum(L, np.maximum(max_extension * L, d))
 
 
