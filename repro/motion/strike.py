@@ -465,7 +465,7 @@ def strike(
     m = cut(db.motion(res.clip), res.start_frame, int(db.n_frames[res.clip]))
     contacts = foot_contacts(m)
     t_rt = time.perf_counter()
-    mc = retarget(m, ch, fix_feet=fix_feet) if ch.is_compatible(m) else retarget_to_tree(m, ch)
+    mc = retarget(m, ch, fix_feet=fix_feet) if ch.is_compatible(m) else retarget_to_tree(m, ch, fix_feet=fix_feet)
     t_adapt = time.perf_counter()
     # ---- 4. place on the current pose, blend with the current motion
     k = res.size_c / res.size_a

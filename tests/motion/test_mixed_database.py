@@ -32,6 +32,7 @@ from repro.motion.database import Clip, MotionDatabase
 from repro.motion.fighter import KungFuFighter
 from repro.motion.morphology import retarget
 from repro.motion.retrieval import MotionRetriever
+from repro.motion.units import UnitWarning
 from repro.motion.skeleton import Skeleton
 from repro.motion.strike import strike
 from repro.motion.synthetic.conventions import build
@@ -228,7 +229,8 @@ def test_bad_characters_are_refused_naming_what_is_missing(synthetic_db, rigs):
     with pytest.raises(MotionError, match="a punch needs .*an arm"):
         strike(f.retriever, legs_only, legs_only, np.array([0.0, 1.5, 0.5]), "punch")
     assert f.character.joint_names == rigs["mixamo"].joint_names  # unchanged by the refusals
-    f.set_character(rigs["unreal"])  # a Z-up character is turned to the fighter's Y-up world (no longer refused)
+    with pytest.warns(UnitWarning, match="up axis Z"):
+        f.set_character(rigs["unreal"])  # a Z-up character is turned to the fighter's Y-up world (no longer refused)
     assert f.character.joint_names == rigs["unreal"].joint_names
     assert f.stance.global_positions()[0, f.character.index("head"), 1] > 1.0
     single = KungFuFighter(synthetic_db, retriever=MotionRetriever(synthetic_db, seed=0, across_trees=False), seed=0)
