@@ -10,8 +10,10 @@ from __future__ import annotations
 import numpy as np
 
 from repro.errors import MotionError
-from repro.motion.database import Clip, MotionDatabase, clip_record
-from repro.motion.ops import mirror_joint_map, variant_motion
+from repro.motion.clustering import pose_points, root_frames, to_root_frame
+from repro.motion.database import MotionDatabase
+from repro.motion.ops import mirror_joint_map, resample
+from repro.motion.quaternion import quat_rotate
 
 __all__ = ["augment"]
 
@@ -49,42 +51,177 @@ def augment(db: MotionDatabase, factor: int, seed: int = 0, *, scale_range=(0.85
     factor = int(factor)
     if factor < 1:
         raise MotionError(f"factor must be >= 1, got {factor}")
-    rng = np.random.default_rng(seed)
     C = db.n_clips
-    recs = []
-    src_ids = []
-    for v in range(1, factor):
-        for i in range(C):
-            mir = bool(rng.random() < mirror_probability)
-            s = float(rng.uniform(*scale_range))
-            w = float(rng.uniform(*warp_range))
-            n = max(2, int(round((db.n_frames[i] - 1) * w)) + 1)
-            base = db.motion(i)
-            m = variant_motion(base, n, s, mir)
-            hf = int(round(db.hit_frame[i] * (n - 1) / (db.n_frames[i] - 1)))
-            role = str(db.hit_roles[i])
-            side = str(db.sides[i])
-            joint = str(db.hit_joints[i])
-            if mir:
-                role = role.replace("left", "@").replace("right", "left").replace("@", "right")
-                side = {"left": "right", "right": "left"}.get(side, side)
-                pi = mirror_joint_map(base.joint_names, base.parents)
-                joint = base.joint_names[pi[base.joint_index(joint)]]
-            c = Clip(name=f"{db.names[i]}~v{v:03d}", motion=m, semantics=str(db.semantics[i]), hit_role=role,
-                     hit_joint=joint, hit_where=str(db.hit_wheres[i]), hit_frame=min(hf, n - 1),
-                     kind=str(db.kinds[i]), side=side, source=str(db.sources[i]),
-                     source_time=float(db.source_time[i]), level=str(db.levels[i]))
-            sk = db.actor_skeleton(i)
-            sk = sk.with_offsets(sk.offsets * s, sk.end_site_offsets * s)
-            r = clip_record(c, sk, int(db.actor[i]), float(db.scale[i]) * s, db.pose_roles, db.window, db.step,
-                            noise=noise, rng=rng)
-            r.update(mirror=mir ^ bool(db.mirror[i]), warp=w * float(db.warp[i]))
-            recs.append(r)
-            src_ids.append(int(db.source_clip[i]) if int(db.source_clip[i]) != i else i)
-    if not recs:
+    if factor == 1:
         return db
+    V = (factor - 1) * C  # variant j = (v - 1) * C + i is variant v of clip i
+    WP = db.pose_points.shape[1]
+    F0 = db.n_frames.astype(np.intp)
+    # pass 1: the parameters, drawn in the historical order (per variant: mirror, scale, warp, then the
+    # noise of its trajectory and of its pose clouds, whose sizes depend on the warp)
+    rng = np.random.default_rng(seed)
+    mir, sc, wp, nf = np.empty(V, dtype=bool), np.empty(V), np.empty(V), np.empty(V, dtype=np.intp)
+    nmax = max(2, int(round((int(F0.max()) - 1) * max(warp_range))) + 1)
+    scratch_t, scratch_p = np.empty((nmax, 3)), np.empty((nmax, WP, 3))
+    for j in range(V):
+        i = j % C
+        mir[j] = rng.random() < mirror_probability
+        sc[j] = rng.uniform(*scale_range)
+        wp[j] = rng.uniform(*warp_range)
+        n = nf[j] = max(2, int(round((F0[i] - 1) * wp[j])) + 1)
+        if noise > 0:
+            _draw_noise(rng, scratch_t, scratch_p, n, noise)
+    N0, T0 = db.n_poses, db.traj.shape[0]
+    vstart = np.concatenate([[0], np.cumsum(nf)])  # variant j's rows: N0 + vstart[j] ... N0 + vstart[j + 1]
+    Nv = int(vstart[-1])
+    pdt = db.pose_points.dtype
+    pose_points = np.empty((N0 + Nv, WP, 3), dtype=pdt)
+    pose_points[:N0] = db.pose_points
+    traj = np.empty((T0 + Nv, 3))
+    traj[:T0] = db.traj
+    # pass 2: the same stream again, the noise drawn straight into the new rows (no copy of it)
+    new_p, new_t = pose_points[N0:], traj[T0:]
+    if noise > 0:
+        rng = np.random.default_rng(seed)
+        for j in range(V):
+            rng.random(), rng.uniform(*scale_range), rng.uniform(*warp_range)
+            a, b = vstart[j], vstart[j + 1]
+            _draw_noise(rng, new_t[a:b], new_p[a:b] if pdt == np.float64 else scratch_p, b - a, noise)
+            if pdt != np.float64:
+                new_p[a:b] = scratch_p[:b - a]
+    else:
+        new_p[:] = 0.0
+        new_t[:] = 0.0
+    heading = np.empty(N0 + Nv)
+    heading[:N0] = db.pose_heading
+    origin = np.empty((N0 + Nv, 3))
+    origin[:N0] = db.pose_origin
+    hit_frame = np.empty(V, dtype=np.intp)
+    size_v = np.empty(V)
+    box_min, box_max, hit_pos = np.empty((V, 3)), np.empty((V, 3)), np.empty((V, 3))
+    roles, sides, joints = np.empty(V, dtype=object), np.empty(V, dtype=object), np.empty(V, dtype=object)
+    for i in range(C):
+        js = np.arange(i, V, C)  # this clip's variants, in order
+        _variants_of_clip(db, i, js, mir, sc, nf, vstart, new_p, new_t, heading[N0:], origin[N0:], hit_frame, size_v,
+                          box_min, box_max, hit_pos, roles, sides, joints)
+    src = np.tile(np.arange(C), factor - 1)
+    arrays = {
+        "names": np.concatenate([db.names, [f"{db.names[j % C]}~v{j // C + 1:03d}" for j in range(V)]]),
+        "hit_roles": np.concatenate([db.hit_roles, roles.astype(str)]),
+        "sides": np.concatenate([db.sides, sides.astype(str)]),
+        "hit_joints": np.concatenate([db.hit_joints, joints.astype(str)]),
+        "hit_frame": np.concatenate([db.hit_frame, hit_frame]),
+        "n_frames": np.concatenate([db.n_frames, nf]),
+        "scale": np.concatenate([db.scale, db.scale[src] * sc]),
+        "size_a": np.concatenate([db.size_a, size_v]),
+        "source_clip": np.concatenate([db.source_clip, db.source_clip[src]]),
+        "mirror": np.concatenate([db.mirror, mir ^ db.mirror[src]]),
+        "warp": np.concatenate([db.warp, wp * db.warp[src]]),
+        "noise": np.concatenate([db.noise, np.full(V, float(noise))]),
+        "box_min": np.concatenate([db.box_min, box_min]),
+        "box_max": np.concatenate([db.box_max, box_max]),
+        "hit_position": np.concatenate([db.hit_position, hit_pos]),
+        "traj_start": np.concatenate([db.traj_start, T0 + vstart[1:]]),
+        "pose_start": np.concatenate([db.pose_start, N0 + vstart[1:]]),
+        "traj": traj, "pose_points": pose_points, "pose_heading": heading, "pose_origin": origin,
+        "pose_clip": np.concatenate([db.pose_clip, C + np.repeat(np.arange(V), nf)]),
+        "pose_frame": np.concatenate([db.pose_frame, np.arange(Nv) - np.repeat(vstart[:-1], nf)]),
+    }
+    for k in ("sources", "semantics", "kinds", "levels", "hit_wheres", "source_time", "actor"):
+        arrays[k] = np.concatenate([getattr(db, k), getattr(db, k)[src]])
     meta = {**db.meta, "augmented": {"factor": factor, "seed": seed, "scale_range": list(scale_range),
                                      "warp_range": list(warp_range), "noise_m": noise,
                                      "mirror_probability": mirror_probability,
                                      "note": "synthetic variants of the original clips, for latency-vs-size only"}}
-    return db.with_variants(recs, src_ids, meta)
+    return MotionDatabase(fps=db.fps, pose_roles=db.pose_roles, window=db.window, step=db.step, actors=db.actors,
+                          motions=db.stored_motions(), arrays=arrays, meta=meta)
+
+
+def _draw_noise(rng, out_t: np.ndarray, out_p: np.ndarray, n: int, noise: float) -> None:
+    """The noise of one variant (``n`` frames): trajectory then pose clouds, as ``rng.normal(0, noise, shape)``.
+
+    ``standard_normal`` times ``noise`` draws the same numbers as ``normal(0.0, noise)`` (numpy
+    computes ``loc + scale * standard_normal``), into the given buffers instead of new arrays.
+    """
+    t, p = out_t[:n], out_p[:n]
+    rng.standard_normal(out=t)
+    t *= noise
+    rng.standard_normal(out=p)
+    p *= noise
+
+
+_M = np.array([-1.0, 1.0, 1.0])
+
+
+def _variants_of_clip(db, i, js, mir, sc, nf, vstart, new_p, new_t, heading, origin, hit_frame, size_v, box_min,
+                      box_max, hit_pos, roles, sides, joints) -> None:
+    """Every variant ``js`` of clip ``i`` at once: one resampling and one forward kinematics of all their frames.
+
+    A variant is the clip resampled to ``nf[j]`` frames, rescaled by ``sc[j]`` and mirrored if
+    ``mir[j]`` (:func:`~repro.motion.ops.variant_motion`).  Forward kinematics commutes with
+    the last two: the rescaled motion's joints are at ``s p_j`` and the mirrored one's at
+    ``M p_pi(j)`` (:func:`~repro.motion.ops.mirror_motion`, ``M = diag(-1, 1, 1)``), so one
+    forward kinematics of the resampled clip serves all variants (equal to a per-variant one
+    to rounding, ~1e-15 relative).  The pose clouds and the trajectory rows already hold the
+    variants' noise; this adds the motion to them, as :func:`~repro.motion.database.clip_record`.
+    """
+    base = db.motion(i)
+    sk = db.actor_skeleton(i)
+    F = int(db.n_frames[i])
+    lens = nf[js]
+    u = np.concatenate([np.linspace(0.0, F - 1, int(n)) for n in lens])
+    gq, gp = resample(base, frames=u).global_transforms()
+    idx = np.array([sk.index(r) for r in db.pose_roles] + [sk.index("pelvis"), sk.index("left_hip"),
+                                                           sk.index("right_hip")], dtype=np.intp)
+    hj, where = base.joint_index(str(db.hit_joints[i])), str(db.hit_wheres[i])
+    if where == "joint":
+        hit = gp[:, hj]
+    else:
+        sites = np.flatnonzero(base.end_site_parents == hj)
+        if sites.size == 0:
+            raise MotionError(f"joint {db.hit_joints[i]!r} has no End Site")
+        e = int(sites[0])
+        par = base.end_site_parents[e]
+        hit = gp[:, par] + quat_rotate(gq[:, par], base.end_site_offsets[e][None])
+    del gq
+    mf = np.repeat(mir[js], lens)  # per frame: mirrored
+    s_f = np.repeat(sc[js], lens)[:, None, None]
+    g = gp[:, idx]
+    role, side, joint = str(db.hit_roles[i]), str(db.sides[i]), str(db.hit_joints[i])
+    if mf.any():
+        pi = mirror_joint_map(base.joint_names, base.parents)
+        g[mf] = gp[mf][:, pi[idx]] * _M
+        hit = hit.copy()
+        hit[mf] *= _M
+        m_role = role.replace("left", "@").replace("right", "left").replace("@", "right")
+        m_side = {"left": "right", "right": "left"}.get(side, side)
+        m_joint = base.joint_names[pi[hj]]
+    del gp
+    g *= s_f
+    hit = hit * s_f[:, 0]
+    seg = np.concatenate([[0], np.cumsum(lens)])
+    first = np.repeat(seg[:-1], lens)
+    P = len(db.pose_roles)
+    K = P  # pelvis, left hip, right hip follow the pose joints in g
+    theta, org = root_frames(g, K, K + 1, K + 2)
+    pts = pose_points(g, range(P), K, K + 1, K + 2, window=db.window, step=db.step, first=first)
+    del g
+    rows = np.concatenate([np.arange(vstart[j], vstart[j + 1]) for j in js])
+    size = db.size_a[i] * sc[js]
+    pts += new_p[rows]
+    pts /= np.repeat(size, lens)[:, None, None]
+    new_p[rows] = pts
+    hit += new_t[rows]
+    new_t[rows] = to_root_frame(hit, theta[first], org[first])
+    heading[rows], origin[rows] = theta, org
+    tr = new_t[rows]
+    box_min[js] = np.minimum.reduceat(tr, seg[:-1], axis=0)
+    box_max[js] = np.maximum.reduceat(tr, seg[:-1], axis=0)
+    hf = np.minimum(np.round(db.hit_frame[i] * (lens - 1) / (F - 1)).astype(np.intp), lens - 1)
+    hit_frame[js] = hf
+    hit_pos[js] = tr[seg[:-1] + hf]
+    size_v[js] = size
+    m = mir[js]
+    roles[js] = np.where(m, m_role if m.any() else role, role)
+    sides[js] = np.where(m, m_side if m.any() else side, side)
+    joints[js] = np.where(m, m_joint if m.any() else joint, joint)

@@ -243,7 +243,7 @@ def from_root_frame(points: np.ndarray, theta, origin) -> np.ndarray:
 
 
 def pose_points(global_positions: np.ndarray, joints: Sequence[int], pelvis: int, left_hip: int,
-                right_hip: int, *, window: int = 1, step: int = 1) -> np.ndarray:
+                right_hip: int, *, window: int = 1, step: int = 1, first=None) -> np.ndarray:
     """Pose clouds of every frame, each in its own root frame.
 
     Parameters
@@ -260,6 +260,10 @@ def pose_points(global_positions: np.ndarray, joints: Sequence[int], pelvis: int
         (clamped at 0), all expressed in the root frame of frame ``f``.
     step : int, default 1
         Frame spacing inside the window.
+    first : (F,) int array, optional
+        For frames of several clips laid end to end (:func:`repro.motion.augment.augment`
+        computes all the variants of a clip at once): the index of the first frame of
+        each frame's clip, where its window is clamped (default 0: one clip).
 
     Returns
     -------
@@ -278,7 +282,8 @@ def pose_points(global_positions: np.ndarray, joints: Sequence[int], pelvis: int
     theta, origin = root_frames(g, pelvis, left_hip, right_hip)
     F = g.shape[0]
     offs = np.arange(-(window - 1) * step, 1, step)
-    frames = np.clip(np.arange(F)[:, None] + offs[None, :], 0, F - 1)  # (F, window)
+    lo = 0 if first is None else np.asarray(first, dtype=np.intp).reshape(F, 1)
+    frames = np.clip(np.arange(F)[:, None] + offs[None, :], lo, F - 1)  # (F, window)
     pts = g[frames][:, :, idx]  # (F, window, P, 3)
     pts = to_root_frame(pts, theta[:, None, None], origin[:, None, None])
     return pts.reshape(F, window * idx.size, 3)
