@@ -420,6 +420,7 @@ class AlignedPoseIndex:
         for a in range(0, N, CHUNK):
             _, self._X[a:a + CHUNK], self._Z[a:a + CHUNK], self._H[a:a + CHUNK], self._Y2[a:a + CHUNK] = \
                 self._terms(p[a:a + CHUNK], want_m=False)
+        self._perm = None  # (a subset's) row -> stored row, when not the identity
         if self.order is None:
             self._pos = None
             stored = None
@@ -452,7 +453,7 @@ class AlignedPoseIndex:
     def _rows_m(self, rows: np.ndarray) -> np.ndarray:
         """The matrix terms of poses ``rows`` (a copy), from the stored ones or recomputed."""
         if self._pos is None:
-            return self._M[rows]
+            return self._M[rows] if self._perm is None else self._M[self._perm[rows]]
         at = self._pos[rows]
         ok = at >= 0
         if ok.all():
@@ -466,18 +467,24 @@ class AlignedPoseIndex:
         """An index of the candidates ``rows`` only (``points`` is None).
 
         A view of the stored terms when ``rows`` are consecutive entries of ``order``
-        (see the class), else contiguous copies.
+        (see the class), in any order (the subset then keeps the permutation to its rows:
+        its distances are in the order of ``rows``); else contiguous copies.
         """
         rows = np.asarray(rows, dtype=np.intp)
         out = object.__new__(AlignedPoseIndex)
         out.points = None
         out.order = None
         out._pos = None
+        out._perm = None
         out.weights = self.weights
         out._P = self._P
         at = None if self._pos is None or rows.size == 0 else self._pos[rows]
-        if at is not None and at[0] >= 0 and at[-1] - at[0] == rows.size - 1 and np.all(np.diff(at) == 1):
-            out._M = self._M[at[0]:at[-1] + 1]
+        lo = None if at is None else int(at.min())
+        if (at is not None and lo >= 0 and int(at.max()) - lo == rows.size - 1
+                and np.bincount(at - lo, minlength=rows.size).max() == 1):  # a run of ``order``, permuted
+            out._M = self._M[lo:lo + rows.size]
+            if np.any(np.diff(at) != 1):
+                out._perm = at - lo
         else:
             out._M = np.ascontiguousarray(self._rows_m(rows))
         out._X, out._Z, out._H, out._Y2 = self._X[rows], self._Z[rows], self._H[rows], self._Y2[rows]
@@ -523,12 +530,14 @@ class AlignedPoseIndex:
         """
         Q, Xa, Za, Ha, Ya2 = self.query_matrix(q) if prepared is None else prepared
         if rows is None and self._pos is None:
-            M, X, Z, H, Y2 = self._M, self._X, self._Z, self._H, self._Y2
+            X, Z, H, Y2 = self._X, self._Z, self._H, self._Y2
+            M = self._M
+            R = M @ Q if self._perm is None else (M @ Q)[self._perm]
         else:
             rows = np.arange(self.n) if rows is None else np.asarray(rows)
             rows = np.flatnonzero(rows) if rows.dtype == bool else rows.astype(np.intp, copy=False)
             M, X, Z, H, Y2 = self._rows_m(rows), self._X[rows], self._Z[rows], self._H[rows], self._Y2[rows]
-        R = M @ Q
+            R = M @ Q
         A = R[:, 0] - (Xa * X + Za * Z)
         B = R[:, 1] - (Xa * Z - Za * X)
         d2 = Ya2 - 2.0 * R[:, 2] + Y2 + Ha + H - 2.0 * np.hypot(A, B)
