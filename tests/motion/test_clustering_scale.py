@@ -118,7 +118,7 @@ def test_retriever_blocks_share_the_index(db, monkeypatch):
     blocks = [b for bs in r.cluster_block for b in bs.values()] + list(r.sem_block.values())
     blocks = [b.index for b in blocks if b is not None] + [ex["index"] for ex in r._ex.values() if ex is not None]
     assert blocks and all(np.shares_memory(b._M, r.index._M) for b in blocks)
-    index, clusters = build_pose_index(db, 8)
+    _, clusters = build_pose_index(db, 8)
     np.testing.assert_array_equal(clusters.labels, r.clusters.labels)
     # the same choices as with the terms of every pose stored in pose order and copied per block (the
     # previous layout)
