@@ -6,6 +6,7 @@
     repro bench attenuation         print speed ratios, write figures/bench_attenuation.csv
     repro bench retrieval           search latency vs database size, write figures/retrieval_latency.csv
     repro bench adaptation          retarget/adapt cost per frame, write figures/bench_adaptation.csv
+    repro bench index               build time and peak memory of the 100x / 1,000x databases and index
     repro claims                    the claims ledger (figures/claims.md, figures/claims.csv)
     repro data list                 each dataset: present? verified?
     repro data fetch NAME           download (and verify) a dataset into the data folder
@@ -27,7 +28,7 @@ from pathlib import Path
 from repro.errors import ReproError, UnknownFigureError
 
 DEFAULT_OUT = "figures"
-BENCHES = ("attenuation", "retrieval", "adaptation")
+BENCHES = ("attenuation", "retrieval", "adaptation", "index")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -184,13 +185,14 @@ def _main(args) -> int:
 
             return _run(list(registry()), args.out, args.quick, args.force, args.face)
         if args.command == "bench":
-            from repro.bench import adaptation, attenuation, retrieval
+            from repro.bench import adaptation, attenuation, index_build, retrieval
             from repro.io import write_csv
 
             run_, fmt, csv_name = {
                 "attenuation": (attenuation.bench_attenuation, attenuation.format_attenuation, "bench_attenuation.csv"),
                 "retrieval": (retrieval.bench_retrieval, retrieval.format_retrieval, "retrieval_latency.csv"),
                 "adaptation": (adaptation.bench_adaptation, adaptation.format_adaptation, "bench_adaptation.csv"),
+                "index": (index_build.bench_index_build, index_build.format_index_build, "bench_index_build.csv"),
             }[args.which]
             table = run_(quick=args.quick, progress=True)
             print(fmt(table))

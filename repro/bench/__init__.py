@@ -6,7 +6,9 @@ their ratio.  One module per benchmark, each the home of one ``repro bench`` com
 
 - :mod:`repro.bench.attenuation` -- Lewis et al. 2005, Section 5 (``repro bench attenuation``);
 - :mod:`repro.bench.retrieval` -- Pronost et al., Sections 3.3 and 4 (``repro bench retrieval``);
-- :mod:`repro.bench.adaptation` -- Pronost et al., Sections 3.4 and 4 (``repro bench adaptation``).
+- :mod:`repro.bench.adaptation` -- Pronost et al., Sections 3.4 and 4 (``repro bench adaptation``);
+- :mod:`repro.bench.index_build` -- Pronost et al., Section 3.2.2, the scaled databases and index
+  (``repro bench index``).
 
 This module holds only what they share (the machine line and the median timer).  The
 paper's published numbers are in :mod:`repro.motion.paper`, never here.  The
@@ -30,6 +32,7 @@ _HOMES = {
     "bench_attenuation": "attenuation", "bench_attenuation_scaling": "attenuation", "format_attenuation": "attenuation",
     "bench_retrieval": "retrieval", "retrieval_summary": "retrieval", "format_retrieval": "retrieval",
     "bench_adaptation": "adaptation", "format_adaptation": "adaptation",
+    "bench_index_build": "index_build", "format_index_build": "index_build",
 }
 
 

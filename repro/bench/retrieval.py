@@ -13,6 +13,7 @@ import sys
 import numpy as np
 
 from repro.bench import machine
+from repro.bench.index_build import FLOAT32_FROM
 from repro.motion.paper import PAPER_SEARCH_S
 
 __all__ = [
@@ -40,7 +41,9 @@ def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_quer
     """Latency of the paper's pruned search, the exact search, the exhaustive scan and the kd-tree, vs size.
 
     For each base database (the synthetic one always, the CMU one when its data is
-    present) and each augmentation factor (1x, 10x, 100x; 1x and 10x with ``quick``),
+    present) and each augmentation factor (1x, 10x, 100x, 1,000x; 1x and 10x with ``quick``;
+    from :data:`~repro.bench.index_build.FLOAT32_FROM` = 1,000x the pose clouds are float32, whose
+    rounding, 6e-8 relative, is far below the noise of the variants),
     :func:`repro.motion.retrieval.time_search` times all four methods on the same
     ``n_queries`` random queries, in one process.  One row per (database, factor,
     method) with the columns ``n_clips, n_poses, method, p50_ms, p99_ms`` (the
@@ -60,12 +63,13 @@ def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_quer
     if databases is None:
         databases = ["synthetic"] + (["cmu"] if data.missing_reason("cmu-bvh") is None else [])
     if factors is None:
-        factors = (1, 10) if quick else (1, 10, 100)
+        factors = (1, 10) if quick else (1, 10, 100, 1000)
     rows = []
     work = [(name, f) for name in databases for f in factors]
     for name, factor in tqdm(work, desc="bench retrieval", delay=1.0, disable=not progress, file=sys.stderr):
         base = default_database(name)
-        db = base if factor == 1 else augment(base, factor, seed=seed)
+        db = base if factor == 1 else augment(base, factor, seed=seed,
+                                              pose_dtype=np.float32 if factor >= FLOAT32_FROM else None)
         t = time_search(db, n_queries=n_queries if not quick else min(n_queries, 100), seed=seed)
         for method, lat in t["latency"].items():
             agree = t["agreement"].get(method, {"differs": 0.0, "n_differs": 0, "mean_excess": 0.0})

@@ -82,6 +82,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.cluster.vq import kmeans2
+from scipy.sparse import csr_matrix
 
 from repro.errors import MotionError, ReproWarning
 
@@ -102,6 +103,8 @@ __all__ = [
     "default_k",
     "check_int",
     "real_array",
+    "float_poses",
+    "CHUNK",
     "MAX_ITERATIONS",
 ]
 
@@ -170,6 +173,29 @@ def real_array(value, name: str, error=MotionError) -> np.ndarray:
 def _short(value) -> str:
     r = repr(value)
     return r if len(r) <= 80 else r[:77] + "..."
+
+
+#: Rows per chunk of the passes over all poses (index build, k-means assignment): bounds the
+#: temporaries to a few tens of MB whatever the database size.
+CHUNK: int = 65536
+
+
+def float_poses(value, name: str, error=MotionError, *, allow_empty: bool = False) -> np.ndarray:
+    """Pose clouds (N, P, 3) as a float32 or float64 array (kept as given: no copy of a large database), checked.
+
+    Other real dtypes become float64 (:func:`real_array`); non-finite values, an empty
+    array or another shape raise ``error`` naming ``name``.  Finiteness is checked by
+    chunks (no (N, P, 3) boolean temporary).
+    """
+    p = value if isinstance(value, np.ndarray) and value.dtype in (np.float32, np.float64) else real_array(value, name,
+                                                                                                           error)
+    if p.ndim != 3 or p.shape[-1] != 3 or (p.shape[0] == 0 and not allow_empty):
+        raise error(f"{name} must be a {'' if allow_empty else 'non-empty '}(N, P, 3) array, got shape {p.shape}")
+    p = np.ascontiguousarray(p)
+    for a in range(0, p.shape[0], CHUNK):
+        if not np.isfinite(p[a:a + CHUNK]).all():
+            raise error(f"{name} contain NaN or inf")
+    return p
 
 
 # ------------------------------------------------------------------ root frames
@@ -243,7 +269,7 @@ def from_root_frame(points: np.ndarray, theta, origin) -> np.ndarray:
 
 
 def pose_points(global_positions: np.ndarray, joints: Sequence[int], pelvis: int, left_hip: int,
-                right_hip: int, *, window: int = 1, step: int = 1) -> np.ndarray:
+                right_hip: int, *, window: int = 1, step: int = 1, first=None) -> np.ndarray:
     """Pose clouds of every frame, each in its own root frame.
 
     Parameters
@@ -260,6 +286,10 @@ def pose_points(global_positions: np.ndarray, joints: Sequence[int], pelvis: int
         (clamped at 0), all expressed in the root frame of frame ``f``.
     step : int, default 1
         Frame spacing inside the window.
+    first : (F,) int array, optional
+        For frames of several clips laid end to end (:func:`repro.motion.augment.augment`
+        computes all the variants of a clip at once): the index of the first frame of
+        each frame's clip, where its window is clamped (default 0: one clip).
 
     Returns
     -------
@@ -278,7 +308,8 @@ def pose_points(global_positions: np.ndarray, joints: Sequence[int], pelvis: int
     theta, origin = root_frames(g, pelvis, left_hip, right_hip)
     F = g.shape[0]
     offs = np.arange(-(window - 1) * step, 1, step)
-    frames = np.clip(np.arange(F)[:, None] + offs[None, :], 0, F - 1)  # (F, window)
+    lo = 0 if first is None else np.asarray(first, dtype=np.intp).reshape(F, 1)
+    frames = np.clip(np.arange(F)[:, None] + offs[None, :], lo, F - 1)  # (F, window)
     pts = g[frames][:, :, idx]  # (F, window, P, 3)
     pts = to_root_frame(pts, theta[:, None, None], origin[:, None, None])
     return pts.reshape(F, window * idx.size, 3)
@@ -360,39 +391,102 @@ class AlignedPoseIndex:
     Parameters
     ----------
     points : (N, P, 3) array
-        Candidate clouds (kept as :attr:`points`; None in a :meth:`subset`).
+        Candidate clouds, float32 or float64 (kept as :attr:`points`, not copied; None in a
+        :meth:`subset`).  The closed-form terms are float64 whatever their dtype.
     weights : (P,) array, optional
         Point weights (normalised); default uniform.
+    order : (n,) int array, optional
+        Store the matrix terms of the poses ``order`` only, in that order (default: every
+        pose, in order).  A :meth:`subset` whose rows are a run of consecutive entries of
+        ``order`` is then a view, not a copy: the retriever orders the startable poses by
+        (semantics, cluster, pose) (:func:`repro.motion.index_build.block_order`) so that its
+        per-cluster and per-semantics candidate blocks share one array instead of one copy
+        each (the 1,000x database: 4.6 M poses).  The terms of a pose outside ``order`` are
+        recomputed from :attr:`points` when asked for (same values).
     """
 
     points: np.ndarray | None
     weights: np.ndarray | None = None
+    order: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        p = np.ascontiguousarray(real_array(self.points, "candidate poses"))
-        if p.ndim != 3 or p.shape[-1] != 3:
-            raise MotionError(f"candidate poses must be (N, P, 3), got {p.shape}")
-        if not np.all(np.isfinite(p)):
-            raise MotionError("candidate poses contain NaN or inf")
+        p = float_poses(self.points, "candidate poses", allow_empty=True)
         self.points = p
         N, P, _ = p.shape
         self._P = P
         w = pose_weights(P, self.weights)
         self.weights = w
-        x, y, z, X, Z, H = _moments(p, w)
-        # columns: [w x', w z', w y'] -> M @ [[xa, -za, 0], [za, xa, 0], [0, 0, ya]]
-        self._M = np.ascontiguousarray(np.concatenate([x * w, z * w, y * w], axis=1))
-        self._X, self._Z, self._H = X, Z, H
-        self._Y2 = (y * y) @ w
+        self._X, self._Z, self._H, self._Y2 = np.empty(N), np.empty(N), np.empty(N), np.empty(N)
+        for a in range(0, N, CHUNK):
+            _, self._X[a:a + CHUNK], self._Z[a:a + CHUNK], self._H[a:a + CHUNK], self._Y2[a:a + CHUNK] = \
+                self._terms(p[a:a + CHUNK], want_m=False)
+        self._perm = None  # (a subset's) row -> stored row, when not the identity
+        if self.order is None:
+            self._pos = None
+            stored = None
+        else:
+            stored = np.asarray(self.order)
+            if stored.ndim != 1 or stored.dtype.kind not in "iu" or (stored.size and (
+                    stored.min() < 0 or stored.max() >= N)) or np.unique(stored).size != stored.size:
+                raise MotionError(f"order must be distinct pose indices in [0, {N}), got {_short(self.order)}")
+            self.order = stored = stored.astype(np.intp)
+            self._pos = np.full(N, -1, dtype=np.intp)
+            self._pos[stored] = np.arange(stored.size)
+        n = N if stored is None else stored.size
+        # columns: [w x', w z', w y'] -> M @ [[xa, -za, 0], [za, xa, 0], [0, 0, ya]]; filled by chunks
+        # (float32 points are never copied whole to float64)
+        self._M = np.empty((n, 3 * P))
+        for a in range(0, n, CHUNK):
+            self._M[a:a + CHUNK] = self._terms(p[a:a + CHUNK] if stored is None else p[stored[a:a + CHUNK]])[0]
+
+    def _terms(self, pts: np.ndarray, want_m: bool = True):
+        """``(M rows or None, X, Z, H, Y2)`` of the clouds ``pts`` (n, P, 3), in float64."""
+        w = self.weights
+        x, y, z, X, Z, H = _moments(pts.astype(float, copy=False), w)
+        M = None
+        if want_m:
+            P = self._P
+            M = np.empty((x.shape[0], 3 * P))
+            M[:, :P], M[:, P:2 * P], M[:, 2 * P:] = x * w, z * w, y * w
+        return M, X, Z, H, (y * y) @ w
+
+    def _rows_m(self, rows: np.ndarray) -> np.ndarray:
+        """The matrix terms of poses ``rows`` (a copy), from the stored ones or recomputed."""
+        if self._pos is None:
+            return self._M[rows] if self._perm is None else self._M[self._perm[rows]]
+        at = self._pos[rows]
+        ok = at >= 0
+        if ok.all():
+            return self._M[at]
+        out = np.empty((rows.size, self._M.shape[1]))
+        out[ok] = self._M[at[ok]]
+        out[~ok] = self._terms(self.points[rows[~ok]])[0]
+        return out
 
     def subset(self, rows) -> AlignedPoseIndex:
-        """An index of the candidates ``rows`` only (contiguous copies; ``points`` is None)."""
+        """An index of the candidates ``rows`` only (``points`` is None).
+
+        A view of the stored terms when ``rows`` are consecutive entries of ``order``
+        (see the class), in any order (the subset then keeps the permutation to its rows:
+        its distances are in the order of ``rows``); else contiguous copies.
+        """
         rows = np.asarray(rows, dtype=np.intp)
         out = object.__new__(AlignedPoseIndex)
         out.points = None
+        out.order = None
+        out._pos = None
+        out._perm = None
         out.weights = self.weights
         out._P = self._P
-        out._M = np.ascontiguousarray(self._M[rows])
+        at = None if self._pos is None or rows.size == 0 else self._pos[rows]
+        lo = None if at is None else int(at.min())
+        if (at is not None and lo >= 0 and int(at.max()) - lo == rows.size - 1
+                and np.bincount(at - lo, minlength=rows.size).max() == 1):  # a run of ``order``, permuted
+            out._M = self._M[lo:lo + rows.size]
+            if np.any(np.diff(at) != 1):
+                out._perm = at - lo
+        else:
+            out._M = np.ascontiguousarray(self._rows_m(rows))
         out._X, out._Z, out._H, out._Y2 = self._X[rows], self._Z[rows], self._H[rows], self._Y2[rows]
         return out
 
@@ -435,11 +529,15 @@ class AlignedPoseIndex:
             :meth:`query_matrix` of ``q`` when already computed.
         """
         Q, Xa, Za, Ha, Ya2 = self.query_matrix(q) if prepared is None else prepared
-        if rows is None:
-            M, X, Z, H, Y2 = self._M, self._X, self._Z, self._H, self._Y2
+        if rows is None and self._pos is None:
+            X, Z, H, Y2 = self._X, self._Z, self._H, self._Y2
+            M = self._M
+            R = M @ Q if self._perm is None else (M @ Q)[self._perm]
         else:
-            M, X, Z, H, Y2 = self._M[rows], self._X[rows], self._Z[rows], self._H[rows], self._Y2[rows]
-        R = M @ Q
+            rows = np.arange(self.n) if rows is None else np.asarray(rows)
+            rows = np.flatnonzero(rows) if rows.dtype == bool else rows.astype(np.intp, copy=False)
+            M, X, Z, H, Y2 = self._rows_m(rows), self._X[rows], self._Z[rows], self._H[rows], self._Y2[rows]
+            R = M @ Q
         A = R[:, 0] - (Xa * X + Za * Z)
         B = R[:, 1] - (Xa * Z - Za * X)
         d2 = Ya2 - 2.0 * R[:, 2] + Y2 + Ha + H - 2.0 * np.hypot(A, B)
@@ -499,13 +597,30 @@ def default_k(n_poses: int) -> int:
     return int(np.clip(round(np.sqrt(max(n_poses, 1) / 8.0)), 1, 256))
 
 
-def _nearest_centroid(X: np.ndarray, C: np.ndarray, chunk: int = 65536) -> np.ndarray:
-    """Index of the nearest row of C for every row of X (squared Euclidean, via BLAS)."""
+def _nearest_centroid(X: np.ndarray, C: np.ndarray, chunk: int = CHUNK) -> np.ndarray:
+    """Index of the nearest row of C for every row of X (squared Euclidean, via BLAS).
+
+    ``argmin_c |c|^2 - 2 x.c`` (``|x|^2`` does not change the argmin), one matrix product per
+    chunk into a reused buffer.
+    """
     c2 = np.einsum("ij,ij->i", C, C)
     out = np.empty(X.shape[0], dtype=np.intp)
+    buf = np.empty((min(chunk, X.shape[0]), C.shape[0]), dtype=np.result_type(X, C))
     for a in range(0, X.shape[0], chunk):
-        out[a:a + chunk] = np.argmin(c2[None, :] - 2.0 * (X[a:a + chunk] @ C.T), axis=1)
+        Xa = X[a:a + chunk]
+        D = np.matmul(Xa, C.T, out=buf[:Xa.shape[0]])
+        D *= -2.0
+        D += c2
+        out[a:a + Xa.shape[0]] = np.argmin(D, axis=1)
     return out
+
+
+def _label_sums(labels: np.ndarray, X: np.ndarray, k: int) -> np.ndarray:
+    """(k, D) float64 sums of the rows of X per label: one sparse product (the same sums, in the same
+    order, as one :func:`numpy.bincount` per column)."""
+    n = labels.size
+    onehot = csr_matrix((np.ones(n), (labels, np.arange(n))), shape=(k, n))
+    return np.asarray(onehot @ X.astype(np.float64, copy=False))
 
 
 def _kmeans_sample(X: np.ndarray, k: int, iterations: int, rng) -> np.ndarray:
@@ -536,7 +651,7 @@ def _kmeans_sample(X: np.ndarray, k: int, iterations: int, rng) -> np.ndarray:
 def _means(X: np.ndarray, labels: np.ndarray, k: int, previous: np.ndarray) -> np.ndarray:
     """Mean of every label's rows (one bincount per column); an empty label keeps ``previous``."""
     cnt = np.bincount(labels, minlength=k).astype(np.float64)
-    S = np.stack([np.bincount(labels, weights=X[:, j], minlength=k) for j in range(X.shape[1])], axis=1)
+    S = _label_sums(labels, X, k)
     out = np.array(previous, dtype=np.float64)
     nz = cnt > 0
     out[nz] = S[nz] / cnt[nz, None]
@@ -550,7 +665,9 @@ def cluster_poses(points: np.ndarray, k: int | None = None, *, weights=None, see
     Parameters
     ----------
     points : (N, P, 3) array
-        Pose clouds in their canonical root frames (:func:`pose_points`).
+        Pose clouds in their canonical root frames (:func:`pose_points`); float32 or
+        float64, never copied whole (the passes over all poses work by chunks of
+        :data:`CHUNK` rows).
     k : int, optional
         Number of clusters, an int >= 1 (default :func:`default_k`); more than N is cut
         to N with a :class:`~repro.errors.ReproWarning` saying so.
@@ -582,11 +699,7 @@ def cluster_poses(points: np.ndarray, k: int | None = None, *, weights=None, see
         Empty, non-numeric or non-finite input; ``k``, ``seed``, ``iterations`` or
         ``max_fit`` not an integer in range (``max_fit`` must be >= ``k``).
     """
-    p = real_array(points, "poses")
-    if p.ndim != 3 or p.shape[-1] != 3 or p.shape[0] == 0:
-        raise MotionError(f"need a non-empty (N, P, 3) array of poses, got shape {p.shape}")
-    if not np.all(np.isfinite(p)):
-        raise MotionError("poses contain NaN or inf")
+    p = float_poses(points, "poses")
     N, P, _ = p.shape
     k = default_k(N) if k is None else check_int(k, "k (number of clusters)", 1)
     seed = check_int(seed, "seed", 0)
@@ -600,7 +713,7 @@ def cluster_poses(points: np.ndarray, k: int | None = None, *, weights=None, see
     sw = np.sqrt(w)[None, :, None]
     if max_fit is not None and N > max_fit and k > 1:
         return _cluster_large(p, k, w, seed, iterations, int(max_fit))
-    X = (p * sw).reshape(N, 3 * P)
+    X = (p.astype(float, copy=False) * sw).reshape(N, 3 * P)
     if k == 1:
         labels = np.zeros(N, dtype=np.intp)
         C = X.mean(axis=0, keepdims=True)
@@ -621,7 +734,7 @@ def cluster_poses(points: np.ndarray, k: int | None = None, *, weights=None, see
 
 
 def _cluster_large(p: np.ndarray, k: int, w: np.ndarray, seed: int, iterations: int, max_fit: int,
-                   chunk: int = 65536) -> PoseClusters:
+                   chunk: int = CHUNK) -> PoseClusters:
     """:func:`cluster_poses` beyond ``max_fit`` poses: k-means of a sample, one pass over all."""
     N, P, _ = p.shape
     sw = np.sqrt(w).astype(np.float32)[None, :, None]
@@ -634,8 +747,7 @@ def _cluster_large(p: np.ndarray, k: int, w: np.ndarray, seed: int, iterations: 
         Xc = (p[a:a + chunk].astype(np.float32) * sw).reshape(-1, 3 * P)
         lab = _nearest_centroid(Xc, C)
         labels[a:a + chunk] = lab
-        for j in range(3 * P):
-            S[:, j] += np.bincount(lab, weights=Xc[:, j], minlength=k)
+        S += _label_sums(lab, Xc, k)
     cnt = np.bincount(labels, minlength=k)
     used = np.flatnonzero(cnt)
     remap = np.full(k, -1, dtype=np.intp)
@@ -644,7 +756,7 @@ def _cluster_large(p: np.ndarray, k: int, w: np.ndarray, seed: int, iterations: 
     Cm = S[used] / cnt[used, None]
     inertia = 0.0
     for a in range(0, N, chunk):
-        Xc = (p[a:a + chunk] * sw).reshape(-1, 3 * P)
+        Xc = (p[a:a + chunk].astype(float, copy=False) * sw).reshape(-1, 3 * P)
         inertia += float(np.sum((Xc - Cm[labels[a:a + chunk]]) ** 2))
     order = np.argsort(labels, kind="stable")
     members = np.split(order, np.cumsum(cnt[used])[:-1])

@@ -307,6 +307,10 @@ class MotionDatabase:
         """Pose indices of clip ``i``."""
         return np.arange(self.pose_start[i], self.pose_start[i + 1])
 
+    def stored_motions(self) -> dict[int, Motion]:
+        """Clip index -> motion of the clips that store one (the others are variants rebuilt from them)."""
+        return dict(self._motions)
+
     def actor_skeleton(self, i: int) -> Skeleton:
         """Skeleton of the actor of clip ``i`` (base actor scaled by ``scale[i]``)."""
         base = self.actors[int(self.actor[i])]

@@ -95,16 +95,15 @@ from scipy.spatial import cKDTree
 from repro.errors import MotionError, RetrievalError
 from repro.motion.clustering import (
     AlignedPoseIndex,
-    PoseClusters,
     aligned_distance,
     check_int,
-    cluster_poses,
     pose_points,
     root_frames,
     rotate_y,
 )
 from repro.motion.annotation import SEMANTICS
 from repro.motion.database import MotionDatabase
+from repro.motion.index_build import build_pose_index
 from repro.motion.ops import resample
 from repro.motion.morphology import retarget
 from repro.motion.retarget_tree import retarget_across
@@ -454,8 +453,7 @@ class MotionRetriever:
         self.kd_neighbours = check_int(kd_neighbours, "kd_neighbours", 1, None, RetrievalError)
         self.across_trees = _check_flag("across_trees", across_trees)
         try:
-            self.index = AlignedPoseIndex(db.pose_points, weights)
-            self.clusters: PoseClusters = cluster_poses(db.pose_points, k, weights=weights, seed=seed)
+            self.index, self.clusters = build_pose_index(db, k, weights=weights, seed=seed)
         except MotionError as e:
             raise RetrievalError(str(e)) from None
         self.weights = self.index.weights

@@ -48,3 +48,13 @@ def test_the_package_forwards_the_flat_names_to_their_modules():
     assert bench.bench_attenuation is attenuation.bench_attenuation and bench.format_adaptation is adaptation.format_adaptation
     with pytest.raises(AttributeError, match="no attribute 'nope'"):
         bench.nope  # noqa: B018  (the attribute access is the test)
+
+
+def test_bench_index_build_columns_and_goals():
+    from repro.bench import index_build
+
+    t = index_build.bench_index_build(factors=(2,), baseline_variants=5)
+    assert list(t.factor) == [2] and t.n_poses.iloc[0] > 0 and t.k.iloc[0] >= 1
+    assert t.augment_peak_gb.iloc[0] > 0 and t.index_peak_gb.iloc[0] > 0 and t.per_variant_augment_s.iloc[0] > 0
+    assert t.pose_dtype.iloc[0] == "float64"
+    assert "per-variant path" in index_build.format_index_build(t)
