@@ -10,20 +10,37 @@ factor, the seed, the source of the ``repro`` package and numpy's version.  A ``
 beside it records that key and the archive's sha256; both are checked on load (and
 :meth:`MotionDatabase.load` checks the archive's structure), so a damaged, foreign or stale
 file is rebuilt, with a :class:`~repro.errors.CacheWarning` when it was damaged.
+
+Writing costs about as much as building a 10x database (compressing it), so a cache file is
+read wherever it exists but written only inside :func:`kept_on_disk` (``repro run`` / ``repro
+all`` through :func:`repro.experiments.registry.run_many`): a figure computed from code or in
+a notebook with an empty cache builds in memory and leaves nothing behind.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import warnings
 from functools import lru_cache
 from pathlib import Path
 
-__all__ = ["augmented_database", "database_key", "code_fingerprint"]
+__all__ = ["augmented_database", "database_key", "code_fingerprint", "kept_on_disk"]
 
 #: Version of the cache layout (part of every key).
 FORMAT = 1
+_WRITE = [False]
+
+
+@contextlib.contextmanager
+def kept_on_disk(on: bool = True):
+    """Within: the databases :func:`augmented_database` builds are written to the cache too."""
+    before, _WRITE[0] = _WRITE[0], bool(on)
+    try:
+        yield
+    finally:
+        _WRITE[0] = before
 
 
 @lru_cache(maxsize=1)
@@ -87,9 +104,10 @@ def _load(path: Path, key: str):
 def augmented_database(name: str = "synthetic", factor: int = 1, seed: int = 0, *, use_cache: bool = True):
     """``augment(default_database(name), factor, seed=seed)`` (the base itself for ``factor`` 1), from the cache.
 
-    Built on first use and saved to the cache (an unwritable cache folder only means no
-    cache); ``use_cache=False`` builds without reading or writing it.  Each call returns
-    its own database.
+    Read from the cache when it is there; else built, and saved to the cache inside
+    :func:`kept_on_disk` (an unwritable cache folder only means no cache).
+    ``use_cache=False`` builds without reading or writing it.  Each call returns its own
+    database.
     """
     from repro.errors import DataError
     from repro.io import write_text
@@ -107,6 +125,8 @@ def augmented_database(name: str = "synthetic", factor: int = 1, seed: int = 0, 
     db = _load(path, key)
     if db is None:
         db = augment(default_database(name), factor, seed=seed)
+        if not _WRITE[0]:
+            return db
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
             db.save(path)

@@ -27,7 +27,10 @@ def _no_build(monkeypatch):
 
 
 def test_built_once_then_read_back_equal(cache, monkeypatch):
-    first = shared.augmented_database("synthetic", 2, seed=0)
+    shared.augmented_database("synthetic", 2, seed=0)
+    assert not cache.exists(), "written only inside kept_on_disk (repro run / all)"
+    with shared.kept_on_disk():
+        first = shared.augmented_database("synthetic", 2, seed=0)
     files = sorted(p.suffix for p in cache.iterdir())
     assert files == [".json", ".npz"]
     assert shared.database_key("synthetic", 2, 0)[:20] in next(cache.glob("*.npz")).name
@@ -47,12 +50,13 @@ def test_the_key_names_every_input():
 
 
 def test_a_damaged_cache_is_rebuilt_with_a_warning(cache):
-    first = shared.augmented_database("synthetic", 2, seed=0)
+    with shared.kept_on_disk():
+        first = shared.augmented_database("synthetic", 2, seed=0)
     npz = next(cache.glob("*.npz"))
     raw = bytearray(npz.read_bytes())
     raw[len(raw) // 2] ^= 0xFF
     npz.write_bytes(bytes(raw))
-    with pytest.warns(CacheWarning, match="sha256 is not the recorded one"):
+    with pytest.warns(CacheWarning, match="sha256 is not the recorded one"), shared.kept_on_disk():
         again = shared.augmented_database("synthetic", 2, seed=0)
     assert again.equals(first)
     with warnings.catch_warnings():
@@ -63,10 +67,12 @@ def test_a_damaged_cache_is_rebuilt_with_a_warning(cache):
 def test_an_unwritable_cache_folder_is_no_cache(tmp_path, monkeypatch):
     (tmp_path / "file").write_text("x")
     monkeypatch.setenv("REPRO_CACHE_DIR", str(tmp_path / "file"))
-    db = shared.augmented_database("synthetic", 2, seed=0)
+    with shared.kept_on_disk():
+        db = shared.augmented_database("synthetic", 2, seed=0)
     assert db.n_clips == 2 * shared.augmented_database("synthetic", 1).n_clips
 
 
 def test_the_base_database_is_not_cached(cache):
-    assert shared.augmented_database("synthetic", 1).n_clips > 0
+    with shared.kept_on_disk():
+        assert shared.augmented_database("synthetic", 1).n_clips > 0
     assert not cache.exists()
