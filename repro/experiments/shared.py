@@ -26,7 +26,7 @@ import warnings
 from functools import lru_cache
 from pathlib import Path
 
-__all__ = ["augmented_database", "database_key", "code_fingerprint", "kept_on_disk"]
+__all__ = ["augmented_database", "code_fingerprint", "database_key", "kept_on_disk"]
 
 #: Version of the cache layout (part of every key).
 FORMAT = 1
