@@ -36,6 +36,7 @@ __all__ = [
     "DATASETS",
     "registry",
     "data_dir",
+    "cache_dir",
     "locate",
     "fetch",
     "open_file",
@@ -110,6 +111,17 @@ def data_dir() -> Path:
     import pooch
 
     return Path(pooch.os_cache("repro"))
+
+
+def cache_dir() -> Path:
+    """Folder for derived caches (never the data folder): ``$REPRO_CACHE_DIR``, else
+    ``pooch.os_cache("repro") / "derived"``.  The ICT arrays and the figures' shared databases live here."""
+    env = os.environ.get("REPRO_CACHE_DIR")
+    if env:
+        return Path(env).expanduser().resolve()
+    import pooch
+
+    return Path(pooch.os_cache("repro")) / "derived"
 
 
 def _offline() -> bool:

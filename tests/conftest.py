@@ -173,6 +173,44 @@ class ColdBusyNotebooks:
                 f"({', '.join(COLD_VARS)} fresh per notebook) and {os.cpu_count()} CPU-bound processes running")
 
 
+# ------------------------------------------------------------------ work beside the tests
+#: REPRO_TEST_BESIDE=0 runs everything in the test that checks it (slower: nothing runs on the second core)
+BESIDE_ON = os.environ.get("REPRO_TEST_BESIDE", "1") != "0"
+_BESIDE = None
+
+
+def pytest_collection_finish(session):
+    """Start the slow independent runs the selected tests check (tests/beside.py), beside the tests."""
+    global _BESIDE
+    from tests.beside import Beside
+
+    _BESIDE = Beside()
+    if not BESIDE_ON or session.config.option.collectonly:
+        return
+    for item in session.items:
+        if item.get_closest_marker("skip"):
+            continue
+        name = getattr(item, "originalname", item.name)
+        if name == "test_two_runs_give_identical_csvs_except_timing_columns" and not _BESIDE.has("figures"):
+            _BESIDE.add_figures()
+        elif name == "test_notebook_runs_on_the_embedded_data_without_a_data_folder":
+            _BESIDE.add_notebook(item.callspec.params["path"])
+    _BESIDE.start()
+
+
+def pytest_unconfigure(config):
+    if _BESIDE is not None:
+        _BESIDE.stop()
+
+
+@pytest.fixture(scope="session")
+def beside():
+    """The session's :class:`tests.beside.Beside` (jobs started at collection; ``has(key)`` says which)."""
+    from tests.beside import Beside
+
+    return _BESIDE if _BESIDE is not None else Beside()
+
+
 # ------------------------------------------------------------------ shared computations
 class QuickFigures:
     """Every registered figure computed at most once per test session, in quick mode.

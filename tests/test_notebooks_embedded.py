@@ -3,7 +3,9 @@
 CI's nbval pass runs the notebooks on the real data (``.ci/run`` sets ``REPRO_DATA_DIR``) and compares
 their stored outputs; this runs each one as a fresh clone would (no data folder, no downloads), with the
 papermill-style parameter ``DATA`` set right after the cell tagged ``parameters``, and checks that every
-cell runs without error and that the notebook says it runs on the embedded data.  The outputs are not
+cell runs without error and that the notebook says it runs on the embedded data.  The runs start beside
+the other tests when the session collects them (tests/beside.py: a kernel per notebook, one at a time,
+on the second core) and each test checks its notebook's run.  The outputs are not
 compared (they differ from the stored real-data ones by design).  Slow: every notebook is executed.
 """
 
@@ -70,9 +72,12 @@ def _marks(path: Path):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("path", [pytest.param(p, id=p.stem, marks=_marks(p)) for p in NOTEBOOKS])
-def test_notebook_runs_on_the_embedded_data_without_a_data_folder(path, fresh_clone):
-    nb = _with_parameter(nbformat.read(path, as_version=4), "embedded")
-    done = _execute(nb)  # raises CellExecutionError, naming the cell, on the first error
+def test_notebook_runs_on_the_embedded_data_without_a_data_folder(path, fresh_clone, beside):
+    if beside.has(f"notebook-{path.stem}"):  # run beside the tests since collection, set up as fresh_clone is
+        done, fresh_clone = beside.notebook(path)  # fails the test, naming the cell, on the first error
+    else:
+        nb = _with_parameter(nbformat.read(path, as_version=4), "embedded")
+        done = _execute(nb)  # raises CellExecutionError, naming the cell, on the first error
     text = "".join(_text(c) for c in done.cells if c.cell_type == "code")
     assert "Data: " in text, "the notebook must say what it runs on"
     assert "Data: real" not in text

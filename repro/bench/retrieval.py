@@ -37,7 +37,7 @@ GOAL_LOGLOG_SLOPE: float = 0.5
 
 
 def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_queries: int = 200,
-                    seed: int = 0, progress: bool = False):
+                    seed: int = 0, progress: bool = False, database=None):
     """Latency of the paper's pruned search, the exact search, the exhaustive scan and the kd-tree, vs size.
 
     For each base database (the synthetic one always, the CMU one when its data is
@@ -51,6 +51,11 @@ def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_quer
     differs from the exhaustive optimum (fraction and count: 0 for the exact search),
     the mean excess of its distance, the query-preparation cost (Eq. 1 and retargeting
     q to the actor, shared by all) and the index build time (``precompute_s``).
+
+    ``database(name, factor, seed)``: where the databases come from (default: built here,
+    ``augment(default_database(name), factor, seed=seed)``; the figure passes
+    :func:`repro.experiments.shared.augmented_database`, which keeps them on disk; from
+    ``FLOAT32_FROM`` they are always built here, float32).
     """
     import pandas as pd
     from tqdm import tqdm  # plain bar on stderr, never a notebook widget
@@ -67,9 +72,12 @@ def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_quer
     rows = []
     work = [(name, f) for name in databases for f in factors]
     for name, factor in tqdm(work, desc="bench retrieval", delay=1.0, disable=not progress, file=sys.stderr):
-        base = default_database(name)
-        db = base if factor == 1 else augment(base, factor, seed=seed,
-                                              pose_dtype=np.float32 if factor >= FLOAT32_FROM else None)
+        if database is not None and factor < FLOAT32_FROM:  # 1,000x: float32, built here (too big to cache as npz)
+            db = database(name, factor, seed)
+        else:
+            base = default_database(name)
+            db = base if factor == 1 else augment(base, factor, seed=seed,
+                                                  pose_dtype=np.float32 if factor >= FLOAT32_FROM else None)
         t = time_search(db, n_queries=n_queries if not quick else min(n_queries, 100), seed=seed)
         for method, lat in t["latency"].items():
             agree = t["agreement"].get(method, {"differs": 0.0, "n_differs": 0, "mean_excess": 0.0})

@@ -43,7 +43,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import re
 import warnings
 from collections.abc import Sequence
@@ -467,13 +466,8 @@ def ict_regions(f0: np.ndarray, landmarks: Sequence[int]) -> dict[str, np.ndarra
 
 # ------------------------------------------------------------------ loading
 def cache_dir() -> Path:
-    """Folder for derived caches: ``$REPRO_CACHE_DIR``, else ``pooch.os_cache("repro") / "derived"``."""
-    env = os.environ.get("REPRO_CACHE_DIR")
-    if env:
-        return Path(env).expanduser().resolve()
-    import pooch
-
-    return Path(pooch.os_cache("repro")) / "derived"
+    """Folder for derived caches: :func:`repro.data.cache_dir` (``$REPRO_CACHE_DIR``, else ``pooch.os_cache("repro") / "derived"``)."""
+    return data.cache_dir()
 
 
 def _relpath(stem: str) -> str:

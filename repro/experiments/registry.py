@@ -362,14 +362,16 @@ def run_many(names, outdir="figures", *, quick: bool = False, force: bool = Fals
     paths)`` is called after each.  Each entry is merged into the manifest under
     a lock, so concurrent runs into one folder keep each other's entries; a
     damaged manifest is rebuilt from its valid entries, with a warning.
-    ``progress``: progress bars (stderr) for figures that have them.  ``faces``: glTF
+    ``progress``: progress bars (stderr) for figures that have them.  The augmented databases
+    the figures build are kept on disk for the next run (:mod:`repro.experiments.shared`).  ``faces``: glTF
     faces added to every Lewis figure (all read first; a bad one is a ModelError
     before any figure runs), part of the input key by content hash.
     """
+    from repro.experiments import shared
     from repro.experiments.lewis import common
 
     out = output_folder(outdir)
-    with common.use_faces(faces):
+    with common.use_faces(faces), shared.kept_on_disk():  # the databases figures share, kept for the next run
         return _run_many(names, out, quick=quick, force=force, on_result=on_result, progress=progress)
 
 

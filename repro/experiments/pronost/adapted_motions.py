@@ -40,6 +40,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from repro.experiments.progress import bar
 from repro.experiments.registry import Result, experiment
 
 #: Fighter statures (m).
@@ -67,7 +68,7 @@ def _segments(sk) -> list[tuple[int, int]]:
     return [(int(p), j) for j, p in enumerate(sk.parents) if p >= 0]
 
 
-def _compute(quick: bool):
+def _compute(quick: bool, progress: bool = False):
     from repro.motion.clustering import to_root_frame
     from repro.motion.sources import default_database
     from repro.motion.morphology import retarget
@@ -79,7 +80,7 @@ def _compute(quick: bool):
     names = [str(n) for n in db.names]
     retriever = MotionRetriever(db, seed=0)
     rows, poses = [], []
-    for H in HEIGHTS:
+    for H in bar(HEIGHTS, desc="adapted_motions: statures", unit="fighter", progress=progress):
         ch = scale_skeleton(db.actors[0], height=H)
         stance = one_frame(retarget(db.motion(names.index(STANCE_CLIP)), ch), 0)
         q = retriever.prepare(stance, ch)
@@ -121,7 +122,7 @@ def _feet_databases() -> dict:
     return out
 
 
-def feet_of_played_strikes(db, name: str, clips=None) -> pd.DataFrame:
+def feet_of_played_strikes(db, name: str, clips=None, *, progress: bool = False) -> pd.DataFrame:
     """One row per clip of ``db`` (or of ``clips``): its feet once played (module docstring, the feet table)."""
     from repro.motion.adaptation import adapt
     from repro.motion.annotation import hit_point_trajectory
@@ -131,7 +132,8 @@ def feet_of_played_strikes(db, name: str, clips=None) -> pd.DataFrame:
     from repro.motion.strike import clip_effector
 
     rows = []
-    for i in (range(db.n_clips) if clips is None else clips):
+    for i in bar(range(db.n_clips) if clips is None else clips, desc=f"adapted_motions: feet, {name} clips", unit="clip",
+                 progress=progress):
         i = int(i)
         m = db.motion(i)
         ch = scale_skeleton(db.actor_skeleton(i), height=FEET_HEIGHT)
@@ -152,12 +154,12 @@ def feet_of_played_strikes(db, name: str, clips=None) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def feet_table(quick: bool) -> pd.DataFrame:
+def feet_table(quick: bool, progress: bool = False) -> pd.DataFrame:
     """The feet table over every database present (every clip; every ``FEET_QUICK_STEP``-th when quick)."""
     parts = []
     for name, db in _feet_databases().items():
         clips = range(0, db.n_clips, FEET_QUICK_STEP) if quick else None
-        parts.append(feet_of_played_strikes(db, name, clips))
+        parts.append(feet_of_played_strikes(db, name, clips, progress=progress))
     return pd.concat(parts, ignore_index=True)
 
 
@@ -280,9 +282,9 @@ def _draw_matplotlib(poses, reason: str | None = None):
     paper="pronost2008",
     data=("cmu-bvh",),  # the orders: the synthetic database only; the feet table: CMU too when staged
 )
-def adapted_motions(quick: bool = False) -> Result:
-    table, poses = _compute(bool(quick))
-    return Result(table=table, draw=lambda: draw(poses), extra_tables={"feet": feet_table(bool(quick))})
+def adapted_motions(quick: bool = False, progress: bool = False) -> Result:
+    table, poses = _compute(bool(quick), bool(progress))
+    return Result(table=table, draw=lambda: draw(poses), extra_tables={"feet": feet_table(bool(quick), bool(progress))})
 
 
 def summary(result) -> str:

@@ -56,6 +56,7 @@ import warnings
 import numpy as np
 import pandas as pd
 
+from repro.experiments.progress import bar
 from repro.experiments.registry import Result, experiment
 
 CONVENTIONS_QUICK = ("mixamo", "motionbuilder", "secondlife", "biped", "smpl", "unreal")
@@ -122,7 +123,7 @@ def measure(src, out, *, hit_frame: int | None = None, hit_role: str | None = No
     return row
 
 
-def _synthetic_rows(quick: bool) -> list[dict]:
+def _synthetic_rows(quick: bool, progress: bool = False) -> list[dict]:
     from repro.motion import retarget
     from repro.motion.synthetic import synthetic_clip
     from repro.motion.synthetic.conventions import CONVENTIONS, build
@@ -133,7 +134,8 @@ def _synthetic_rows(quick: bool) -> list[dict]:
         clip, ann = synthetic_clip(kind, side=side, seed=11)
         hit_role = f"{side}_{'fist' if kind == 'punch' else 'foot'}"
         hit_role = hit_role if kind == "punch" else f"{side}_ankle"
-        for conv in convs:
+        for conv in bar(convs, desc=f"cross_skeleton: {kind}_{side} on each convention", unit="skeleton",
+                        progress=progress):
             for h in HEIGHTS_QUICK if quick else HEIGHTS:
                 ch = build(conv, height=h)[0].motion(unit_m=1.0)
                 for fix in (False, True):
@@ -239,8 +241,8 @@ def draw(table: pd.DataFrame):
     paper="pronost2008",
     data=("cmu-bvh", "bandai"),
 )
-def cross_skeleton(quick: bool = False) -> Result:
-    table = pd.DataFrame(_synthetic_rows(bool(quick)) + _real_rows(bool(quick)))
+def cross_skeleton(quick: bool = False, progress: bool = False) -> Result:
+    table = pd.DataFrame(_synthetic_rows(bool(quick), bool(progress)) + _real_rows(bool(quick)))
     return Result(table=table, draw=lambda: draw(table))
 
 

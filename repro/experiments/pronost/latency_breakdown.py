@@ -47,6 +47,7 @@ import numpy as np
 import pandas as pd
 
 from repro.bench import machine
+from repro.experiments.progress import bar
 from repro.experiments.registry import Result, experiment
 from repro.motion.paper import (
     PAPER_ADAPT_PER_FRAME_S,
@@ -70,7 +71,8 @@ STAGES = (
 STAGE_NAMES = tuple(s[0] for s in STAGES)
 
 
-def run_orders(database="synthetic", n_orders: int = 40, seed: int = 0, warmup: int = 2) -> pd.DataFrame:
+def run_orders(database="synthetic", n_orders: int = 40, seed: int = 0, warmup: int = 2, *,
+               progress: bool = False) -> pd.DataFrame:
     """Orders at a simulated user's head: one row per order (strike numbers and stage timings, ms)."""
     from repro.motion.fighter import KungFuFighter, simulated_user
 
@@ -78,7 +80,8 @@ def run_orders(database="synthetic", n_orders: int = 40, seed: int = 0, warmup: 
     user = simulated_user(seed, duration=60.0, fps=30.0)
     rng = np.random.default_rng(seed)
     rows = []
-    for i in range(warmup + n_orders):
+    name = database if isinstance(database, str) else "custom"
+    for i in bar(range(warmup + n_orders), desc=f"latency_breakdown: {name} orders", unit="order", progress=progress):
         head = user[int(rng.integers(len(user)))]
         kind = str(rng.choice(["punch", "kick"]))
         fighter.follow(head, 0.0, snap=True)
@@ -131,13 +134,14 @@ def per_level(orders: pd.DataFrame) -> pd.DataFrame:
 
 
 @experiment("latency_breakdown", "Latency breakdown versus the paper (Section 4)", paper="pronost2008")
-def latency_breakdown(quick: bool = False, databases=None, n_orders: int | None = None, seed: int = 0) -> Result:
+def latency_breakdown(quick: bool = False, databases=None, n_orders: int | None = None, seed: int = 0,
+                      progress: bool = False) -> Result:
     from repro import data
 
     if databases is None:
         databases = ["synthetic"] + (["cmu"] if data.missing_reason("cmu-bvh") is None else [])
     n = n_orders if n_orders is not None else (12 if quick else 40)
-    orders = [run_orders(name, n, seed) for name in databases]
+    orders = [run_orders(name, n, seed, progress=progress) for name in databases]
     table = pd.concat([breakdown(o) for o in orders], ignore_index=True)
     table["machine"] = machine()
     levels = pd.concat([per_level(o) for o in orders], ignore_index=True)

@@ -65,6 +65,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from repro.experiments.progress import bar
 from repro.experiments.registry import Result, experiment
 from repro.motion.feet import max_foot_slide
 from repro.motion.annotation import hit_point_trajectory
@@ -207,18 +208,22 @@ def _methods(motion, ch, i, db, c):
     yield "mi_feet_adapt", ad.motion, {"reached": ad.reached}
 
 
-def _sweep_rows(name: str, db, quick: bool) -> list[dict]:
+def _sweep_rows(name: str, db, quick: bool, progress: bool = False) -> list[dict]:
     from repro.motion.feet import foot_contacts
 
     heights = HEIGHTS_QUICK if quick else HEIGHTS
     props = PROPORTIONS_QUICK if quick else tuple(PROPORTIONS)
     rows = []
-    for i in _clip_indices(name, db, quick):
+    clips = _clip_indices(name, db, quick)
+    b = bar(total=len(clips) * len(heights) * len(props), desc=f"retargeting_morphologies: {name} clips x morphologies",
+            unit="character", progress=progress)
+    for i in clips:
         m = db.motion(i)
         actor = db.actor_skeleton(i)
         contacts = foot_contacts(m)
         for h in heights:
             for p in props:
+                b.update()
                 ch = character(actor, h, p)
                 c = db.hit_position[i] * ch.size / db.size_a[i]  # Eq. 1 backwards: where this character should hit
                 for method, mo, extra in _methods(m, ch, i, db, c):
@@ -228,6 +233,7 @@ def _sweep_rows(name: str, db, quick: bool) -> list[dict]:
                         **_measure(mo, ch, db, i, c, contacts),
                         "reached": extra.get("reached", np.nan),
                     })
+    b.close()
     return rows
 
 
@@ -267,9 +273,9 @@ def _eq1_rows(name: str, db, quick: bool) -> list[dict]:
     return rows
 
 
-def _compute(quick: bool):
+def _compute(quick: bool, progress: bool = False):
     dbs = databases()
-    sweep = pd.DataFrame([r for name, db in dbs.items() for r in _sweep_rows(name, db, quick)])
+    sweep = pd.DataFrame([r for name, db in dbs.items() for r in _sweep_rows(name, db, quick, progress)])
     eq1 = pd.DataFrame([r for name, db in dbs.items() for r in _eq1_rows(name, db, quick)])
     keys = ["database", "height_m", "proportions", "method"]
     g = sweep.groupby(keys, sort=False)
@@ -350,8 +356,8 @@ def draw(table: pd.DataFrame, eq1: pd.DataFrame):
     "morphology-independent representation and constraint solving; Eq. 1 in the retrieval",
     paper="pronost2008",
 )
-def retargeting_morphologies(quick: bool = False) -> Result:
-    table, eq1 = _compute(bool(quick))
+def retargeting_morphologies(quick: bool = False, progress: bool = False) -> Result:
+    table, eq1 = _compute(bool(quick), bool(progress))
     return Result(table=table, draw=lambda: draw(table, eq1), extra_tables={"eq1": eq1})
 
 

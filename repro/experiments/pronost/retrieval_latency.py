@@ -61,6 +61,7 @@ import numpy as np
 import pandas as pd
 
 from repro.bench.retrieval import bench_retrieval, retrieval_summary
+from repro.experiments.progress import bar
 from repro.experiments.registry import Result, experiment
 from repro.motion.paper import PAPER_SEARCH_S, REACTION_BUDGET_S
 
@@ -80,7 +81,8 @@ def base_databases() -> list[str]:
     return ["synthetic"] + (["cmu"] if data.missing_reason("cmu-bvh") is None else [])
 
 
-def k_sweep(databases=None, k_values=K_VALUES_QUICK, *, n_queries: int = 100, seed: int = 0) -> pd.DataFrame:
+def k_sweep(databases=None, k_values=K_VALUES_QUICK, *, n_queries: int = 100, seed: int = 0,
+            progress: bool = False) -> pd.DataFrame:
     """The pruned search on each base database for several numbers of clusters ``k``.
 
     For every ``k`` (and the default one), :func:`repro.motion.retrieval.time_search` times
@@ -98,7 +100,8 @@ def k_sweep(databases=None, k_values=K_VALUES_QUICK, *, n_queries: int = 100, se
         kd = default_k(db.n_poses)
         queries = make_queries(db, n_queries, seed)
         prepared = None
-        for k in sorted(set(k_values) | {kd}):
+        for k in bar(sorted(set(k_values) | {kd}), desc=f"retrieval_latency: k sweep, {name}", unit="k",
+                     progress=progress):
             t0 = time.perf_counter()
             r = MotionRetriever(db, k=k, seed=seed)
             pre = time.perf_counter() - t0
@@ -128,12 +131,14 @@ def k_sweep(databases=None, k_values=K_VALUES_QUICK, *, n_queries: int = 100, se
 
 @experiment("retrieval_latency", "Retrieval latency versus database size (1x-1,000x) and number of clusters k; "
             "quality against the exhaustive optimum", paper="pronost2008")
-def retrieval_latency(quick: bool = False) -> Result:
-    table = bench_retrieval(quick=quick, progress=False)
+def retrieval_latency(quick: bool = False, progress: bool = False) -> Result:
+    from repro.experiments.shared import augmented_database
+
+    table = bench_retrieval(quick=quick, progress=progress, database=augmented_database)
     differs = table.differs_from_exhaustive
     table["mean_excess_when_differs"] = (table.mean_excess_d / differs.where(differs > 0)).fillna(0.0)
     ks = k_sweep(sorted(set(table.database), key=list(table.database).index),
-                 K_VALUES_QUICK if quick else K_VALUES_FULL, n_queries=100 if quick else 200)
+                 K_VALUES_QUICK if quick else K_VALUES_FULL, n_queries=100 if quick else 200, progress=progress)
     return Result(table=table, draw=lambda: draw(table, ks), extra_tables={"k_sweep": ks})
 
 
