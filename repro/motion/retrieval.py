@@ -107,7 +107,7 @@ from repro.motion.morphology import retarget
 from repro.motion.motion import Motion, finite_vector3
 from repro.motion.ops import resample
 from repro.motion.retarget_tree import retarget_across
-from repro.motion.retrieval_exact import BOUND_SLACK, ExactSearch
+from repro.motion.retrieval_exact import ExactSearch
 from repro.motion.retrieval_start import StartScoring
 from repro.motion.roles import check_roles, find_roles
 from repro.motion.skeleton import Skeleton, rescale_constraint, skeleton_of
@@ -147,6 +147,12 @@ SCORINGS: tuple[str, ...] = ("first", "start")
 #: pose even when two evaluations of ``d`` differ in the last bits).
 TIE_RTOL: float = 1e-12
 TIE_ATOL: float = 1e-15
+#: Candidates within ``NEAR_RTOL * d + NEAR_ATOL * w_q * size_a`` of the best are re-scored one by one
+#: before the tie rule (the closed-form aligned distance loses about 1e-8 of the actor's size near 0, and
+#: its last bits depend on the batch a pose is scored in); at most ``MAX_NEAR`` of them.
+NEAR_RTOL: float = 1e-9
+NEAR_ATOL: float = 1e-7
+MAX_NEAR: int = 64
 
 
 @dataclass(frozen=True, eq=False)
@@ -457,6 +463,7 @@ class MotionRetriever(ExactSearch, StartScoring):
         self.centroid_index = AlignedPoseIndex(self.clusters.centroids, self.weights)
         pc = db.pose_clip
         self.pose_size = db.size_a[pc]
+        self._size_max = float(db.size_a.max())
         self.startable = db.pose_frame < db.hit_frame[pc]
         sem_of_pose = db.semantics[pc]
         self.actors_present = np.unique(db.actor)
@@ -739,7 +746,9 @@ class MotionRetriever(ExactSearch, StartScoring):
         n = int(valid.sum())
         if n < valid.size:
             d[~valid] = np.inf
-        j = self._pick(d, b.rows) if tie else int(np.argmin(d))
+        if tie:
+            return self._select(q, b.rows, d, c_r, "first", n)
+        j = int(np.argmin(d))
         return int(b.rows[j]), float(d[j]), float(dq[j]), float(dcr_u[b.inv[j]]), n
 
     def _result(self, q: Query, best, c_r, *, cluster, fallback, rank, method) -> RetrievalResult:
@@ -936,117 +945,73 @@ class MotionRetriever(ExactSearch, StartScoring):
     def _tie_threshold(best: float) -> float:
         return best + TIE_RTOL * abs(best) + TIE_ATOL
 
-    @classmethod
-    def _pick(cls, d: np.ndarray, rows: np.ndarray) -> int:
-        """Index into ``d`` of the selection: the lowest pose among the (near-)ties of the minimum."""
-        m = float(np.min(d))
-        tied = np.flatnonzero(d <= cls._tie_threshold(m))
-        return int(tied[np.argmin(rows[tied])])
+    def _near_threshold(self, best: float) -> float:
+        """Candidates whose ``d`` is below this are re-scored one by one (:meth:`_select`)."""
+        return best + NEAR_RTOL * abs(best) + NEAR_ATOL * self.w_q * self._size_max
 
-
-    def _eval_block(self, b: _Block, q: Query, c_r: np.ndarray, scoring: str, c_hat: np.ndarray, cq: dict,
-                    best: float = np.inf, key=None):
-        """Score the poses of block ``b`` whose lower bound can beat ``best``.
-
-        With groups (cluster blocks, ``key = (semantics, cluster)``): first a bound per
-        group (the poses of one clip, centroid and radius), then a bound per pose of the
-        surviving groups (its exact ``d_qr`` and its clip's box, or its start region),
-        then the exact ``d`` of the poses still below the threshold.  Returns ``(rows, d,
-        d_qr, d_cr, n_scored)`` of the poses evaluated exactly, or None.
-        """
+    def _canonical(self, q: Query, row: int, c_r: np.ndarray, scoring: str, c_hat, cq) -> tuple:
+        """``(d, d_qr, d_cr)`` of one pose, always by the same one-row evaluation (so that every search
+        reports the same numbers for the same pose, whatever batch it was first scored in)."""
         db = self.db
-        thr = self._tie_threshold(best)
-        prep = self._prepared(q)
-        g = self._start_geometry() if scoring == "start" else None
-        clip_actor = db.actor[b.uclips]
-        # ---- group level
-        if b.gindex is not None and np.isfinite(thr):
-            lbg = np.full(b.uclips.size, np.inf)
-            gsize = db.size_a[b.uclips]
-            lbox = (self._lb_cr("first", c_hat, None, self._nbox_lo[b.uclips], self._nbox_hi[b.uclips])
-                    if scoring == "first" else None)
-            for a in q.q_n:
-                sel = slice(None) if b.single_actor == a else np.flatnonzero(clip_actor == a)
-                if b.single_actor is not None and b.single_actor != a:
-                    continue
-                dg = b.gindex.distances(q.q_n[a], None if isinstance(sel, slice) else sel, prepared=prep[a])
-                lq = np.maximum(dg - b.gradius[sel] - BOUND_SLACK, 0.0)
-                lc = lbox[sel] if scoring == "first" else self._lb_cr("start", c_hat, cq[a], reg=g["groups"][key][sel])
-                lbg[sel] = gsize[sel] * (self.w_q * lq + self.w_c * lc)
-            keepg = lbg <= thr
-            if not keepg.any():
-                return None
-            cand = np.flatnonzero(keepg[b.inv])
-        else:
-            cand = None
-        rows = b.rows if cand is None else b.rows[cand]
-        inv = b.inv if cand is None else b.inv[cand]
-        actor = b.actor if cand is None else b.actor[cand]
-        size = b.size if cand is None else b.size[cand]
-        allowed = np.ones(rows.size, dtype=bool)
-        if len(q.q_n) != len(self.actors_present):
-            allowed = np.isin(actor, q.actors)
-        if not allowed.any():
-            return None
-        # ---- pose level: exact d_qr, bound of d_cr
-        dq = np.full(rows.size, np.inf)
-        alpha = np.zeros(rows.size) if scoring == "start" else None
-        for a, qn in q.q_n.items():
-            if b.single_actor is not None:
-                if b.single_actor != a:
-                    continue
-                sel, sub = slice(None), cand
-            else:
-                sel = np.flatnonzero(actor == a)
-                if sel.size == 0:
-                    continue
-                sub = sel if cand is None else cand[sel]
-            if scoring == "start":
-                out = b.index.distances(qn, sub, return_transform=True, prepared=prep[a])
-                dq[sel], alpha[sel] = out[0], out[1]
-            else:
-                dq[sel] = b.index.distances(qn, sub, prepared=prep[a])
-        dqr = dq * size
+        i = int(db.pose_clip[row])
+        a = int(db.actor[i])
+        qn = q.q_n[a]
+        r = np.array([row])
         if scoring == "first":
-            lbc = self._lb_cr("first", c_hat, None, self._nbox_lo[b.uclips], self._nbox_hi[b.uclips])
-            lb = self.w_q * dqr + self.w_c * lbc[inv] * size
+            D = float(self.index.distances(qn, r)[0])
+            dcr = float(self._d_cr(np.array([i]), c_r)[0])
         else:
-            lb = np.full(rows.size, np.inf)
-            for a in q.q_n:
-                sel = actor == a
-                if np.any(sel):
-                    rr, yy = g["rho"][rows[sel]], g["y"][rows[sel]]
-                    reg = np.concatenate([rr, yy], axis=1)
-                    lb[sel] = self.w_q * dqr[sel] + self.w_c * size[sel] * self._lb_cr("start", c_hat, cq[a], reg=reg)
-        lb[~allowed] = np.inf
-        keep = np.flatnonzero(lb <= thr)
+            D, alpha = self.index.distances(qn, r, return_transform=True)[:2]
+            dcr = float(self._d_cr_start(r, alpha, c_hat, cq[a])[0])
+            D = float(D[0])
+        dqr = D * float(self.pose_size[row])
+        return self.w_q * dqr + self.w_c * dcr, dqr, dcr
+
+    def _select(self, q: Query, rows: np.ndarray, d: np.ndarray, c_r: np.ndarray, scoring: str, n: int,
+                c_hat=None, cq=None) -> tuple:
+        """The selection among scored poses: ``(row, d, d_qr, d_cr, n)``.
+
+        The poses within :meth:`_near_threshold` of the lowest ``d`` (above the rounding of
+        the closed form, which differs in the last bits between batches) are re-scored by
+        :meth:`_canonical`; the lowest of those wins, ties (:data:`TIE_RTOL`) to the lowest
+        pose index.  The exact and exhaustive searches share it.
+        """
+        m = float(np.min(d))
+        near = np.flatnonzero(d <= self._near_threshold(m))
+        near = near[np.argsort(rows[near], kind="stable")]
+        if near.size > MAX_NEAR:  # degenerate databases (many copies of one pose): the lowest indices
+            near = np.concatenate([near[:MAX_NEAR], [int(np.argmin(d))]])
+        scored = [(self._canonical(q, int(rows[j]), c_r, scoring, c_hat, cq), int(rows[j])) for j in near]
+        m2 = min(v[0][0] for v in scored)
+        (dd, dqr, dcr), row = min((v for v in scored if v[0][0] <= self._tie_threshold(m2)), key=lambda v: v[1])
+        return row, float(dd), float(dqr), float(dcr), int(n)
+
+    def _score_all_start(self, b: _Block, q: Query, c_hat: np.ndarray, cq: dict):
+        """Every pose of block ``b`` scored in its start frame: ``(rows, d, d_qr, d_cr, n)`` (None if no
+        pose of an actor of the query)."""
+        prep = self._prepared(q)
+        dq = np.full(b.rows.size, np.inf)
+        alpha = np.zeros(b.rows.size)
+        for a, qn in q.q_n.items():
+            sel = np.flatnonzero(b.actor == a)
+            if sel.size:
+                dq[sel], alpha[sel] = b.index.distances(qn, sel, return_transform=True, prepared=prep[a])[:2]
+        keep = np.flatnonzero(np.isfinite(dq))
         if keep.size == 0:
             return None
-        # ---- exact d_cr of what is left
-        if scoring == "first":
-            need = np.zeros(b.uclips.size, dtype=bool)
-            need[inv[keep]] = True
-            uk = np.flatnonzero(need)
-            pos = np.zeros(b.uclips.size, dtype=np.intp)
-            pos[uk] = np.arange(uk.size)
-            dcr = self._d_cr(b.uclips[uk], c_r)[pos[inv[keep]]]
-        else:
-            dcr = self._d_cr_start_per_actor(q, rows[keep], alpha[keep], actor[keep], c_hat, cq)
-        d = self.w_q * dqr[keep] + self.w_c * dcr
-        return rows[keep], d, dqr[keep], dcr, keep.size
+        rows = b.rows[keep]
+        dqr = dq[keep] * b.size[keep]
+        dcr = self._d_cr_start_per_actor(q, rows, alpha[keep], b.actor[keep], c_hat, cq)
+        return rows, self.w_q * dqr + self.w_c * dcr, dqr, dcr, keep.size
 
-
-    def _finish(self, q: Query, parts: list, c_r: np.ndarray, *, method: str, n: int, cluster: int = -1):
+    def _finish(self, q: Query, parts: list, c_r: np.ndarray, *, method: str, n: int, scoring: str,
+                c_hat=None, cq=None):
         if not parts:
             raise RetrievalError("no clip of an actor compatible with the character for this semantics")
         rows = np.concatenate([p[0] for p in parts])
         d = np.concatenate([p[1] for p in parts])
-        dqr = np.concatenate([p[2] for p in parts])
-        dcr = np.concatenate([p[3] for p in parts])
-        j = self._pick(d, rows)
-        best = (int(rows[j]), float(d[j]), float(dqr[j]), float(dcr[j]), int(n))
-        return self._result(q, best, c_r, cluster=cluster, fallback="disabled", rank=-1, method=method)
-
+        best = self._select(q, rows, d, c_r, scoring, n, c_hat, cq)
+        return self._result(q, best, c_r, cluster=-1, fallback="disabled", rank=-1, method=method)
 
     def _search_exhaustive(self, c, q: Query, sem: str, scoring: str, scale_target: bool = True, *,
                            method: str = "exhaustive") -> RetrievalResult:
@@ -1059,10 +1024,11 @@ class MotionRetriever(ExactSearch, StartScoring):
             return self._result(q, best, c_r, cluster=-1, fallback="disabled", rank=-1, method=method)
         if not scale_target:
             raise RetrievalError("scoring='start' needs scale_target=True (Eq. 1)")
-        out = self._eval_block(b, q, c_r, scoring, self._c_hat(c, q), self._cq(q))
+        c_hat, cq = self._c_hat(c, q), self._cq(q)
+        out = self._score_all_start(b, q, c_hat, cq)
         if out is None:
             raise RetrievalError(f"no {sem!r} clip of an actor compatible with the character")
-        return self._finish(q, [out[:4]], c_r, method=method, n=out[4])
+        return self._finish(q, [out[:4]], c_r, method=method, n=out[4], scoring=scoring, c_hat=c_hat, cq=cq)
 
     def _kdtree(self, sem: str):
         if sem not in self._kd:

@@ -19,18 +19,24 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.spatial import cKDTree
 
+from repro.errors import RetrievalError
 from repro.motion.annotation import SEMANTICS
 from repro.motion.clustering import AlignedPoseIndex, aligned_distance
 
 if TYPE_CHECKING:  # annotations only (retrieval imports this module)
     from repro.motion.retrieval import Query, RetrievalResult
 
-__all__ = ["BOUND_SLACK", "ExactSearch"]
+__all__ = ["BOUND_SLACK", "FEATURE_RTOL", "ExactSearch", "invariant_features"]
 
 #: Slack (units of the actor's size) subtracted from the lower bounds of the exact search, above the
 #: rounding error of the closed-form aligned distance (about 1e-8 near 0).
 BOUND_SLACK: float = 1e-6
+#: Relative slack of the feature bound, above the rounding of its float32 features (about 1e-7).
+FEATURE_RTOL: float = 1e-5
+#: Trajectory samples nearest the target whose clips seed the first best ``d`` (``scoring="first"``).
+NEAR_SAMPLES: int = 64
 
 
 class ExactSearch:
@@ -139,81 +145,38 @@ class ExactSearch:
                 "gindex": AlignedPoseIndex(np.concatenate(cent), self.weights), "gradius": np.concatenate(rad),
                 "clstart": np.asarray(clstart, dtype=np.intp), "size": self.pose_size[rows],
                 "actor": db.actor[db.pose_clip[rows]], "clip": db.pose_clip[rows], "sem": sem,
-                "uclip": uclip, "gu": gu,
+                "uclip": uclip, "gu": gu, "ulo": self._nbox_lo[uclip], "uhi": self._nbox_hi[uclip],
+                "pu": np.repeat(gu, np.diff(gstart)), "ugroups": np.argsort(gu, kind="stable"),
+                "ustart": np.searchsorted(np.sort(gu), np.arange(uclip.size + 1)), "usize": db.size_a[uclip], "smin": float(db.size_a[uclip].min()),
+                **self._trajectory_samples(uclip),
+                "feat": invariant_features(db.pose_points[rows], self.weights).astype(np.float32),
             }
 
-    def _group_lb(self, ex: dict, gids: np.ndarray, q: Query, scoring: str, c_hat, cq, prep, c_r,
-                  lc: np.ndarray | None = None) -> np.ndarray:
-        """Lower bound of ``d`` (metres) on every pose of the groups ``gids``.
-
-        ``lc`` (metres): a bound of ``d_cr`` per group when already known.
-        """
-        lb = np.full(gids.size, np.inf)
-        gact = ex["gactor"][gids]
-        for a, qn in q.q_n.items():
-            sel = np.flatnonzero(gact == a) if len(self.actors_present) > 1 else slice(None)
-            sub = gids[sel]
-            if sub.size == 0:
-                continue
-            dg = ex["gindex"].distances(qn, sub, prepared=prep[a])
-            lq = np.maximum(dg - ex["gradius"][sub] - BOUND_SLACK, 0.0)
-            if lc is not None:
-                lcs = lc[sel]
-            elif scoring == "first":  # d_cr is per clip: exact (one trajectory per clip, cheap)
-                uc, inv = np.unique(ex["gclip"][sub], return_inverse=True)
-                lcs = self._d_cr(uc, c_r)[inv]
-            else:
-                lcs = ex["gsize"][sub] * self._lb_cr("start", c_hat, cq[a],
-                                                     reg=self._start_geometry()["exgroups"][ex["sem"]][sub])
-            lb[sel] = ex["gsize"][sub] * self.w_q * lq + self.w_c * lcs
-        return lb
-
-    def _eval_groups(self, ex: dict, gids: np.ndarray, q: Query, c_r, scoring: str, c_hat, cq, prep, best: float):
-        """Exact ``d`` of the poses of groups ``gids`` whose own bound can beat ``best``."""
-        st, ln = ex["gstart"][gids], ex["glen"][gids]
-        tot = int(ln.sum())
-        pos = np.repeat(st - np.concatenate([[0], np.cumsum(ln)[:-1]]), ln) + np.arange(tot)
-        rows = ex["rows"][pos]
-        actor, size, clip = ex["actor"][pos], ex["size"][pos], ex["clip"][pos]
-        allowed = np.isin(actor, q.actors) if len(q.q_n) != len(self.actors_present) else None
-        dq = np.full(tot, np.inf)
-        alpha = np.zeros(tot) if scoring == "start" else None
-        for a, qn in q.q_n.items():
-            sel = np.flatnonzero(actor == a) if len(self.actors_present) > 1 else slice(None)
-            sub = pos[sel]
-            if sub.size == 0:
-                continue
-            if scoring == "start":
-                out = ex["index"].distances(qn, sub, return_transform=True, prepared=prep[a])
-                dq[sel], alpha[sel] = out[0], out[1]
-            else:
-                dq[sel] = ex["index"].distances(qn, sub, prepared=prep[a])
-        dqr = dq * size
-        if scoring == "first":
-            lbc = self._lb_cr("first", c_hat, None, self._nbox_lo[clip], self._nbox_hi[clip])
-            lb = self.w_q * dqr + self.w_c * lbc * size
-        else:
-            g = self._start_geometry()
-            lb = np.full(tot, np.inf)
-            for a in q.q_n:
-                sel = np.flatnonzero(actor == a) if len(self.actors_present) > 1 else slice(None)
-                reg = np.concatenate([g["rho"][rows[sel]], g["y"][rows[sel]]], axis=1)
-                lb[sel] = self.w_q * dqr[sel] + self.w_c * size[sel] * self._lb_cr("start", c_hat, cq[a], reg=reg)
-        if allowed is not None:
-            lb[~allowed] = np.inf
-        keep = np.flatnonzero(lb <= self._tie_threshold(best))
-        if keep.size == 0:
-            return None
-        if scoring == "first":
-            uc, inv = np.unique(clip[keep], return_inverse=True)
-            dcr = self._d_cr(uc, c_r)[inv]
-        else:
-            dcr = self._d_cr_start_per_actor(q, rows[keep], alpha[keep], actor[keep], c_hat, cq)
-        d = self.w_q * dqr[keep] + self.w_c * dcr
-        return rows[keep], d, dqr[keep], dcr, keep.size
+    def _trajectory_samples(self, uclip: np.ndarray) -> dict:
+        """The hit-trajectory samples of clips ``uclip`` in units of their actor's size, and the position in
+        ``uclip`` of each sample's clip (for :meth:`_ball_dcr`; the k-d tree is built on first use)."""
+        db = self.db
+        n = db.n_frames[uclip]
+        st = db.traj_start[uclip]
+        idx = np.repeat(st - np.concatenate([[0], np.cumsum(n)[:-1]]), n) + np.arange(int(n.sum()))
+        tclip = np.repeat(np.arange(uclip.size), n)
+        return {"tpts": db.traj[idx] / db.size_a[uclip][tclip, None], "tclip": tclip,
+                "tstart": np.concatenate([[0], np.cumsum(n)[:-1]]).astype(np.intp)}
 
     def _search_exact(self, c, q: Query, sem: str, scoring: str, scale_target: bool = True,
-                      stats: dict | None = None, batch: int = 48) -> RetrievalResult:
+                      stats: dict | None = None, batch: int = 32, features: bool = False) -> RetrievalResult:
+        """Filter cascade over the clip runs (groups) of ``sem``, cheapest bound first.
+
+        1. per group: ``s (w_q max(D(q_r, m) - r, 0) + w_c lc)`` with ``m, r`` its cluster's
+           centroid and radius and ``lc`` its clip's box gap (``"first"``) or its start
+           region (``"start"``); 2. the ``batch`` groups of lowest bound scored exactly: a
+           first best ``d``; 3. groups whose bound exceeds it dropped; with ``"first"`` the
+           exact ``d_cr`` of the clips left replaces their box gap; 4. per pose of what is
+           left, the alignment-invariant feature bound of ``D`` (:func:`invariant_features`,
+           ``features=False`` skips it, for measuring it); 5. the poses still below the best
+           ``d`` scored exactly, lowest bound first, in chunks, until the next bound
+           exceeds the best.  Ties as in the exhaustive scan.
+        """
         c_r = self._c_r(c, q.size_c, scale_target)
         if not scale_target:  # the normalised target differs per actor size: score everything (exact)
             return self._search_exhaustive(c, q, sem, scoring, scale_target, method="exact")
@@ -221,72 +184,213 @@ class ExactSearch:
         c_hat = self._c_hat(c, q)
         cq = self._cq(q)
         prep = self._prepared(q)
-        bb = self._bb[sem]
-        geo = self._start_geometry() if scoring == "start" else None
-        # 1. clusters: lower bound of d over each (cluster, semantics) block, per actor of the query
-        lbs, lqs = [], []
+        first = scoring == "first"
+        geo = None if first else self._start_geometry()
+        wq, wc = self.w_q, self.w_c
+        G = ex["gsize"].size
+        multi = len(self.actors_present) > 1
+        radius = self._bb[sem]["radius"]
+        # 1. group bounds (units of size, then metres)
+        lq_g = np.full(G, np.inf)
+        lc_g = np.full(G, np.inf)
+        gsel = {}
         for a, qn in q.q_n.items():
-            lq = np.maximum(self.centroid_index.distances(qn) - bb["radius"] - BOUND_SLACK, 0.0)
-            lc = (self._lb_cr("first", c_hat, None, bb["box_lo"], bb["box_hi"]) if scoring == "first"
-                  else self._lb_cr("start", c_hat, cq[a], reg=geo["blocks"][sem]))
-            lbs.append(bb["s_min"] * (self.w_q * lq + self.w_c * lc))
-            lqs.append(lq)
-        lb_cl = np.min(lbs, axis=0)
-        lb_cl[bb["empty"]] = np.inf
-        lq_cl = np.min(lqs, axis=0)
-        order = np.argsort(lb_cl, kind="stable")
-        best, parts, n, n_groups = np.inf, [], 0, 0
-        clst = ex["clstart"]
-
-        def visit(gids, lbg):
-            nonlocal best, n, n_groups
-            o = np.argsort(lbg, kind="stable")
-            gids, lbg = gids[o], lbg[o]
-            for a in range(0, gids.size, batch):
-                if not lbg[a] <= self._tie_threshold(best):
+            lq_cl = np.maximum(self.centroid_index.distances(qn, prepared=prep[a]) - radius - BOUND_SLACK, 0.0)
+            sel = np.flatnonzero(ex["gactor"] == a) if multi else slice(None)
+            gsel[a] = sel
+            lq_g[sel] = lq_cl[ex["gcluster"][sel]]
+            if not first:
+                lc_g[sel] = self._lb_cr("start", c_hat, cq[a], reg=geo["exgroups"][sem][sel])
+        if first:
+            lc_u = self._lb_cr("first", c_hat, None, ex["ulo"], ex["uhi"])
+            lc_g = lc_u[ex["gu"]]
+        gs = ex["gsize"]
+        lb_g = gs * (wq * lq_g + wc * lc_g)
+        # 2. a first best d from the most promising groups
+        B = min(batch, G)
+        probe = np.argpartition(lb_g, B - 1)[:B] if G > B else np.arange(G)
+        dcr_u = np.full(ex["uclip"].size, np.nan) if first else None  # exact d_cr per clip (metres), lazily
+        if first and wc > 0 and G > B:  # and the best groups of the clips passing nearest to c_r
+            near = self._nearest_clips(ex, dcr_u, c_hat, NEAR_SAMPLES)
+            gn = ex["ugroups"][np.concatenate([np.arange(ex["ustart"][u], ex["ustart"][u + 1]) for u in near])]
+            lbn = gs[gn] * wq * lq_g[gn] + wc * dcr_u[ex["gu"][gn]]
+            if gn.size > B:
+                gn = gn[np.argpartition(lbn, B - 1)[:B]]
+            probe = np.union1d(probe, gn)
+        probe = probe[np.isfinite(lb_g[probe])]
+        if probe.size == 0:
+            raise RetrievalError("no clip of an actor compatible with the character for this semantics")
+        parts = []
+        pos = self._group_poses(ex, probe)
+        out = self._exact_poses(ex, pos, q, scoring, c_r, c_hat, cq, prep, dcr_u, np.inf)
+        best = float(out[1].min())
+        parts.append(out)
+        n, n_groups = out[4], probe.size
+        # 3. every other group whose bound can beat it
+        lb_g[probe] = np.inf
+        cand = np.flatnonzero(lb_g <= self._near_threshold(best))
+        if first and cand.size and wc > 0:
+            self._ball_dcr(ex, dcr_u, c_hat, self._near_threshold(best) / (wc * ex["smin"]))
+            cand = cand[np.isfinite(dcr_u[ex["gu"][cand]])]
+        if first and cand.size:
+            self._fill_dcr(ex, dcr_u, ex["gu"][cand], c_r)
+            lb_c = gs[cand] * wq * lq_g[cand] + wc * dcr_u[ex["gu"][cand]]
+            cand = cand[lb_c <= self._near_threshold(best)]
+        n_groups += cand.size
+        if cand.size:
+            pos = self._group_poses(ex, cand)
+            glen = ex["glen"][cand]
+            s = ex["size"][pos]
+            lq = np.repeat(lq_g[cand], glen)
+            if first:
+                lcm = dcr_u[ex["pu"][pos]]  # metres, exact
+            else:
+                lcm = np.empty(pos.size)
+                for a in q.q_n:
+                    sel = np.flatnonzero(ex["actor"][pos] == a) if multi else slice(None)
+                    rows = ex["rows"][pos[sel]]
+                    reg = np.concatenate([geo["rho"][rows], geo["y"][rows]], axis=1)
+                    lcm[sel] = s[sel] * self._lb_cr("start", c_hat, cq[a], reg=reg)
+            lb = s * wq * lq + wc * lcm
+            m = lb <= self._near_threshold(best)
+            pos, lb, lcm, s = pos[m], lb[m], lcm[m], s[m]
+            # 4. the alignment-invariant bound of D (item 5)
+            if features and pos.size:
+                lf = np.empty(pos.size)
+                for a, qn in q.q_n.items():
+                    sel = np.flatnonzero(ex["actor"][pos] == a) if multi else slice(None)
+                    fq = invariant_features(qn[None], self.weights)[0].astype(np.float32)
+                    diff = ex["feat"][pos[sel]] - fq
+                    lf[sel] = np.sqrt(np.einsum("ij,ij->i", diff, diff, dtype=np.float64))
+                lf = np.maximum(lf * (1.0 - FEATURE_RTOL) - BOUND_SLACK, 0.0)
+                lb = np.maximum(lb, s * wq * lf + wc * lcm)
+                m = lb <= self._near_threshold(best)
+                pos, lb = pos[m], lb[m]
+            # 5. exact d, lowest bound first
+            o = np.argsort(lb, kind="stable")
+            pos, lb = pos[o], lb[o]
+            chunk = 4 * batch
+            for a in range(0, pos.size, chunk):
+                if not lb[a] <= self._near_threshold(best):
                     break
-                sub = gids[a:a + batch][lbg[a:a + batch] <= self._tie_threshold(best)]
-                n_groups += sub.size
-                out = self._eval_groups(ex, sub, q, c_r, scoring, c_hat, cq, prep, best)
+                sub = pos[a:a + chunk][lb[a:a + chunk] <= self._near_threshold(best)]
+                out = self._exact_poses(ex, sub, q, scoring, c_r, c_hat, cq, prep, dcr_u, best)
                 if out is not None:
                     n += out[4]
                     parts.append(out)
                     best = min(best, float(out[1].min()))
-
-        # 2. the most promising cluster first (its clip runs, best bound first): a first best d
-        first = int(order[0])
-        g0 = np.arange(clst[first], clst[first + 1])
-        visit(g0, self._group_lb(ex, g0, q, scoring, c_hat, cq, prep, c_r))
-        # 3. every other clip run (group) whose bound can beat it; bounds from cheap to tight
-        thr = self._tie_threshold(best)
-        gs = ex["gsize"]
-        lq_g = lq_cl[ex["gcluster"]]
-        if scoring == "first":
-            uc = ex["uclip"]
-            lc_u = self._lb_cr("first", c_hat, None, self._nbox_lo[uc], self._nbox_hi[uc]) * self.db.size_a[uc]
-            lc = lc_u[ex["gu"]]
-        else:
-            lc = np.min([gs * self._lb_cr("start", c_hat, cq[a], reg=geo["exgroups"][sem]) for a in q.q_n], axis=0)
-        lb0 = gs * self.w_q * lq_g + self.w_c * lc
-        lb0[clst[first]:clst[first + 1]] = np.inf  # visited
-        cand = np.flatnonzero(lb0 <= thr)
-        if scoring == "first" and cand.size:
-            # exact d_cr of the clips still in (one trajectory per clip)
-            need = np.unique(ex["gu"][cand])
-            dcr_u = np.full(uc.size, np.inf)
-            dcr_u[need] = self._d_cr(uc[need], c_r)
-            lc = dcr_u[ex["gu"][cand]]
-            m = gs[cand] * self.w_q * lq_g[cand] + self.w_c * lc <= thr
-            cand, lc = cand[m], lc[m]
-        elif cand.size:
-            lc = lc[cand]
-        if cand.size:
-            lbg = self._group_lb(ex, cand, q, scoring, c_hat, cq, prep, c_r, lc=lc)
-            m = lbg <= thr
-            visit(cand[m], lbg[m])
         if stats is not None:
-            stats.update(clusters_visited=int(np.unique(ex["gcluster"][cand]).size + 1), groups_scored=int(n_groups),
-                         poses_scored=int(n))
-        thr = self._tie_threshold(best)
-        parts = [(p[0][m], p[1][m], p[2][m], p[3][m]) for p in parts for m in [p[1] <= thr]]
-        return self._finish(q, parts, c_r, method="exact", n=n)
+            stats.update(clusters_visited=int(np.unique(ex["gcluster"][np.concatenate([probe, cand])]).size),
+                         groups_scored=int(n_groups), poses_scored=int(n))
+        thr = self._near_threshold(best)
+        parts = [(p[0][m], p[1][m]) for p in parts for m in [p[1] <= thr]]
+        return self._finish(q, parts, c_r, method="exact", n=n, scoring=scoring, c_hat=c_hat, cq=cq)
+
+    @staticmethod
+    def _group_poses(ex: dict, gids: np.ndarray) -> np.ndarray:
+        """Positions (into the semantics' pose arrays) of the poses of groups ``gids``."""
+        st, ln = ex["gstart"][gids], ex["glen"][gids]
+        tot = int(ln.sum())
+        return np.repeat(st - np.concatenate([[0], np.cumsum(ln)[:-1]]), ln) + np.arange(tot)
+
+    @staticmethod
+    def _ball_dcr(ex: dict, dcr_u: np.ndarray, c_hat: np.ndarray, radius: float) -> None:
+        """``d_cr`` (metres, paper's frame) of every clip of the semantics with a trajectory sample within
+        ``radius`` (units of size) of ``c_hat``, from a k-d tree of the samples; the others get inf (their
+        ``d_cr`` exceeds ``radius`` times their size).  Clips already known keep their value."""
+        if "tree" not in ex:
+            ex["tree"] = cKDTree(ex["tpts"])
+        rad = radius * (1.0 + 1e-9) + BOUND_SLACK
+        M = ex["tpts"].shape[0]
+        if ex["tree"].query_ball_point(c_hat, rad, return_length=True) > M // 8:  # a large ball: every sample
+            diff = ex["tpts"] - c_hat
+            dh = np.sqrt(np.minimum.reduceat(np.einsum("ij,ij->i", diff, diff), ex["tstart"]))
+        else:
+            idx = np.asarray(ex["tree"].query_ball_point(c_hat, rad), dtype=np.intp)
+            dh = np.full(dcr_u.size, np.inf)
+            if idx.size:
+                diff = ex["tpts"][idx] - c_hat
+                np.minimum.at(dh, ex["tclip"][idx], np.sqrt(np.einsum("ij,ij->i", diff, diff)))
+        unknown = np.isnan(dcr_u)
+        dcr_u[unknown] = dh[unknown] * ex["usize"][unknown]
+
+    @staticmethod
+    def _nearest_clips(ex: dict, dcr_u: np.ndarray, c_hat: np.ndarray, k: int) -> np.ndarray:
+        """The clips (positions in the semantics' clips) of the ``k`` trajectory samples nearest ``c_hat``;
+        their ``d_cr`` (metres, paper's frame) is filled in (the first sample of a clip is its nearest)."""
+        if "tree" not in ex:
+            ex["tree"] = cKDTree(ex["tpts"])
+        k = min(k, ex["tpts"].shape[0])
+        dist, idx = ex["tree"].query(c_hat, k=k)
+        u, first = np.unique(ex["tclip"][np.atleast_1d(idx)], return_index=True)
+        unknown = np.isnan(dcr_u[u])
+        dcr_u[u[unknown]] = np.atleast_1d(dist)[first[unknown]] * ex["usize"][u[unknown]]
+        return u
+
+    def _fill_dcr(self, ex: dict, dcr_u: np.ndarray, u: np.ndarray, c_r: np.ndarray) -> None:
+        """Exact ``d_cr`` (metres, the paper's frame) of the semantics' clips ``u`` not yet known."""
+        need = np.zeros(dcr_u.size, dtype=bool)
+        need[u] = True
+        need &= np.isnan(dcr_u)
+        k = np.flatnonzero(need)
+        if k.size:
+            dcr_u[k] = self._d_cr(ex["uclip"][k], c_r)
+
+    def _exact_poses(self, ex: dict, pos: np.ndarray, q: Query, scoring: str, c_r, c_hat, cq, prep,
+                     dcr_u, best: float):
+        """Exact ``(rows, d, d_qr, d_cr, n)`` of the poses at ``pos`` whose bound can beat ``best`` (None if none)."""
+        multi = len(self.actors_present) > 1
+        actor, size = ex["actor"][pos], ex["size"][pos]
+        dq = np.full(pos.size, np.inf)
+        alpha = None if scoring == "first" else np.zeros(pos.size)
+        for a, qn in q.q_n.items():
+            sel = np.flatnonzero(actor == a) if multi else slice(None)
+            sub = pos[sel]
+            if sub.size == 0:
+                continue
+            if alpha is None:
+                dq[sel] = ex["index"].distances(qn, sub, prepared=prep[a])
+            else:
+                out = ex["index"].distances(qn, sub, return_transform=True, prepared=prep[a])
+                dq[sel], alpha[sel] = out[0], out[1]
+        dqr = dq * size
+        rows = ex["rows"][pos]
+        if scoring == "first":
+            u = ex["pu"][pos]
+            self._fill_dcr(ex, dcr_u, u, c_r)
+            dcr = dcr_u[u]
+            d = self.w_q * dqr + self.w_c * dcr
+            keep = np.flatnonzero(np.isfinite(d))
+            if keep.size == 0:
+                return None
+            return rows[keep], d[keep], dqr[keep], dcr[keep], keep.size
+        g = self._start_geometry()
+        lb = np.full(pos.size, np.inf)
+        for a in q.q_n:
+            sel = np.flatnonzero(actor == a) if multi else slice(None)
+            reg = np.concatenate([g["rho"][rows[sel]], g["y"][rows[sel]]], axis=1)
+            lb[sel] = self.w_q * dqr[sel] + self.w_c * size[sel] * self._lb_cr("start", c_hat, cq[a], reg=reg)
+        keep = np.flatnonzero(lb <= self._near_threshold(best))
+        if keep.size == 0:
+            return None
+        dcr = self._d_cr_start_per_actor(q, rows[keep], alpha[keep], actor[keep], c_hat, cq)
+        d = self.w_q * dqr[keep] + self.w_c * dcr
+        return rows[keep], d, dqr[keep], dcr, keep.size
+
+
+def invariant_features(points: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Alignment-invariant features of pose clouds, ``(..., 2P)``: ``sqrt(w) y`` and ``sqrt(w) rho``.
+
+    ``rho`` is each point's horizontal distance from the vertical axis through the cloud's
+    weighted centroid, ``y`` its height: both unchanged by a rotation about the vertical
+    and a horizontal translation.  Since the aligned distance matches the horizontal
+    centroids and ``|h_a - R h_b| >= | |h_a| - |h_b| |``, the Euclidean distance between
+    the features of two clouds is a lower bound of Kovar et al.'s aligned distance
+    (issue 13, item 5).
+    """
+    p = np.asarray(points, dtype=float)
+    sw = np.sqrt(weights)
+    X = p[..., 0] @ weights
+    Z = p[..., 2] @ weights
+    rho = np.hypot(p[..., 0] - X[..., None], p[..., 2] - Z[..., None])
+    return np.concatenate([p[..., 1] * sw, rho * sw], axis=-1)
