@@ -285,7 +285,6 @@ class _Block:
     single_actor: int | None
     # groups (the poses of one clip in the block, contiguous since rows are sorted), for the exact search
     gstart: np.ndarray | None = None  # (G+1,) offsets
-    gindex: AlignedPoseIndex | None = None  # group centroids
     gradius: np.ndarray | None = None  # (G,) largest aligned distance centroid -> pose
     gcent: np.ndarray | None = None  # (G, P, 3) group centroids
 
@@ -876,23 +875,24 @@ class MotionRetriever(ExactSearch, StartScoring):
     def search_exact(self, target, current_pose, character=None, semantics: str = "punch", *,
                      scoring: str = "first", scale_target: bool = True, frame: int | None = None,
                      stats: dict | None = None) -> RetrievalResult:
-        """Exact search: the exhaustive optimum of ``d``, by branch and bound over clusters and clips.
+        """Exact search: the exhaustive optimum of ``d``, by bounds over clusters, clip runs and clips.
 
         Kovar et al.'s aligned distance ``D`` minimises over an isometry group (rotations
         about the vertical, horizontal translations) applied to a whole cloud, under a
         weighted Euclidean seminorm (non-negative weights): it is a pseudometric, so for
-        a cluster block of centroid ``m`` and radius ``r`` (largest ``D(m, p)`` of its
-        poses) every pose has ``D(q_r, p) >= D(q_r, m) - r``.  With ``scoring="first"``
-        ``d_cr >= dist(c_r, box)`` (the union box of the block's clips, then each clip's
-        box); with ``scoring="start"`` the bound is alignment-invariant: the range of
-        horizontal distances of the played trajectory from the pose's centroid, and of
-        its heights (see :meth:`_start_geometry`).  Blocks are visited in increasing
-        order of their lower bound on ``d = w_q d_qr + w_c d_cr`` (both in metres, the
-        bound scaled by the block's smallest actor size) and the search stops when the
-        bound exceeds the best ``d`` found; inside a block only poses whose own bound can
-        beat it get an exact ``d_cr``.  Ties (within :data:`TIE_RTOL`) go to the lowest
-        pose index, as in :meth:`search_exhaustive`.  ``stats`` (a dict), when given,
-        receives ``clusters_visited`` and ``poses_scored``.
+        a cluster of centroid ``m`` and radius ``r`` (largest ``D(m, p)`` of its poses of
+        the semantics) every pose has ``D(q_r, p) >= D(q_r, m) - r``.  With
+        ``scoring="first"`` ``d_cr >= dist(c_r, box)`` and then the exact ``d_cr`` of every
+        clip within reach (one k-d tree query over the trajectory samples); with
+        ``scoring="start"`` the bound is alignment-invariant: the range of horizontal
+        distances of the played trajectory from the pose's centroid, and of its heights
+        (see :meth:`_start_geometry`).  The cascade (cheap bounds first, a first best
+        ``d`` from the most promising clip runs, exact ``d`` only for the poses whose
+        bound can beat it) is :meth:`repro.motion.retrieval_exact.ExactSearch._search_exact`.
+        Candidates within rounding of the best are re-scored one by one and ties (within
+        :data:`TIE_RTOL`) go to the lowest pose index, as in :meth:`search_exhaustive`:
+        both return the same pose with the same numbers.  ``stats`` (a dict), when given,
+        receives ``clusters_visited``, ``groups_scored`` and ``poses_scored``.
         """
         c, q, sem, _, scoring, scale_target, _ = self.arguments(
             target, current_pose, character, semantics, method="exact", scoring=scoring, scale_target=scale_target,

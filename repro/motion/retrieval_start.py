@@ -68,28 +68,15 @@ class StartScoring:
             y = tr0[:, 1] / s
             yr[p0:p0 + nf, 0] = np.minimum.accumulate(y[::-1])[::-1][:nf]
             yr[p0:p0 + nf, 1] = np.maximum.accumulate(y[::-1])[::-1][:nf]
-        blocks, groups, exgroups = {}, {}, {}
+        exgroups = {}
         for sem in SEMANTICS:
-            k = self.clusters.k
-            reg = np.empty((k, 4))
-            reg[:] = (np.inf, -np.inf, np.inf, -np.inf)
-            for cl in range(k):
-                b = self.cluster_block[cl][sem]
-                if b is not None:
-                    rr, yy = rho[b.rows], yr[b.rows]
-                    reg[cl] = (rr[:, 0].min(), rr[:, 1].max(), yy[:, 0].min(), yy[:, 1].max())
-                    gs = b.gstart[:-1]
-                    groups[(sem, cl)] = np.stack([np.minimum.reduceat(rr[:, 0], gs), np.maximum.reduceat(rr[:, 1], gs),
-                                                  np.minimum.reduceat(yy[:, 0], gs), np.maximum.reduceat(yy[:, 1], gs)],
-                                                 axis=1)
-            blocks[sem] = reg
             if self._ex.get(sem) is not None:
                 ex = self._ex[sem]
                 gs = ex["gstart"][:-1]
                 rr, yy = rho[ex["rows"]], yr[ex["rows"]]
                 exgroups[sem] = np.stack([np.minimum.reduceat(rr[:, 0], gs), np.maximum.reduceat(rr[:, 1], gs),
                                           np.minimum.reduceat(yy[:, 0], gs), np.maximum.reduceat(yy[:, 1], gs)], axis=1)
-        self._start = {"exgroups": exgroups, "phi": phi, "u": u, "rho": rho, "y": yr, "blocks": blocks, "groups": groups}
+        self._start = {"exgroups": exgroups, "phi": phi, "u": u, "rho": rho, "y": yr}
         return self._start
 
     def _d_cr_start_per_actor(self, q: Query, rows: np.ndarray, alpha: np.ndarray, actor: np.ndarray,

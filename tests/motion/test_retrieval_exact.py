@@ -13,7 +13,14 @@ What is asserted:
 * ``scoring="start"``: ``d_cr`` is the closest approach, from the start frame on, of the
   hit trajectory *as played* (placed by the result's own alignment), recomputed here
   from the world trajectory; the paper's ``scoring="first"`` is unchanged;
-* bad ``method`` / ``scoring`` values are refused, naming the value.
+* bad ``method`` / ``scoring`` values are refused, naming the value;
+* the alignment-invariant features (item 5) bound the aligned distance from below (random
+  pairs of real and synthetic clouds), and the exact search with that bound on still returns
+  the exhaustive optimum, with the very same ``d``, ``d_qr``, ``d_cr`` (both re-score the
+  near-best candidates one by one);
+* the k-d tree of trajectory samples gives each clip's exact ``d_cr`` (nearest samples, small
+  and large balls);
+* a database without clips of a semantics is refused by every method, naming the semantics.
 """
 
 from __future__ import annotations
@@ -25,11 +32,11 @@ import pytest
 
 from repro.errors import RetrievalError
 from repro.motion import synthetic
-from repro.motion.clustering import aligned_distance, root_frames, rotate_y
 from repro.motion.augment import augment
+from repro.motion.clustering import aligned_distance, root_frames, rotate_y
 from repro.motion.database import MotionDatabase
-from repro.motion.sources import build_database
 from repro.motion.retrieval import MotionRetriever, make_queries
+from repro.motion.sources import build_database
 
 
 @pytest.fixture(scope="module")
