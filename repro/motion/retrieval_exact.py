@@ -271,11 +271,12 @@ class ExactSearch:
             # 5. exact d, lowest bound first
             o = np.argsort(lb, kind="stable")
             pos, lb = pos[o], lb[o]
-            chunk = 4 * batch
-            for a in range(0, pos.size, chunk):
+            a, chunk = 0, 4 * batch
+            while a < pos.size:  # chunks doubling in size: few calls when the bound stops late
                 if not lb[a] <= self._near_threshold(best):
                     break
                 sub = pos[a:a + chunk][lb[a:a + chunk] <= self._near_threshold(best)]
+                a, chunk = a + chunk, 2 * chunk
                 out = self._exact_poses(ex, sub, q, scoring, c_r, c_hat, cq, prep, dcr_u, best)
                 if out is not None:
                     n += out[4]
