@@ -162,7 +162,8 @@ class ExactSearch:
         st = db.traj_start[uclip]
         idx = np.repeat(st - np.concatenate([[0], np.cumsum(n)[:-1]]), n) + np.arange(int(n.sum()))
         tclip = np.repeat(np.arange(uclip.size), n)
-        return {"tpts": db.traj[idx] / db.size_a[uclip][tclip, None], "tclip": tclip,
+        tpts = db.traj[idx] / db.size_a[uclip][tclip, None]
+        return {"tpts": tpts, "tcols": np.ascontiguousarray(tpts.T), "tclip": tclip,
                 "tstart": np.concatenate([[0], np.cumsum(n)[:-1]]).astype(np.intp)}
 
     def _search_exact(self, c, q: Query, sem: str, scoring: str, scale_target: bool = True,
@@ -306,8 +307,11 @@ class ExactSearch:
         rad = radius * (1.0 + 1e-9) + BOUND_SLACK
         M = ex["tpts"].shape[0]
         if ex["tree"].query_ball_point(c_hat, rad, return_length=True) > M // 8:  # a large ball: every sample
-            diff = ex["tpts"] - c_hat
-            dh = np.sqrt(np.minimum.reduceat(np.einsum("ij,ij->i", diff, diff), ex["tstart"]))
+            tx, ty, tz = ex["tcols"]  # contiguous coordinates: three 1-D passes, no (M, 3) temporaries
+            d2 = np.square(tx - c_hat[0])
+            d2 += np.square(ty - c_hat[1])
+            d2 += np.square(tz - c_hat[2])
+            dh = np.sqrt(np.minimum.reduceat(d2, ex["tstart"]))
         else:
             idx = np.asarray(ex["tree"].query_ball_point(c_hat, rad), dtype=np.intp)
             dh = np.full(dcr_u.size, np.inf)
