@@ -56,6 +56,11 @@ Choices the paper leaves open (documented here, all parameters):
   be served to any humanoid character (:func:`repro.motion.strike.strike` then
   retargets the selected clip to the character across trees as well).
 
+The exact search (``method="exact"``, the fighter's default: the exhaustive optimum through
+bounds over the same clusters and boxes) lives in :mod:`repro.motion.retrieval_exact`, the
+scoring of ``d_cr`` in the frame of the start pose (``scoring="start"``) in
+:mod:`repro.motion.retrieval_start`; both are mixins of :class:`MotionRetriever`.
+
 Baselines (for the figures): :meth:`MotionRetriever.search_exhaustive` scores every
 startable pose of the semantics with the same ``d`` (no clusters, no boxes: the exact
 optimum of ``d``); :meth:`MotionRetriever.search_kdtree` queries a
