@@ -151,7 +151,6 @@ class ExactSearch:
                 "pu": np.repeat(gu, np.diff(gstart)), "ugroups": np.argsort(gu, kind="stable"),
                 "ustart": np.searchsorted(np.sort(gu), np.arange(uclip.size + 1)), "usize": db.size_a[uclip], "smin": float(db.size_a[uclip].min()),
                 **self._trajectory_samples(uclip),
-                "feat": invariant_features(db.pose_points[rows], self.weights).astype(np.float32),
             }
 
     def _trajectory_samples(self, uclip: np.ndarray) -> dict:
@@ -259,6 +258,8 @@ class ExactSearch:
             pos, lb, lcm, s = pos[m], lb[m], lcm[m], s[m]
             # 4. the alignment-invariant bound of D (item 5)
             if features and pos.size:
+                if "feat" not in ex:  # built on first use (the bound is off by default)
+                    ex["feat"] = invariant_features(self.db.pose_points[ex["rows"]], self.weights).astype(np.float32)
                 lf = np.empty(pos.size)
                 for a, qn in q.q_n.items():
                     sel = np.flatnonzero(ex["actor"][pos] == a) if multi else slice(None)
