@@ -126,6 +126,14 @@ def format_retrieval(table) -> str:
                      f"p50 {r.p50_ms:8.3f} ms  p99 {r.p99_ms:8.3f} ms  differs from exhaustive {r.differs_from_exhaustive:5.1%}"
                      f" ({getattr(r, 'n_differs', 0)} of {getattr(r, 'n_queries', '?')}), mean excess of d "
                      f"{r.mean_excess_d:6.1%}")
+    for (name, factor), g in table.groupby(["database", "factor"], sort=False):  # the ratios, per size
+        m = g.set_index("method")
+        if {"exact", "exhaustive"} <= set(m.index):
+            x, e = m.loc["exact"], m.loc["exhaustive"]
+            lines.append(f"{name} x{factor}: exact vs exhaustive p50 {e.p50_ms / x.p50_ms:.1f}x faster, p99 "
+                         f"{e.p99_ms / x.p99_ms:.1f}x faster ({x.p99_ms:.2f} ms; goal < {GOAL_EXACT_P99_MS:.1f} ms at "
+                         f"100x), {int(x.n_differs)} of {int(x.n_queries)} differ (goal 0); query preparation p50 "
+                         f"{x.prepare_p50_ms:.3f} ms (goal < 1 ms)")
     for name, s in retrieval_summary(table).items():
         lines.append(
             f"{name}: base p50 {s['base_p50_ms']:.3f} ms (goal < {GOAL_BASE_P50_MS:g} ms; with query preparation "

@@ -57,6 +57,11 @@ Choices the paper leaves open (documented here, all parameters):
   actors of its own tree) (:func:`repro.motion.strike.strike` then
   retargets the selected clip to the character across trees as well).
 
+The exact search (``method="exact"``, the fighter's default: the exhaustive optimum through
+bounds over the same clusters and boxes) lives in :mod:`repro.motion.retrieval_exact`, the
+scoring of ``d_cr`` in the frame of the start pose (``scoring="start"``) in
+:mod:`repro.motion.retrieval_start`; both are mixins of :class:`MotionRetriever`.
+
 Baselines (for the figures): :meth:`MotionRetriever.search_exhaustive` scores every
 startable pose of the semantics with the same ``d`` (no clusters, no boxes: the exact
 optimum of ``d``); :meth:`MotionRetriever.search_kdtree` queries a
@@ -93,40 +98,41 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from repro.errors import MotionError, RetrievalError
+from repro.motion.annotation import SEMANTICS
 from repro.motion.clustering import (
     AlignedPoseIndex,
-    aligned_distance,
     check_int,
     pose_points,
     root_frames,
     rotate_y,
 )
-from repro.motion.annotation import SEMANTICS
 from repro.motion.database import MotionDatabase
 from repro.motion.index_build import build_pose_index
-from repro.motion.ops import resample
 from repro.motion.morphology import retarget
-from repro.motion.retarget_tree import retarget_across
-from repro.motion.roles import check_roles, find_roles
 from repro.motion.motion import Motion, finite_vector3
+from repro.motion.ops import resample
+from repro.motion.retarget_tree import retarget_across
+from repro.motion.retrieval_exact import ExactSearch
+from repro.motion.retrieval_start import StartScoring
+from repro.motion.roles import check_roles, find_roles
 from repro.motion.skeleton import Skeleton, rescale_constraint, skeleton_of
 
 __all__ = [
     "FALLBACKS",
-    "character_skeleton",
-    "rest_motion_y_up",
-    "retarget_to_tree",
-    "METHODS",
-    "SCORINGS",
     "MAX_TARGET_M",
     "MAX_WEIGHT",
+    "METHODS",
+    "SCORINGS",
+    "MotionRetriever",
     "Query",
     "RetrievalResult",
-    "MotionRetriever",
-    "search",
+    "character_skeleton",
     "make_queries",
-    "time_search",
+    "rest_motion_y_up",
+    "retarget_to_tree",
     "scoring_frame_miss",
+    "search",
+    "time_search",
 ]
 
 #: Values of :attr:`RetrievalResult.fallback`.
@@ -146,9 +152,12 @@ SCORINGS: tuple[str, ...] = ("first", "start")
 #: pose even when two evaluations of ``d`` differ in the last bits).
 TIE_RTOL: float = 1e-12
 TIE_ATOL: float = 1e-15
-#: Slack (units of the actor's size) subtracted from the lower bounds of the exact search, above the
-#: rounding error of the closed-form aligned distance (about 1e-8 near 0).
-BOUND_SLACK: float = 1e-6
+#: Candidates within ``NEAR_RTOL * d + NEAR_ATOL * w_q * size_a`` of the best are re-scored one by one
+#: before the tie rule (the closed-form aligned distance loses about 1e-8 of the actor's size near 0, and
+#: its last bits depend on the batch a pose is scored in); at most ``MAX_NEAR`` of them.
+NEAR_RTOL: float = 1e-9
+NEAR_ATOL: float = 1e-7
+MAX_NEAR: int = 64
 
 
 @dataclass(frozen=True, eq=False)
@@ -281,7 +290,6 @@ class _Block:
     single_actor: int | None
     # groups (the poses of one clip in the block, contiguous since rows are sorted), for the exact search
     gstart: np.ndarray | None = None  # (G+1,) offsets
-    gindex: AlignedPoseIndex | None = None  # group centroids
     gradius: np.ndarray | None = None  # (G,) largest aligned distance centroid -> pose
     gcent: np.ndarray | None = None  # (G, P, 3) group centroids
 
@@ -396,7 +404,7 @@ def retarget_to_tree(motion: Motion, character, *, roles=None, target=None, fix_
     return retarget_across(src, tgt, roles=roles, character_roles=dict(ch.roles), fix_feet=fix_feet)
 
 
-class MotionRetriever:
+class MotionRetriever(ExactSearch, StartScoring):
     """The database organised for the search: clusters, indices, per-clip arrays.
 
     Everything that does not depend on the query is computed here once (Section 3.2.2:
@@ -460,6 +468,7 @@ class MotionRetriever:
         self.centroid_index = AlignedPoseIndex(self.clusters.centroids, self.weights)
         pc = db.pose_clip
         self.pose_size = db.size_a[pc]
+        self._size_max = float(db.size_a.max())
         self.startable = db.pose_frame < db.hit_frame[pc]
         sem_of_pose = db.semantics[pc]
         self.actors_present = np.unique(db.actor)
@@ -742,7 +751,9 @@ class MotionRetriever:
         n = int(valid.sum())
         if n < valid.size:
             d[~valid] = np.inf
-        j = self._pick(d, b.rows) if tie else int(np.argmin(d))
+        if tie:
+            return self._select(q, b.rows, d, c_r, "first", n)
+        j = int(np.argmin(d))
         return int(b.rows[j]), float(d[j]), float(dq[j]), float(dcr_u[b.inv[j]]), n
 
     def _result(self, q: Query, best, c_r, *, cluster, fallback, rank, method) -> RetrievalResult:
@@ -820,11 +831,9 @@ class MotionRetriever:
             Unknown semantics, method or scoring, a database without clips of it, a
             target that is not a finite 3-vector, a character that cannot be retargeted to.
         """
-        c = _check_target(target)
-        sem = self._semantics(semantics)
-        prune, scale_target = _check_flag("prune", prune), _check_flag("scale_target", scale_target)
-        method, scoring = self.check_method(method, scoring, scale_target)
-        q = self._query(current_pose, character, frame)
+        c, q, sem, method, scoring, scale_target, prune = self.arguments(
+            target, current_pose, character, semantics, method=method, scoring=scoring, scale_target=scale_target,
+            frame=frame, prune=prune)
         if method == "exact":
             return self._search_exact(c, q, sem, scoring, scale_target)
         if method == "exhaustive":
@@ -832,6 +841,28 @@ class MotionRetriever:
         if method == "kdtree":
             return self.search_kdtree(c, q, None, sem)
         return self._search_pruned(c, q, sem, prune=prune, scale_target=scale_target)
+
+    def arguments(self, target, current_pose, character, semantics, *, method: str, scoring: str = "first",
+                  scale_target: bool = True, frame: int | None = None, prune: bool = True):
+        """The checked arguments of every search: ``(c, q, semantics, method, scoring, scale_target, prune)``.
+
+        One preamble for :meth:`search`, :meth:`search_exact`, :meth:`search_exhaustive`
+        and :meth:`search_kdtree`: the target (:data:`MAX_TARGET_M`), the semantics, the
+        flags, the (method, scoring) pair (:meth:`check_method`), then the prepared query
+        (:meth:`prepare`, or a :class:`Query` checked), in that order (the cheap checks
+        before the retargeting).
+
+        Raises
+        ------
+        repro.errors.RetrievalError
+            Naming the first bad value.
+        """
+        c = _check_target(target)
+        sem = self._semantics(semantics)
+        prune, scale_target = _check_flag("prune", prune), _check_flag("scale_target", scale_target)
+        method, scoring = self.check_method(method, scoring, scale_target)
+        q = self._query(current_pose, character, frame)
+        return c, q, sem, method, scoring, scale_target, prune
 
     def check_method(self, method, scoring, scale_target: bool = True) -> tuple[str, str]:
         """``(method, scoring)`` checked: one of :data:`METHODS`, one of :data:`SCORINGS`, a valid pair, and
@@ -850,29 +881,28 @@ class MotionRetriever:
     def search_exact(self, target, current_pose, character=None, semantics: str = "punch", *,
                      scoring: str = "first", scale_target: bool = True, frame: int | None = None,
                      stats: dict | None = None) -> RetrievalResult:
-        """Exact search: the exhaustive optimum of ``d``, by branch and bound over clusters and clips.
+        """Exact search: the exhaustive optimum of ``d``, by bounds over clusters, clip runs and clips.
 
         Kovar et al.'s aligned distance ``D`` minimises over an isometry group (rotations
         about the vertical, horizontal translations) applied to a whole cloud, under a
         weighted Euclidean seminorm (non-negative weights): it is a pseudometric, so for
-        a cluster block of centroid ``m`` and radius ``r`` (largest ``D(m, p)`` of its
-        poses) every pose has ``D(q_r, p) >= D(q_r, m) - r``.  With ``scoring="first"``
-        ``d_cr >= dist(c_r, box)`` (the union box of the block's clips, then each clip's
-        box); with ``scoring="start"`` the bound is alignment-invariant: the range of
-        horizontal distances of the played trajectory from the pose's centroid, and of
-        its heights (see :meth:`_start_geometry`).  Blocks are visited in increasing
-        order of their lower bound on ``d = w_q d_qr + w_c d_cr`` (both in metres, the
-        bound scaled by the block's smallest actor size) and the search stops when the
-        bound exceeds the best ``d`` found; inside a block only poses whose own bound can
-        beat it get an exact ``d_cr``.  Ties (within :data:`TIE_RTOL`) go to the lowest
-        pose index, as in :meth:`search_exhaustive`.  ``stats`` (a dict), when given,
-        receives ``clusters_visited`` and ``poses_scored``.
+        a cluster of centroid ``m`` and radius ``r`` (largest ``D(m, p)`` of its poses of
+        the semantics) every pose has ``D(q_r, p) >= D(q_r, m) - r``.  With
+        ``scoring="first"`` ``d_cr >= dist(c_r, box)`` and then the exact ``d_cr`` of every
+        clip within reach (one k-d tree query over the trajectory samples); with
+        ``scoring="start"`` the bound is alignment-invariant: the range of horizontal
+        distances of the played trajectory from the pose's centroid, and of its heights
+        (see :meth:`_start_geometry`).  The cascade (cheap bounds first, a first best
+        ``d`` from the most promising clip runs, exact ``d`` only for the poses whose
+        bound can beat it) is :meth:`repro.motion.retrieval_exact.ExactSearch._search_exact`.
+        Candidates within rounding of the best are re-scored one by one and ties (within
+        :data:`TIE_RTOL`) go to the lowest pose index, as in :meth:`search_exhaustive`:
+        both return the same pose with the same numbers.  ``stats`` (a dict), when given,
+        receives ``clusters_visited``, ``groups_scored`` and ``poses_scored``.
         """
-        c = _check_target(target)
-        sem = self._semantics(semantics)
-        scale_target = _check_flag("scale_target", scale_target)
-        _, scoring = self.check_method("exact", scoring, scale_target)
-        q = self._query(current_pose, character, frame)
+        c, q, sem, _, scoring, scale_target, _ = self.arguments(
+            target, current_pose, character, semantics, method="exact", scoring=scoring, scale_target=scale_target,
+            frame=frame)
         return self._search_exact(c, q, sem, scoring, scale_target, stats=stats)
 
     def _search_pruned(self, c, q: Query, sem: str, *, prune: bool = True, scale_target: bool = True):
@@ -912,485 +942,82 @@ class MotionRetriever:
         Ties (``d`` within :data:`TIE_RTOL` of the minimum) go to the lowest pose index.
         ``scoring``: as in :meth:`search`.
         """
-        c = _check_target(target)
-        sem = self._semantics(semantics)
-        scale_target = _check_flag("scale_target", scale_target)
-        _, scoring = self.check_method("exhaustive", scoring, scale_target)
-        q = self._query(current_pose, character, frame)
+        c, q, sem, _, scoring, scale_target, _ = self.arguments(
+            target, current_pose, character, semantics, method="exhaustive", scoring=scoring,
+            scale_target=scale_target, frame=frame)
         return self._search_exhaustive(c, q, sem, scoring, scale_target)
-
-    # ------------------------------------------------ exact search (branch and bound)
-    def _bounds_setup(self) -> None:
-        """Per (cluster, semantics) block: radius, smallest actor size, union box of its clips.
-
-        Radius: the largest aligned distance (units of the actor's size) from the centroid
-        to a pose of the block, so that ``D(q, p) >= D(q, m) - r`` for every pose ``p`` of
-        it (triangle inequality of the pseudometric ``D``).
-        """
-        db = self.db
-        s = db.size_a
-        self._nbox_lo = db.box_min / s[:, None]
-        self._nbox_hi = db.box_max / s[:, None]
-        k = self.clusters.k
-        self._bb = {}
-        for sem in SEMANTICS:
-            rad = np.full(k, np.inf)
-            smin = np.full(k, np.inf)
-            lo = np.full((k, 3), np.inf)
-            hi = np.full((k, 3), -np.inf)
-            for cl in range(k):
-                b = self.cluster_block[cl][sem]
-                if b is None:
-                    continue
-                self._groups(b)
-                rad[cl] = float(b.index.distances(self.clusters.centroids[cl]).max())
-                smin[cl] = float(b.size.min())
-                lo[cl] = self._nbox_lo[b.uclips].min(axis=0)
-                hi[cl] = self._nbox_hi[b.uclips].max(axis=0)
-            self._bb[sem] = {"radius": rad, "s_min": smin, "box_lo": lo, "box_hi": hi,
-                             "empty": ~np.isfinite(smin)}
-
-    def _groups(self, b: _Block) -> None:
-        """Split a block into its clips' runs of poses: centroid and radius of each (exact search)."""
-        G = b.uclips.size
-        gstart = np.concatenate([[0], np.flatnonzero(np.diff(b.inv)) + 1, [b.rows.size]])
-        if gstart.size != G + 1:  # rows sorted, so each clip's poses are contiguous
-            raise AssertionError("block rows are not grouped by clip")
-        pts = self.db.pose_points[b.rows]
-        cnt = np.diff(gstart).astype(float)
-        cent = np.add.reduceat(pts, gstart[:-1], axis=0) / cnt[:, None, None]
-        r = aligned_distance(cent[b.inv], pts, self.weights)
-        b.gstart = gstart
-        b.gcent = cent
-        b.gindex = None
-        b.gradius = np.maximum.reduceat(r, gstart[:-1])
-
-    def _start_geometry(self) -> dict:
-        """Per pose: where its clip's hit trajectory lies when the clip is played from it.
-
-        For a startable pose ``p`` (clip ``i``, frame ``f``): ``phi``, ``u`` with
-        ``traj_f = R_y(phi) traj_0 + u`` (the trajectory from the root frame of the clip's
-        first frame to the root frame of frame ``f``, actor metres), and over the played
-        part ``t >= f`` of it, the range ``[rho_lo, rho_hi]`` of horizontal distances from
-        the pose's weighted centroid and ``[y_lo, y_hi]`` of heights (units of the actor's
-        size): an alignment-invariant region (the aligned placement rotates about the
-        centroid), hence a bound of ``d_cr`` in the start frame.  Built on first use.
-        """
-        if self._start is not None:
-            return self._start
-        db = self.db
-        N = db.n_poses
-        phi = np.zeros(N)
-        u = np.zeros((N, 3))
-        rho = np.zeros((N, 2))
-        yr = np.zeros((N, 2))
-        cx, cz = self.index._X, self.index._Z
-        for i in range(db.n_clips):
-            F, hf = int(db.n_frames[i]), int(db.hit_frame[i])
-            nf = min(hf, F)
-            if nf <= 0:
-                continue
-            p0, t0 = int(db.pose_start[i]), int(db.traj_start[i])
-            s = float(db.size_a[i])
-            th = db.pose_heading[p0:p0 + nf]
-            o = db.pose_origin[p0:p0 + nf]
-            tr0 = db.traj[t0:t0 + F]
-            ph = th[0] - th
-            uu = rotate_y(o[0] - o, -th)
-            phi[p0:p0 + nf] = ph
-            u[p0:p0 + nf] = uu
-            trf = rotate_y(tr0[None, :, :], ph[:, None]) + uu[:, None, :]  # (nf, F, 3)
-            r = np.hypot(trf[..., 0] / s - cx[p0:p0 + nf, None], trf[..., 2] / s - cz[p0:p0 + nf, None])
-            played = np.arange(F)[None, :] >= np.arange(nf)[:, None]
-            rho[p0:p0 + nf, 0] = np.where(played, r, np.inf).min(axis=1)
-            rho[p0:p0 + nf, 1] = np.where(played, r, -np.inf).max(axis=1)
-            y = tr0[:, 1] / s
-            yr[p0:p0 + nf, 0] = np.minimum.accumulate(y[::-1])[::-1][:nf]
-            yr[p0:p0 + nf, 1] = np.maximum.accumulate(y[::-1])[::-1][:nf]
-        blocks, groups, exgroups = {}, {}, {}
-        for sem in SEMANTICS:
-            k = self.clusters.k
-            reg = np.empty((k, 4))
-            reg[:] = (np.inf, -np.inf, np.inf, -np.inf)
-            for cl in range(k):
-                b = self.cluster_block[cl][sem]
-                if b is not None:
-                    rr, yy = rho[b.rows], yr[b.rows]
-                    reg[cl] = (rr[:, 0].min(), rr[:, 1].max(), yy[:, 0].min(), yy[:, 1].max())
-                    gs = b.gstart[:-1]
-                    groups[(sem, cl)] = np.stack([np.minimum.reduceat(rr[:, 0], gs), np.maximum.reduceat(rr[:, 1], gs),
-                                                  np.minimum.reduceat(yy[:, 0], gs), np.maximum.reduceat(yy[:, 1], gs)],
-                                                 axis=1)
-            blocks[sem] = reg
-            if self._ex.get(sem) is not None:
-                ex = self._ex[sem]
-                gs = ex["gstart"][:-1]
-                rr, yy = rho[ex["rows"]], yr[ex["rows"]]
-                exgroups[sem] = np.stack([np.minimum.reduceat(rr[:, 0], gs), np.maximum.reduceat(rr[:, 1], gs),
-                                          np.minimum.reduceat(yy[:, 0], gs), np.maximum.reduceat(yy[:, 1], gs)], axis=1)
-        self._start = {"exgroups": exgroups, "phi": phi, "u": u, "rho": rho, "y": yr, "blocks": blocks, "groups": groups}
-        return self._start
-
-    def _d_cr_start_per_actor(self, q: Query, rows: np.ndarray, alpha: np.ndarray, actor: np.ndarray,
-                              c_hat: np.ndarray, cq) -> np.ndarray:
-        """:meth:`_d_cr_start` for poses of several actors (each with its own ``q_r`` centroid ``cq[a]``)."""
-        dcr = np.empty(rows.size)
-        for a in q.q_n:
-            sel = actor == a
-            if np.any(sel):
-                dcr[sel] = self._d_cr_start(rows[sel], alpha[sel], c_hat, cq[a])
-        return dcr
-
-    def _d_cr_start(self, rows: np.ndarray, alpha: np.ndarray, c_hat: np.ndarray, cq: np.ndarray,
-                    chunk: int = 8192) -> np.ndarray:
-        """Exact ``d_cr`` (actor metres) of poses ``rows`` scored in their start frame.
-
-        The clip played from pose ``p`` (aligned on ``q_r`` by the rotation ``alpha`` about
-        the vertical and the translation that matches the horizontal centroids) brings its
-        hit point closest to ``c_r`` at ``min_{t >= f} |traj_0(t) - c_0|`` where ``c_0`` is
-        the target taken back to the clip's first-frame root frame.
-        """
-        db = self.db
-        g = self._start_geometry()
-        clips = db.pose_clip[rows]
-        s = db.size_a[clips]
-        f = db.pose_frame[rows]
-        # target in the pose's canonical frame (units of size), then actor metres, then frame 0
-        v = c_hat[None, :] - np.array([cq[0], 0.0, cq[1]])[None, :]
-        cf = rotate_y(v, -alpha)
-        cf[:, 0] += self.index._X[rows]
-        cf[:, 2] += self.index._Z[rows]
-        c0 = rotate_y(cf * s[:, None] - g["u"][rows], -g["phi"][rows])
-        out = np.empty(rows.size)
-        L = self.traj_padded.shape[1]
-        t = np.arange(L)
-        for a in range(0, rows.size, chunk):
-            sl = slice(a, a + chunk)
-            diff = self.traj_padded[clips[sl]] - c0[sl, None, :]
-            d2 = np.einsum("ctk,ctk->ct", diff, diff)
-            d2[t[None, :] < f[sl, None]] = np.inf
-            out[sl] = np.sqrt(d2.min(axis=1))
-        return out
 
     @staticmethod
     def _tie_threshold(best: float) -> float:
         return best + TIE_RTOL * abs(best) + TIE_ATOL
 
-    @classmethod
-    def _pick(cls, d: np.ndarray, rows: np.ndarray) -> int:
-        """Index into ``d`` of the selection: the lowest pose among the (near-)ties of the minimum."""
-        m = float(np.min(d))
-        tied = np.flatnonzero(d <= cls._tie_threshold(m))
-        return int(tied[np.argmin(rows[tied])])
+    def _near_threshold(self, best: float) -> float:
+        """Candidates whose ``d`` is below this are re-scored one by one (:meth:`_select`)."""
+        return best + NEAR_RTOL * abs(best) + NEAR_ATOL * self.w_q * self._size_max
 
-    def _lb_cr(self, scoring: str, c_hat: np.ndarray, cq: tuple, box_lo=None, box_hi=None, reg=None) -> np.ndarray:
-        """Lower bound of ``d_cr`` / ``size_a`` from boxes (first frame) or start regions (see below)."""
-        if scoring == "first":
-            gap = np.maximum(np.maximum(box_lo - c_hat, c_hat - box_hi), 0.0)
-            lc = np.sqrt(np.einsum("ck,ck->c", gap, gap))
-        else:
-            rc = float(np.hypot(c_hat[0] - cq[0], c_hat[2] - cq[1]))
-            gr = np.maximum(np.maximum(reg[:, 0] - rc, rc - reg[:, 1]), 0.0)
-            gy = np.maximum(np.maximum(reg[:, 2] - c_hat[1], c_hat[1] - reg[:, 3]), 0.0)
-            lc = np.hypot(gr, gy)
-        return np.maximum(lc - BOUND_SLACK, 0.0)
-
-    def _eval_block(self, b: _Block, q: Query, c_r: np.ndarray, scoring: str, c_hat: np.ndarray, cq: dict,
-                    best: float = np.inf, key=None):
-        """Score the poses of block ``b`` whose lower bound can beat ``best``.
-
-        With groups (cluster blocks, ``key = (semantics, cluster)``): first a bound per
-        group (the poses of one clip, centroid and radius), then a bound per pose of the
-        surviving groups (its exact ``d_qr`` and its clip's box, or its start region),
-        then the exact ``d`` of the poses still below the threshold.  Returns ``(rows, d,
-        d_qr, d_cr, n_scored)`` of the poses evaluated exactly, or None.
-        """
+    def _canonical(self, q: Query, row: int, c_r: np.ndarray, scoring: str, c_hat, cq) -> tuple:
+        """``(d, d_qr, d_cr)`` of one pose, always by the same one-row evaluation (so that every search
+        reports the same numbers for the same pose, whatever batch it was first scored in)."""
         db = self.db
-        thr = self._tie_threshold(best)
-        prep = self._prepared(q)
-        g = self._start_geometry() if scoring == "start" else None
-        clip_actor = db.actor[b.uclips]
-        # ---- group level
-        if b.gindex is not None and np.isfinite(thr):
-            lbg = np.full(b.uclips.size, np.inf)
-            gsize = db.size_a[b.uclips]
-            lbox = (self._lb_cr("first", c_hat, None, self._nbox_lo[b.uclips], self._nbox_hi[b.uclips])
-                    if scoring == "first" else None)
-            for a in q.q_n:
-                sel = slice(None) if b.single_actor == a else np.flatnonzero(clip_actor == a)
-                if b.single_actor is not None and b.single_actor != a:
-                    continue
-                dg = b.gindex.distances(q.q_n[a], None if isinstance(sel, slice) else sel, prepared=prep[a])
-                lq = np.maximum(dg - b.gradius[sel] - BOUND_SLACK, 0.0)
-                lc = lbox[sel] if scoring == "first" else self._lb_cr("start", c_hat, cq[a], reg=g["groups"][key][sel])
-                lbg[sel] = gsize[sel] * (self.w_q * lq + self.w_c * lc)
-            keepg = lbg <= thr
-            if not keepg.any():
-                return None
-            cand = np.flatnonzero(keepg[b.inv])
-        else:
-            cand = None
-        rows = b.rows if cand is None else b.rows[cand]
-        inv = b.inv if cand is None else b.inv[cand]
-        actor = b.actor if cand is None else b.actor[cand]
-        size = b.size if cand is None else b.size[cand]
-        allowed = np.ones(rows.size, dtype=bool)
-        if len(q.q_n) != len(self.actors_present):
-            allowed = np.isin(actor, q.actors)
-        if not allowed.any():
-            return None
-        # ---- pose level: exact d_qr, bound of d_cr
-        dq = np.full(rows.size, np.inf)
-        alpha = np.zeros(rows.size) if scoring == "start" else None
-        for a, qn in q.q_n.items():
-            if b.single_actor is not None:
-                if b.single_actor != a:
-                    continue
-                sel, sub = slice(None), cand
-            else:
-                sel = np.flatnonzero(actor == a)
-                if sel.size == 0:
-                    continue
-                sub = sel if cand is None else cand[sel]
-            if scoring == "start":
-                out = b.index.distances(qn, sub, return_transform=True, prepared=prep[a])
-                dq[sel], alpha[sel] = out[0], out[1]
-            else:
-                dq[sel] = b.index.distances(qn, sub, prepared=prep[a])
-        dqr = dq * size
+        i = int(db.pose_clip[row])
+        a = int(db.actor[i])
+        qn = q.q_n[a]
+        r = np.array([row])
         if scoring == "first":
-            lbc = self._lb_cr("first", c_hat, None, self._nbox_lo[b.uclips], self._nbox_hi[b.uclips])
-            lb = self.w_q * dqr + self.w_c * lbc[inv] * size
+            D = float(self.index.distances(qn, r)[0])
+            dcr = float(self._d_cr(np.array([i]), c_r)[0])
         else:
-            lb = np.full(rows.size, np.inf)
-            for a in q.q_n:
-                sel = actor == a
-                if np.any(sel):
-                    rr, yy = g["rho"][rows[sel]], g["y"][rows[sel]]
-                    reg = np.concatenate([rr, yy], axis=1)
-                    lb[sel] = self.w_q * dqr[sel] + self.w_c * size[sel] * self._lb_cr("start", c_hat, cq[a], reg=reg)
-        lb[~allowed] = np.inf
-        keep = np.flatnonzero(lb <= thr)
+            D, alpha = self.index.distances(qn, r, return_transform=True)[:2]
+            dcr = float(self._d_cr_start(r, alpha, c_hat, cq[a])[0])
+            D = float(D[0])
+        dqr = D * float(self.pose_size[row])
+        return self.w_q * dqr + self.w_c * dcr, dqr, dcr
+
+    def _select(self, q: Query, rows: np.ndarray, d: np.ndarray, c_r: np.ndarray, scoring: str, n: int,
+                c_hat=None, cq=None) -> tuple:
+        """The selection among scored poses: ``(row, d, d_qr, d_cr, n)``.
+
+        The poses within :meth:`_near_threshold` of the lowest ``d`` (above the rounding of
+        the closed form, which differs in the last bits between batches) are re-scored by
+        :meth:`_canonical`; the lowest of those wins, ties (:data:`TIE_RTOL`) to the lowest
+        pose index.  The exact and exhaustive searches share it.
+        """
+        m = float(np.min(d))
+        near = np.flatnonzero(d <= self._near_threshold(m))
+        near = near[np.argsort(rows[near], kind="stable")]
+        if near.size > MAX_NEAR:  # degenerate databases (many copies of one pose): the lowest indices
+            near = np.concatenate([near[:MAX_NEAR], [int(np.argmin(d))]])
+        scored = [(self._canonical(q, int(rows[j]), c_r, scoring, c_hat, cq), int(rows[j])) for j in near]
+        m2 = min(v[0][0] for v in scored)
+        (dd, dqr, dcr), row = min((v for v in scored if v[0][0] <= self._tie_threshold(m2)), key=lambda v: v[1])
+        return row, float(dd), float(dqr), float(dcr), int(n)
+
+    def _score_all_start(self, b: _Block, q: Query, c_hat: np.ndarray, cq: dict):
+        """Every pose of block ``b`` scored in its start frame: ``(rows, d, d_qr, d_cr, n)`` (None if no
+        pose of an actor of the query)."""
+        prep = self._prepared(q)
+        dq = np.full(b.rows.size, np.inf)
+        alpha = np.zeros(b.rows.size)
+        for a, qn in q.q_n.items():
+            sel = np.flatnonzero(b.actor == a)
+            if sel.size:
+                dq[sel], alpha[sel] = b.index.distances(qn, sel, return_transform=True, prepared=prep[a])[:2]
+        keep = np.flatnonzero(np.isfinite(dq))
         if keep.size == 0:
             return None
-        # ---- exact d_cr of what is left
-        if scoring == "first":
-            need = np.zeros(b.uclips.size, dtype=bool)
-            need[inv[keep]] = True
-            uk = np.flatnonzero(need)
-            pos = np.zeros(b.uclips.size, dtype=np.intp)
-            pos[uk] = np.arange(uk.size)
-            dcr = self._d_cr(b.uclips[uk], c_r)[pos[inv[keep]]]
-        else:
-            dcr = self._d_cr_start_per_actor(q, rows[keep], alpha[keep], actor[keep], c_hat, cq)
-        d = self.w_q * dqr[keep] + self.w_c * dcr
-        return rows[keep], d, dqr[keep], dcr, keep.size
+        rows = b.rows[keep]
+        dqr = dq[keep] * b.size[keep]
+        dcr = self._d_cr_start_per_actor(q, rows, alpha[keep], b.actor[keep], c_hat, cq)
+        return rows, self.w_q * dqr + self.w_c * dcr, dqr, dcr, keep.size
 
-    def _prepared(self, q: Query) -> dict:
-        """The query matrices of ``q_r`` (one per actor), computed once per query."""
-        key = id(q)
-        hit = self._qm_cache
-        if hit is None or hit[0] != key or hit[1] is not q:
-            self._qm_cache = hit = (key, q, {a: self.index.query_matrix(qn) for a, qn in q.q_n.items()})
-        return hit[2]
-
-    def _c_hat(self, c: np.ndarray, q: Query) -> np.ndarray:
-        return c / q.size_c
-
-    def _cq(self, q: Query) -> dict:
-        w = self.weights
-        return {a: (float(qn[:, 0] @ w), float(qn[:, 2] @ w)) for a, qn in q.q_n.items()}
-
-    def _finish(self, q: Query, parts: list, c_r: np.ndarray, *, method: str, n: int, cluster: int = -1):
+    def _finish(self, q: Query, parts: list, c_r: np.ndarray, *, method: str, n: int, scoring: str,
+                c_hat=None, cq=None):
         if not parts:
             raise RetrievalError("no clip of an actor compatible with the character for this semantics")
         rows = np.concatenate([p[0] for p in parts])
         d = np.concatenate([p[1] for p in parts])
-        dqr = np.concatenate([p[2] for p in parts])
-        dcr = np.concatenate([p[3] for p in parts])
-        j = self._pick(d, rows)
-        best = (int(rows[j]), float(d[j]), float(dqr[j]), float(dcr[j]), int(n))
-        return self._result(q, best, c_r, cluster=cluster, fallback="disabled", rank=-1, method=method)
-
-    def _exact_setup(self) -> None:
-        """Flat arrays of the groups (clip runs inside clusters) of each semantics, cluster by cluster."""
-        db = self.db
-        self._ex = {}
-        for sem in SEMANTICS:
-            rows, gstart, gcl, cent, rad, clstart = [], [0], [], [], [], [0]
-            for cl in range(self.clusters.k):
-                b = self.cluster_block[cl][sem]
-                if b is not None:
-                    rows.append(b.rows)
-                    gstart.extend((b.gstart[1:] + gstart[-1] - 0).tolist())
-                    gcl.append(np.full(b.uclips.size, cl))
-                    cent.append(b.gcent)
-                    rad.append(b.gradius)
-                clstart.append(clstart[-1] + (0 if b is None else b.uclips.size))
-            if not rows:
-                self._ex[sem] = None
-                continue
-            rows = np.concatenate(rows)
-            gstart = np.asarray(gstart, dtype=np.intp)
-            gclip = db.pose_clip[rows[gstart[:-1]]]
-            uclip, gu = np.unique(gclip, return_inverse=True)
-            self._ex[sem] = {
-                "rows": rows, "index": self.index.subset(rows), "gstart": gstart, "glen": np.diff(gstart),
-                "gclip": gclip, "gsize": db.size_a[gclip], "gactor": db.actor[gclip], "gcluster": np.concatenate(gcl),
-                "gindex": AlignedPoseIndex(np.concatenate(cent), self.weights), "gradius": np.concatenate(rad),
-                "clstart": np.asarray(clstart, dtype=np.intp), "size": self.pose_size[rows],
-                "actor": db.actor[db.pose_clip[rows]], "clip": db.pose_clip[rows], "sem": sem,
-                "uclip": uclip, "gu": gu,
-            }
-
-    def _group_lb(self, ex: dict, gids: np.ndarray, q: Query, scoring: str, c_hat, cq, prep, c_r,
-                  lc: np.ndarray | None = None) -> np.ndarray:
-        """Lower bound of ``d`` (metres) on every pose of the groups ``gids``.
-
-        ``lc`` (metres): a bound of ``d_cr`` per group when already known.
-        """
-        lb = np.full(gids.size, np.inf)
-        gact = ex["gactor"][gids]
-        for a, qn in q.q_n.items():
-            sel = np.flatnonzero(gact == a) if len(self.actors_present) > 1 else slice(None)
-            sub = gids[sel]
-            if sub.size == 0:
-                continue
-            dg = ex["gindex"].distances(qn, sub, prepared=prep[a])
-            lq = np.maximum(dg - ex["gradius"][sub] - BOUND_SLACK, 0.0)
-            if lc is not None:
-                lcs = lc[sel]
-            elif scoring == "first":  # d_cr is per clip: exact (one trajectory per clip, cheap)
-                uc, inv = np.unique(ex["gclip"][sub], return_inverse=True)
-                lcs = self._d_cr(uc, c_r)[inv]
-            else:
-                lcs = ex["gsize"][sub] * self._lb_cr("start", c_hat, cq[a],
-                                                     reg=self._start_geometry()["exgroups"][ex["sem"]][sub])
-            lb[sel] = ex["gsize"][sub] * self.w_q * lq + self.w_c * lcs
-        return lb
-
-    def _eval_groups(self, ex: dict, gids: np.ndarray, q: Query, c_r, scoring: str, c_hat, cq, prep, best: float):
-        """Exact ``d`` of the poses of groups ``gids`` whose own bound can beat ``best``."""
-        st, ln = ex["gstart"][gids], ex["glen"][gids]
-        tot = int(ln.sum())
-        pos = np.repeat(st - np.concatenate([[0], np.cumsum(ln)[:-1]]), ln) + np.arange(tot)
-        rows = ex["rows"][pos]
-        actor, size, clip = ex["actor"][pos], ex["size"][pos], ex["clip"][pos]
-        allowed = np.isin(actor, q.actors) if len(q.q_n) != len(self.actors_present) else None
-        dq = np.full(tot, np.inf)
-        alpha = np.zeros(tot) if scoring == "start" else None
-        for a, qn in q.q_n.items():
-            sel = np.flatnonzero(actor == a) if len(self.actors_present) > 1 else slice(None)
-            sub = pos[sel]
-            if sub.size == 0:
-                continue
-            if scoring == "start":
-                out = ex["index"].distances(qn, sub, return_transform=True, prepared=prep[a])
-                dq[sel], alpha[sel] = out[0], out[1]
-            else:
-                dq[sel] = ex["index"].distances(qn, sub, prepared=prep[a])
-        dqr = dq * size
-        if scoring == "first":
-            lbc = self._lb_cr("first", c_hat, None, self._nbox_lo[clip], self._nbox_hi[clip])
-            lb = self.w_q * dqr + self.w_c * lbc * size
-        else:
-            g = self._start_geometry()
-            lb = np.full(tot, np.inf)
-            for a in q.q_n:
-                sel = np.flatnonzero(actor == a) if len(self.actors_present) > 1 else slice(None)
-                reg = np.concatenate([g["rho"][rows[sel]], g["y"][rows[sel]]], axis=1)
-                lb[sel] = self.w_q * dqr[sel] + self.w_c * size[sel] * self._lb_cr("start", c_hat, cq[a], reg=reg)
-        if allowed is not None:
-            lb[~allowed] = np.inf
-        keep = np.flatnonzero(lb <= self._tie_threshold(best))
-        if keep.size == 0:
-            return None
-        if scoring == "first":
-            uc, inv = np.unique(clip[keep], return_inverse=True)
-            dcr = self._d_cr(uc, c_r)[inv]
-        else:
-            dcr = self._d_cr_start_per_actor(q, rows[keep], alpha[keep], actor[keep], c_hat, cq)
-        d = self.w_q * dqr[keep] + self.w_c * dcr
-        return rows[keep], d, dqr[keep], dcr, keep.size
-
-    def _search_exact(self, c, q: Query, sem: str, scoring: str, scale_target: bool = True,
-                      stats: dict | None = None, batch: int = 48) -> RetrievalResult:
-        c_r = self._c_r(c, q.size_c, scale_target)
-        if not scale_target:  # the normalised target differs per actor size: score everything (exact)
-            return self._search_exhaustive(c, q, sem, scoring, scale_target, method="exact")
-        ex = self._ex[sem]
-        c_hat = self._c_hat(c, q)
-        cq = self._cq(q)
-        prep = self._prepared(q)
-        bb = self._bb[sem]
-        geo = self._start_geometry() if scoring == "start" else None
-        # 1. clusters: lower bound of d over each (cluster, semantics) block, per actor of the query
-        lbs, lqs = [], []
-        for a, qn in q.q_n.items():
-            lq = np.maximum(self.centroid_index.distances(qn) - bb["radius"] - BOUND_SLACK, 0.0)
-            lc = (self._lb_cr("first", c_hat, None, bb["box_lo"], bb["box_hi"]) if scoring == "first"
-                  else self._lb_cr("start", c_hat, cq[a], reg=geo["blocks"][sem]))
-            lbs.append(bb["s_min"] * (self.w_q * lq + self.w_c * lc))
-            lqs.append(lq)
-        lb_cl = np.min(lbs, axis=0)
-        lb_cl[bb["empty"]] = np.inf
-        lq_cl = np.min(lqs, axis=0)
-        order = np.argsort(lb_cl, kind="stable")
-        best, parts, n, n_groups = np.inf, [], 0, 0
-        clst = ex["clstart"]
-
-        def visit(gids, lbg):
-            nonlocal best, n, n_groups
-            o = np.argsort(lbg, kind="stable")
-            gids, lbg = gids[o], lbg[o]
-            for a in range(0, gids.size, batch):
-                if not lbg[a] <= self._tie_threshold(best):
-                    break
-                sub = gids[a:a + batch][lbg[a:a + batch] <= self._tie_threshold(best)]
-                n_groups += sub.size
-                out = self._eval_groups(ex, sub, q, c_r, scoring, c_hat, cq, prep, best)
-                if out is not None:
-                    n += out[4]
-                    parts.append(out)
-                    best = min(best, float(out[1].min()))
-
-        # 2. the most promising cluster first (its clip runs, best bound first): a first best d
-        first = int(order[0])
-        g0 = np.arange(clst[first], clst[first + 1])
-        visit(g0, self._group_lb(ex, g0, q, scoring, c_hat, cq, prep, c_r))
-        # 3. every other clip run (group) whose bound can beat it; bounds from cheap to tight
-        thr = self._tie_threshold(best)
-        gs = ex["gsize"]
-        lq_g = lq_cl[ex["gcluster"]]
-        if scoring == "first":
-            uc = ex["uclip"]
-            lc_u = self._lb_cr("first", c_hat, None, self._nbox_lo[uc], self._nbox_hi[uc]) * self.db.size_a[uc]
-            lc = lc_u[ex["gu"]]
-        else:
-            lc = np.min([gs * self._lb_cr("start", c_hat, cq[a], reg=geo["exgroups"][sem]) for a in q.q_n], axis=0)
-        lb0 = gs * self.w_q * lq_g + self.w_c * lc
-        lb0[clst[first]:clst[first + 1]] = np.inf  # visited
-        cand = np.flatnonzero(lb0 <= thr)
-        if scoring == "first" and cand.size:
-            # exact d_cr of the clips still in (one trajectory per clip)
-            need = np.unique(ex["gu"][cand])
-            dcr_u = np.full(uc.size, np.inf)
-            dcr_u[need] = self._d_cr(uc[need], c_r)
-            lc = dcr_u[ex["gu"][cand]]
-            m = gs[cand] * self.w_q * lq_g[cand] + self.w_c * lc <= thr
-            cand, lc = cand[m], lc[m]
-        elif cand.size:
-            lc = lc[cand]
-        if cand.size:
-            lbg = self._group_lb(ex, cand, q, scoring, c_hat, cq, prep, c_r, lc=lc)
-            m = lbg <= thr
-            visit(cand[m], lbg[m])
-        if stats is not None:
-            stats.update(clusters_visited=int(np.unique(ex["gcluster"][cand]).size + 1), groups_scored=int(n_groups),
-                         poses_scored=int(n))
-        thr = self._tie_threshold(best)
-        parts = [(p[0][m], p[1][m], p[2][m], p[3][m]) for p in parts for m in [p[1] <= thr]]
-        return self._finish(q, parts, c_r, method="exact", n=n)
+        best = self._select(q, rows, d, c_r, scoring, n, c_hat, cq)
+        return self._result(q, best, c_r, cluster=-1, fallback="disabled", rank=-1, method=method)
 
     def _search_exhaustive(self, c, q: Query, sem: str, scoring: str, scale_target: bool = True, *,
                            method: str = "exhaustive") -> RetrievalResult:
@@ -1403,10 +1030,11 @@ class MotionRetriever:
             return self._result(q, best, c_r, cluster=-1, fallback="disabled", rank=-1, method=method)
         if not scale_target:
             raise RetrievalError("scoring='start' needs scale_target=True (Eq. 1)")
-        out = self._eval_block(b, q, c_r, scoring, self._c_hat(c, q), self._cq(q))
+        c_hat, cq = self._c_hat(c, q), self._cq(q)
+        out = self._score_all_start(b, q, c_hat, cq)
         if out is None:
             raise RetrievalError(f"no {sem!r} clip of an actor compatible with the character")
-        return self._finish(q, [out[:4]], c_r, method=method, n=out[4])
+        return self._finish(q, [out[:4]], c_r, method=method, n=out[4], scoring=scoring, c_hat=c_hat, cq=cq)
 
     def _kdtree(self, sem: str):
         if sem not in self._kd:
@@ -1431,9 +1059,7 @@ class MotionRetriever:
         ``kd_neighbours`` nearest are rescored with the exact ``d``.  No box pruning.
         Built lazily per semantics (the first call includes the build).
         """
-        c = _check_target(target)
-        sem = self._semantics(semantics)
-        q = self._query(current_pose, character, frame)
+        c, q, sem, *_ = self.arguments(target, current_pose, character, semantics, method="kdtree", frame=frame)
         tree, rows_all = self._kdtree(sem)
         c_r = self._c_r(c, q.size_c, True)
         sw = np.sqrt(self.weights)[:, None]
@@ -1657,8 +1283,8 @@ def scoring_frame_miss(db: MotionDatabase | None = None, *, semantics: Sequence[
         ``{"method/scoring": {"before_mean_m", "before_median_m", "closest_mean_m",
         "d_cr_mean_m" (what the retrieval scored, actor metres), "n_targets"}}``.
     """
-    from repro.motion.sources import default_database
     from repro.motion.skeleton import scale_skeleton
+    from repro.motion.sources import default_database
 
     db = default_database("synthetic") if db is None else db
     if not isinstance(db, MotionDatabase):

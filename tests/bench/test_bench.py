@@ -18,6 +18,7 @@ def test_bench_retrieval_columns_and_methods():
     assert s["largest_factor"] == 2 and s["speedup_vs_exhaustive_at_largest"] > 0
     assert "pruned vs exhaustive" in retrieval.format_retrieval(t)
     assert "exact vs exhaustive" in retrieval.format_retrieval(t)
+    assert "synthetic x2: exact vs exhaustive p50" in retrieval.format_retrieval(t)  # the ratios per size
 
 
 def test_bench_adaptation_reports_per_frame_costs():

@@ -13,7 +13,14 @@ What is asserted:
 * ``scoring="start"``: ``d_cr`` is the closest approach, from the start frame on, of the
   hit trajectory *as played* (placed by the result's own alignment), recomputed here
   from the world trajectory; the paper's ``scoring="first"`` is unchanged;
-* bad ``method`` / ``scoring`` values are refused, naming the value.
+* bad ``method`` / ``scoring`` values are refused, naming the value;
+* the alignment-invariant features (item 5) bound the aligned distance from below (random
+  pairs of real and synthetic clouds), and the exact search with that bound on still returns
+  the exhaustive optimum, with the very same ``d``, ``d_qr``, ``d_cr`` (both re-score the
+  near-best candidates one by one);
+* the k-d tree of trajectory samples gives each clip's exact ``d_cr`` (nearest samples, small
+  and large balls);
+* a database without clips of a semantics is refused by every method, naming the semantics.
 """
 
 from __future__ import annotations
@@ -25,11 +32,11 @@ import pytest
 
 from repro.errors import RetrievalError
 from repro.motion import synthetic
-from repro.motion.clustering import aligned_distance, root_frames, rotate_y
 from repro.motion.augment import augment
+from repro.motion.clustering import aligned_distance, root_frames, rotate_y
 from repro.motion.database import MotionDatabase
-from repro.motion.sources import build_database
 from repro.motion.retrieval import MotionRetriever, make_queries
+from repro.motion.sources import build_database
 
 
 @pytest.fixture(scope="module")
@@ -217,3 +224,63 @@ def test_prepare_fast_path_equals_retargeting(db, retriever):
                           a.index("right_hip"))[-1] / a.size
         np.testing.assert_allclose(q.q_n[0], ref, atol=1e-12)
         assert q.size_c == pytest.approx(ch.size)
+
+
+@pytest.mark.parametrize("weighted", [False, True])
+def test_invariant_features_bound_the_aligned_distance(db, weighted):
+    """Issue 13 item 5: the distance between alignment-invariant features never exceeds D, and is not vacuous."""
+    from repro.motion.clustering import pose_weights
+    from repro.motion.retrieval_exact import invariant_features
+
+    rng = np.random.default_rng(2)
+    P = db.pose_points.shape[1]
+    w = pose_weights(P, rng.uniform(0.0, 3.0, P) if weighted else None)
+    real = db.pose_points[rng.integers(0, db.n_poses, (3000, 2))]
+    synth = rng.normal(0, 0.5, (3000, 2, P, 3))
+    synth[:, 1] = rotate_y(synth[:, 0], rng.uniform(-np.pi, np.pi, (3000, 1))) + rng.normal(0, 0.05, (3000, P, 3))
+    synth[:, 1] += np.array([1.0, 0.0, 1.0]) * rng.normal(0, 2.0, (3000, 1, 3))  # moved on the floor
+    for t in (real, synth):
+        d = aligned_distance(t[:, 0], t[:, 1], w)
+        f = np.linalg.norm(invariant_features(t[:, 0], w) - invariant_features(t[:, 1], w), axis=-1)
+        assert np.all(f <= d + 1e-9)
+        assert np.median(f / np.maximum(d, 1e-12)) > 0.3  # tight enough to mean something
+
+
+def test_trajectory_samples_give_the_exact_d_cr(db, retriever, prepared):
+    """The k-d tree of trajectory samples (nearest samples, ball) returns each clip's exact d_cr."""
+    r = retriever
+    for c, q, sem in prepared[:40]:
+        ex = r._ex[sem]
+        c_r = r._c_r(c, q.size_c, True)
+        c_hat = c / q.size_c
+        ref = r._d_cr(ex["uclip"], c_r)
+        near = np.full(ex["uclip"].size, np.nan)
+        u = r._nearest_clips(ex, near, c_hat, 64)
+        np.testing.assert_allclose(near[u], ref[u], rtol=1e-12, atol=1e-12)
+        for radius in (0.05, 0.2, 10.0):  # small and large balls (two code paths)
+            ball = np.full(ex["uclip"].size, np.nan)
+            r._ball_dcr(ex, ball, c_hat, radius)
+            inside = ref <= radius * ex["usize"] * (1 - 1e-9)
+            np.testing.assert_allclose(ball[inside], ref[inside], rtol=1e-12, atol=1e-12)
+            known = np.isfinite(ball)  # inside the ball, or every clip when the ball is large: exact
+            np.testing.assert_allclose(ball[known], ref[known], rtol=1e-12, atol=1e-12)
+            assert np.all(known | (ref > radius * ex["usize"] * (1 - 1e-9)))  # unknown only outside
+
+
+@pytest.mark.parametrize("scoring", ["first", "start"])
+def test_exact_with_the_feature_bound_and_identical_numbers(db, retriever, prepared, scoring):
+    """The optional feature bound keeps the optimum; exact and exhaustive report the very same numbers."""
+    for c, q, sem in prepared[:80]:
+        b = retriever.search_exhaustive(c, q, semantics=sem, scoring=scoring)
+        for features in (False, True):
+            a = retriever._search_exact(c, q, sem, scoring, True, features=features)
+            assert (a.pose, a.d, a.d_qr, a.d_cr) == (b.pose, b.d, b.d_qr, b.d_cr)
+
+
+def test_exact_on_a_database_without_the_semantics(db):
+    punches = MotionDatabase.from_clips([db.clip(int(i)) for i in np.flatnonzero(db.semantics == "punch")[:4]])
+    r = MotionRetriever(punches, seed=0, k=3)
+    c, pose, ch, _ = make_queries(punches, 1, seed=0)[0]
+    for method in ("exact", "exhaustive", "pruned", "kdtree"):
+        with pytest.raises(RetrievalError, match="'kick'"):
+            r.search(c, pose, ch, "kick", method=method)
