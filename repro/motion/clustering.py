@@ -548,6 +548,24 @@ class AlignedPoseIndex:
         c, s = np.cos(theta), np.sin(theta)
         return d, theta, Xa - (c * X + s * Z), Za - (-s * X + c * Z)
 
+    def direct_distance(self, q: np.ndarray, row: int) -> tuple[float, float, float, float]:
+        """``(d, theta, x0, z0)`` of query ``q`` (P, 3) to stored pose ``row``, ``d`` summed directly.
+
+        The transform is the closed form's; ``d = sqrt(sum w |q - T(p)|^2)`` is then summed
+        over the points instead of expanded, so it keeps full precision where the closed
+        form cancels (``d2`` of two near-equal poses is the difference of terms ~``H``:
+        ``d`` off by ~1e-8 sqrt(H)).  Needs :attr:`points` (not a :meth:`subset`).
+        """
+        if self.points is None:
+            raise MotionError("direct_distance needs the candidate clouds (this index is a subset)")
+        r = np.array([int(row)])
+        _, theta, x0, z0 = (float(v[0]) for v in self.distances(q, r, return_transform=True))
+        t = rotate_y(self.points[int(row)].astype(float), theta)
+        t[:, 0] += x0
+        t[:, 2] += z0
+        diff = np.asarray(q, dtype=float) - t
+        return float(np.sqrt(np.einsum("pk,pk,p->", diff, diff, self.weights))), theta, x0, z0
+
 
 # ------------------------------------------------------------------- k-means
 @dataclass(eq=False)

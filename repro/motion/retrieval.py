@@ -963,13 +963,12 @@ class MotionRetriever(ExactSearch, StartScoring):
         a = int(db.actor[i])
         qn = q.q_n[a]
         r = np.array([row])
+        # the pose distance summed directly: the closed form cancels to ~1e-8 near a match
+        D, alpha = self.index.direct_distance(qn, row)[:2]
         if scoring == "first":
-            D = float(self.index.distances(qn, r)[0])
             dcr = float(self._d_cr(np.array([i]), c_r)[0])
         else:
-            D, alpha = self.index.distances(qn, r, return_transform=True)[:2]
-            dcr = float(self._d_cr_start(r, alpha, c_hat, cq[a])[0])
-            D = float(D[0])
+            dcr = float(self._d_cr_start(r, np.array([alpha]), c_hat, cq[a])[0])
         dqr = D * float(self.pose_size[row])
         return self.w_q * dqr + self.w_c * dcr, dqr, dcr
 
