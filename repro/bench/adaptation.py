@@ -105,8 +105,10 @@ def bench_order_latency(*, n_orders: int = 12, repeats: int = 3, database: str =
     whole clip before the first frame) and the default way (trials stopped early, the
     level decided on the contact frame and the first frame solved before the rest),
     interleaved order by order so both see the same load; the two strikes are checked
-    equal.  Returns and prints the p50 / p99 of ``timings["first_frame"]`` and of the
-    whole call (ms) per path and the ratios slow / fast.  No pass/fail: the machine is named.
+    equal.  Returns and prints the p50 / p99 of ``timings["first_frame"]``, of
+    ``timings["level"]`` (order -> reach level decided: after the first frame for a kick
+    still planted at ``t0 + 1``) and of the whole call (ms) per path and the ratios
+    slow / fast.  No pass/fail: the machine is named.
     """
     import numpy as np
 
@@ -116,7 +118,7 @@ def bench_order_latency(*, n_orders: int = 12, repeats: int = 3, database: str =
     f = KungFuFighter(database, seed=seed)
     user = simulated_user(seed=seed, duration=20.0, fps=30.0)
     pose = f.current_pose((f.db.window - 1) * f.db.step + 1)
-    times = {"slow": ([], []), "fast": ([], [])}
+    times = {"slow": ([], [], []), "fast": ([], [], [])}
     for _ in range(int(repeats)):
         for k in range(int(n_orders)):
             X = check_target(user[(k * 37) % len(user)])
@@ -128,20 +130,21 @@ def bench_order_latency(*, n_orders: int = 12, repeats: int = 3, database: str =
                            scoring=f.scoring, early_stop=path == "fast", stream=path == "fast")
                 times[path][1].append(time.perf_counter() - t)
                 times[path][0].append(s.timings["first_frame"])
+                times[path][2].append(s.timings["level"])
                 out[path] = s
             if not np.array_equal(out["slow"].motion.rotations, out["fast"].motion.rotations) or \
                     out["slow"].summary(timings=False) != out["fast"].summary(timings=False):
                 raise AssertionError(f"order {k}: the fast path changed the strike")
     res = {"machine": machine(), "orders": len(times["fast"][0])}
-    for path, (first, whole) in times.items():
-        for name, v in (("first_frame", first), ("order", whole)):
+    for path, (first, whole, level) in times.items():
+        for name, v in (("first_frame", first), ("level", level), ("order", whole)):
             res[f"{path}_{name}_p50_ms"] = 1e3 * float(np.percentile(v, 50))
             res[f"{path}_{name}_p99_ms"] = 1e3 * float(np.percentile(v, 99))
-    for name in ("first_frame", "order"):
+    for name in ("first_frame", "level", "order"):
         res[f"{name}_p50_ratio"] = res[f"slow_{name}_p50_ms"] / res[f"fast_{name}_p50_ms"]
     if progress:
         print(f"machine: {res['machine']}; {res['orders']} orders per path")
-        for name in ("first_frame", "order"):
+        for name in ("first_frame", "level", "order"):
             print(f"{name}: slow p50 {res[f'slow_{name}_p50_ms']:.1f} ms p99 {res[f'slow_{name}_p99_ms']:.1f} ms; "
                   f"fast p50 {res[f'fast_{name}_p50_ms']:.1f} ms p99 {res[f'fast_{name}_p99_ms']:.1f} ms; "
                   f"slow / fast {res[f'{name}_p50_ratio']:.2f}x")

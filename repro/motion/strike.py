@@ -23,7 +23,12 @@ character's current motion it
    Every frame is solved on its own, so the level is decided on ``tc`` and frame
    ``t0 + 1`` is final (``timings["first_frame"]``) before the rest of the clip is solved
    (``timings["rest"]``).  A kick that may need the root level is solved whole: its
-   trials read the support foot, which depends on CCD's pelvis on every frame CCD solves.
+   trials read the support foot, which depends on CCD's pelvis on every frame CCD solves;
+   but up to the kicking foot's lift-off ``t_start`` ``d(t) = 0`` and the root shift is 0
+   at every level, so when ``t0 + 1 <= t_start`` that frame (the feet alone) is solved and
+   final first, and the level is decided after it (``timings["level"]``; the frames it
+   changes are played ``t_start / fps`` seconds later).  The early frame is counted only
+   when it is the played one (compared, number for number).
 
 Whole-body reach (``reach``, :data:`LEVELS`): ``"limb"`` is the two-bone IK alone,
 ``"spine"`` adds the paper's CCD (elbow, shoulder, clavicle and the spine for a punch;
@@ -196,7 +201,9 @@ class Strike:
     timings : dict
         Seconds: ``prepare``, ``search``, ``load_convert`` (of which ``retarget``), ``adapt``
         (placement, blend, solver at every level tried, whole clip; of which ``solver``),
-        ``first_frame`` (order -> frame ``t0 + 1`` final: the level decided on ``tc``),
+        ``first_frame`` (order -> frame ``t0 + 1`` final: the level decided on ``tc``, or
+        for a kick still planted at ``t0 + 1`` that frame alone, which no level changes),
+        ``level`` (order -> level decided; ``>= first_frame``),
         ``rest`` (the rest of the clip solved after it; ``first_frame + rest = order``),
         ``order`` (the whole call), ``adapt_per_frame``, ``retarget_adapt_per_frame``
         (the paper's 88 µs).
@@ -425,8 +432,9 @@ def strike(
         :func:`repro.bench.adaptation.bench_order_latency` and the tests).
     stream : bool, default True
         Decide the level on ``tc`` and frame ``t0 + 1`` before solving the rest of the clip
-        (module docstring); False solves every level on the whole clip first (the same
-        strike; ``first_frame`` is then the whole adaptation).
+        (module docstring; a kick planted at ``t0 + 1``: that frame first, then the level);
+        False solves every level on the whole clip first (the same strike; ``first_frame``
+        is then the whole adaptation).
 
     Raises
     ------
@@ -485,6 +493,14 @@ def strike(
     # do not depend on the hit solve (a punch); a kick's trials are solved in full (CCD's pelvis)
     whole_body = reach in ("root", "step")
     part = stream and not (whole_body and EFFECTOR_STEMS[effector.split("_", 1)[1]] == "leg")
+    early = None
+    f1 = first[0]
+    if stream and not part and f1 > 0:
+        # a kick solved whole: up to the kicking foot's lift-off t_start, d(t) = 0 and the root
+        # shift is 0 at every level, so frame t0 + 1 (feet only) is final before the level is decided
+        a1 = adapt(blended, effector, X, 0, tc, max_iter=0, frames=[f1], **opts)
+        if f1 <= a1.t_start:
+            early = (a1.motion.rotations[f1], a1.motion.positions[f1], time.perf_counter())
     ad = adapt(blended, effector, X, 0, tc, max_iter=max_iter, frames=first if part else None, **opts)
     tried = ["limb"] if reach == "limb" else ["limb", "spine"]
     off, final = None, (None if part else ad)
@@ -517,11 +533,15 @@ def strike(
             ad = final = best[0]
             stepped, contacts = best[1], best[2]
             opts["contacts"] = contacts
-    t_first = time.perf_counter()
+    t_level = t_first = time.perf_counter()
     if final is None:  # the rest of the clip, at the level decided
         final = adapt(blended, effector, X, 0, tc, root_offsets=off, max_iter=max_iter, **opts)
     ad = final
     t_end = time.perf_counter()
+    # the early frame counts only as the played one (checked: the same numbers)
+    if early is not None and np.array_equal(early[0], ad.motion.rotations[f1]) and \
+            np.array_equal(early[1], ad.motion.positions[f1]):
+        t_first = early[2]
     if not ad.reached or reach == "limb":
         level = tried[-1]
     elif stepped is not None:
@@ -539,6 +559,7 @@ def strike(
         "adapt": t_end - t_adapt,
         "solver": t_end - t_solver,
         "first_frame": t_first - t_order,
+        "level": t_level - t_order,
         "rest": t_end - t_first,
         "order": t_end - t_order,
     }

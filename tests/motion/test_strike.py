@@ -273,6 +273,32 @@ def test_a_streamed_frame_is_the_frame_of_the_whole_clip_solve(setup):
         assert part.residual == s.hit_error
 
 
+def test_a_planted_kick_plays_its_first_frame_before_the_level_is_decided(setup):
+    # a kick solved whole (it may need the root level): up to the kicking foot's lift-off no level
+    # changes frame t0 + 1, so it is final (the feet alone) before the level is decided; the strike is
+    # the same as without streaming, and frame 1 is the one of a feet-only solve of that frame
+    from repro.motion.adaptation.adapt_clip import adapt as adapt_fn
+
+    for c in ([0.0, 1.0, 1.1], [0.0, 1.6, 1.2]):
+        s = run(setup, c, "kick")
+        slow = run(setup, c, "kick", stream=False, early_stop=False)
+        np.testing.assert_array_equal(s.motion.rotations, slow.motion.rotations)
+        np.testing.assert_array_equal(s.motion.positions, slow.motion.positions)
+        assert s.summary(timings=False) == slow.summary(timings=False)
+        assert s.adaptation.t_start >= 1
+        opts = {"hit_point": str(setup[0].hit_wheres[s.retrieval.clip]), "contacts": s.contacts, "feet": "plant",
+                "floor": 0.0}
+        one = adapt_fn(s.original, s.effector, s.target, 0, s.tc, max_iter=0, frames=[1], **opts)
+        np.testing.assert_array_equal(one.motion.rotations[1], s.motion.rotations[1])
+        np.testing.assert_array_equal(one.motion.positions[1], s.motion.positions[1])
+        t = s.timings
+        # the first frame comes before the level decision and the rest (an order of events, not a speed)
+        assert t["first_frame"] < t["level"] <= t["order"]
+        assert t["first_frame"] + t["rest"] == pytest.approx(t["order"], rel=1e-9)
+        # without streaming the first frame waits for the whole clip
+        assert slow.timings["first_frame"] == slow.timings["level"]
+
+
 def test_the_step_level_reaches_what_the_root_shift_cannot(setup):
     # a punch 0.7 x H in front of the stance, at 1.2 m: the root shift misses; a step of the front
     # foot (the root following halfway, the other foot pinned) reaches it, feet on the floor
