@@ -72,7 +72,7 @@ def test_breakdown_budget_logic_on_known_numbers():
         "database": ["x"] * n, "reached": [True] * n,
         "prepare_ms": np.full(n, 2.0), "search_ms": np.linspace(1, 10, n), "load_convert_ms": np.full(n, 50.0),
         "retarget_adapt_per_frame_ms": np.full(n, 2.0),  # x 30 frames = 60 ms: over the budget
-        "adapt_ms": np.full(n, 5.0), "first_frame_ms": np.full(n, 20.0),
+        "adapt_ms": np.full(n, 5.0), "first_frame_ms": np.full(n, 20.0), "level_ms": np.full(n, 40.0),
     })
     t = breakdown(orders).set_index("stage")
     assert t.loc["search", "ours_p50_ms"] == pytest.approx(5.5)
@@ -80,7 +80,8 @@ def test_breakdown_budget_logic_on_known_numbers():
     assert t.loc["order -> search start", "ratio_paper_over_ours"] == pytest.approx(1.5)
     assert t.within_budget.to_dict() == {
         "order -> search start": True, "search": True, "clip load + convert": False,
-        "retarget + adapt per frame": False, "adaptation (whole clip)": True, "order -> first adapted frame": True}
+        "retarget + adapt per frame": False, "adaptation (whole clip)": True, "order -> first adapted frame": True,
+        "order -> reach level decided": False}
 
 
 def test_draw_is_a_log_scale_bar_chart_naming_the_machine(result):

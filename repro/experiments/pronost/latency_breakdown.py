@@ -33,9 +33,12 @@ Stages (ours -> the paper's):
 * ``adaptation (whole clip)``: placement, blend, solver for all frames (the paper gives
   no total);
 * ``order -> first adapted frame``: the stages up to frame ``t0 + 1`` final (the reach
-  level decided on the contact frame, that frame solved; the rest of the clip is solved
-  after it, :func:`repro.motion.strike.strike`) -> the paper's stages add up to 323 ms
-  plus the adaptation; the budget is 1/30 s = 33.3 ms.
+  level decided on the contact frame, that frame solved; for a kick whose foot lifts
+  after ``t0 + 1``, that frame is final before the level is decided, since no level moves
+  it; the rest of the clip is solved after it, :func:`repro.motion.strike.strike`) -> the
+  paper's stages add up to 323 ms plus the adaptation; the budget is 1/30 s = 33.3 ms;
+* ``order -> reach level decided``: the stricter number, up to the level chosen on the
+  contact frame (the paper gives none).
 
 ``within_budget``: the stage's 90th percentile is under 1/30 s (for the per-frame row:
 30 frames of it).  Not a pass/fail against the paper: another machine, 17 years apart.
@@ -67,6 +70,7 @@ STAGES = (
     ("adaptation (whole clip)", "adapt", None, "paper: no total given"),
     ("order -> first adapted frame", "first_frame", PAPER_ORDER_TO_SEARCH_S + PAPER_SEARCH_S + PAPER_LOAD_CONVERT_S,
      "paper: sum of its three stages, adaptation not included"),
+    ("order -> reach level decided", "level", None, "the level chosen on the contact frame"),
 )
 STAGE_NAMES = tuple(s[0] for s in STAGES)
 
