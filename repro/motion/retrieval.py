@@ -291,7 +291,6 @@ class _Block:
     # groups (the poses of one clip in the block, contiguous since rows are sorted), for the exact search
     gstart: np.ndarray | None = None  # (G+1,) offsets
     gradius: np.ndarray | None = None  # (G,) largest aligned distance centroid -> pose
-    gcent: np.ndarray | None = None  # (G, P, 3) group centroids
 
 
 def _check_target(target) -> np.ndarray:
