@@ -433,6 +433,9 @@ class AlignedPoseIndex:
             self._pos = np.full(N, -1, dtype=np.intp)
             self._pos[stored] = np.arange(stored.size)
         n = N if stored is None else stored.size
+        # the scalar terms of the stored poses again in ``order``, (4, n): X, Z, H, Y2, so that a subset
+        # that is a run of ``order`` is a view of them too (the per-pose terms above stay in pose order)
+        self._T = None if stored is None else np.stack([t[stored] for t in (self._X, self._Z, self._H, self._Y2)])
         # columns: [w x', w z', w y'] -> M @ [[xa, -za, 0], [za, xa, 0], [0, 0, ya]]; filled by chunks
         # (float32 points are never copied whole to float64)
         self._M = np.empty((n, 3 * P))
@@ -449,6 +452,11 @@ class AlignedPoseIndex:
             M = np.empty((x.shape[0], 3 * P))
             M[:, :P], M[:, P:2 * P], M[:, 2 * P:] = x * w, z * w, y * w
         return M, X, Z, H, (y * y) @ w
+
+    def _rows_t(self, rows: np.ndarray) -> tuple:
+        """``X, Z, H, Y2`` of poses ``rows`` (copies; a permuted subset stores them in stored order)."""
+        at = rows if self._perm is None else self._perm[rows]
+        return self._X[at], self._Z[at], self._H[at], self._Y2[at]
 
     def _rows_m(self, rows: np.ndarray) -> np.ndarray:
         """The matrix terms of poses ``rows`` (a copy), from the stored ones or recomputed."""
@@ -478,16 +486,19 @@ class AlignedPoseIndex:
         out._perm = None
         out.weights = self.weights
         out._P = self._P
+        out._T = None
         at = None if self._pos is None or rows.size == 0 else self._pos[rows]
         lo = None if at is None else int(at.min())
         if (at is not None and lo >= 0 and int(at.max()) - lo == rows.size - 1
                 and np.bincount(at - lo, minlength=rows.size).max() == 1):  # a run of ``order``, permuted
-            out._M = self._M[lo:lo + rows.size]
+            sl = slice(lo, lo + rows.size)
+            out._M = self._M[sl]
+            out._X, out._Z, out._H, out._Y2 = self._T[0, sl], self._T[1, sl], self._T[2, sl], self._T[3, sl]
             if np.any(np.diff(at) != 1):
                 out._perm = at - lo
         else:
             out._M = np.ascontiguousarray(self._rows_m(rows))
-        out._X, out._Z, out._H, out._Y2 = self._X[rows], self._Z[rows], self._H[rows], self._Y2[rows]
+            out._X, out._Z, out._H, out._Y2 = self._rows_t(rows)
         return out
 
     @property
@@ -529,24 +540,29 @@ class AlignedPoseIndex:
             :meth:`query_matrix` of ``q`` when already computed.
         """
         Q, Xa, Za, Ha, Ya2 = self.query_matrix(q) if prepared is None else prepared
+        perm = None
         if rows is None and self._pos is None:
+            # every candidate, in stored order (a permuted subset's results are permuted at the end:
+            # element-wise, so the same values as permuting the terms first)
             X, Z, H, Y2 = self._X, self._Z, self._H, self._Y2
-            M = self._M
-            R = M @ Q if self._perm is None else (M @ Q)[self._perm]
+            R = self._M @ Q
+            perm = self._perm
         else:
             rows = np.arange(self.n) if rows is None else np.asarray(rows)
             rows = np.flatnonzero(rows) if rows.dtype == bool else rows.astype(np.intp, copy=False)
-            M, X, Z, H, Y2 = self._rows_m(rows), self._X[rows], self._Z[rows], self._H[rows], self._Y2[rows]
+            M = self._rows_m(rows)
+            X, Z, H, Y2 = self._rows_t(rows)
             R = M @ Q
         A = R[:, 0] - (Xa * X + Za * Z)
         B = R[:, 1] - (Xa * Z - Za * X)
         d2 = Ya2 - 2.0 * R[:, 2] + Y2 + Ha + H - 2.0 * np.hypot(A, B)
         d = np.sqrt(np.maximum(d2, 0.0))
         if not return_transform:
-            return d
+            return d if perm is None else d[perm]
         theta = np.arctan2(B, A)
         c, s = np.cos(theta), np.sin(theta)
-        return d, theta, Xa - (c * X + s * Z), Za - (-s * X + c * Z)
+        out = d, theta, Xa - (c * X + s * Z), Za - (-s * X + c * Z)
+        return out if perm is None else tuple(o[perm] for o in out)
 
 
 # ------------------------------------------------------------------- k-means
