@@ -416,10 +416,7 @@ class AlignedPoseIndex:
         self._P = P
         w = pose_weights(P, self.weights)
         self.weights = w
-        self._X, self._Z, self._H, self._Y2 = np.empty(N), np.empty(N), np.empty(N), np.empty(N)
-        for a in range(0, N, CHUNK):
-            _, self._X[a:a + CHUNK], self._Z[a:a + CHUNK], self._H[a:a + CHUNK], self._Y2[a:a + CHUNK] = \
-                self._terms(p[a:a + CHUNK], want_m=False)
+        self._N = N
         self._perm = None  # (a subset's) row -> stored row, when not the identity
         if self.order is None:
             self._pos = None
@@ -433,14 +430,33 @@ class AlignedPoseIndex:
             self._pos = np.full(N, -1, dtype=np.intp)
             self._pos[stored] = np.arange(stored.size)
         n = N if stored is None else stored.size
-        # the scalar terms of the stored poses again in ``order``, (4, n): X, Z, H, Y2, so that a subset
-        # that is a run of ``order`` is a view of them too (the per-pose terms above stay in pose order)
-        self._T = None if stored is None else np.stack([t[stored] for t in (self._X, self._Z, self._H, self._Y2)])
-        # columns: [w x', w z', w y'] -> M @ [[xa, -za, 0], [za, xa, 0], [0, 0, ya]]; filled by chunks
-        # (float32 points are never copied whole to float64)
+        # the stored poses' scalar terms X, Z, H, Y2 (4, n) and matrix terms, both in stored order (a subset
+        # that is a run of ``order`` is a view of them); columns of M: [w x', w z', w y'] ->
+        # M @ [[xa, -za, 0], [za, xa, 0], [0, 0, ya]].  Filled by chunks (float32 points are never copied
+        # whole to float64); M is element-wise in each pose, the scalar terms are sums (chunks in pose order).
+        self._T = np.empty((4, n))
+        for a in range(0, N, CHUNK):  # the scalar terms by chunks of poses in pose order (see _pose_terms)
+            t = np.stack(self._terms(p[a:a + CHUNK], want_m=False)[1:])
+            if stored is None:
+                self._T[:, a:a + CHUNK] = t
+            else:
+                at = self._pos[a:a + CHUNK]
+                self._T[:, at[at >= 0]] = t[:, at >= 0]
+        self._X, self._Z, self._H, self._Y2 = self._T
         self._M = np.empty((n, 3 * P))
         for a in range(0, n, CHUNK):
             self._M[a:a + CHUNK] = self._terms(p[a:a + CHUNK] if stored is None else p[stored[a:a + CHUNK]])[0]
+
+    def _pose_terms(self, rows: np.ndarray) -> np.ndarray:
+        """(4, r): ``X, Z, H, Y2`` of poses ``rows`` recomputed from :attr:`points` on the same chunks of
+        poses as in the constructor (the sums go through BLAS, whose rounding may depend on the rows
+        computed together: the same chunks give the same values as stored)."""
+        out = np.empty((4, rows.size))
+        ch = rows // CHUNK
+        for c in np.unique(ch):
+            a, sel = int(c) * CHUNK, ch == c
+            out[:, sel] = np.stack(self._terms(self.points[a:a + CHUNK], want_m=False)[1:])[:, rows[sel] - a]
+        return out
 
     def _terms(self, pts: np.ndarray, want_m: bool = True):
         """``(M rows or None, X, Z, H, Y2)`` of the clouds ``pts`` (n, P, 3), in float64."""
@@ -454,9 +470,25 @@ class AlignedPoseIndex:
         return M, X, Z, H, (y * y) @ w
 
     def _rows_t(self, rows: np.ndarray) -> tuple:
-        """``X, Z, H, Y2`` of poses ``rows`` (copies; a permuted subset stores them in stored order)."""
-        at = rows if self._perm is None else self._perm[rows]
-        return self._X[at], self._Z[at], self._H[at], self._Y2[at]
+        """``X, Z, H, Y2`` of poses ``rows`` (copies), from the stored ones (in stored order) or recomputed."""
+        if self._pos is None:
+            at = rows if self._perm is None else self._perm[rows]
+            return self._X[at], self._Z[at], self._H[at], self._Y2[at]
+        at = self._pos[rows]
+        ok = at >= 0
+        if ok.all():
+            return tuple(self._T[:, at])
+        out = np.empty((4, rows.size))
+        out[:, ok] = self._T[:, at[ok]]
+        out[:, ~ok] = self._pose_terms(rows[~ok])
+        return tuple(out)
+
+    def centroids_xz(self, rows=None) -> tuple[np.ndarray, np.ndarray]:
+        """``X, Z``: the weighted horizontal centroid of the candidates ``rows`` (default all), in the
+        clouds' units (the translation part of the closed form, see the module docstring)."""
+        rows = np.arange(self.n) if rows is None else np.asarray(rows, dtype=np.intp)
+        X, Z, _, _ = self._rows_t(rows)
+        return X, Z
 
     def _rows_m(self, rows: np.ndarray) -> np.ndarray:
         """The matrix terms of poses ``rows`` (a copy), from the stored ones or recomputed."""
@@ -487,6 +519,7 @@ class AlignedPoseIndex:
         out.weights = self.weights
         out._P = self._P
         out._T = None
+        out._N = int(rows.size)
         at = None if self._pos is None or rows.size == 0 else self._pos[rows]
         lo = None if at is None else int(at.min())
         if (at is not None and lo >= 0 and int(at.max()) - lo == rows.size - 1
@@ -504,7 +537,7 @@ class AlignedPoseIndex:
     @property
     def n(self) -> int:
         """Number of candidate poses N."""
-        return int(self._X.size)
+        return self._N
 
     def query_matrix(self, q: np.ndarray) -> tuple[np.ndarray, float, float, float, float]:
         """The query-dependent parts: ``(3P, 3)`` matrix and ``X, Z, H, sum w y^2`` of the query."""

@@ -146,7 +146,8 @@ class ExactSearch:
             if not rows:
                 self._ex[sem] = None
                 continue
-            rows = np.concatenate(rows)
+            span = self._sem_span[sem]  # the blocks' rows, concatenated: views of the gathered candidates
+            rows, psize, pactor, pclip = (self._cand[n][span] for n in ("rows", "size", "actor", "clip"))
             gstart = np.asarray(gstart, dtype=np.intp)
             gclip = db.pose_clip[rows[gstart[:-1]]]
             uclip, gu = np.unique(gclip, return_inverse=True)
@@ -154,8 +155,8 @@ class ExactSearch:
                 "rows": rows, "index": self.index.subset(rows), "gstart": gstart, "glen": np.diff(gstart),
                 "gclip": gclip, "gsize": db.size_a[gclip], "gactor": db.actor[gclip], "gcluster": np.concatenate(gcl),
                 "gradius": np.concatenate(rad),
-                "clstart": np.asarray(clstart, dtype=np.intp), "size": self.pose_size[rows],
-                "actor": db.actor[db.pose_clip[rows]], "clip": db.pose_clip[rows], "sem": sem,
+                "clstart": np.asarray(clstart, dtype=np.intp), "size": psize,
+                "actor": pactor, "clip": pclip, "sem": sem,
                 "uclip": uclip, "gu": gu, "ulo": self._nbox_lo[uclip], "uhi": self._nbox_hi[uclip],
                 "pu": np.repeat(gu, np.diff(gstart)), "ugroups": np.argsort(gu, kind="stable"),
                 "ustart": np.searchsorted(np.sort(gu), np.arange(uclip.size + 1)), "usize": db.size_a[uclip], "smin": float(db.size_a[uclip].min()),
