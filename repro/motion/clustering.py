@@ -416,10 +416,7 @@ class AlignedPoseIndex:
         self._P = P
         w = pose_weights(P, self.weights)
         self.weights = w
-        self._X, self._Z, self._H, self._Y2 = np.empty(N), np.empty(N), np.empty(N), np.empty(N)
-        for a in range(0, N, CHUNK):
-            _, self._X[a:a + CHUNK], self._Z[a:a + CHUNK], self._H[a:a + CHUNK], self._Y2[a:a + CHUNK] = \
-                self._terms(p[a:a + CHUNK], want_m=False)
+        self._N = N
         self._perm = None  # (a subset's) row -> stored row, when not the identity
         if self.order is None:
             self._pos = None
@@ -433,11 +430,33 @@ class AlignedPoseIndex:
             self._pos = np.full(N, -1, dtype=np.intp)
             self._pos[stored] = np.arange(stored.size)
         n = N if stored is None else stored.size
-        # columns: [w x', w z', w y'] -> M @ [[xa, -za, 0], [za, xa, 0], [0, 0, ya]]; filled by chunks
-        # (float32 points are never copied whole to float64)
+        # the stored poses' scalar terms X, Z, H, Y2 (4, n) and matrix terms, both in stored order (a subset
+        # that is a run of ``order`` is a view of them); columns of M: [w x', w z', w y'] ->
+        # M @ [[xa, -za, 0], [za, xa, 0], [0, 0, ya]].  Filled by chunks (float32 points are never copied
+        # whole to float64); M is element-wise in each pose, the scalar terms are sums (chunks in pose order).
+        self._T = np.empty((4, n))
+        for a in range(0, N, CHUNK):  # the scalar terms by chunks of poses in pose order (see _pose_terms)
+            t = np.stack(self._terms(p[a:a + CHUNK], want_m=False)[1:])
+            if stored is None:
+                self._T[:, a:a + CHUNK] = t
+            else:
+                at = self._pos[a:a + CHUNK]
+                self._T[:, at[at >= 0]] = t[:, at >= 0]
+        self._X, self._Z, self._H, self._Y2 = self._T
         self._M = np.empty((n, 3 * P))
         for a in range(0, n, CHUNK):
             self._M[a:a + CHUNK] = self._terms(p[a:a + CHUNK] if stored is None else p[stored[a:a + CHUNK]])[0]
+
+    def _pose_terms(self, rows: np.ndarray) -> np.ndarray:
+        """(4, r): ``X, Z, H, Y2`` of poses ``rows`` recomputed from :attr:`points` on the same chunks of
+        poses as in the constructor (the sums go through BLAS, whose rounding may depend on the rows
+        computed together: the same chunks give the same values as stored)."""
+        out = np.empty((4, rows.size))
+        ch = rows // CHUNK
+        for c in np.unique(ch):
+            a, sel = int(c) * CHUNK, ch == c
+            out[:, sel] = np.stack(self._terms(self.points[a:a + CHUNK], want_m=False)[1:])[:, rows[sel] - a]
+        return out
 
     def _terms(self, pts: np.ndarray, want_m: bool = True):
         """``(M rows or None, X, Z, H, Y2)`` of the clouds ``pts`` (n, P, 3), in float64."""
@@ -449,6 +468,27 @@ class AlignedPoseIndex:
             M = np.empty((x.shape[0], 3 * P))
             M[:, :P], M[:, P:2 * P], M[:, 2 * P:] = x * w, z * w, y * w
         return M, X, Z, H, (y * y) @ w
+
+    def _rows_t(self, rows: np.ndarray) -> tuple:
+        """``X, Z, H, Y2`` of poses ``rows`` (copies), from the stored ones (in stored order) or recomputed."""
+        if self._pos is None:
+            at = rows if self._perm is None else self._perm[rows]
+            return self._X[at], self._Z[at], self._H[at], self._Y2[at]
+        at = self._pos[rows]
+        ok = at >= 0
+        if ok.all():
+            return tuple(self._T[:, at])
+        out = np.empty((4, rows.size))
+        out[:, ok] = self._T[:, at[ok]]
+        out[:, ~ok] = self._pose_terms(rows[~ok])
+        return tuple(out)
+
+    def centroids_xz(self, rows=None) -> tuple[np.ndarray, np.ndarray]:
+        """``X, Z``: the weighted horizontal centroid of the candidates ``rows`` (default all), in the
+        clouds' units (the translation part of the closed form, see the module docstring)."""
+        rows = np.arange(self.n) if rows is None else np.asarray(rows, dtype=np.intp)
+        X, Z, _, _ = self._rows_t(rows)
+        return X, Z
 
     def _rows_m(self, rows: np.ndarray) -> np.ndarray:
         """The matrix terms of poses ``rows`` (a copy), from the stored ones or recomputed."""
@@ -478,22 +518,26 @@ class AlignedPoseIndex:
         out._perm = None
         out.weights = self.weights
         out._P = self._P
+        out._T = None
+        out._N = int(rows.size)
         at = None if self._pos is None or rows.size == 0 else self._pos[rows]
         lo = None if at is None else int(at.min())
         if (at is not None and lo >= 0 and int(at.max()) - lo == rows.size - 1
                 and np.bincount(at - lo, minlength=rows.size).max() == 1):  # a run of ``order``, permuted
-            out._M = self._M[lo:lo + rows.size]
+            sl = slice(lo, lo + rows.size)
+            out._M = self._M[sl]
+            out._X, out._Z, out._H, out._Y2 = self._T[0, sl], self._T[1, sl], self._T[2, sl], self._T[3, sl]
             if np.any(np.diff(at) != 1):
                 out._perm = at - lo
         else:
             out._M = np.ascontiguousarray(self._rows_m(rows))
-        out._X, out._Z, out._H, out._Y2 = self._X[rows], self._Z[rows], self._H[rows], self._Y2[rows]
+            out._X, out._Z, out._H, out._Y2 = self._rows_t(rows)
         return out
 
     @property
     def n(self) -> int:
         """Number of candidate poses N."""
-        return int(self._X.size)
+        return self._N
 
     def query_matrix(self, q: np.ndarray) -> tuple[np.ndarray, float, float, float, float]:
         """The query-dependent parts: ``(3P, 3)`` matrix and ``X, Z, H, sum w y^2`` of the query."""
@@ -529,24 +573,29 @@ class AlignedPoseIndex:
             :meth:`query_matrix` of ``q`` when already computed.
         """
         Q, Xa, Za, Ha, Ya2 = self.query_matrix(q) if prepared is None else prepared
+        perm = None
         if rows is None and self._pos is None:
+            # every candidate, in stored order (a permuted subset's results are permuted at the end:
+            # element-wise, so the same values as permuting the terms first)
             X, Z, H, Y2 = self._X, self._Z, self._H, self._Y2
-            M = self._M
-            R = M @ Q if self._perm is None else (M @ Q)[self._perm]
+            R = self._M @ Q
+            perm = self._perm
         else:
             rows = np.arange(self.n) if rows is None else np.asarray(rows)
             rows = np.flatnonzero(rows) if rows.dtype == bool else rows.astype(np.intp, copy=False)
-            M, X, Z, H, Y2 = self._rows_m(rows), self._X[rows], self._Z[rows], self._H[rows], self._Y2[rows]
+            M = self._rows_m(rows)
+            X, Z, H, Y2 = self._rows_t(rows)
             R = M @ Q
         A = R[:, 0] - (Xa * X + Za * Z)
         B = R[:, 1] - (Xa * Z - Za * X)
         d2 = Ya2 - 2.0 * R[:, 2] + Y2 + Ha + H - 2.0 * np.hypot(A, B)
         d = np.sqrt(np.maximum(d2, 0.0))
         if not return_transform:
-            return d
+            return d if perm is None else d[perm]
         theta = np.arctan2(B, A)
         c, s = np.cos(theta), np.sin(theta)
-        return d, theta, Xa - (c * X + s * Z), Za - (-s * X + c * Z)
+        out = d, theta, Xa - (c * X + s * Z), Za - (-s * X + c * Z)
+        return out if perm is None else tuple(o[perm] for o in out)
 
     def direct_distance(self, q: np.ndarray, row: int) -> tuple[float, float, float, float]:
         """``(d, theta, x0, z0)`` of query ``q`` (P, 3) to stored pose ``row``, ``d`` summed directly.

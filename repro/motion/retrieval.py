@@ -107,7 +107,7 @@ from repro.motion.clustering import (
     rotate_y,
 )
 from repro.motion.database import MotionDatabase
-from repro.motion.index_build import build_pose_index
+from repro.motion.index_build import block_order, build_pose_index
 from repro.motion.morphology import retarget
 from repro.motion.motion import Motion, finite_vector3
 from repro.motion.ops import resample
@@ -291,7 +291,6 @@ class _Block:
     # groups (the poses of one clip in the block, contiguous since rows are sorted), for the exact search
     gstart: np.ndarray | None = None  # (G+1,) offsets
     gradius: np.ndarray | None = None  # (G,) largest aligned distance centroid -> pose
-    gcent: np.ndarray | None = None  # (G, P, 3) group centroids
 
 
 def _check_target(target) -> np.ndarray:
@@ -474,8 +473,7 @@ class MotionRetriever(ExactSearch, StartScoring):
         self.actors_present = np.unique(db.actor)
         self.sem_rows = {s: np.flatnonzero(self.startable & (sem_of_pose == s)) for s in SEMANTICS}
         self.sem_block = {s: self._block(r) for s, r in self.sem_rows.items()}
-        self.cluster_block = [{s: self._block(m[self.startable[m] & (sem_of_pose[m] == s)]) for s in SEMANTICS}
-                              for m in self.clusters.members]
+        self._cluster_blocks(sem_of_pose)
         L = int((db.traj_start[1:] - db.traj_start[:-1]).max())
         idx = db.traj_start[:-1, None] + np.minimum(np.arange(L)[None, :], (db.n_frames - 1)[:, None])
         self.traj_padded = db.traj[idx]  # (C, L, 3), each padded with its last sample
@@ -681,16 +679,40 @@ class MotionRetriever(ExactSearch, StartScoring):
                                  f"actors' (Eq. 1) is beyond {MAX_TARGET_M * 1e3:g} m")
         return c_r
 
-    def _block(self, rows: np.ndarray) -> _Block | None:
-        """Contiguous precomputed data of a set of candidate poses (None if empty)."""
+    def _block(self, rows: np.ndarray, clips=None, size=None, actor=None) -> _Block | None:
+        """Contiguous precomputed data of a set of candidate poses (None if empty); ``clips``, ``size``,
+        ``actor`` of ``rows`` when already gathered (views, not copied)."""
         if rows.size == 0:
             return None
         db = self.db
-        clips = db.pose_clip[rows]
+        clips = db.pose_clip[rows] if clips is None else clips
         uclips, inv = np.unique(clips, return_inverse=True)
-        actor = db.actor[clips]
-        return _Block(rows=rows, index=self.index.subset(rows), clips=clips, size=self.pose_size[rows], actor=actor,
+        actor = db.actor[clips] if actor is None else actor
+        size = self.pose_size[rows] if size is None else size
+        return _Block(rows=rows, index=self.index.subset(rows), clips=clips, size=size, actor=actor,
                       uclips=uclips, inv=inv, single_actor=int(actor[0]) if np.all(actor == actor[0]) else None)
+
+    def _cluster_blocks(self, sem_of_pose: np.ndarray) -> None:
+        """``cluster_block[cluster][semantics]``: the startable poses of each (cluster, semantics), and
+        ``_sem_span[semantics]``, the slice of all of its blocks, cluster by cluster.
+
+        The candidates are gathered once in :func:`~repro.motion.index_build.block_order` (the
+        index's stored order): each block's rows, clips, sizes and actors are views of those
+        arrays, and so are the exact search's per-semantics arrays (:meth:`_exact_setup`).
+        """
+        db, k = self.db, self.clusters.k
+        labels = self.clusters.labels
+        order = self.index.order if self.index.order is not None else block_order(labels, self.startable, sem_of_pose)
+        clips = db.pose_clip[order]
+        self._cand = {"rows": order, "clip": clips, "size": self.pose_size[order], "actor": db.actor[clips]}
+        code = np.full(order.size, len(SEMANTICS), dtype=np.intp)
+        for i, s in enumerate(SEMANTICS):
+            code[sem_of_pose[order] == s] = i
+        at = np.searchsorted(code * k + labels[order], np.arange(len(SEMANTICS) * k + 1))
+        c = self._cand
+        self.cluster_block = [{s: self._block(*(c[n][at[i * k + cl]:at[i * k + cl + 1]] for n in ("rows", "clip", "size", "actor")))
+                               for i, s in enumerate(SEMANTICS)} for cl in range(k)]
+        self._sem_span = {s: slice(int(at[i * k]), int(at[(i + 1) * k])) for i, s in enumerate(SEMANTICS)}
 
     def _allowed(self, rows: np.ndarray, q: Query) -> np.ndarray:
         if len(q.actors) == len(self.actors_present):

@@ -76,18 +76,28 @@ class ExactSearch:
             self._bb[sem] = {"radius": rad}
 
     def _groups(self, b) -> None:
-        """Split a block into its clips' runs of poses: centroid and radius of each (exact search)."""
+        """Split a block into its clips' runs of poses: offsets and radius of each (exact search).
+
+        The radius is the largest aligned distance from the run's centroid
+        (:meth:`_group_centroids`) to its poses; the centroids are not kept (only the
+        cluster's centroid enters the bounds), they are recomputed when asked for.
+        """
         G = b.uclips.size
         gstart = np.concatenate([[0], np.flatnonzero(np.diff(b.inv)) + 1, [b.rows.size]])
         if gstart.size != G + 1:  # rows sorted, so each clip's poses are contiguous
             raise AssertionError("block rows are not grouped by clip")
-        pts = self.db.pose_points[b.rows]
-        cnt = np.diff(gstart).astype(float)
-        cent = np.add.reduceat(pts, gstart[:-1], axis=0) / cnt[:, None, None]
-        r = aligned_distance(cent[b.inv], pts, self.weights)
         b.gstart = gstart
-        b.gcent = cent
+        pts = self.db.pose_points[b.rows]
+        cent = self._group_centroids(b, pts)
+        r = aligned_distance(cent[b.inv], pts, self.weights)
         b.gradius = np.maximum.reduceat(r, gstart[:-1])
+
+    def _group_centroids(self, b, pts: np.ndarray | None = None) -> np.ndarray:
+        """(G, P, 3) float64: the mean cloud of each clip run of block ``b`` (after :meth:`_groups`)."""
+        if pts is None:
+            pts = self.db.pose_points[b.rows]
+        cnt = np.diff(b.gstart).astype(float)
+        return np.add.reduceat(pts, b.gstart[:-1], axis=0) / cnt[:, None, None]
 
 
     def _lb_cr(self, scoring: str, c_hat: np.ndarray, cq: tuple, box_lo=None, box_hi=None, reg=None) -> np.ndarray:
@@ -124,20 +134,20 @@ class ExactSearch:
         db = self.db
         self._ex = {}
         for sem in SEMANTICS:
-            rows, gstart, gcl, cent, rad, clstart = [], [0], [], [], [], [0]
+            rows, gstart, gcl, rad, clstart = [], [0], [], [], [0]
             for cl in range(self.clusters.k):
                 b = self.cluster_block[cl][sem]
                 if b is not None:
                     rows.append(b.rows)
                     gstart.extend((b.gstart[1:] + gstart[-1] - 0).tolist())
                     gcl.append(np.full(b.uclips.size, cl))
-                    cent.append(b.gcent)
                     rad.append(b.gradius)
                 clstart.append(clstart[-1] + (0 if b is None else b.uclips.size))
             if not rows:
                 self._ex[sem] = None
                 continue
-            rows = np.concatenate(rows)
+            span = self._sem_span[sem]  # the blocks' rows, concatenated: views of the gathered candidates
+            rows, psize, pactor, pclip = (self._cand[n][span] for n in ("rows", "size", "actor", "clip"))
             gstart = np.asarray(gstart, dtype=np.intp)
             gclip = db.pose_clip[rows[gstart[:-1]]]
             uclip, gu = np.unique(gclip, return_inverse=True)
@@ -145,8 +155,8 @@ class ExactSearch:
                 "rows": rows, "index": self.index.subset(rows), "gstart": gstart, "glen": np.diff(gstart),
                 "gclip": gclip, "gsize": db.size_a[gclip], "gactor": db.actor[gclip], "gcluster": np.concatenate(gcl),
                 "gradius": np.concatenate(rad),
-                "clstart": np.asarray(clstart, dtype=np.intp), "size": self.pose_size[rows],
-                "actor": db.actor[db.pose_clip[rows]], "clip": db.pose_clip[rows], "sem": sem,
+                "clstart": np.asarray(clstart, dtype=np.intp), "size": psize,
+                "actor": pactor, "clip": pclip, "sem": sem,
                 "uclip": uclip, "gu": gu, "ulo": self._nbox_lo[uclip], "uhi": self._nbox_hi[uclip],
                 "pu": np.repeat(gu, np.diff(gstart)), "ugroups": np.argsort(gu, kind="stable"),
                 "ustart": np.searchsorted(np.sort(gu), np.arange(uclip.size + 1)), "usize": db.size_a[uclip], "smin": float(db.size_a[uclip].min()),

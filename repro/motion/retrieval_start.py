@@ -45,7 +45,9 @@ class StartScoring:
         u = np.zeros((N, 3))
         rho = np.zeros((N, 2))
         yr = np.zeros((N, 2))
-        cx, cz = self.index._X, self.index._Z
+        cx, cz = np.zeros(N), np.zeros(N)
+        st = np.flatnonzero(self.startable)
+        cx[st], cz[st] = self.index.centroids_xz(st)
         for i in range(db.n_clips):
             F, hf = int(db.n_frames[i]), int(db.hit_frame[i])
             nf = min(hf, F)
@@ -106,8 +108,9 @@ class StartScoring:
         # target in the pose's canonical frame (units of size), then actor metres, then frame 0
         v = c_hat[None, :] - np.array([cq[0], 0.0, cq[1]])[None, :]
         cf = rotate_y(v, -alpha)
-        cf[:, 0] += self.index._X[rows]
-        cf[:, 2] += self.index._Z[rows]
+        cx, cz = self.index.centroids_xz(rows)
+        cf[:, 0] += cx
+        cf[:, 2] += cz
         c0 = rotate_y(cf * s[:, None] - g["u"][rows], -g["phi"][rows])
         out = np.empty(rows.size)
         L = self.traj_padded.shape[1]

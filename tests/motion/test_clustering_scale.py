@@ -62,6 +62,7 @@ def test_ordered_index_equals_the_plain_one():
     scattered = ix.subset(np.sort(order[100:180:2]))
     dup = ix.subset(np.concatenate([order[100:102], order[100:101], order[103:104]]))  # not a permutation of a run
     assert np.shares_memory(run._M, ix._M) and np.shares_memory(permuted._M, ix._M)
+    assert np.shares_memory(run._X, ix._T) and np.shares_memory(permuted._Y2, ix._T)  # the scalar terms too
     assert not np.shares_memory(scattered._M, ix._M) and not np.shares_memory(dup._M, ix._M)
     mixed = ix.subset(outside[:10])
     for sub, rows in ((run, order[100:180]), (permuted, np.sort(order[100:180])), (scattered, np.sort(order[100:180:2])),
@@ -70,6 +71,7 @@ def test_ordered_index_equals_the_plain_one():
         np.testing.assert_array_equal(sub.distances(q), ref.distances(q))
         sel = np.arange(0, rows.size, 3)
         np.testing.assert_array_equal(sub.distances(q, sel), ref.distances(q, sel))
+        np.testing.assert_array_equal(sub.subset(sel).distances(q), ref.subset(sel).distances(q))
         for a, b in zip(sub.distances(q, return_transform=True), ref.distances(q, return_transform=True)):
             np.testing.assert_array_equal(a, b)
 
@@ -118,6 +120,7 @@ def test_retriever_blocks_share_the_index(db, monkeypatch):
     blocks = [b for bs in r.cluster_block for b in bs.values()] + list(r.sem_block.values())
     blocks = [b.index for b in blocks if b is not None] + [ex["index"] for ex in r._ex.values() if ex is not None]
     assert blocks and all(np.shares_memory(b._M, r.index._M) for b in blocks)
+    assert all(np.shares_memory(t, r.index._T) for b in blocks for t in (b._X, b._Z, b._H, b._Y2))
     _, clusters = build_pose_index(db, 8)
     np.testing.assert_array_equal(clusters.labels, r.clusters.labels)
     # the same choices as with the terms of every pose stored in pose order and copied per block (the

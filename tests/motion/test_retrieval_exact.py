@@ -87,7 +87,7 @@ def test_radii_bound_every_pose(db, retriever, prepared):
                 continue
             d = b.index.distances(qn)
             assert np.all(d >= dcent[cl] - r._bb[sem]["radius"][cl] - 1e-9)
-            dg = aligned_distance(qn, b.gcent, r.weights)
+            dg = aligned_distance(qn, r._group_centroids(b), r.weights)
             assert np.all(d >= (dg - b.gradius)[b.inv] - 1e-9)
 
 
