@@ -110,6 +110,7 @@ __all__ = [
     "LIMB_NAMES",
     "DecodeReport",
     "MorphologyIndependentMotion",
+    "RetargetPlan",
     "decode",
     "decode_with_report",
     "encode",
@@ -617,6 +618,152 @@ def retarget(motion: Motion, target, *, roles=None, fix_feet: bool = False) -> M
             if out is not None:
                 return dataclasses.replace(out, joint_names=list(tgt.joint_names))
     return retarget_across(motion, target, roles=roles, fix_feet=fix_feet)
+
+
+class RetargetPlan:
+    """:func:`retarget` between two fixed skeletons of the same joint tree, for few frames at a time.
+
+    Everything of :func:`encode` and :func:`decode` that depends only on the source and
+    target skeletons (roles, limb indices and lengths, hip heights, swivel references,
+    the rest-direction check, the depth levels) is computed once here; :meth:`positions`
+    then runs only the per-frame arithmetic of the two, in the same order on the same
+    array shapes, so its numbers are those of ``retarget(motion, target).global_positions()``
+    bit for bit (``fix_feet=False``; checked in ``tests/motion/test_retarget_plan.py``).
+    It skips what the positions do not need (the Motion objects, the foot contacts).
+    Used by :meth:`repro.motion.retrieval.MotionRetriever.prepare` (one pose per query).
+
+    Parameters
+    ----------
+    source : Skeleton or Motion
+        The skeleton the poses are on (roles found as :func:`encode` does).
+    target : Skeleton or Motion
+        Same joint names and parents (else :func:`retarget` takes other paths: not planned).
+
+    Raises
+    ------
+    repro.errors.MotionError
+        What :func:`retarget` raises for these skeletons (missing roles, zero-length limb
+        bones, another topology or rest pose).
+    """
+
+    def __init__(self, source, target):
+        if not (isinstance(target, Skeleton) or hasattr(target, "offsets")):
+            raise MotionError(f"target must be a Skeleton or a Motion, got {type(target).__name__}")
+        sk = skeleton_of(source)
+        if list(target.joint_names) != list(sk.joint_names) or not np.array_equal(target.parents, sk.parents):
+            raise MotionError("RetargetPlan: the target must have the source's joint names and parents")
+        self.n_joints = sk.n_joints
+        self.levels = depth_levels(sk.parents)
+        prox, mid, dist, par = _limb_indices(sk)
+        self.prox, self.mid, self.dist, self.par = prox, mid, dist, par
+        bl = sk.bone_lengths
+        self.L_src = bl[mid] + bl[dist]
+        self.l1_src = bl[mid]
+        self.a0, self.r0 = _swivel_frames(sk)
+        H = sk.hip_height
+        if not np.isfinite(H) or H <= 0:
+            raise MotionError(f"source hip height must be > 0, got {H!r}")
+        root_path = _root_path(sk)
+        nonzero = bl > 1e-12 * sk.height
+        div = np.where(nonzero, bl, H)
+        div[root_path] = H
+        self.div = div
+        rest_dir = np.where(nonzero[:, None], sk.offsets / np.maximum(bl, 1e-300)[:, None], 0.0)
+        # the target side, as decode_with_report: checked once (rest directions, roles)
+        probe = _RestProbe(joint_names=list(sk.joint_names), parents=np.array(sk.parents), roles=dict(sk.roles),
+                           rest_directions=rest_dir)
+        tgt = _target_skeleton(probe, target, 5.0)
+        channels = tgt.channels if tgt.channels is not None else sk.channels
+        if channels is None:
+            raise MotionError("RetargetPlan: neither skeleton has channels")
+        self.mask = _position_mask(channels)
+        tbl = tgt.bone_lengths
+        TH = tgt.hip_height
+        mul = np.where(np.linalg.norm(rest_dir, axis=1) > 0, tbl, TH)
+        mul[root_path] = TH
+        self.mul = mul
+        self.t_offsets = tgt.offsets
+        tprox, tmid, tdist, tpar = _limb_indices(tgt)
+        if not (np.array_equal(tprox, prox) and np.array_equal(tmid, mid) and np.array_equal(tdist, dist)):
+            raise MotionError("RetargetPlan: the target's limb roles are on other joints than the source's")
+        self.l1, self.l2 = tbl[mid], tbl[dist]
+        self.L = self.l1 + self.l2
+
+    def positions(self, rotations: np.ndarray, translations: np.ndarray, *, source=None) -> np.ndarray:
+        """(F, J, 3) world positions of the retargeted frames, target units.
+
+        ``rotations`` (F, J, 4) unit quaternions and ``translations`` (F, J, 3) the local
+        translations (:meth:`~repro.motion.motion.Motion.local_translations`) of the source;
+        ``source``: its world ``(rotations, positions)`` when already computed
+        (:meth:`~repro.motion.motion.Motion.global_transforms`; default: computed here).
+        """
+        prox, mid, dist, par = self.prox, self.mid, self.dist, self.par
+        # encode (the per-frame part)
+        gq, gp = fk_arrays(self.levels, rotations, translations) if source is None else source
+        rp_inv = qinv(gq[:, par])
+        S = gp[:, prox]
+        d = qrot(rp_inv, gp[:, dist] - S)
+        e = qrot(rp_inv, gp[:, mid] - S)
+        L = self.L_src
+        n = d / L[None, :, None]
+        a0, r0 = self.a0, self.r0
+        a, dn = normalize(d)
+        a = np.where((dn > 1e-12 * L[None])[..., None], a, a0[None])
+        u = transport(a0[None], r0[None], a)
+        v = cross(a, u)
+        ep = e - np.sum(e * a, axis=-1, keepdims=True) * a
+        radius = np.linalg.norm(ep, axis=-1)
+        ang = np.arctan2(np.sum(ep * v, axis=-1), np.sum(ep * u, axis=-1))
+        ang = _fill_undefined(ang, radius > 1e-9 * self.l1_src[None])
+        end_rot = quat_multiply(rp_inv, gq[:, dist])
+        trans = translations / self.div[None, :, None]
+        # decode (the per-frame part, fix_feet=False)
+        local_t = np.where(self.mask[None], trans * self.mul[None, :, None], self.t_offsets[None])
+        rot = np.array(rotations, dtype=float)
+        # the target's world rotations are the source's (same local rotations, same tree): positions only
+        gp = local_t.copy()
+        for idx, jp in self.levels:
+            gp[:, idx] = gp[:, jp] + qrot(gq[:, jp], gp[:, idx])
+        l1, l2, L = self.l1, self.l2, self.L
+        Rp = gq[:, par]
+        S = gp[:, prox]
+        want = n * L[None, :, None]
+        a, dn = normalize(want)
+        a = np.where((dn > 1e-12 * L[None])[..., None], a, a0[None])
+        lo, hi = np.abs(l1 - l2), L
+        dc = np.clip(dn, lo[None], hi[None])
+        cosb = np.clip((l1[None] ** 2 + dc**2 - l2[None] ** 2) / (2 * l1[None] * np.maximum(dc, 1e-300)), -1.0, 1.0)
+        sinb = np.sqrt(1.0 - cosb**2)
+        u = transport(a0[None], r0[None], a)
+        v = cross(a, u)
+        phi = ang[..., None]
+        e_loc = a * (l1[None] * cosb)[..., None] + (u * np.cos(phi) + v * np.sin(phi)) * (l1[None] * sinb)[..., None]
+        E_star = S + qrot(Rp, e_loc)
+        E0, W0 = gp[:, mid], gp[:, dist]
+        q1 = min_rotation(E0 - S, E_star - S)
+        Gs = quat_multiply(q1, gq[:, prox])
+        E1 = S + qrot(q1, E0 - S)
+        W1 = S + qrot(q1, W0 - S)
+        W_star = S + qrot(Rp, a * dc[..., None])
+        q2 = min_rotation(W1 - E1, W_star - E1)
+        Ge = quat_multiply(q2, quat_multiply(q1, gq[:, mid]))
+        Gw = quat_multiply(Rp, end_rot)
+        rot[:, prox] = quat_multiply(qinv(Rp), Gs)
+        rot[:, mid] = quat_multiply(qinv(Gs), Ge)
+        rot[:, dist] = quat_multiply(qinv(Ge), Gw)
+        # the Motion decode returns renormalises its rotations; its global positions are this FK
+        rot = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
+        return fk_arrays(self.levels, rot, local_t, copy=False)[1]
+
+
+@dataclass(frozen=True)
+class _RestProbe:
+    """What :func:`_target_skeleton` reads of an encoded motion (:class:`RetargetPlan`)."""
+
+    joint_names: list
+    parents: np.ndarray
+    roles: dict
+    rest_directions: np.ndarray
 
 
 def naive_retarget(motion: Motion, target, *, scale_root: bool = False) -> Motion:

@@ -108,7 +108,7 @@ from repro.motion.clustering import (
 )
 from repro.motion.database import MotionDatabase
 from repro.motion.index_build import build_pose_index
-from repro.motion.morphology import retarget
+from repro.motion.morphology import RetargetPlan, retarget
 from repro.motion.motion import Motion, finite_vector3
 from repro.motion.ops import resample
 from repro.motion.retarget_tree import retarget_across
@@ -482,6 +482,7 @@ class MotionRetriever(ExactSearch, StartScoring):
         self._kd: dict = {}
         self._prep_cache: dict = {}
         self._actor_rest: dict = {}  # actor -> its rest pose, Y up (retargeting across trees)
+        self._plans: dict = {}  # (actor, pose skeleton) -> RetargetPlan (same tree, other proportions)
         self._start: dict | None = None
         self._qm_cache = None
         self._bounds_setup()
@@ -545,7 +546,7 @@ class MotionRetriever(ExactSearch, StartScoring):
         if unit != 1.0:
             m = m.to_metres(unit)
         q_n = {}
-        gc = m.global_positions()
+        gq_c, gc = m.global_transforms()
         refused: dict[int, str] = {}
         for a in self.actors_present.tolist():
             actor = db.actors[a]
@@ -574,11 +575,10 @@ class MotionRetriever(ExactSearch, StartScoring):
                                   window=db.window, step=db.step)[-1]
                 q_n[a] = pts / (k * actor.size)
                 continue
-            try:
-                qr = retarget(m, actor)
+            try:  # retarget(m, actor).global_positions(), with what depends only on the skeletons cached
+                g = self._retarget_plan(m, a).positions(m.rotations, m.local_translations(), source=(gq_c, gc))
             except MotionError as e:
                 raise RetrievalError(f"cannot retarget the current pose to actor {a}: {e}") from None
-            g = qr.global_positions()
             idx = [actor.index(r) for r in db.pose_roles]
             pts = pose_points(g, idx, actor.index("pelvis"), actor.index("left_hip"), actor.index("right_hip"),
                               window=db.window, step=db.step)[-1]
@@ -614,6 +614,22 @@ class MotionRetriever(ExactSearch, StartScoring):
             self._prep_cache.clear()
         self._prep_cache[key] = (ch, out, "")
         return out
+
+    def _retarget_plan(self, m: Motion, a: int) -> RetargetPlan:
+        """The :class:`~repro.motion.morphology.RetargetPlan` from the skeleton of ``m`` to actor ``a``.
+
+        Cached by actor and what :meth:`Skeleton.from_motion` reads of ``m`` (joints, parents,
+        offsets, channels, End Sites, unit), so a pose on another skeleton never reuses a plan.
+        """
+        key = (a, tuple(m.joint_names), m.parents.tobytes(), m.offsets.tobytes(), tuple(m.channels),
+               m.end_site_parents.tobytes(), m.end_site_offsets.tobytes(), m.unit_m)
+        plan = self._plans.get(key)
+        if plan is None:
+            plan = RetargetPlan(m, self.db.actors[a])
+            if len(self._plans) >= 64:
+                self._plans.clear()
+            self._plans[key] = plan
+        return plan
 
     def _refusals(self, ch: Skeleton) -> dict[int, str]:
         """Cached reasons why the pose of ``ch`` could not be retargeted across trees, per actor."""
