@@ -97,7 +97,7 @@ import numpy as np
 from repro.errors import MotionError
 from repro.motion.channels import POSITION_CHANNELS
 from repro.motion.feet import UP_AXIS, foot_contacts, foot_goals, foot_scale
-from repro.motion.kinematics import depth_levels, fk_arrays, normalize, transport
+from repro.motion.kinematics import chain_positions, depth_levels, fk_arrays, normalize, transport
 from repro.motion.motion import Motion
 from repro.motion.quaternion import cross, min_rotation, quat_multiply
 from repro.motion.quaternion import quat_conjugate as qinv
@@ -688,6 +688,26 @@ class RetargetPlan:
             raise MotionError("RetargetPlan: the target's limb roles are on other joints than the source's")
         self.l1, self.l2 = tbl[mid], tbl[dist]
         self.L = self.l1 + self.l2
+        self.pair_md = np.stack([dist, mid], axis=1)  # (4, 2): distal, middle
+        self.pair_pm = np.stack([prox, mid], axis=1)
+        self.pair_mw = np.stack([mid, dist], axis=1)
+        self.thr = np.stack([1e-12 * self.L_src, 1e-12 * self.L], axis=1)  # (4, 2): encode, decode
+        self.limb_joints = np.concatenate([prox, mid, dist])
+        # the joints whose world transforms the new limb rotations change (the limbs' subtrees), by
+        # depth below the subtree roots: the last forward kinematics runs over these levels only
+        parents = np.asarray(sk.parents)
+        inside = np.zeros(sk.n_joints, dtype=bool)
+        inside[prox] = True
+        rel = np.full(sk.n_joints, -1)
+        for j in range(sk.n_joints):
+            p = parents[j]
+            if p >= 0 and inside[p]:
+                inside[j] = True
+            if inside[j]:
+                rel[j] = rel[p] + 1 if p >= 0 and inside[p] else 0
+        self.outside = np.flatnonzero(~inside)
+        self.sub_levels = [(np.flatnonzero(rel == r), parents[rel == r]) for r in range(int(rel.max()) + 1)]
+        self.sub_joints = np.concatenate([i for i, _ in self.sub_levels])
 
     def positions(self, rotations: np.ndarray, translations: np.ndarray, *, source=None) -> np.ndarray:
         """(F, J, 3) world positions of the retargeted frames, target units.
@@ -696,21 +716,26 @@ class RetargetPlan:
         translations (:meth:`~repro.motion.motion.Motion.local_translations`) of the source;
         ``source``: its world ``(rotations, positions)`` when already computed
         (:meth:`~repro.motion.motion.Motion.global_transforms`; default: computed here).
+        The arithmetic is :func:`encode`'s and :func:`decode`'s, element for element; pairs
+        of like operations (the two limb vectors, the two swivel frames, ...) run as one
+        stacked call, which gives the same numbers.
         """
         prox, mid, dist, par = self.prox, self.mid, self.dist, self.par
+        a0, r0 = self.a0[None, :, None], self.r0[None, :, None]
         # encode (the per-frame part)
         gq, gp = fk_arrays(self.levels, rotations, translations) if source is None else source
         rp_inv = qinv(gq[:, par])
         S = gp[:, prox]
-        d = qrot(rp_inv, gp[:, dist] - S)
-        e = qrot(rp_inv, gp[:, mid] - S)
-        L = self.L_src
-        n = d / L[None, :, None]
-        a0, r0 = self.a0, self.r0
-        a, dn = normalize(d)
-        a = np.where((dn > 1e-12 * L[None])[..., None], a, a0[None])
-        u = transport(a0[None], r0[None], a)
-        v = cross(a, u)
+        de = qrot(rp_inv[:, :, None], gp[:, self.pair_md] - S[:, :, None])  # (F, 4, 2, 3): d, e
+        d, e = de[:, :, 0], de[:, :, 1]
+        n = d / self.L_src[None, :, None]
+        # the limb axes of encode (d) and decode (want = n L), together
+        aw = np.stack([d, n * self.L[None, :, None]], axis=2)
+        a2, dn2 = normalize(aw)
+        a2 = np.where((dn2 > self.thr[None])[..., None], a2, a0)
+        u2 = transport(a0, r0, a2)
+        v2 = cross(a2, u2)
+        a, u, v = a2[:, :, 0], u2[:, :, 0], v2[:, :, 0]
         ep = e - np.sum(e * a, axis=-1, keepdims=True) * a
         radius = np.linalg.norm(ep, axis=-1)
         ang = np.arctan2(np.sum(ep * v, axis=-1), np.sum(ep * u, axis=-1))
@@ -719,41 +744,44 @@ class RetargetPlan:
         trans = translations / self.div[None, :, None]
         # decode (the per-frame part, fix_feet=False)
         local_t = np.where(self.mask[None], trans * self.mul[None, :, None], self.t_offsets[None])
-        rot = np.array(rotations, dtype=float)
         # the target's world rotations are the source's (same local rotations, same tree): positions only
-        gp = local_t.copy()
-        for idx, jp in self.levels:
-            gp[:, idx] = gp[:, jp] + qrot(gq[:, jp], gp[:, idx])
+        gp = chain_positions(self.levels, gq, local_t.copy())
         l1, l2, L = self.l1, self.l2, self.L
         Rp = gq[:, par]
         S = gp[:, prox]
-        want = n * L[None, :, None]
-        a, dn = normalize(want)
-        a = np.where((dn > 1e-12 * L[None])[..., None], a, a0[None])
+        a, dn, u, v = a2[:, :, 1], dn2[:, :, 1], u2[:, :, 1], v2[:, :, 1]
         lo, hi = np.abs(l1 - l2), L
         dc = np.clip(dn, lo[None], hi[None])
         cosb = np.clip((l1[None] ** 2 + dc**2 - l2[None] ** 2) / (2 * l1[None] * np.maximum(dc, 1e-300)), -1.0, 1.0)
         sinb = np.sqrt(1.0 - cosb**2)
-        u = transport(a0[None], r0[None], a)
-        v = cross(a, u)
         phi = ang[..., None]
         e_loc = a * (l1[None] * cosb)[..., None] + (u * np.cos(phi) + v * np.sin(phi)) * (l1[None] * sinb)[..., None]
-        E_star = S + qrot(Rp, e_loc)
-        E0, W0 = gp[:, mid], gp[:, dist]
+        EW_star = S[:, :, None] + qrot(Rp[:, :, None], np.stack([e_loc, a * dc[..., None]], axis=2))
+        E_star, W_star = EW_star[:, :, 0], EW_star[:, :, 1]
+        E0 = gp[:, mid]
         q1 = min_rotation(E0 - S, E_star - S)
-        Gs = quat_multiply(q1, gq[:, prox])
-        E1 = S + qrot(q1, E0 - S)
-        W1 = S + qrot(q1, W0 - S)
-        W_star = S + qrot(Rp, a * dc[..., None])
+        G1 = quat_multiply(q1[:, :, None], gq[:, self.pair_pm])  # q1 G_prox, q1 G_mid
+        EW1 = S[:, :, None] + qrot(q1[:, :, None], gp[:, self.pair_mw] - S[:, :, None])
+        E1, W1 = EW1[:, :, 0], EW1[:, :, 1]
         q2 = min_rotation(W1 - E1, W_star - E1)
-        Ge = quat_multiply(q2, quat_multiply(q1, gq[:, mid]))
+        Gs = G1[:, :, 0]
+        Ge = quat_multiply(q2, G1[:, :, 1])
         Gw = quat_multiply(Rp, end_rot)
-        rot[:, prox] = quat_multiply(qinv(Rp), Gs)
-        rot[:, mid] = quat_multiply(qinv(Gs), Ge)
-        rot[:, dist] = quat_multiply(qinv(Ge), Gw)
+        rot = np.array(rotations, dtype=float)
+        rot[:, self.limb_joints] = quat_multiply(qinv(np.concatenate([Rp, Gs, Ge], axis=1)),
+                                                 np.concatenate([Gs, Ge, Gw], axis=1))
         # the Motion decode returns renormalises its rotations; its global positions are this FK
         rot = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
-        return fk_arrays(self.levels, rot, local_t, copy=False)[1]
+        out = self.outside
+        if not np.array_equal(rot[:, out], rotations[:, out]):  # renormalising moved a bit: all levels
+            return fk_arrays(self.levels, rot, local_t, copy=False)[1]
+        # above the limbs nothing changed: forward kinematics of the limbs' subtrees only
+        gq = gq.copy()
+        for idx, jp in self.sub_levels:
+            gq[:, idx] = quat_multiply(gq[:, jp], rot[:, idx])
+        gp[:, self.sub_joints] = local_t[:, self.sub_joints]
+        return chain_positions(self.sub_levels, gq, gp)
+
 
 
 @dataclass(frozen=True)
