@@ -576,7 +576,7 @@ class MotionRetriever(ExactSearch, StartScoring):
                 q_n[a] = pts / (k * actor.size)
                 continue
             try:  # retarget(m, actor).global_positions(), with what depends only on the skeletons cached
-                g = self._retarget_plan(m, a).positions(m.rotations, m.local_translations(), source=(gq_c, gc))
+                g = self.retarget_plan(m, a).positions(m.rotations, m.local_translations(), source=(gq_c, gc))
             except MotionError as e:
                 raise RetrievalError(f"cannot retarget the current pose to actor {a}: {e}") from None
             idx = [actor.index(r) for r in db.pose_roles]
@@ -615,7 +615,7 @@ class MotionRetriever(ExactSearch, StartScoring):
         self._prep_cache[key] = (ch, out, "")
         return out
 
-    def _retarget_plan(self, m: Motion, a: int) -> RetargetPlan:
+    def retarget_plan(self, m: Motion, a: int) -> RetargetPlan:
         """The :class:`~repro.motion.morphology.RetargetPlan` from the skeleton of ``m`` to actor ``a``.
 
         Cached by actor and what :meth:`Skeleton.from_motion` reads of ``m`` (joints, parents,
