@@ -99,7 +99,7 @@ from repro.motion.channels import POSITION_CHANNELS
 from repro.motion.feet import UP_AXIS, foot_contacts, foot_goals, foot_scale
 from repro.motion.kinematics import chain_positions, depth_levels, fk_arrays, normalize, transport
 from repro.motion.motion import Motion
-from repro.motion.quaternion import cross, min_rotation, quat_multiply
+from repro.motion.quaternion import cross, min_rotation, quat_multiply, vector_norm
 from repro.motion.quaternion import quat_conjugate as qinv
 from repro.motion.quaternion import quat_rotate as qrot
 from repro.motion.retarget_tree import retarget_across
@@ -708,6 +708,10 @@ class RetargetPlan:
         self.outside = np.flatnonzero(~inside)
         self.sub_levels = [(np.flatnonzero(rel == r), parents[rel == r]) for r in range(int(rel.max()) + 1)]
         self.sub_joints = np.concatenate([i for i, _ in self.sub_levels])
+        has_child = np.zeros(sk.n_joints, dtype=bool)
+        has_child[parents[1:]] = True
+        self.sub_rot_levels = [(i[has_child[i]], p[has_child[i]]) for i, p in self.sub_levels if has_child[i].any()]
+        self.triple = np.stack([prox, mid, dist], axis=1)
 
     def positions(self, rotations: np.ndarray, translations: np.ndarray, *, source=None) -> np.ndarray:
         """(F, J, 3) world positions of the retargeted frames, target units.
@@ -720,7 +724,7 @@ class RetargetPlan:
         of like operations (the two limb vectors, the two swivel frames, ...) run as one
         stacked call, which gives the same numbers.
         """
-        prox, mid, dist, par = self.prox, self.mid, self.dist, self.par
+        prox, mid, par = self.prox, self.mid, self.par
         a0, r0 = self.a0[None, :, None], self.r0[None, :, None]
         # encode (the per-frame part)
         gq, gp = fk_arrays(self.levels, rotations, translations) if source is None else source
@@ -737,10 +741,11 @@ class RetargetPlan:
         v2 = cross(a2, u2)
         a, u, v = a2[:, :, 0], u2[:, :, 0], v2[:, :, 0]
         ep = e - np.sum(e * a, axis=-1, keepdims=True) * a
-        radius = np.linalg.norm(ep, axis=-1)
+        radius = vector_norm(ep)  # np.linalg.norm's numbers
         ang = np.arctan2(np.sum(ep * v, axis=-1), np.sum(ep * u, axis=-1))
-        ang = _fill_undefined(ang, radius > 1e-9 * self.l1_src[None])
-        end_rot = quat_multiply(rp_inv, gq[:, dist])
+        valid = radius > 1e-9 * self.l1_src[None]
+        if not valid.all():  # (when all are, _fill_undefined gives the angles as they are)
+            ang = _fill_undefined(ang, valid)
         trans = translations / self.div[None, :, None]
         # decode (the per-frame part, fix_feet=False)
         local_t = np.where(self.mask[None], trans * self.mul[None, :, None], self.t_offsets[None])
@@ -760,24 +765,26 @@ class RetargetPlan:
         E_star, W_star = EW_star[:, :, 0], EW_star[:, :, 1]
         E0 = gp[:, mid]
         q1 = min_rotation(E0 - S, E_star - S)
-        G1 = quat_multiply(q1[:, :, None], gq[:, self.pair_pm])  # q1 G_prox, q1 G_mid
+        # q1 G_prox, q1 G_mid and encode's end rotation R_parent^-1 G_dist, in one call
+        G1 = quat_multiply(np.stack([q1, q1, rp_inv], axis=2), gq[:, self.triple])
+        end_rot = G1[:, :, 2]
         EW1 = S[:, :, None] + qrot(q1[:, :, None], gp[:, self.pair_mw] - S[:, :, None])
         E1, W1 = EW1[:, :, 0], EW1[:, :, 1]
         q2 = min_rotation(W1 - E1, W_star - E1)
         Gs = G1[:, :, 0]
-        Ge = quat_multiply(q2, G1[:, :, 1])
-        Gw = quat_multiply(Rp, end_rot)
+        GeGw = quat_multiply(np.stack([q2, Rp], axis=2), np.stack([G1[:, :, 1], end_rot], axis=2))
+        Ge, Gw = GeGw[:, :, 0], GeGw[:, :, 1]
         rot = np.array(rotations, dtype=float)
         rot[:, self.limb_joints] = quat_multiply(qinv(np.concatenate([Rp, Gs, Ge], axis=1)),
                                                  np.concatenate([Gs, Ge, Gw], axis=1))
         # the Motion decode returns renormalises its rotations; its global positions are this FK
-        rot = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
+        rot = rot / vector_norm(rot, keepdims=True)  # np.linalg.norm's numbers
         out = self.outside
         if not np.array_equal(rot[:, out], rotations[:, out]):  # renormalising moved a bit: all levels
             return fk_arrays(self.levels, rot, local_t, copy=False)[1]
         # above the limbs nothing changed: forward kinematics of the limbs' subtrees only
         gq = gq.copy()
-        for idx, jp in self.sub_levels:
+        for idx, jp in self.sub_rot_levels:  # world rotations of the subtree joints that have children
             gq[:, idx] = quat_multiply(gq[:, jp], rot[:, idx])
         gp[:, self.sub_joints] = local_t[:, self.sub_joints]
         return chain_positions(self.sub_levels, gq, gp)
