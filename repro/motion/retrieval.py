@@ -47,6 +47,9 @@ Choices the paper leaves open (documented here, all parameters):
   synthetic database has three).  ``c_r`` is computed per clip with its own ``size_a``;
   ``q_r`` is retargeted once per *base* actor (actors that are uniform scalings of one
   another share it, scaled), and pose clouds are compared in units of the actor's size.
+  A character of other proportions on the actor's tree is retargeted with the actor's
+  :class:`~repro.motion.morphology.RetargetPlan` (what depends only on the two skeletons
+  made once and cached; the same numbers as :func:`~repro.motion.morphology.retarget`).
 * Several joint trees (a mixed-skeleton database: CMU + Bandai, synthetic clips
   rewritten onto other rigs, any user BVH): pose clouds are role point clouds
   (:data:`~repro.motion.clustering.POSE_ROLES`) in units of stature, so they compare
