@@ -11,6 +11,8 @@ What is asserted:
   plans are cached per (actor, pose skeleton) and a pose on another skeleton gets its own;
 * across joint trees (a Mixamo rig on the synthetic database) ``prepare`` still gives the
   cloud of ``retarget_to_tree`` (the path the plan does not take);
+* ``retarget_across``'s constants cached per pair of skeletons give the numbers of a fresh
+  computation, and a character of other proportions gets its own entry;
 * the plan refuses what ``retarget`` refuses (a target whose rest pose is turned, another
   topology), with MotionError.
 """
@@ -119,3 +121,24 @@ def test_plan_refuses_what_retarget_refuses(synthetic_db):
     rig = build("mixamo")[0].motion(unit_m=1.0)
     with pytest.raises(MotionError, match="joint names and parents"):
         RetargetPlan(pose, rig)
+
+
+def test_retarget_across_constants_cached_per_pair(synthetic_db, monkeypatch):
+    """The per-pair constants of retarget_across give the numbers of a fresh computation, and a
+    character of other proportions gets its own entry (never another pair's)."""
+    import repro.motion.retarget_tree as rt
+
+    db = synthetic_db
+    rig = build("mixamo")[0].motion(unit_m=1.0)
+    m = db.motion(2)
+    other = scale_skeleton(Skeleton.from_motion(rig), scale=1.2, bone_scales={"mixamorig:LeftForeArm": 1.4})
+    monkeypatch.setattr(rt, "_PAIRS", {})
+    first = rt.retarget_across(m, rig).global_positions()
+    assert len(rt._PAIRS) == 1
+    again = rt.retarget_across(m, rig).global_positions()
+    o = rt.retarget_across(m, other).global_positions()
+    assert len(rt._PAIRS) == 2
+    monkeypatch.setattr(rt, "_PAIRS", {})
+    fresh = rt.retarget_across(m, other).global_positions()
+    assert np.array_equal(first, again) and np.array_equal(o, fresh)
+    assert not np.allclose(o, first)
