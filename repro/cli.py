@@ -7,6 +7,7 @@
     repro bench retrieval           search latency vs database size, write figures/retrieval_latency.csv
     repro bench adaptation          retarget/adapt cost per frame, write figures/bench_adaptation.csv
     repro bench index               build time and peak memory of the 100x / 1,000x databases and index
+    repro bench prepare             query preparation (q retargeted to the actor) per kind of character
     repro claims                    the claims ledger (figures/claims.md, figures/claims.csv)
     repro data list                 each dataset: present? verified?
     repro data fetch NAME           download (and verify) a dataset into the data folder
@@ -28,7 +29,7 @@ from pathlib import Path
 from repro.errors import ReproError, UnknownFigureError
 
 DEFAULT_OUT = "figures"
-BENCHES = ("attenuation", "retrieval", "adaptation", "index")
+BENCHES = ("attenuation", "retrieval", "adaptation", "index", "prepare")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -185,7 +186,7 @@ def _main(args) -> int:
 
             return _run(list(registry()), args.out, args.quick, args.force, args.face)
         if args.command == "bench":
-            from repro.bench import adaptation, attenuation, index_build, retrieval
+            from repro.bench import adaptation, attenuation, index_build, prepare, retrieval
             from repro.io import write_csv
 
             run_, fmt, csv_name = {
@@ -193,6 +194,7 @@ def _main(args) -> int:
                 "retrieval": (retrieval.bench_retrieval, retrieval.format_retrieval, "retrieval_latency.csv"),
                 "adaptation": (adaptation.bench_adaptation, adaptation.format_adaptation, "bench_adaptation.csv"),
                 "index": (index_build.bench_index_build, index_build.format_index_build, "bench_index_build.csv"),
+                "prepare": (prepare.bench_prepare, prepare.format_prepare, "bench_prepare.csv"),
             }[args.which]
             table = run_(quick=args.quick, progress=True)
             print(fmt(table))

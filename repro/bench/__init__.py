@@ -8,7 +8,8 @@ their ratio.  One module per benchmark, each the home of one ``repro bench`` com
 - :mod:`repro.bench.retrieval` -- Pronost et al., Sections 3.3 and 4 (``repro bench retrieval``);
 - :mod:`repro.bench.adaptation` -- Pronost et al., Sections 3.4 and 4 (``repro bench adaptation``);
 - :mod:`repro.bench.index_build` -- Pronost et al., Section 3.2.2, the scaled databases and index
-  (``repro bench index``).
+  (``repro bench index``);
+- :mod:`repro.bench.prepare` -- Pronost et al., Section 3.3, preparing a query (``repro bench prepare``).
 
 This module holds only what they share (the machine line and the median timer).  The
 paper's published numbers are in :mod:`repro.motion.paper`, never here.  The
@@ -33,6 +34,7 @@ _HOMES = {
     "bench_retrieval": "retrieval", "retrieval_summary": "retrieval", "format_retrieval": "retrieval",
     "bench_adaptation": "adaptation", "format_adaptation": "adaptation",
     "bench_index_build": "index_build", "format_index_build": "index_build",
+    "bench_prepare": "prepare", "format_prepare": "prepare",
 }
 
 

@@ -97,9 +97,9 @@ import numpy as np
 from repro.errors import MotionError
 from repro.motion.channels import POSITION_CHANNELS
 from repro.motion.feet import UP_AXIS, foot_contacts, foot_goals, foot_scale
-from repro.motion.kinematics import depth_levels, fk_arrays, normalize, transport
+from repro.motion.kinematics import chain_positions, depth_levels, fk_arrays, normalize, transport
 from repro.motion.motion import Motion
-from repro.motion.quaternion import cross, min_rotation, quat_multiply
+from repro.motion.quaternion import cross, min_rotation, quat_multiply, vector_norm
 from repro.motion.quaternion import quat_conjugate as qinv
 from repro.motion.quaternion import quat_rotate as qrot
 from repro.motion.retarget_tree import retarget_across
@@ -110,6 +110,7 @@ __all__ = [
     "LIMB_NAMES",
     "DecodeReport",
     "MorphologyIndependentMotion",
+    "RetargetPlan",
     "decode",
     "decode_with_report",
     "encode",
@@ -617,6 +618,187 @@ def retarget(motion: Motion, target, *, roles=None, fix_feet: bool = False) -> M
             if out is not None:
                 return dataclasses.replace(out, joint_names=list(tgt.joint_names))
     return retarget_across(motion, target, roles=roles, fix_feet=fix_feet)
+
+
+class RetargetPlan:
+    """:func:`retarget` between two fixed skeletons of the same joint tree, for few frames at a time.
+
+    Everything of :func:`encode` and :func:`decode` that depends only on the source and
+    target skeletons (roles, limb indices and lengths, hip heights, swivel references,
+    the rest-direction check, the depth levels) is computed once here; :meth:`positions`
+    then runs only the per-frame arithmetic of the two, in the same order on the same
+    array shapes, so its numbers are those of ``retarget(motion, target).global_positions()``
+    bit for bit (``fix_feet=False``; checked in ``tests/motion/test_retarget_plan.py``).
+    It skips what the positions do not need (the Motion objects, the foot contacts).
+    Used by :meth:`repro.motion.retrieval.MotionRetriever.prepare` (one pose per query).
+
+    Parameters
+    ----------
+    source : Skeleton or Motion
+        The skeleton the poses are on (roles found as :func:`encode` does).
+    target : Skeleton or Motion
+        Same joint names and parents (else :func:`retarget` takes other paths: not planned).
+
+    Raises
+    ------
+    repro.errors.MotionError
+        What :func:`retarget` raises for these skeletons (missing roles, zero-length limb
+        bones, another topology or rest pose).
+    """
+
+    def __init__(self, source, target):
+        if not (isinstance(target, Skeleton) or hasattr(target, "offsets")):
+            raise MotionError(f"target must be a Skeleton or a Motion, got {type(target).__name__}")
+        sk = skeleton_of(source)
+        if list(target.joint_names) != list(sk.joint_names) or not np.array_equal(target.parents, sk.parents):
+            raise MotionError("RetargetPlan: the target must have the source's joint names and parents")
+        self.n_joints = sk.n_joints
+        self.levels = depth_levels(sk.parents)
+        prox, mid, dist, par = _limb_indices(sk)
+        self.prox, self.mid, self.dist, self.par = prox, mid, dist, par
+        bl = sk.bone_lengths
+        self.L_src = bl[mid] + bl[dist]
+        self.l1_src = bl[mid]
+        self.a0, self.r0 = _swivel_frames(sk)
+        H = sk.hip_height
+        if not np.isfinite(H) or H <= 0:
+            raise MotionError(f"source hip height must be > 0, got {H!r}")
+        root_path = _root_path(sk)
+        nonzero = bl > 1e-12 * sk.height
+        div = np.where(nonzero, bl, H)
+        div[root_path] = H
+        self.div = div
+        rest_dir = np.where(nonzero[:, None], sk.offsets / np.maximum(bl, 1e-300)[:, None], 0.0)
+        # the target side, as decode_with_report: checked once (rest directions, roles)
+        probe = _RestProbe(joint_names=list(sk.joint_names), parents=np.array(sk.parents), roles=dict(sk.roles),
+                           rest_directions=rest_dir)
+        tgt = _target_skeleton(probe, target, 5.0)
+        channels = tgt.channels if tgt.channels is not None else sk.channels
+        if channels is None:
+            raise MotionError("RetargetPlan: neither skeleton has channels")
+        self.mask = _position_mask(channels)
+        tbl = tgt.bone_lengths
+        TH = tgt.hip_height
+        mul = np.where(np.linalg.norm(rest_dir, axis=1) > 0, tbl, TH)
+        mul[root_path] = TH
+        self.mul = mul
+        self.t_offsets = tgt.offsets
+        tprox, tmid, tdist, tpar = _limb_indices(tgt)
+        if not (np.array_equal(tprox, prox) and np.array_equal(tmid, mid) and np.array_equal(tdist, dist)):
+            raise MotionError("RetargetPlan: the target's limb roles are on other joints than the source's")
+        self.l1, self.l2 = tbl[mid], tbl[dist]
+        self.L = self.l1 + self.l2
+        self.pair_md = np.stack([dist, mid], axis=1)  # (4, 2): distal, middle
+        self.pair_pm = np.stack([prox, mid], axis=1)
+        self.pair_mw = np.stack([mid, dist], axis=1)
+        self.thr = np.stack([1e-12 * self.L_src, 1e-12 * self.L], axis=1)  # (4, 2): encode, decode
+        self.limb_joints = np.concatenate([prox, mid, dist])
+        # the joints whose world transforms the new limb rotations change (the limbs' subtrees), by
+        # depth below the subtree roots: the last forward kinematics runs over these levels only
+        parents = np.asarray(sk.parents)
+        inside = np.zeros(sk.n_joints, dtype=bool)
+        inside[prox] = True
+        rel = np.full(sk.n_joints, -1)
+        for j in range(sk.n_joints):
+            p = parents[j]
+            if p >= 0 and inside[p]:
+                inside[j] = True
+            if inside[j]:
+                rel[j] = rel[p] + 1 if p >= 0 and inside[p] else 0
+        self.outside = np.flatnonzero(~inside)
+        self.sub_levels = [(np.flatnonzero(rel == r), parents[rel == r]) for r in range(int(rel.max()) + 1)]
+        self.sub_joints = np.concatenate([i for i, _ in self.sub_levels])
+        has_child = np.zeros(sk.n_joints, dtype=bool)
+        has_child[parents[1:]] = True
+        self.sub_rot_levels = [(i[has_child[i]], p[has_child[i]]) for i, p in self.sub_levels if has_child[i].any()]
+        self.triple = np.stack([prox, mid, dist], axis=1)
+
+    def positions(self, rotations: np.ndarray, translations: np.ndarray, *, source=None) -> np.ndarray:
+        """(F, J, 3) world positions of the retargeted frames, target units.
+
+        ``rotations`` (F, J, 4) unit quaternions and ``translations`` (F, J, 3) the local
+        translations (:meth:`~repro.motion.motion.Motion.local_translations`) of the source;
+        ``source``: its world ``(rotations, positions)`` when already computed
+        (:meth:`~repro.motion.motion.Motion.global_transforms`; default: computed here).
+        The arithmetic is :func:`encode`'s and :func:`decode`'s, element for element; pairs
+        of like operations (the two limb vectors, the two swivel frames, ...) run as one
+        stacked call, which gives the same numbers.
+        """
+        prox, mid, par = self.prox, self.mid, self.par
+        a0, r0 = self.a0[None, :, None], self.r0[None, :, None]
+        # encode (the per-frame part)
+        gq, gp = fk_arrays(self.levels, rotations, translations) if source is None else source
+        rp_inv = qinv(gq[:, par])
+        S = gp[:, prox]
+        de = qrot(rp_inv[:, :, None], gp[:, self.pair_md] - S[:, :, None])  # (F, 4, 2, 3): d, e
+        d, e = de[:, :, 0], de[:, :, 1]
+        n = d / self.L_src[None, :, None]
+        # the limb axes of encode (d) and decode (want = n L), together
+        aw = np.stack([d, n * self.L[None, :, None]], axis=2)
+        a2, dn2 = normalize(aw)
+        a2 = np.where((dn2 > self.thr[None])[..., None], a2, a0)
+        u2 = transport(a0, r0, a2)
+        v2 = cross(a2, u2)
+        a, u, v = a2[:, :, 0], u2[:, :, 0], v2[:, :, 0]
+        ep = e - np.sum(e * a, axis=-1, keepdims=True) * a
+        radius = vector_norm(ep)  # np.linalg.norm's numbers
+        ang = np.arctan2(np.sum(ep * v, axis=-1), np.sum(ep * u, axis=-1))
+        valid = radius > 1e-9 * self.l1_src[None]
+        if not valid.all():  # (when all are, _fill_undefined gives the angles as they are)
+            ang = _fill_undefined(ang, valid)
+        trans = translations / self.div[None, :, None]
+        # decode (the per-frame part, fix_feet=False)
+        local_t = np.where(self.mask[None], trans * self.mul[None, :, None], self.t_offsets[None])
+        # the target's world rotations are the source's (same local rotations, same tree): positions only
+        gp = chain_positions(self.levels, gq, local_t.copy())
+        l1, l2, L = self.l1, self.l2, self.L
+        Rp = gq[:, par]
+        S = gp[:, prox]
+        a, dn, u, v = a2[:, :, 1], dn2[:, :, 1], u2[:, :, 1], v2[:, :, 1]
+        lo, hi = np.abs(l1 - l2), L
+        dc = np.clip(dn, lo[None], hi[None])
+        cosb = np.clip((l1[None] ** 2 + dc**2 - l2[None] ** 2) / (2 * l1[None] * np.maximum(dc, 1e-300)), -1.0, 1.0)
+        sinb = np.sqrt(1.0 - cosb**2)
+        phi = ang[..., None]
+        e_loc = a * (l1[None] * cosb)[..., None] + (u * np.cos(phi) + v * np.sin(phi)) * (l1[None] * sinb)[..., None]
+        EW_star = S[:, :, None] + qrot(Rp[:, :, None], np.stack([e_loc, a * dc[..., None]], axis=2))
+        E_star, W_star = EW_star[:, :, 0], EW_star[:, :, 1]
+        E0 = gp[:, mid]
+        q1 = min_rotation(E0 - S, E_star - S)
+        # q1 G_prox, q1 G_mid and encode's end rotation R_parent^-1 G_dist, in one call
+        G1 = quat_multiply(np.stack([q1, q1, rp_inv], axis=2), gq[:, self.triple])
+        end_rot = G1[:, :, 2]
+        EW1 = S[:, :, None] + qrot(q1[:, :, None], gp[:, self.pair_mw] - S[:, :, None])
+        E1, W1 = EW1[:, :, 0], EW1[:, :, 1]
+        q2 = min_rotation(W1 - E1, W_star - E1)
+        Gs = G1[:, :, 0]
+        GeGw = quat_multiply(np.stack([q2, Rp], axis=2), np.stack([G1[:, :, 1], end_rot], axis=2))
+        Ge, Gw = GeGw[:, :, 0], GeGw[:, :, 1]
+        rot = np.array(rotations, dtype=float)
+        rot[:, self.limb_joints] = quat_multiply(qinv(np.concatenate([Rp, Gs, Ge], axis=1)),
+                                                 np.concatenate([Gs, Ge, Gw], axis=1))
+        # the Motion decode returns renormalises its rotations; its global positions are this FK
+        rot = rot / vector_norm(rot, keepdims=True)  # np.linalg.norm's numbers
+        out = self.outside
+        if not np.array_equal(rot[:, out], rotations[:, out]):  # renormalising moved a bit: all levels
+            return fk_arrays(self.levels, rot, local_t, copy=False)[1]
+        # above the limbs nothing changed: forward kinematics of the limbs' subtrees only
+        gq = gq.copy()
+        for idx, jp in self.sub_rot_levels:  # world rotations of the subtree joints that have children
+            gq[:, idx] = quat_multiply(gq[:, jp], rot[:, idx])
+        gp[:, self.sub_joints] = local_t[:, self.sub_joints]
+        return chain_positions(self.sub_levels, gq, gp)
+
+
+
+@dataclass(frozen=True)
+class _RestProbe:
+    """What :func:`_target_skeleton` reads of an encoded motion (:class:`RetargetPlan`)."""
+
+    joint_names: list
+    parents: np.ndarray
+    roles: dict
+    rest_directions: np.ndarray
 
 
 def naive_retarget(motion: Motion, target, *, scale_root: bool = False) -> Motion:

@@ -159,6 +159,18 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / n if n > 0 else v
 
 
+#: retarget_across's constants per pair of skeletons (body frames, rest axes, bone-frame rotations)
+_PAIRS: dict = {}
+
+
+def _skeleton_key(sk: Skeleton) -> tuple:
+    """Everything of a skeleton the constants of :func:`retarget_across` read (its cache key)."""
+    return (tuple(sk.joint_names), np.asarray(sk.parents).tobytes(), np.asarray(sk.offsets, dtype=float).tobytes(),
+            np.asarray(sk.end_site_parents).tobytes(), np.asarray(sk.end_site_offsets, dtype=float).tobytes(),
+            tuple(sorted(sk.roles.items())), None if sk.channels is None else tuple(map(tuple, sk.channels)),
+            sk.unit_m)
+
+
 def retarget_across(motion: Motion, character, *, roles=None, character_roles=None, fix_feet: bool = False,
                     blend_time: float = 0.1) -> Motion:
     """``motion`` played by ``character``, whose joint tree may differ (see the module docstring).
@@ -198,14 +210,23 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
     check_roles(src.roles, "retargeting", src.joint_names)
     check_roles(tgt.roles, "retargeting", tgt.joint_names)
     up_t = _up_of(character, tgt)
-    Bs = body_frame(src, _up_of(motion, src))
-    Bt = body_frame(tgt, up_t)
-    C = Bt @ Bs.T
-    c = _mat_to_quat(C)
-    ci = qinv(c)
+    up_s = _up_of(motion, src)
+    key = (_skeleton_key(src), _skeleton_key(tgt), up_s, up_t)
+    pair = _PAIRS.get(key)
+    if pair is None:  # what depends only on the two skeletons (the same numbers every call)
+        Bs = body_frame(src, up_s)
+        Bt = body_frame(tgt, up_t)
+        C = Bt @ Bs.T
+        c = _mat_to_quat(C)
+        pair = dict(C=C, c=c, ci=qinv(c), Ps=src.rest_positions(), Pt=tgt.rest_positions(), ax_s=rest_axes(src),
+                    ax_t=rest_axes(tgt), delta={})
+        if len(_PAIRS) >= 32:
+            _PAIRS.clear()
+        _PAIRS[key] = pair
+    C, c, ci = pair["C"], pair["c"], pair["ci"]
     F = motion.n_frames
     gq_s, gp_s = fk_arrays(depth_levels(src.parents), motion.rotations, motion.local_translations())
-    Ps, Pt = src.rest_positions(), tgt.rest_positions()
+    Ps, Pt = pair["Ps"], pair["Pt"]
     rs, rt = src.roles, tgt.roles
 
     def si(role):
@@ -221,9 +242,15 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
     def ref_dir(P, roles_, names, a, b):
         return _unit(P[names.index(roles_[b])] - P[names.index(roles_[a])])
 
-    ax_s, ax_t = rest_axes(src), rest_axes(tgt)
+    ax_s, ax_t = pair["ax_s"], pair["ax_t"]
+    deltas = pair["delta"]
 
     def delta(a, b):
+        if (a, b) not in deltas:
+            deltas[(a, b)] = _delta(a, b)
+        return deltas[(a, b)]
+
+    def _delta(a, b):
         """Rotation taking the character's rest frame of bone a->b to the mapped source one.
 
         The frame: the bone direction and the part's rest axis (left, up or forward of

@@ -47,6 +47,9 @@ Choices the paper leaves open (documented here, all parameters):
   synthetic database has three).  ``c_r`` is computed per clip with its own ``size_a``;
   ``q_r`` is retargeted once per *base* actor (actors that are uniform scalings of one
   another share it, scaled), and pose clouds are compared in units of the actor's size.
+  A character of other proportions on the actor's tree is retargeted with the actor's
+  :class:`~repro.motion.morphology.RetargetPlan` (what depends only on the two skeletons
+  made once and cached; the same numbers as :func:`~repro.motion.morphology.retarget`).
 * Several joint trees (a mixed-skeleton database: CMU + Bandai, synthetic clips
   rewritten onto other rigs, any user BVH): pose clouds are role point clouds
   (:data:`~repro.motion.clustering.POSE_ROLES`) in units of stature, so they compare
@@ -108,7 +111,7 @@ from repro.motion.clustering import (
 )
 from repro.motion.database import MotionDatabase
 from repro.motion.index_build import block_order, build_pose_index
-from repro.motion.morphology import retarget
+from repro.motion.morphology import RetargetPlan, retarget
 from repro.motion.motion import Motion, finite_vector3
 from repro.motion.ops import resample
 from repro.motion.retarget_tree import retarget_across
@@ -480,6 +483,7 @@ class MotionRetriever(ExactSearch, StartScoring):
         self._kd: dict = {}
         self._prep_cache: dict = {}
         self._actor_rest: dict = {}  # actor -> its rest pose, Y up (retargeting across trees)
+        self._plans: dict = {}  # (actor, pose skeleton) -> RetargetPlan (same tree, other proportions)
         self._start: dict | None = None
         self._qm_cache = None
         self._bounds_setup()
@@ -536,14 +540,18 @@ class MotionRetriever(ExactSearch, StartScoring):
             m = resample(m, frames=np.clip(t / m.frame_time, 0, F - 1), frame_time=1.0 / db.fps)
         else:
             lo = max(0, f - need + 1)
-            m = dataclasses.replace(m, rotations=m.rotations[lo:f + 1], positions=m.positions[lo:f + 1])
+            R = m.rotations
+            # the window (a new Motion renormalises its rotations); when it is the whole pose and that
+            # renormalising gives the same bits, the pose itself (its Motion checks cost about 0.1 ms)
+            if not (lo == 0 and f + 1 == F and np.array_equal(R / np.linalg.norm(R, axis=-1, keepdims=True), R)):
+                m = dataclasses.replace(m, rotations=R[lo:f + 1], positions=m.positions[lo:f + 1])
         unit = m.unit_m if m.unit_m is not None else ch.unit_m
         if unit is None:
             raise RetrievalError("the current pose's length unit is unknown; read it with unit_m=... (metres expected)")
         if unit != 1.0:
             m = m.to_metres(unit)
         q_n = {}
-        gc = m.global_positions()
+        gq_c, gc = m.global_transforms()
         refused: dict[int, str] = {}
         for a in self.actors_present.tolist():
             actor = db.actors[a]
@@ -572,11 +580,10 @@ class MotionRetriever(ExactSearch, StartScoring):
                                   window=db.window, step=db.step)[-1]
                 q_n[a] = pts / (k * actor.size)
                 continue
-            try:
-                qr = retarget(m, actor)
+            try:  # retarget(m, actor).global_positions(), with what depends only on the skeletons cached
+                g = self.retarget_plan(m, a).positions(m.rotations, m.local_translations(), source=(gq_c, gc))
             except MotionError as e:
                 raise RetrievalError(f"cannot retarget the current pose to actor {a}: {e}") from None
-            g = qr.global_positions()
             idx = [actor.index(r) for r in db.pose_roles]
             pts = pose_points(g, idx, actor.index("pelvis"), actor.index("left_hip"), actor.index("right_hip"),
                               window=db.window, step=db.step)[-1]
@@ -612,6 +619,22 @@ class MotionRetriever(ExactSearch, StartScoring):
             self._prep_cache.clear()
         self._prep_cache[key] = (ch, out, "")
         return out
+
+    def retarget_plan(self, m: Motion, a: int) -> RetargetPlan:
+        """The :class:`~repro.motion.morphology.RetargetPlan` from the skeleton of ``m`` to actor ``a``.
+
+        Cached by actor and what :meth:`Skeleton.from_motion` reads of ``m`` (joints, parents,
+        offsets, channels, End Sites, unit), so a pose on another skeleton never reuses a plan.
+        """
+        key = (a, tuple(m.joint_names), m.parents.tobytes(), m.offsets.tobytes(), tuple(m.channels),
+               m.end_site_parents.tobytes(), m.end_site_offsets.tobytes(), m.unit_m)
+        plan = self._plans.get(key)
+        if plan is None:
+            plan = RetargetPlan(m, self.db.actors[a])
+            if len(self._plans) >= 64:
+                self._plans.clear()
+            self._plans[key] = plan
+        return plan
 
     def _refusals(self, ch: Skeleton) -> dict[int, str]:
         """Cached reasons why the pose of ``ch`` could not be retargeted across trees, per actor."""

@@ -59,3 +59,15 @@ def test_bench_index_build_columns_and_goals():
     assert t.augment_peak_gb.iloc[0] > 0 and t.index_peak_gb.iloc[0] > 0 and t.per_variant_augment_s.iloc[0] > 0
     assert t.pose_dtype.iloc[0] == "float64"
     assert "per-variant path" in index_build.format_index_build(t)
+
+
+def test_bench_prepare_rows_and_equality():
+    from repro.bench import prepare
+
+    t = prepare.bench_prepare(quick=True, n_queries=8)
+    assert list(t.case) == ["uniform", "proportions", "across_trees"] and (t.n_queries == 8).all()
+    assert (t.prepare_p50_ms > 0).all()
+    p = t.set_index("case").loc["proportions"]
+    assert p.step_p50_ms > 0 and p.baseline_step_p50_ms > 0 and p.step_speedup > 0
+    assert (t.max_abs_diff == 0).all()  # the plan's q_r is retarget()'s, bit for bit
+    assert "retarget() " in prepare.format_prepare(t) and "goal prepare < 1 ms" in prepare.format_prepare(t)

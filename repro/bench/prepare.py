@@ -1,0 +1,123 @@
+"""``repro bench prepare``: Pronost et al., Section 3.3 -- preparing a query, ``q`` retargeted to the
+actor (``q_r``) and ``c_r`` (Eq. 1), for one pose, by kind of character.
+
+Three characters on the synthetic database: a uniform scaling of the actor (``q_r`` is the pose
+scaled, no retargeting), one of other proportions (same joint tree: the pose is retargeted with
+the actor's cached :class:`~repro.motion.morphology.RetargetPlan`), and a Mixamo rig (another
+joint tree: :func:`~repro.motion.retrieval.retarget_to_tree`).  The baseline measured in the same
+process, interleaved with the new path, query by query, is the step the plan replaced:
+``retarget(pose, actor).global_positions()`` (encode then decode into Motion objects), against
+``plan.positions`` (both then make the pose cloud); the two clouds are compared (``max_abs_diff``,
+metres / stature: 0 when bit-identical).  The goal is this reproduction's (issue 13, item 4):
+prepare under 1 ms p50 for characters of the actor's tree.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+
+from repro.bench import machine
+
+__all__ = ["GOAL_PREPARE_P50_MS", "bench_prepare", "format_prepare"]
+
+#: MotionRetriever.prepare of one pose, characters of the actor's joint tree, milliseconds
+GOAL_PREPARE_P50_MS: float = 1.0
+
+
+def _cloud(db, actor, g):
+    from repro.motion.clustering import pose_points
+
+    idx = [actor.index(r) for r in db.pose_roles]
+    return pose_points(g, idx, actor.index("pelvis"), actor.index("left_hip"), actor.index("right_hip"),
+                       window=db.window, step=db.step)[-1] / actor.size
+
+
+def bench_prepare(*, quick: bool = False, n_queries: int = 200, seed: int = 0, progress: bool = False):
+    """Median cost of :meth:`MotionRetriever.prepare` for one pose, per kind of character (one row each).
+
+    Columns: ``case`` (``uniform``, ``proportions``, ``across_trees``), ``n_queries``,
+    ``prepare_p50_ms`` and ``prepare_p99_ms`` (the whole call), ``step_p50_ms`` (the
+    retargeting inside it: the plan, or for ``across_trees`` :func:`retarget_to_tree`;
+    0 for ``uniform``), ``baseline_step_p50_ms`` (``retarget(...).global_positions()``, same
+    queries, interleaved), ``step_speedup`` and ``max_abs_diff`` of the two clouds.
+    """
+    import pandas as pd
+
+    from repro.motion.morphology import retarget
+    from repro.motion.retrieval import MotionRetriever, rest_motion_y_up, retarget_to_tree
+    from repro.motion.skeleton import Skeleton, scale_skeleton
+    from repro.motion.sources import default_database
+    from repro.motion.synthetic.conventions import build
+
+    n = min(n_queries, 50) if quick else n_queries
+    db = default_database("synthetic")
+    r = MotionRetriever(db, seed=seed)
+    actor = db.actors[0]
+    rng = np.random.default_rng(seed)
+    rig = build("mixamo")[0].motion(unit_m=1.0)
+    characters = {
+        "uniform": scale_skeleton(actor, scale=1.1),
+        "proportions": scale_skeleton(actor, scale=1.1, arm_scale=1.2, bone_scales={"LeftForeArm": 1.3, "RightLeg": 0.8}),
+    }
+    rows = []
+    for case in ("uniform", "proportions", "across_trees"):
+        prep, step, base, diff = [], [], [], 0.0
+        for _ in range(n):
+            m = db.motion(int(rng.integers(db.n_clips)))
+            f = int(rng.integers(m.n_frames))
+            if case == "across_trees":
+                mm = retarget(m, rig)
+                ch = Skeleton.from_motion(mm)
+                pose = dataclasses.replace(mm, rotations=mm.rotations[f:f + 1], positions=mm.positions[f:f + 1])
+            else:
+                ch = characters[case]
+                t = np.where(m.position_mask[None], m.local_translations(), ch.offsets[None])[f:f + 1]
+                pose = ch.motion_with(m.rotations[f:f + 1], t, frame_time=m.frame_time)
+            r.prepare(pose, ch)  # warm: the per-character caches (compatibility, plan, rest pose)
+            t0 = time.perf_counter()
+            r.prepare(pose, ch)
+            prep.append(time.perf_counter() - t0)
+            if case == "uniform":
+                continue
+            if case == "proportions":
+                plan = r.retarget_plan(pose, 0)
+                t0 = time.perf_counter()
+                g = plan.positions(pose.rotations, pose.local_translations())
+                step.append(time.perf_counter() - t0)
+                t0 = time.perf_counter()
+                g_old = retarget(pose, actor).global_positions()
+                base.append(time.perf_counter() - t0)
+            else:
+                rest = rest_motion_y_up(actor)
+                t0 = time.perf_counter()
+                g = retarget_to_tree(pose, actor, roles=dict(ch.roles), target=rest).global_positions()
+                step.append(time.perf_counter() - t0)
+                base.append(step[-1])
+                g_old = g
+            diff = max(diff, float(np.abs(_cloud(db, actor, g) - _cloud(db, actor, g_old)).max()))
+        ms = lambda x: float(np.median(x) * 1e3) if x else 0.0  # noqa: E731
+        rows.append(dict(case=case, n_queries=n, prepare_p50_ms=ms(prep),
+                         prepare_p99_ms=float(np.percentile(prep, 99) * 1e3), step_p50_ms=ms(step),
+                         baseline_step_p50_ms=ms(base),
+                         step_speedup=ms(base) / ms(step) if step else float("nan"), max_abs_diff=diff))
+    table = pd.DataFrame(rows)
+    table["machine"] = machine()
+    return table
+
+
+def format_prepare(table) -> str:
+    """Human-readable lines for :func:`bench_prepare`'s table."""
+    lines = [f"machine: {table['machine'].iloc[0]}"]
+    for t in table.itertuples():
+        line = f"{t.case:13s} prepare p50 {t.prepare_p50_ms:7.3f} ms  p99 {t.prepare_p99_ms:7.3f} ms"
+        if t.case == "proportions":
+            line += (f"; retargeting step {t.step_p50_ms:.3f} ms vs retarget() {t.baseline_step_p50_ms:.3f} ms = "
+                     f"{t.step_speedup:.1f}x faster, max |q_r diff| {t.max_abs_diff:.3g}; goal prepare < "
+                     f"{GOAL_PREPARE_P50_MS:g} ms: {'met' if t.prepare_p50_ms < GOAL_PREPARE_P50_MS else 'not met'}")
+        elif t.case == "across_trees":
+            line += f"; retarget_to_tree step {t.step_p50_ms:.3f} ms (no plan across trees)"
+        lines.append(line)
+    return "\n".join(lines)
