@@ -14,7 +14,8 @@ from repro.errors import ModelError
 from repro.experiments.lewis import common
 from repro.experiments.registry import Result, experiment
 
-NAMES = ("zz_jobs_a", "zz_jobs_b", "zz_jobs_faces", "zz_jobs_fails", "zz_jobs_dies", "zz_jobs_speed")
+NAMES = ("zz_jobs_a", "zz_jobs_b", "zz_jobs_faces", "zz_jobs_fails", "zz_jobs_dies", "zz_jobs_speed", "zz_jobs_slow_a",
+         "zz_jobs_slow_b")
 
 
 def _table(i, quick):
@@ -55,6 +56,31 @@ def zz_jobs_dies(quick=False):
             data=(), timing=True)
 def zz_jobs_speed(quick=False):
     return Result(pd.DataFrame({"pid": [os.getpid()]}))
+
+
+def _slow(tag):
+    """Half-write the CSV (a temporary file beside it), say so, and wait to be interrupted."""
+    import time
+    from pathlib import Path
+
+    from repro.io import atomic_path
+
+    out = Path(os.environ["ZZ_JOBS_SLOW_IN"])
+    with atomic_path(out / f"zz_jobs_slow_{tag}.csv") as tmp:
+        tmp.write_text("half")
+        (out.parent / f"started-{os.getpid()}").write_text("")
+        time.sleep(120)
+    return Result(pd.DataFrame({"i": [0]}))
+
+
+@experiment("zz_jobs_slow_a", "jobs test: slow, to be interrupted", paper="lewis2005", data=())
+def zz_jobs_slow_a(quick=False):
+    return _slow("a")
+
+
+@experiment("zz_jobs_slow_b", "jobs test: slow, to be interrupted", paper="lewis2005", data=())
+def zz_jobs_slow_b(quick=False):
+    return _slow("b")
 
 
 def unregister() -> None:
