@@ -4,4 +4,5 @@ import sys
 
 from repro.cli import main
 
-sys.exit(main())
+if __name__ == "__main__":  # not when a ``--jobs`` worker process imports it (multiprocessing's spawn)
+    sys.exit(main())

@@ -2,7 +2,7 @@
 
     repro list                      every registered figure/measurement, one line each
     repro run NAME [NAME ...]       write NAME.png and NAME.csv into figures/
-    repro all                       run every registered figure
+    repro all                       run every registered figure (--jobs N: in N processes)
     repro bench attenuation         print speed ratios, write figures/bench_attenuation.csv
     repro bench retrieval           search latency vs database size, write figures/retrieval_latency.csv
     repro bench adaptation          retarget/adapt cost per frame, write figures/bench_adaptation.csv
@@ -45,6 +45,9 @@ def _parser() -> argparse.ArgumentParser:
         sp.add_argument("--force", action="store_true", help="rerun even when inputs and outputs are unchanged")
         sp.add_argument("--face", action="append", default=[], metavar="FILE",
                         help="a .gltf/.glb face (ARKit shape names) added to every Lewis figure; repeatable")
+        sp.add_argument("--jobs", "-j", type=_jobs, default=1, metavar="N",
+                        help="compute the figures without timings in N processes (0: one per CPU); the timing "
+                             "figures then run alone (default: 1, all in this process)")
     b = sub.add_parser("bench", help="benchmarks printing ratios against an in-process baseline")
     b.add_argument("which", choices=BENCHES)
     b.add_argument("--quick", action="store_true")
@@ -66,6 +69,19 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _jobs(text: str) -> int:
+    """``--jobs N``: a whole number >= 0 (0: one per CPU)."""
+    import os
+
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number of processes, got {text!r}") from None
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"expected 0 (one per CPU) or more processes, got {n}")
+    return n or os.cpu_count() or 1
+
+
 def _bad_out(out: str) -> str | None:
     """Why ``--out`` cannot be the output folder (it is created when missing), or None."""
     from repro.experiments.registry import output_folder
@@ -77,7 +93,7 @@ def _bad_out(out: str) -> str | None:
     return None
 
 
-def _run(names, out: str, quick: bool, force: bool = False, faces=()) -> int:
+def _run(names, out: str, quick: bool, force: bool = False, faces=(), jobs: int = 1) -> int:
     from tqdm import tqdm  # a plain bar on stderr (never a notebook widget)
 
     from repro.experiments import registry
@@ -100,7 +116,8 @@ def _run(names, out: str, quick: bool, force: bool = False, faces=()) -> int:
             tqdm.write(f"repro: {name} {status}", file=sys.stderr)
         bar.update()
 
-    status = run_many(names, out, quick=quick, force=force, on_result=report, progress=True, faces=faces)
+    status = run_many(names, out, quick=quick, force=force, on_result=report, progress=True, faces=faces,
+                      jobs=jobs)
     bar.close()
     failed = [n for n, s in status.items() if s not in ("ran", "cached")]
     if failed:
@@ -180,11 +197,11 @@ def _main(args) -> int:
                 print(f"{exp.name:28s} [{exp.paper}] {exp.caption}")
             return 0
         if args.command == "run":
-            return _run(args.names, args.out, args.quick, args.force, args.face)
+            return _run(args.names, args.out, args.quick, args.force, args.face, args.jobs)
         if args.command == "all":
             from repro.experiments import registry
 
-            return _run(list(registry()), args.out, args.quick, args.force, args.face)
+            return _run(list(registry()), args.out, args.quick, args.force, args.face, args.jobs)
         if args.command == "bench":
             from repro.bench import adaptation, attenuation, index_build, prepare, retrieval
             from repro.io import write_csv

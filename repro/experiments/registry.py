@@ -350,7 +350,7 @@ def _up_to_date(entry: dict | None, key: dict, outdir: Path) -> bool:
 
 
 def run_many(names, outdir="figures", *, quick: bool = False, force: bool = False, on_result=None,
-             progress: bool = False, faces=()) -> dict:
+             progress: bool = False, faces=(), jobs: int = 1) -> dict:
     """Run several figures, skipping those whose inputs and outputs are unchanged; update the manifest.
 
     The manifest (``outdir/manifest.json``) records for every figure: name,
@@ -366,54 +366,173 @@ def run_many(names, outdir="figures", *, quick: bool = False, force: bool = Fals
     the figures build are kept on disk for the next run (:mod:`repro.experiments.shared`).  ``faces``: glTF
     faces added to every Lewis figure (all read first; a bad one is a ModelError
     before any figure runs), part of the input key by content hash.
+
+    ``jobs`` > 1: the figures without wall-clock numbers are computed in that many worker
+    processes (``spawn``ed: no fork after threads), each writing its own CSV/PNG atomically;
+    this process alone checks, hashes and merges them into the manifest.  The timing figures
+    then run here, one by one, after the workers have stopped, so nothing else runs while
+    they measure.  A worker that dies (killed, out of memory) fails its figure, and the
+    temporary files it left in ``outdir`` are removed.
     """
     from repro.experiments import shared
     from repro.experiments.lewis import common
 
     out = output_folder(outdir)
     with common.use_faces(faces), shared.kept_on_disk():  # the databases figures share, kept for the next run
-        return _run_many(names, out, quick=quick, force=force, on_result=on_result, progress=progress)
+        return _run_many(names, out, quick=quick, force=force, on_result=on_result, progress=progress,
+                         faces=faces, jobs=jobs)
 
 
-def _run_many(names, out, *, quick, force, on_result, progress) -> dict:
-    import datetime
-
+def _run_many(names, out, *, quick, force, on_result, progress, faces=(), jobs=1) -> dict:
     from repro.errors import ReproError
 
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ReproError(f"jobs must be a whole number >= 1, got {jobs!r}")
     manifest = _load_manifest(out)
     code = _code_fingerprint()
     status = {}
+    keys = {}
+    todo = []
     for name in names:
         exp = get(name)
-        key = input_key(exp, quick=quick, code=code)
-        if not force and _up_to_date(manifest.get(name), key, out):
+        keys[name] = input_key(exp, quick=quick, code=code)
+        if not force and _up_to_date(manifest.get(name), keys[name], out):
             status[name] = "cached"
             if on_result:
                 on_result(name, "cached", [])
+        else:
+            todo.append(name)
+
+    def done(name, result):
+        if isinstance(result, str):  # "failed: ..."
+            status[name] = result
+            if on_result:
+                on_result(name, result, [])
+            return
+        manifest[name] = _record(out, get(name), keys[name], result)
+        status[name] = "ran"
+        if on_result:
+            on_result(name, "ran", result)
+
+    pooled = [n for n in todo if not get(n).timing] if jobs > 1 else []
+    if len(pooled) > 1:
+        _run_pool(pooled, out, quick=quick, progress=progress, faces=faces, jobs=jobs, done=done)
+    else:
+        pooled = []
+    for name in todo:  # everything with jobs=1; else the timing figures, alone, after the workers stopped
+        if name in pooled:
             continue
         try:
             paths = run(name, out, quick=quick, progress=progress)
         except ReproError as exc:
-            status[name] = f"failed: {exc}"
-            if on_result:
-                on_result(name, status[name], [])
+            done(name, f"failed: {exc}")
             continue
-        entry = {
-            "name": name,
-            "caption": exp.caption,
-            "paper": exp.paper,
-            "function": exp.function,
-            "notebooks": _notebooks_using(name),
-            "data": {d: key["data"][d] for d in exp.data},
-            "timing": exp.timing,
-            "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-            "git_commit": _git_commit(),
-            "inputs": key,
-            "files": [{"file": p.name, "sha256": _sha256(p)} for p in paths],
-        }
-        _update_manifest(out, name, entry)
-        manifest[name] = entry
-        status[name] = "ran"
-        if on_result:
-            on_result(name, "ran", paths)
-    return status
+        done(name, paths)
+    return {n: status[n] for n in names}
+
+
+# ------------------------------------------------------------------ worker processes (``jobs`` > 1)
+_WORKER: list = []
+
+
+def _worker_start(faces, modules) -> None:
+    """A worker's set-up: the user's faces and the on-disk database cache, for its whole life."""
+    import contextlib
+    import importlib
+
+    from repro.experiments import shared
+    from repro.experiments.lewis import common
+
+    for module in modules:  # figures registered outside this package (e.g. by tests)
+        importlib.import_module(module)
+    stack = contextlib.ExitStack()
+    stack.enter_context(common.use_faces(faces))
+    stack.enter_context(shared.kept_on_disk())
+    _WORKER.append(stack)  # kept open until the process ends
+
+
+def _worker_run(name: str, outdir: str, quick: bool, progress: bool):
+    """:func:`run` in a worker: the paths written (as strings), or ``"failed: ..."`` for a ReproError."""
+    from repro.errors import ReproError
+
+    try:
+        return [str(p) for p in run(name, outdir, quick=quick, progress=progress)]
+    except ReproError as exc:  # a message, not the exception: a custom exception need not pickle
+        return f"failed: {exc}"
+
+
+def _run_pool(names, out: Path, *, quick, progress, faces, jobs, done) -> None:
+    """Compute ``names`` in ``jobs`` spawned processes; ``done(name, paths | "failed: ...")`` here, as each ends.
+
+    A dying worker breaks the whole pool: the figures it took down with it are computed
+    again, each in a process of its own, so only the one that kills its process fails.
+    """
+    broken = _pool(names, out, quick=quick, progress=progress, faces=faces, jobs=jobs, done=done)
+    for name in broken:
+        if _pool([name], out, quick=quick, progress=progress, faces=faces, jobs=1, done=done):
+            done(name, "failed: its worker process died (killed, out of memory, or crashed)")
+
+
+def _pool(names, out: Path, *, quick, progress, faces, jobs, done) -> list:
+    """One pool over ``names``; the names whose worker died (not passed to ``done``)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
+
+    package = __name__.rpartition(".")[0] + "."
+    modules = sorted({get(n).module for n in names if not get(n).module.startswith(package)})
+    pool = ProcessPoolExecutor(max_workers=min(jobs, len(names)), mp_context=multiprocessing.get_context("spawn"),
+                               initializer=_worker_start, initargs=(tuple(str(f) for f in faces), tuple(modules)))
+    pending, broken = {}, []
+    try:
+        pending = {pool.submit(_worker_run, n, str(out), quick, progress): n for n in names}
+        for fut in as_completed(list(pending)):
+            name = pending.pop(fut)
+            try:
+                result = fut.result()
+            except BrokenProcessPool:
+                _remove_temporaries(out, name)
+                broken.append(name)
+                continue
+            done(name, result if isinstance(result, str) else [Path(p) for p in result])
+    except BaseException:  # Ctrl-C, or an error that is not repro's: stop the workers now, not after their figures
+        # (ProcessPoolExecutor.terminate_workers is Python >= 3.14; before, its process table is the only handle)
+        for proc in list((getattr(pool, "_processes", None) or {}).values()):
+            proc.terminate()
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+        for name in pending.values():  # unfinished: what their workers were writing when stopped
+            _remove_temporaries(out, name)
+    return [n for n in names if n in broken]
+
+
+def _remove_temporaries(out: Path, name: str) -> None:
+    """The temporary files (:func:`repro.io.atomic_path`) a dead worker left for figure ``name``."""
+    import contextlib
+
+    for tmp in list(out.glob(f".{name}.*.tmp")) + list(out.glob(f".{name}-*.tmp")):
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+
+
+def _record(out: Path, exp: Experiment, key: dict, paths) -> dict:
+    """The manifest entry of a figure just written (merged into the manifest under its lock)."""
+    import datetime
+
+    name = exp.name
+    entry = {
+        "name": name,
+        "caption": exp.caption,
+        "paper": exp.paper,
+        "function": exp.function,
+        "notebooks": _notebooks_using(name),
+        "data": {d: key["data"][d] for d in exp.data},
+        "timing": exp.timing,
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "git_commit": _git_commit(),
+        "inputs": key,
+        "files": [{"file": p.name, "sha256": _sha256(p)} for p in paths],
+    }
+    _update_manifest(out, name, entry)
+    return entry

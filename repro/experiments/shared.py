@@ -9,7 +9,10 @@ database (the code for ``"synthetic"``, the dataset's registry sha256s for ``"cm
 factor, the seed, the source of the ``repro`` package and numpy's version.  A ``.json``
 beside it records that key and the archive's sha256; both are checked on load (and
 :meth:`MotionDatabase.load` checks the archive's structure), so a damaged, foreign or stale
-file is rebuilt, with a :class:`~repro.errors.CacheWarning` when it was damaged.
+file is rebuilt, with a :class:`~repro.errors.CacheWarning` when it was damaged.  Writers hold
+a lock per file (:func:`repro.io.file_lock`) from reading to writing it, so two processes
+needing the same database (``repro all --jobs``, two ``repro run``) build it once, and
+neither sees the other's archive half-replaced beside an old ``.json``.
 
 Writing costs about as much as building a 10x database (compressing it), so a cache file is
 read wherever it exists but written only inside :func:`kept_on_disk` (``repro run`` / ``repro
@@ -110,7 +113,7 @@ def augmented_database(name: str = "synthetic", factor: int = 1, seed: int = 0, 
     database.
     """
     from repro.errors import DataError
-    from repro.io import write_text
+    from repro.io import file_lock, write_text
     from repro.motion.augment import augment
     from repro.motion.sources import default_database
 
@@ -122,8 +125,13 @@ def augmented_database(name: str = "synthetic", factor: int = 1, seed: int = 0, 
 
     key = database_key(name, factor, seed)
     path = data.cache_dir() / "motion" / f"{name}-x{int(factor)}-seed{int(seed)}-{key[:20]}.npz"
-    db = _load(path, key)
-    if db is None:
+    with contextlib.ExitStack() as stack:
+        if _WRITE[0]:  # writers (repro run / all, its --jobs workers, other processes) take turns per file:
+            with contextlib.suppress(OSError):  # the second waits for the first and reads what it wrote
+                stack.enter_context(file_lock(_lock_path(path)))
+        db = _load(path, key)
+        if db is not None:
+            return db
         db = augment(default_database(name), factor, seed=seed)
         if not _WRITE[0]:
             return db
@@ -134,3 +142,12 @@ def augmented_database(name: str = "synthetic", factor: int = 1, seed: int = 0, 
         except (OSError, DataError):  # a cache folder that cannot be written: no cache
             pass
     return db
+
+
+def _lock_path(path: Path) -> Path:
+    """The lock of one cache file: in the temp folder, one per user and file (the cache folder holds only caches)."""
+    import os
+    import tempfile
+
+    name = hashlib.sha256(str(Path(path).resolve()).encode()).hexdigest()[:20]
+    return Path(tempfile.gettempdir()) / f"repro-{os.getuid()}" / f"database-{name}"

@@ -76,3 +76,44 @@ def test_the_base_database_is_not_cached(cache):
     with shared.kept_on_disk():
         assert shared.augmented_database("synthetic", 1).n_clips > 0
     assert not cache.exists()
+
+
+_BUILDER = """
+import importlib, sys, time, warnings
+from pathlib import Path
+warnings.simplefilter("error")  # a half-replaced file seen as damaged would warn
+from repro.experiments import shared
+augment_module = importlib.import_module("repro.motion.augment")
+real = augment_module.augment
+def counted(*a, **k):
+    Path(sys.argv[1], f"built-{sys.argv[2]}").write_text("")
+    return real(*a, **k)
+augment_module.augment = counted
+Path(sys.argv[1], f"ready-{sys.argv[2]}").write_text("")
+while not Path(sys.argv[1], "go").exists():
+    time.sleep(0.005)
+with shared.kept_on_disk():
+    db = shared.augmented_database("synthetic", 3, seed=0)
+print(db.n_clips)
+"""
+
+
+def test_two_processes_needing_one_database_build_it_once(cache, tmp_path):
+    """``repro all --jobs`` workers (or two ``repro run``) asking for the same database at once: one builds
+    and writes it, the other waits and reads it (the lock in :func:`shared.augmented_database`)."""
+    import subprocess
+    import sys
+    import time
+
+    procs = [subprocess.Popen([sys.executable, "-c", _BUILDER, str(tmp_path), tag], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for tag in "ab"]
+    deadline = time.monotonic() + 120
+    while not all((tmp_path / f"ready-{t}").exists() for t in "ab"):
+        assert time.monotonic() < deadline and all(p.poll() is None for p in procs), [p.communicate() for p in procs]
+        time.sleep(0.01)
+    (tmp_path / "go").write_text("")
+    outs = [p.communicate(timeout=300) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], outs
+    assert outs[0][0] == outs[1][0]
+    assert len(list(tmp_path.glob("built-*"))) == 1
+    assert sorted(p.suffix for p in cache.iterdir()) == [".json", ".npz"]
