@@ -34,6 +34,10 @@ GOAL_SPEEDUP_AT_100X: float = 20.0
 GOAL_EXACT_P99_MS: float = 1000.0 / 30.0
 #: growth of the pruned search's median with the number of poses (log-log slope)
 GOAL_LOGLOG_SLOPE: float = 0.5
+#: from FLOAT32_FROM (1,000x, 4.6 M poses) at most this many queries, each timed once: the
+#: exhaustive scan there takes ~0.2 s a query (measured: 198 ms p50 on synthetic), so 200
+#: queries x 3 repeats per method would add ~10 min to `repro all` for one row
+LARGE_N_QUERIES: int = 100
 
 
 def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_queries: int = 200,
@@ -43,7 +47,8 @@ def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_quer
     For each base database (the synthetic one always, the CMU one when its data is
     present) and each augmentation factor (1x, 10x, 100x, 1,000x; 1x and 10x with ``quick``;
     from :data:`~repro.bench.index_build.FLOAT32_FROM` = 1,000x the pose clouds are float32, whose
-    rounding, 6e-8 relative, is far below the noise of the variants),
+    rounding, 6e-8 relative, is far below the noise of the variants, and at most
+    :data:`LARGE_N_QUERIES` queries are timed once each),
     :func:`repro.motion.retrieval.time_search` times all four methods on the same
     ``n_queries`` random queries, in one process.  One row per (database, factor,
     method) with the columns ``n_clips, n_poses, method, p50_ms, p99_ms`` (the
@@ -78,7 +83,10 @@ def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_quer
             base = default_database(name)
             db = base if factor == 1 else augment(base, factor, seed=seed,
                                                   pose_dtype=np.float32 if factor >= FLOAT32_FROM else None)
-        t = time_search(db, n_queries=n_queries if not quick else min(n_queries, 100), seed=seed)
+        nq = n_queries if not quick else min(n_queries, 100)
+        large = factor >= FLOAT32_FROM
+        t = time_search(db, n_queries=min(nq, LARGE_N_QUERIES) if large else nq, seed=seed,
+                        repeats=1 if large else 3)
         for method, lat in t["latency"].items():
             agree = t["agreement"].get(method, {"differs": 0.0, "n_differs": 0, "mean_excess": 0.0})
             rows.append(dict(database=name, factor=factor, n_clips=t["n_clips"], n_poses=t["n_poses"],
