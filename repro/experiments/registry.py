@@ -166,17 +166,9 @@ def _sha256(path) -> str:
 
 def _code_fingerprint() -> str:
     """sha256 over every source file of the ``repro`` package (any code change invalidates)."""
-    import hashlib
+    from repro.experiments.shared import source_fingerprint
 
-    import repro
-
-    root = Path(repro.__file__).parent
-    h = hashlib.sha256()
-    for f in sorted(root.rglob("*")):
-        if f.suffix in (".py", ".csv") and "__pycache__" not in f.parts:
-            h.update(str(f.relative_to(root)).encode())
-            h.update(f.read_bytes())
-    return h.hexdigest()
+    return source_fingerprint()
 
 
 def _dataset_fingerprint(name: str) -> str | None:

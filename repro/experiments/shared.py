@@ -46,9 +46,8 @@ def kept_on_disk(on: bool = True):
         _WRITE[0] = before
 
 
-@lru_cache(maxsize=1)
-def code_fingerprint() -> str:
-    """sha256 over every source file of the ``repro`` package (once per process)."""
+def source_fingerprint() -> str:
+    """sha256 over every source file of the ``repro`` package (any code change invalidates)."""
     import repro
 
     root = Path(repro.__file__).parent
@@ -58,6 +57,10 @@ def code_fingerprint() -> str:
             h.update(str(f.relative_to(root)).encode())
             h.update(f.read_bytes())
     return h.hexdigest()
+
+
+#: :func:`source_fingerprint` once per process (the database cache keys on it)
+code_fingerprint = lru_cache(maxsize=1)(source_fingerprint)
 
 
 def database_key(name: str, factor: int, seed: int) -> str:
