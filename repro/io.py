@@ -37,6 +37,7 @@ __all__ = [
     "read_bytes",
     "read_npz",
     "file_lock",
+    "lock_path",
     "MAX_READ_BYTES",
 ]
 
@@ -289,6 +290,16 @@ def _npz_member(z, info, disk, where, error, allow, finite, np, npy):
         idx = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
         raise error(f"{at}: NaN or inf at index {list(idx)} (value {a[idx]!r})")
     return a
+
+
+def lock_path(kind: str, target) -> Path:
+    """Where the lock (for :func:`file_lock`) of ``target`` lives: the temp folder, one per user,
+    kind and resolved target (so that the folders the locks guard hold only their own files)."""
+    import hashlib
+    import tempfile
+
+    key = hashlib.sha256(str(Path(target).resolve()).encode()).hexdigest()[:20]
+    return Path(tempfile.gettempdir()) / f"repro-{os.getuid()}" / f"{kind}-{key}"
 
 
 @contextlib.contextmanager

@@ -321,11 +321,9 @@ def _manifest_lock(outdir: Path) -> Path:
 
     (Not in the output folder, which holds only what the figures wrote and the manifest.)
     """
-    import hashlib
-    import tempfile
+    from repro.io import lock_path
 
-    key = hashlib.sha256(str(Path(outdir).resolve()).encode()).hexdigest()[:20]
-    return Path(tempfile.gettempdir()) / f"repro-{os.getuid()}" / f"manifest-{key}"
+    return lock_path("manifest", outdir)
 
 
 def _up_to_date(entry: dict | None, key: dict, outdir: Path) -> bool:

@@ -149,8 +149,6 @@ def augmented_database(name: str = "synthetic", factor: int = 1, seed: int = 0, 
 
 def _lock_path(path: Path) -> Path:
     """The lock of one cache file: in the temp folder, one per user and file (the cache folder holds only caches)."""
-    import os
-    import tempfile
+    from repro.io import lock_path
 
-    name = hashlib.sha256(str(Path(path).resolve()).encode()).hexdigest()[:20]
-    return Path(tempfile.gettempdir()) / f"repro-{os.getuid()}" / f"database-{name}"
+    return lock_path("database", path)
