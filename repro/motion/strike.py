@@ -337,12 +337,12 @@ def _step(blended, effector, X, tc, ad, contacts, ch, opts, kind, release, max_r
     foot_tol = max(1e-3 * leg, ad.foot_error)
     n_rel = None if release is None else int(round(float(release) / blended.frame_time))
     best = None
+    w = offset_curve(0, t_land, np.ones(3), F, kind=kind, release=None)[:, 0]  # 0 -> 1 over the step
     for scale in (1.0, 0.5):
         step = 2.0 * scale * miss
         n = float(np.linalg.norm(step))
         if n > MAX_STEP * leg:
             step *= MAX_STEP * leg / n
-        w = offset_curve(0, t_land, np.ones(3), F, kind=kind, release=None)[:, 0]
         feet_off = np.zeros((F, 2, 3))
         feet_off[:, side] = w[:, None] * step
         feet_off[1:t_land, side, 1] += STEP_LIFT * leg * np.sin(np.pi * w[1:t_land])
@@ -492,7 +492,8 @@ def strike(
     # a root trial reads the support foot over the whole clip: exact on two frames when the feet
     # do not depend on the hit solve (a punch); a kick's trials are solved in full (CCD's pelvis)
     whole_body = reach in ("root", "step")
-    part = stream and not (whole_body and EFFECTOR_STEMS[effector.split("_", 1)[1]] == "leg")
+    limb = EFFECTOR_STEMS[effector.split("_", 1)[1]]  # "arm" (punch) or "leg" (kick)
+    part = stream and not (whole_body and limb == "leg")
     early = None
     f1 = first[0]
     if stream and not part and f1 > 0:
@@ -523,7 +524,7 @@ def strike(
                 final = None if part else ad2
                 break
     stepped = None
-    if not ad.reached and reach == "step" and EFFECTOR_STEMS[effector.split("_", 1)[1]] == "arm":
+    if not ad.reached and reach == "step" and limb == "arm":
         if final is None:  # the whole clip at the level reached so far: the step starts from it
             final = adapt(blended, effector, X, 0, tc, root_offsets=off, max_iter=max_iter, **opts)
             ad = final
