@@ -82,8 +82,9 @@ Arguments are checked, never silently cut or coerced (a
   they overflow, and the searches would return ``d = inf`` or, in the k-d tree,
   missing neighbours); a search whose distance still comes out non-finite (a
   character of a tiny size making ``c_r`` enormous) is refused;
-* ``w_q`` and ``w_c`` are real numbers in ``[0, MAX_WEIGHT]`` (1e6), not both 0
-  (only their ratio matters for the selection);
+* ``w_q`` and ``w_c`` are positive real numbers in ``(0, MAX_WEIGHT]`` (1e6) (only their
+  ratio matters for the selection; a weight of 0 would drop a term of Eq. d and leave
+  ties that no bound separates: ask for a small weight instead);
 * ``k`` (clusters) is an int in ``[1, n_poses]``, ``seed`` an int >= 0,
   ``kd_neighbours`` an int >= 1 (more than a semantics' startable poses means all of
   them), ``frame`` an int inside the current pose, ``semantics`` one of
@@ -313,11 +314,12 @@ def _check_target(target) -> np.ndarray:
 
 
 def _check_weight(name: str, w) -> float:
+    """A weight of ``d = w_q d_qr + w_c d_cr``: a positive finite real number, at most :data:`MAX_WEIGHT`."""
     if isinstance(w, (bool, np.bool_)) or not isinstance(w, (int, float, np.integer, np.floating)):
-        raise RetrievalError(f"{name} must be a real number in [0, {MAX_WEIGHT:g}], got {w!r}")
+        raise RetrievalError(f"{name} must be a positive real number in (0, {MAX_WEIGHT:g}], got {w!r}")
     w = float(w)
-    if not (np.isfinite(w) and 0.0 <= w <= MAX_WEIGHT):
-        raise RetrievalError(f"{name} must be finite and in [0, {MAX_WEIGHT:g}], got {w!r}")
+    if not (np.isfinite(w) and 0.0 < w <= MAX_WEIGHT):
+        raise RetrievalError(f"{name} must be positive, finite and at most {MAX_WEIGHT:g}, got {w!r}")
     return w
 
 
@@ -425,7 +427,7 @@ class MotionRetriever(ExactSearch, StartScoring):
         Pose point weights (default uniform).
     w_q, w_c : float, default 1
         Weights of ``d = w_q d_qr + w_c d_cr`` (both distances in metres), in
-        ``[0, MAX_WEIGHT]``, not both 0.
+        ``(0, MAX_WEIGHT]`` (positive: see the module docstring).
     kd_neighbours : int, default 32
         Neighbours fetched by :meth:`search_kdtree` before rescoring (>= 1; at most the
         startable poses of the semantics are fetched).
@@ -453,8 +455,6 @@ class MotionRetriever(ExactSearch, StartScoring):
         if db.n_clips == 0 or db.n_poses == 0:
             raise RetrievalError("the motion database is empty")
         w_q, w_c = _check_weight("w_q", w_q), _check_weight("w_c", w_c)
-        if w_q == 0.0 and w_c == 0.0:
-            raise RetrievalError("w_q and w_c are both 0: every pose would score d = 0")
         if k is not None:
             k = check_int(k, "k (number of clusters)", 1, db.n_poses, RetrievalError)
         seed = check_int(seed, "seed", 0, None, RetrievalError)

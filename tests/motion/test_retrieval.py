@@ -192,7 +192,7 @@ def test_alignment_places_the_start_pose_on_the_current_pose(db, retriever, thet
     qroot[:, 0] = quat_multiply(qy, qroot[:, 0])
     pose = dataclasses.replace(pose, positions=pos, rotations=qroot)
     actor = db.actor_skeleton(i)
-    r = MotionRetriever(db, w_c=0.0).search(db.hit_position[i], pose, actor, str(db.semantics[i]), prune=False)
+    r = MotionRetriever(db, w_c=1e-9).search(db.hit_position[i], pose, actor, str(db.semantics[i]), prune=False)
     assert r.d_qr < 1e-6  # the same pose (or an identical one) is found
     start = db.motion(r.clip).global_positions()[r.start_frame]
     placed = r.place(start)

@@ -82,7 +82,7 @@ CTOR_BAD = [
     dict(k=0), dict(k=-3), dict(k=2.5), dict(k="4"), dict(k=True), dict(k=10**6), dict(k=10**30),
     dict(seed=-1), dict(seed="a"), dict(seed=1.5), dict(seed=None),
     dict(w_q="x"), dict(w_q=None), dict(w_q=-1.0), dict(w_q=np.inf), dict(w_q=np.nan), dict(w_q=True),
-    dict(w_q=1j), dict(w_q=[1.0]), dict(w_c=1e308), dict(w_c=-0.5), dict(w_q=0.0, w_c=0.0),
+    dict(w_q=1j), dict(w_q=[1.0]), dict(w_c=1e308), dict(w_c=-0.5), dict(w_q=0.0, w_c=0.0), dict(w_q=0.0), dict(w_c=0), dict(w_c=-0.0),
     dict(kd_neighbours=0), dict(kd_neighbours=-1), dict(kd_neighbours=2.5), dict(kd_neighbours="8"),
     dict(weights="x"), dict(weights=[1.0, 2.0]), dict(weights=np.full(17, np.nan)), dict(weights=np.zeros(17)),
     dict(weights=-np.ones(17)), dict(weights=np.ones(17) * 1j), dict(weights={"pelvis": 1.0}),
