@@ -5,6 +5,7 @@
     repro all                       run every registered figure (--jobs N: in N processes)
     repro bench attenuation         print speed ratios, write figures/bench_attenuation.csv
     repro bench retrieval           search latency vs database size, write figures/retrieval_latency.csv
+                                    (--queries N --factors 1,10,100 --database cmu: e.g. 1,000 queries)
     repro bench adaptation          retarget/adapt cost per frame, write figures/bench_adaptation.csv
     repro bench index               build time and peak memory of the 100x / 1,000x databases and index
     repro bench prepare             query preparation (q retargeted to the actor) per kind of character
@@ -52,6 +53,12 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("which", choices=BENCHES)
     b.add_argument("--quick", action="store_true")
     b.add_argument("--out", default=DEFAULT_OUT)
+    b.add_argument("--queries", type=int, default=None, metavar="N",
+                   help="retrieval: queries per database and size (default 200; 100 with --quick or from 1,000x)")
+    b.add_argument("--factors", default=None, metavar="F,F,...",
+                   help="retrieval: database sizes, comma-separated (default 1,10,100,1000; 1,10 with --quick)")
+    b.add_argument("--database", action="append", default=None, metavar="NAME",
+                   help="retrieval: a base database (synthetic, cmu); repeatable (default: synthetic, and cmu when present)")
     c = sub.add_parser("claims", help="the claims ledger: each claim, its measured value, a verdict")
     c.add_argument("--full", action="store_true", help="measure with the full sweeps (default: the quick ones CI uses)")
     c.add_argument("--out", default=DEFAULT_OUT)
@@ -213,7 +220,20 @@ def _main(args) -> int:
                 "index": (index_build.bench_index_build, index_build.format_index_build, "bench_index_build.csv"),
                 "prepare": (prepare.bench_prepare, prepare.format_prepare, "bench_prepare.csv"),
             }[args.which]
-            table = run_(quick=args.quick, progress=True)
+            extra = {}
+            if args.queries is not None or args.factors is not None or args.database is not None:
+                if args.which != "retrieval":
+                    print("repro: --queries, --factors and --database are options of 'repro bench retrieval'",
+                          file=sys.stderr)
+                    return 2
+                try:
+                    factors = None if args.factors is None else [int(f) for f in args.factors.split(",")]
+                except ValueError:
+                    print(f"repro: --factors must be comma-separated ints >= 1, got {args.factors!r}", file=sys.stderr)
+                    return 2
+                extra = dict(n_queries=args.queries, factors=factors, databases=args.database)
+                retrieval.check_bench_arguments(extra["databases"], factors, args.queries)  # before any work
+            table = run_(quick=args.quick, progress=True, **extra)
             print(fmt(table))
             print(f"wrote {write_csv(Path(args.out) / csv_name, table)}")
             return 0

@@ -22,6 +22,7 @@ __all__ = [
     "GOAL_LOGLOG_SLOPE",
     "GOAL_SPEEDUP_AT_100X",
     "bench_retrieval",
+    "check_bench_arguments",
     "format_retrieval",
     "retrieval_summary",
 ]
@@ -40,17 +41,55 @@ GOAL_LOGLOG_SLOPE: float = 0.5
 LARGE_N_QUERIES: int = 100
 
 
-def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_queries: int = 200,
+#: queries per (database, size) when not asked for (``n_queries=None``)
+DEFAULT_N_QUERIES: int = 200
+#: the sizes (augmentation factors) drawn in the figure
+FACTORS: tuple[int, ...] = (1, 10, 100, 1000)
+#: the base databases :func:`bench_retrieval` knows
+DATABASES: tuple[str, ...] = ("synthetic", "cmu")
+
+
+def check_bench_arguments(databases, factors, n_queries):
+    """``(databases, factors, n_queries)`` of :func:`bench_retrieval` checked (None kept: the defaults).
+
+    Raises
+    ------
+    repro.errors.RetrievalError
+        An unknown database, a factor that is not an int >= 1, ``n_queries`` not an int >= 1.
+    """
+    from repro.errors import RetrievalError
+    from repro.motion.clustering import check_int
+
+    if databases is not None:
+        databases = [databases] if isinstance(databases, str) else list(databases)
+        bad = [d for d in databases if not isinstance(d, str) or d not in DATABASES]
+        if bad or not databases:
+            raise RetrievalError(f"databases must be a non-empty list of {list(DATABASES)}, got {databases!r}")
+    if factors is not None:
+        try:
+            factors = tuple(factors)
+        except TypeError:
+            raise RetrievalError(f"factors must be a sequence of ints >= 1, got {factors!r}") from None
+        if not factors:
+            raise RetrievalError("factors must name at least one size (an int >= 1)")
+        factors = tuple(check_int(f, "factor", 1, None, RetrievalError) for f in factors)
+    if n_queries is not None:
+        n_queries = check_int(n_queries, "n_queries", 1, None, RetrievalError)
+    return databases, factors, n_queries
+
+
+def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_queries: int | None = None,
                     seed: int = 0, progress: bool = False, database=None):
     """Latency of the paper's pruned search, the exact search, the exhaustive scan and the kd-tree, vs size.
 
     For each base database (the synthetic one always, the CMU one when its data is
     present) and each augmentation factor (1x, 10x, 100x, 1,000x; 1x and 10x with ``quick``;
     from :data:`~repro.bench.index_build.FLOAT32_FROM` = 1,000x the pose clouds are float32, whose
-    rounding, 6e-8 relative, is far below the noise of the variants, and at most
-    :data:`LARGE_N_QUERIES` queries are timed once each),
+    rounding, 6e-8 relative, is far below the noise of the variants, and, unless ``n_queries``
+    is given, at most :data:`LARGE_N_QUERIES` queries are timed once each),
     :func:`repro.motion.retrieval.time_search` times all four methods on the same
-    ``n_queries`` random queries, in one process.  One row per (database, factor,
+    ``n_queries`` random queries (default :data:`DEFAULT_N_QUERIES`, 100 with ``quick``; a
+    given number is honoured at every size), in one process.  One row per (database, factor,
     method) with the columns ``n_clips, n_poses, method, p50_ms, p99_ms`` (the
     contract of ``figures/retrieval_latency.csv``) plus how often the method's choice
     differs from the exhaustive optimum (fraction and count: 0 for the exact search),
@@ -70,10 +109,11 @@ def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_quer
     from repro.motion.sources import default_database
     from repro.motion.retrieval import time_search
 
+    databases, factors, asked = check_bench_arguments(databases, factors, n_queries)
     if databases is None:
         databases = ["synthetic"] + (["cmu"] if data.missing_reason("cmu-bvh") is None else [])
     if factors is None:
-        factors = (1, 10) if quick else (1, 10, 100, 1000)
+        factors = FACTORS[:2] if quick else FACTORS
     rows = []
     work = [(name, f) for name in databases for f in factors]
     for name, factor in tqdm(work, desc="bench retrieval", delay=1.0, disable=not progress, file=sys.stderr):
@@ -83,10 +123,13 @@ def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_quer
             base = default_database(name)
             db = base if factor == 1 else augment(base, factor, seed=seed,
                                                   pose_dtype=np.float32 if factor >= FLOAT32_FROM else None)
-        nq = n_queries if not quick else min(n_queries, 100)
         large = factor >= FLOAT32_FROM
-        t = time_search(db, n_queries=min(nq, LARGE_N_QUERIES) if large else nq, seed=seed,
-                        repeats=1 if large else 3)
+        if asked is not None:
+            nq = asked
+        else:
+            nq = min(DEFAULT_N_QUERIES, 100) if quick else DEFAULT_N_QUERIES
+            nq = min(nq, LARGE_N_QUERIES) if large else nq
+        t = time_search(db, n_queries=nq, seed=seed, repeats=1 if large else 3)
         for method, lat in t["latency"].items():
             agree = t["agreement"].get(method, {"differs": 0.0, "n_differs": 0, "mean_excess": 0.0})
             rows.append(dict(database=name, factor=factor, n_clips=t["n_clips"], n_poses=t["n_poses"],

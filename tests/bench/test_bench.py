@@ -71,3 +71,38 @@ def test_bench_prepare_rows_and_equality():
     assert p.step_p50_ms > 0 and p.baseline_step_p50_ms > 0 and p.step_speedup > 0
     assert (t.max_abs_diff == 0).all()  # the plan's q_r is retarget()'s, bit for bit
     assert "retarget() " in prepare.format_prepare(t) and "goal prepare < 1 ms" in prepare.format_prepare(t)
+
+
+def test_bench_retrieval_cli_options_reach_the_benchmark(tmp_path, monkeypatch):
+    """``--queries/--factors/--database`` are passed on; a given number of queries is honoured, not capped."""
+    seen, full = {}, retrieval.bench_retrieval
+
+    def fake(quick, progress=False, **kw):
+        seen.update(kw)
+        return full(databases=["synthetic"], factors=(1,), n_queries=3, progress=False)
+
+    monkeypatch.setattr(retrieval, "bench_retrieval", fake)
+    argv = ["bench", "retrieval", "--queries", "1000", "--factors", "1,10,100", "--database", "synthetic",
+            "--out", str(tmp_path)]
+    assert cli.main(argv) == 0
+    assert seen == {"n_queries": 1000, "factors": [1, 10, 100], "databases": ["synthetic"]}
+
+
+@pytest.mark.parametrize("argv", [
+    ["bench", "retrieval", "--factors", "1,x"], ["bench", "retrieval", "--factors", "0"],
+    ["bench", "retrieval", "--queries", "0"], ["bench", "retrieval", "--database", "nope"],
+    ["bench", "adaptation", "--queries", "5"],
+])
+def test_bench_retrieval_cli_refuses_bad_options(argv, tmp_path, capsys):
+    assert cli.main(argv + ["--out", str(tmp_path)]) in (1, 2)
+    assert "repro:" in capsys.readouterr().err
+    assert not (tmp_path / "retrieval_latency.csv").exists()
+
+
+@pytest.mark.parametrize("kw", [dict(databases=["nope"]), dict(databases=[]), dict(factors=(0,)), dict(factors=(1.5,)),
+                                dict(factors=()), dict(factors=5), dict(n_queries=0), dict(n_queries="10")])
+def test_bench_retrieval_refuses_bad_arguments(kw):
+    from repro.errors import RetrievalError
+
+    with pytest.raises(RetrievalError):
+        retrieval.bench_retrieval(progress=False, **kw)
