@@ -90,3 +90,24 @@ def test_the_papers_numbers_are_named_not_typed():
     src = (Path(claims.__file__).parent / "pronost.py").read_text()
     for literal in ("280", "0.28", "1 / 30", "1/30", "88", "40 ms"):
         assert literal not in src, literal
+
+
+def test_k3_and_k7_read_the_exact_rows():
+    """K3 has three rows (paper's pruning, exact, exhaustive) and K7 the exact search's slope (issue 13)."""
+    from types import SimpleNamespace
+
+    from repro.claims import pronost
+
+    rows = []
+    for f, n in ((1, 1000), (10, 10000), (100, 100000)):
+        for method, p50, differs in (("pruned", 0.1 * f ** 0.2, 0.4), ("exact", 0.2 * f ** 0.5, 0.0),
+                                     ("exhaustive", 0.5 * f, 0.0)):
+            rows.append(dict(database="synthetic", factor=f, n_poses=n, method=method, p50_ms=p50,
+                             differs_from_exhaustive=differs))
+    get = lambda name: SimpleNamespace(table=pd.DataFrame(rows))  # noqa: E731
+    _, v3, why3 = pronost.k3(get)["embedded"]
+    assert v3["exact_worst_fraction_differing"] == 0.0 and v3["exact_speedup_vs_exhaustive"] == pytest.approx(50 / 2)
+    assert "exact branch-and-bound" in why3
+    _, v7, why7 = pronost.k7(get)["embedded"]
+    assert v7["loglog_slope_exact"] == pytest.approx(0.5) and v7["loglog_slope_pruned"] == pytest.approx(0.2)
+    assert "exact 0.50" in why7
