@@ -581,8 +581,12 @@ class _Check:
             self.fail(f"{key!r} has {len(v)} entries, expected {n} (one per clip)")
         return np.array(v, dtype=str) if v else np.zeros(0, dtype=str)
 
-    def numbers(self, key: str, shape: tuple, kind: str) -> np.ndarray:
-        """``kind``: "int", "float" or "bool"; ``shape`` entries None match any length."""
+    def numbers(self, key: str, shape: tuple, kind: str, *, keep_float32: bool = False) -> np.ndarray:
+        """``kind``: "int", "float" or "bool"; ``shape`` entries None match any length.
+
+        Floats come back as float64, except float32 ones with ``keep_float32`` (the pose clouds
+        of a database augmented with ``pose_dtype=float32`` reload as saved, not doubled in memory).
+        """
         a = self.array(key)
         ok = {"int": "iu", "float": "iuf", "bool": "biu"}[kind]
         if a.dtype.kind not in ok:
@@ -591,7 +595,7 @@ class _Check:
             want = "(" + ", ".join("any" if s is None else str(s) for s in shape) + ")"
             self.fail(f"array {key!r} has shape {a.shape}, expected {want}")
         if kind == "float":
-            a = a.astype(float, copy=False)
+            a = a.astype(np.float32 if keep_float32 and a.dtype == np.float32 else float, copy=False)
             if not np.all(np.isfinite(a)):
                 self.fail(f"array {key!r} contains NaN or inf")
         elif kind == "bool":
@@ -690,7 +694,7 @@ def _database_from_arrays(cls, z: dict, where: str) -> MotionDatabase:
                   f"{k} does not match the clips' frame counts (offsets must be 0 and the running sum of n_frames)")
     T = N = int(offsets[-1])
     arrays["traj"] = ck.numbers("traj", (T, 3), "float")
-    arrays["pose_points"] = ck.numbers("pose_points", (N, window * len(roles), 3), "float")
+    arrays["pose_points"] = ck.numbers("pose_points", (N, window * len(roles), 3), "float", keep_float32=True)
     arrays["pose_clip"] = ck.numbers("pose_clip", (N,), "int")
     arrays["pose_frame"] = ck.numbers("pose_frame", (N,), "int")
     arrays["pose_heading"] = ck.numbers("pose_heading", (N,), "float")

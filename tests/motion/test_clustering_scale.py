@@ -165,3 +165,14 @@ def test_batched_variants_with_a_pose_window(db):
         np.testing.assert_allclose(again.pose_heading, a.pose_heading[a.poses_of(i)], atol=1e-9)
         np.testing.assert_allclose(again.box_min[0], a.box_min[i], atol=1e-9)
         assert again.hit_frame[0] == a.hit_frame[i]
+
+
+def test_float32_clouds_survive_save_and_load(db, tmp_path):
+    """A float32 database saved to npz reloads float32 (not silently doubled to float64), same numbers."""
+    from repro.motion.database import MotionDatabase
+
+    b = augment(db, 2, seed=1, pose_dtype=np.float32)
+    back = MotionDatabase.load(b.save(tmp_path / "f32.npz"))
+    assert back.pose_points.dtype == np.float32
+    np.testing.assert_array_equal(back.pose_points, b.pose_points)
+    assert MotionDatabase.load(db.save(tmp_path / "f64.npz")).pose_points.dtype == np.float64
