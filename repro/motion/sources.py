@@ -452,7 +452,8 @@ def default_database(name: str = "synthetic", seed: int = 0) -> MotionDatabase:
     """A ready database by name, built once per process (each call returns its own copy).
 
     ``"synthetic"``: the embedded set of :func:`repro.motion.synthetic.synthetic_database`
-    (75 clips written to a temporary folder, built from its manifest), always available.
+    (75 clips written to a temporary folder, built from its manifest), always available; each
+    clip's ``source`` is ``synthetic/seed<seed>/<file>.bvh`` (not the removed temporary folder).
     ``"cmu"``: :func:`build_cmu_database` from the staged CMU takes (needs dataset
     ``cmu-bvh``; raises :class:`~repro.errors.DataError` saying how to get it).
     """
@@ -469,7 +470,10 @@ def default_database(name: str = "synthetic", seed: int = 0) -> MotionDatabase:
         if name == "synthetic":
             with tempfile.TemporaryDirectory(prefix="repro-synthetic-") as tmp:
                 synthetic_database(tmp, seed=seed)
-                _DEFAULT_DATABASES[key] = build_database(tmp)
+                built = build_database(tmp)
+            # the folder is gone: each clip's source names what it is, the generated set and its file
+            built.sources = np.array([f"synthetic/seed{int(seed)}/{Path(s).name}" for s in built.sources.tolist()])
+            _DEFAULT_DATABASES[key] = built
         else:
             _DEFAULT_DATABASES[key] = build_cmu_database()
     # a copy each call (~20 ms): a caller changing its database cannot change the next caller's

@@ -40,3 +40,14 @@ def test_a_caller_changing_its_copy_does_not_change_the_next_callers():
     np.testing.assert_array_equal(b.names, names)
     np.testing.assert_array_equal(b.pose_points[0], first)
     assert "changed" not in b.meta and b.actors
+
+
+def test_synthetic_sources_name_the_generated_set_not_a_removed_folder():
+    import os
+
+    from repro.motion.sources import default_database
+
+    db = default_database("synthetic")
+    assert all(s.startswith("synthetic/seed0/") and s.endswith(".bvh") for s in db.sources.tolist())
+    assert not any(os.path.isabs(s) for s in db.sources.tolist())
+    assert default_database("synthetic").sources.tolist() == db.sources.tolist()  # stable across calls
