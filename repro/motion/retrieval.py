@@ -511,7 +511,8 @@ class MotionRetriever(ExactSearch, StartScoring):
             of the database actor(s) it is compared with (e.g. made by
             :func:`~repro.motion.skeleton.scale_skeleton`), unless the retriever
             serves across trees (``across_trees``, the default): then any humanoid skeleton, the pose retargeted
-            across trees to the other actors (whether an actor can be, per character, is
+            across trees to the other actors through a cached :class:`~repro.motion.retarget_tree.TreePlan`
+            (:meth:`tree_plan`; whether an actor can be, per character, is
             cached).
 
         Raises
