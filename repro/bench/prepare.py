@@ -4,12 +4,13 @@ actor (``q_r``) and ``c_r`` (Eq. 1), for one pose, by kind of character.
 Three characters on the synthetic database: a uniform scaling of the actor (``q_r`` is the pose
 scaled, no retargeting), one of other proportions (same joint tree: the pose is retargeted with
 the actor's cached :class:`~repro.motion.morphology.RetargetPlan`), and a Mixamo rig (another
-joint tree: :func:`~repro.motion.retrieval.retarget_to_tree`).  The baseline measured in the same
-process, interleaved with the new path, query by query, is the step the plan replaced:
-``retarget(pose, actor).global_positions()`` (encode then decode into Motion objects), against
-``plan.positions`` (both then make the pose cloud); the two clouds are compared (``max_abs_diff``,
-metres / stature: 0 when bit-identical).  The goal is this reproduction's (issue 13, item 4):
-prepare under 1 ms p50 for characters of the actor's tree.
+joint tree: the cached :class:`~repro.motion.retarget_tree.TreePlan`).  The baseline measured in
+the same process, interleaved with the new path, query by query, is the step the plan replaced:
+``retarget(pose, actor).global_positions()`` (encode then decode into Motion objects), or across
+trees ``retarget_to_tree(pose, actor, ...).global_positions()``, against ``plan.positions`` (both
+then make the pose cloud); the two clouds are compared (``max_abs_diff``, metres / stature: 0 when
+bit-identical).  The goal is this reproduction's (issue 13, item 4): prepare under 1 ms p50, for
+characters of the actor's tree and of other trees.
 """
 
 from __future__ import annotations
@@ -23,8 +24,20 @@ from repro.bench import machine
 
 __all__ = ["GOAL_PREPARE_P50_MS", "bench_prepare", "format_prepare"]
 
-#: MotionRetriever.prepare of one pose, characters of the actor's joint tree, milliseconds
+#: MotionRetriever.prepare of one pose (characters of the actor's joint tree and of others), milliseconds
 GOAL_PREPARE_P50_MS: float = 1.0
+
+
+class _Unplanned:
+    """Stands for a TreePlan in the "before" measurement: ``retarget_to_tree(...).global_positions()``."""
+
+    def __init__(self, m, actor, roles, rest):
+        self.m, self.actor, self.roles, self.rest = m, actor, dict(roles), rest
+
+    def positions(self, rotations, translations, *, source=None):
+        from repro.motion.retrieval import retarget_to_tree
+
+        return retarget_to_tree(self.m, self.actor, roles=self.roles, target=self.rest).global_positions()
 
 
 def _cloud(db, actor, g):
@@ -40,9 +53,11 @@ def bench_prepare(*, quick: bool = False, n_queries: int = 200, seed: int = 0, p
 
     Columns: ``case`` (``uniform``, ``proportions``, ``across_trees``), ``n_queries``,
     ``prepare_p50_ms`` and ``prepare_p99_ms`` (the whole call), ``step_p50_ms`` (the
-    retargeting inside it: the plan, or for ``across_trees`` :func:`retarget_to_tree`;
-    0 for ``uniform``), ``baseline_step_p50_ms`` (``retarget(...).global_positions()``, same
-    queries, interleaved), ``step_speedup`` and ``max_abs_diff`` of the two clouds.
+    retargeting inside it: the plan, RetargetPlan or for ``across_trees`` TreePlan; 0 for
+    ``uniform``), ``baseline_step_p50_ms`` (``retarget(...).global_positions()``, for
+    ``across_trees`` ``retarget_to_tree(...).global_positions()``, same queries, interleaved),
+    ``baseline_prepare_p50_ms`` and ``prepare_speedup`` (``across_trees``: the whole call with
+    ``retarget_to_tree`` in place of the TreePlan, interleaved; NaN for the others), ``step_speedup`` and ``max_abs_diff`` of the two clouds.
     """
     import pandas as pd
 
@@ -62,9 +77,10 @@ def bench_prepare(*, quick: bool = False, n_queries: int = 200, seed: int = 0, p
         "uniform": scale_skeleton(actor, scale=1.1),
         "proportions": scale_skeleton(actor, scale=1.1, arm_scale=1.2, bone_scales={"LeftForeArm": 1.3, "RightLeg": 0.8}),
     }
+    rest = rest_motion_y_up(actor)
     rows = []
     for case in ("uniform", "proportions", "across_trees"):
-        prep, step, base, diff = [], [], [], 0.0
+        prep, step, base, base_prep, diff = [], [], [], [], 0.0
         for _ in range(n):
             m = db.motion(int(rng.integers(db.n_clips)))
             f = int(rng.integers(m.n_frames))
@@ -76,10 +92,17 @@ def bench_prepare(*, quick: bool = False, n_queries: int = 200, seed: int = 0, p
                 ch = characters[case]
                 t = np.where(m.position_mask[None], m.local_translations(), ch.offsets[None])[f:f + 1]
                 pose = ch.motion_with(m.rotations[f:f + 1], t, frame_time=m.frame_time)
-            r.prepare(pose, ch)  # warm: the per-character caches (compatibility, plan, rest pose)
+            q = r.prepare(pose, ch)  # warm: the per-character caches (compatibility, plan, rest pose)
             t0 = time.perf_counter()
             r.prepare(pose, ch)
             prep.append(time.perf_counter() - t0)
+            if case == "across_trees":  # the same call as before the plan: retarget_to_tree inside
+                r.tree_plan = lambda m_, a_, roles_: _Unplanned(m_, db.actors[a_], roles_, rest)
+                t0 = time.perf_counter()
+                q_old = r.prepare(pose, ch)
+                base_prep.append(time.perf_counter() - t0)
+                del r.tree_plan
+                diff = max(diff, float(np.abs(q.q_n[0] - q_old.q_n[0]).max()))
             if case == "uniform":
                 continue
             if case == "proportions":
@@ -91,17 +114,19 @@ def bench_prepare(*, quick: bool = False, n_queries: int = 200, seed: int = 0, p
                 g_old = retarget(pose, actor).global_positions()
                 base.append(time.perf_counter() - t0)
             else:
-                rest = rest_motion_y_up(actor)
+                plan = r.tree_plan(pose, 0, ch.roles)
                 t0 = time.perf_counter()
-                g = retarget_to_tree(pose, actor, roles=dict(ch.roles), target=rest).global_positions()
+                g = plan.positions(pose.rotations, pose.local_translations())
                 step.append(time.perf_counter() - t0)
-                base.append(step[-1])
-                g_old = g
+                t0 = time.perf_counter()
+                g_old = retarget_to_tree(pose, actor, roles=dict(ch.roles), target=rest).global_positions()
+                base.append(time.perf_counter() - t0)
             diff = max(diff, float(np.abs(_cloud(db, actor, g) - _cloud(db, actor, g_old)).max()))
         ms = lambda x: float(np.median(x) * 1e3) if x else 0.0  # noqa: E731
         rows.append(dict(case=case, n_queries=n, prepare_p50_ms=ms(prep),
                          prepare_p99_ms=float(np.percentile(prep, 99) * 1e3), step_p50_ms=ms(step),
-                         baseline_step_p50_ms=ms(base),
+                         baseline_step_p50_ms=ms(base), baseline_prepare_p50_ms=ms(base_prep) if base_prep else float("nan"),
+                         prepare_speedup=ms(base_prep) / ms(prep) if base_prep else float("nan"),
                          step_speedup=ms(base) / ms(step) if step else float("nan"), max_abs_diff=diff))
     table = pd.DataFrame(rows)
     table["machine"] = machine()
@@ -118,6 +143,10 @@ def format_prepare(table) -> str:
                      f"{t.step_speedup:.1f}x faster, max |q_r diff| {t.max_abs_diff:.3g}; goal prepare < "
                      f"{GOAL_PREPARE_P50_MS:g} ms: {'met' if t.prepare_p50_ms < GOAL_PREPARE_P50_MS else 'not met'}")
         elif t.case == "across_trees":
-            line += f"; retarget_to_tree step {t.step_p50_ms:.3f} ms (no plan across trees)"
+            line += (f"; retargeting step (TreePlan) {t.step_p50_ms:.3f} ms vs retarget_to_tree() "
+                     f"{t.baseline_step_p50_ms:.3f} ms = {t.step_speedup:.1f}x faster, max |q_r diff| "
+                     f"{t.max_abs_diff:.3g}; whole prepare before the plan {t.baseline_prepare_p50_ms:.3f} ms = "
+                     f"{t.prepare_speedup:.1f}x faster; goal prepare < {GOAL_PREPARE_P50_MS:g} ms: "
+                     f"{'met' if t.prepare_p50_ms < GOAL_PREPARE_P50_MS else 'not met'}")
         lines.append(line)
     return "\n".join(lines)

@@ -42,7 +42,7 @@ from repro.motion.roles import check_roles
 from repro.motion.skeleton import Skeleton, skeleton_of
 from repro.motion.units import infer_up
 
-__all__ = ["body_frame", "rest_axes", "retarget_across"]
+__all__ = ["TreePlan", "body_frame", "rest_axes", "retarget_across"]
 
 _ROT = ("Zrotation", "Xrotation", "Yrotation")
 _POS = ("Xposition", "Yposition", "Zposition")
@@ -166,6 +166,23 @@ def _skeleton_key(sk: Skeleton) -> tuple:
             sk.unit_m)
 
 
+def _pair(src: Skeleton, tgt: Skeleton, up_s: str, up_t: str) -> dict:
+    """What :func:`retarget_across` reads of two skeletons only (body frames, rest axes), cached."""
+    key = (_skeleton_key(src), _skeleton_key(tgt), up_s, up_t)
+    pair = _PAIRS.get(key)
+    if pair is None:  # what depends only on the two skeletons (the same numbers every call)
+        Bs = body_frame(src, up_s)
+        Bt = body_frame(tgt, up_t)
+        C = Bt @ Bs.T
+        c = _mat_to_quat(C)
+        pair = dict(C=C, c=c, ci=qinv(c), Ps=src.rest_positions(), Pt=tgt.rest_positions(), ax_s=rest_axes(src),
+                    ax_t=rest_axes(tgt), delta={})
+        if len(_PAIRS) >= 32:
+            _PAIRS.clear()
+        _PAIRS[key] = pair
+    return pair
+
+
 def retarget_across(motion: Motion, character, *, roles=None, character_roles=None, fix_feet: bool = False,
                     blend_time: float = 0.1) -> Motion:
     """``motion`` played by ``character``, whose joint tree may differ (see the module docstring).
@@ -206,18 +223,7 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
     check_roles(tgt.roles, "retargeting", tgt.joint_names)
     up_t = _up_of(character, tgt)
     up_s = _up_of(motion, src)
-    key = (_skeleton_key(src), _skeleton_key(tgt), up_s, up_t)
-    pair = _PAIRS.get(key)
-    if pair is None:  # what depends only on the two skeletons (the same numbers every call)
-        Bs = body_frame(src, up_s)
-        Bt = body_frame(tgt, up_t)
-        C = Bt @ Bs.T
-        c = _mat_to_quat(C)
-        pair = dict(C=C, c=c, ci=qinv(c), Ps=src.rest_positions(), Pt=tgt.rest_positions(), ax_s=rest_axes(src),
-                    ax_t=rest_axes(tgt), delta={})
-        if len(_PAIRS) >= 32:
-            _PAIRS.clear()
-        _PAIRS[key] = pair
+    pair = _pair(src, tgt, up_s, up_t)
     C, c, ci = pair["C"], pair["c"], pair["ci"]
     F = motion.n_frames
     gq_s, gp_s = fk_arrays(depth_levels(src.parents), motion.rotations, motion.local_translations())
@@ -234,9 +240,6 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
         """C G_s C^-1 of a role: (F, 4)."""
         return quat_multiply(quat_multiply(c[None], gq_s[:, si(role)]), ci[None])
 
-    def ref_dir(P, roles_, names, a, b):
-        return _unit(P[names.index(roles_[b])] - P[names.index(roles_[a])])
-
     ax_s, ax_t = pair["ax_s"], pair["ax_t"]
     deltas = pair["delta"]
 
@@ -246,18 +249,7 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
         return deltas[(a, b)]
 
     def _delta(a, b):
-        """Rotation taking the character's rest frame of bone a->b to the mapped source one.
-
-        The frame: the bone direction and the part's rest axis (left, up or forward of
-        :func:`rest_axes`) least aligned with the bone on both skeletons, so the twist
-        about the bone is carried too (the smallest rotation between the bone directions
-        alone would leave it to the rest poses' accident)."""
-        dt = ref_dir(Pt, rt, tgt.joint_names, a, b)
-        ds = C @ ref_dir(Ps, rs, src.joint_names, a, b)
-        part = "leg" if any(x in a for x in ("pelvis", "hip", "knee", "ankle", "toe")) else "arm"
-        at, as_ = ax_t[part], ax_s[part] @ C.T
-        k = int(np.argmin(np.maximum(np.abs(at @ dt), np.abs(as_ @ ds))))
-        return _mat_to_quat(_frame(ds, as_[k]) @ _frame(dt, at[k]).T)
+        return _bone_delta(src, tgt, Ps, Pt, ax_s, ax_t, C, a, b)
 
     def oriented(role, a, b):
         return quat_multiply(mapped(role), delta(a, b)[None])
@@ -353,6 +345,284 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
     positions = np.broadcast_to(tgt.offsets, (F, J, 3)).copy()
     positions[:, 0] = root_t
     return tgt.motion_with(loc, positions, frame_time=motion.frame_time, channels=channels, up=up_t)
+
+
+class TreePlan:
+    """:func:`retarget_across` between two fixed skeletons, positions only, for few frames at a time.
+
+    Everything of :func:`retarget_across` that does not depend on the pose (the role
+    tables and their checks, the body frames and the rotation ``C`` between them, the
+    bone-frame rotations, the spine chains' shares, the limbs' joints and lengths, the
+    root path, the depth levels) is computed once here; :meth:`positions` runs only the
+    per-frame arithmetic, the like operations of the joints stacked into one call each
+    (the fixed orientations, the four limbs), and returns what
+    ``retarget_across(motion, character, ...).global_positions()`` returns (``fix_feet``
+    False) without making the Motion.  Used by
+    :meth:`repro.motion.retrieval.MotionRetriever.prepare` for characters of another joint
+    tree (one pose per query).
+
+    Parameters
+    ----------
+    motion : Motion
+        On the skeleton the poses are on (its ``up``, else inferred); only its skeleton is read.
+    character : Skeleton or Motion
+    roles, character_roles : mapping role -> joint, optional
+        As :func:`retarget_across`.
+
+    Raises
+    ------
+    repro.errors.MotionError
+        What :func:`retarget_across` raises for these skeletons, with its messages.
+    """
+
+    def __init__(self, motion: Motion, character, *, roles=None, character_roles=None):
+        if not isinstance(motion, Motion):
+            raise MotionError(f"motion must be a Motion, got {type(motion).__name__}")
+        src = Skeleton.from_motion(motion, roles=roles)
+        tgt = skeleton_of(character, roles=character_roles)
+        check_roles(src.roles, "retargeting", src.joint_names)
+        check_roles(tgt.roles, "retargeting", tgt.joint_names)
+        up_t = _up_of(character, tgt)
+        up_s = _up_of(motion, src)
+        pair = _pair(src, tgt, up_s, up_t)
+        C, c, ci = pair["C"], pair["c"], pair["ci"]
+        Ps, Pt = pair["Ps"], pair["Pt"]
+        rs, rt = src.roles, tgt.roles
+        si = {role: src.joint_names.index(j) for role, j in rs.items() if j in src.joint_names}
+        ti = {role: tgt.joint_names.index(j) for role, j in rt.items() if j in tgt.joint_names}
+        deltas = pair["delta"]
+
+        def delta(a, b):
+            if (a, b) not in deltas:
+                deltas[(a, b)] = _bone_delta(src, tgt, Ps, Pt, pair["ax_s"], pair["ax_t"], C, a, b)
+            return deltas[(a, b)]
+
+        # fixed global rotations, as retarget_across: joint -> (source joint mapped, right factor)
+        fixed: dict[int, tuple[int, np.ndarray]] = {}
+        fixed[ti["pelvis"]] = (si["pelvis"], delta("pelvis", "chest"))
+        fixed[ti["chest"]] = (si["chest"], delta("chest", "head"))
+        fixed[ti["head"]] = (si["head"], delta("chest", "head"))
+        for side in ("left", "right"):
+            for a, b in (("clavicle", "shoulder"), ("wrist", "hand"), ("ankle", "toe"), ("toe", "toe")):
+                ra, rb = f"{side}_{a}", f"{side}_{b}"
+                if ra in rt and ra in rs:
+                    if a == "toe":
+                        fixed[ti[ra]] = (si[ra], delta(f"{side}_ankle", ra))
+                    elif rb in rt and rb in rs:
+                        fixed[ti[ra]] = (si[ra], delta(ra, rb))
+                    elif a == "wrist":
+                        fixed[ti[ra]] = (si[ra], delta(f"{side}_elbow", ra))
+                    elif a == "ankle":
+                        fixed[ti[ra]] = (si[ra], delta(f"{side}_knee", ra))
+        for a, b in (("pelvis", "chest"), ("chest", "head")):
+            T = [ti[a]] + tgt.path(rt[a], rt[b])
+            Sj = [si[a]] + src.path(rs[a], rs[b])
+            ut, us = _arc(Pt, T), _arc(Ps, Sj)
+            for i in range(1, len(T) - 1):
+                mid = 0.5 * (ut[i] + ut[i + 1])
+                k = int(np.clip(np.searchsorted(us, mid, side="right") - 1, 0, len(Sj) - 2))
+                dt = Pt[T[i + 1]] - Pt[T[i]]
+                ds = C @ (Ps[Sj[k + 1]] - Ps[Sj[k]])
+                d = min_rotation(dt, ds) if np.linalg.norm(dt) > 0 and np.linalg.norm(ds) > 0 else np.array([0, 0, 0, 1.0])
+                fixed[T[i]] = (Sj[k], d)
+        limbs = {}
+        for side in ("left", "right"):
+            for p_, m_, d_ in (("shoulder", "elbow", "wrist"), ("hip", "knee", "ankle")):
+                roles3 = tuple(f"{side}_{r}" for r in (p_, m_, d_))
+                limbs[ti[roles3[0]]] = roles3
+        self.k = tgt.hip_height / src.hip_height
+        root_path = [0] + tgt.path(tgt.joint_names[0], rt["pelvis"])
+        if tgt.channels is not None and not all(ch in tgt.channels[0] for ch in _POS):
+            raise MotionError(
+                f"character root {tgt.joint_names[0]!r} has no position channels (channels "
+                f"{list(tgt.channels[0])}); the retargeted motion needs to move it"
+            )
+        self.root_off = sum(tgt.offsets[j] for j in root_path[1:]) if len(root_path) > 1 else None
+        J = tgt.n_joints
+        parents = np.asarray(tgt.parents)
+        # the limbs solve_limb runs (a proximal joint without a fixed rotation), the middle joints after them
+        act = [j for j in limbs if j not in fixed]
+        rp = [limbs[j] for j in act]
+        self.l_prox = np.array(act, dtype=np.intp)
+        self.l_src = np.array([[si[r] for r in roles3] for roles3 in rp], dtype=np.intp).reshape(-1, 3)
+        bl_s, bl_t = src.bone_lengths, tgt.bone_lengths
+        self.Ls = np.array([bl_s[si[m]] + bl_s[si[d]] for _, m, d in rp])
+        self.l1 = np.array([bl_t[ti[m]] for _, m, _d in rp])
+        self.l2 = np.array([bl_t[ti[d]] for _, _m, d in rp])
+        self.bl_src_mid = np.array([bl_s[si[m]] for _, m, _d in rp])
+        self.cur_p = np.array([Pt[ti[m]] - Pt[ti[p]] for p, m, _d in rp]).reshape(-1, 3)
+        self.D_pm = np.array([delta(p, m) for p, m, _d in rp]).reshape(-1, 4)
+        mids = []  # (limb number, middle joint) in joint order; a middle joint with a fixed rotation keeps it
+        for n, (_, m, _d) in enumerate(rp):
+            j = ti[m]
+            if j not in fixed and j not in limbs and parents[j] >= 0:
+                first = next(v for v in limbs.values() if ti[v[1]] == j)
+                if first == rp[n]:
+                    mids.append((n, j))
+        self.m_limb = np.array([n for n, _ in mids], dtype=np.intp)
+        self.m_joint = np.array([j for _, j in mids], dtype=np.intp)
+        self.m_src = np.array([si[rp[n][1]] for n, _ in mids], dtype=np.intp)
+        self.D_md = np.array([delta(rp[n][1], rp[n][2]) for n, _ in mids]).reshape(-1, 4)
+        self.cur_m = np.array([Pt[ti[rp[n][2]]] - Pt[j] for n, j in mids]).reshape(-1, 3)
+        self.f_joint = np.array(list(fixed), dtype=np.intp)
+        self.f_src = np.array([v[0] for v in fixed.values()], dtype=np.intp)
+        self.D_f = np.array([v[1] for v in fixed.values()]).reshape(-1, 4)
+        # every other joint: the rotation of its nearest ancestor that has one of its own (J: identity)
+        own = np.zeros(J, dtype=bool)
+        own[self.f_joint] = True
+        own[self.l_prox] = True
+        own[self.m_joint] = True
+        anchor = np.full(J, J, dtype=np.intp)
+        for j in range(J):
+            if own[j]:
+                anchor[j] = j
+            elif parents[j] >= 0:
+                anchor[j] = anchor[parents[j]]
+        self.inherit = np.flatnonzero(~own)
+        self.anchor = anchor[self.inherit]
+        # positions solve reads: the proximal joints', from the root down; the middle joints', from them
+        self.path_prox = self._paths(parents, [0], self.l_prox)
+        self.path_mid = self._paths(parents, self.l_prox.tolist(), self.m_joint)
+        # one stacked product for every "C G_s C^-1 times a fixed factor": the fixed joints', then the
+        # limbs' proximal and middle starting rotations
+        self.map_src = np.concatenate([self.f_src, self.l_src[:, 0], self.m_src]).astype(np.intp)
+        self.map_D = np.concatenate([self.D_f, self.D_pm, self.D_md])
+        nf, nl = len(self.f_src), len(self.l_prox)
+        self.sl_f, self.sl_p, self.sl_m = slice(0, nf), slice(nf, nf + nl), slice(nf + nl, None)
+        self.C, self.c, self.ci = C, c, ci
+        self.CT = np.ascontiguousarray(C.T)
+        self.s_pelvis = si["pelvis"]
+        self.levels_s = depth_levels(src.parents)
+        self.levels_t = depth_levels(tgt.parents)
+        self.parents = parents
+        self.offsets = np.asarray(tgt.offsets, dtype=float)
+        self.n_joints = J
+        self.deep = len(self.levels_t) > 64
+        self.target = tgt
+        self.up = up_t
+
+    @staticmethod
+    def _paths(parents, tops, ends):
+        """Joints strictly below ``tops`` down to ``ends`` (included), each after its parent."""
+        out: set[int] = set()
+        for e in ends:
+            j = int(e)
+            while j not in tops and j >= 0:
+                out.add(j)
+                j = int(parents[j])
+        return np.array(sorted(out), dtype=np.intp)
+
+    def _chain(self, G, P, path):
+        """``P[j] = P[parent] + R(G[parent]) offset[j]`` along ``path`` (in place, in its order): the
+        rotations in one call, the sums joint by joint (the numbers of retarget_across's loop)."""
+        if not len(path):
+            return
+        par = self.parents[path]
+        w = qrot(G[:, par], np.broadcast_to(self.offsets[path], (G.shape[0], len(path), 3)))
+        for i, (j, p) in enumerate(zip(path.tolist(), par.tolist())):
+            P[:, j] = P[:, p] + w[:, i]
+
+    def positions(self, rotations: np.ndarray, translations: np.ndarray, *, source=None) -> np.ndarray:
+        """(F, J, 3) world positions of the character's joints (its units, ``up``).
+
+        ``rotations`` (F, J, 4) unit quaternions and ``translations`` (F, J, 3) the local
+        translations (:meth:`~repro.motion.motion.Motion.local_translations`) of the
+        motion's frames: ``retarget_across(...).global_positions()`` of them.  ``source``:
+        their world ``(rotations, positions)`` when already made by forward kinematics
+        over :func:`~repro.motion.kinematics.depth_levels` (what ``retarget_across`` runs, and
+        :meth:`~repro.motion.motion.Motion.global_transforms` on trees up to 64 levels deep).
+        """
+        gq_s, gp_s = fk_arrays(self.levels_s, rotations, translations) if source is None else source
+        F = gq_s.shape[0]
+        J = self.n_joints
+        c = self.c
+        G = np.zeros((F, J + 1, 4))
+        G[..., 3] = 1.0
+        mapped = quat_multiply(quat_multiply(c[None, None], gq_s[:, self.map_src]), self.ci[None, None])
+        G0 = quat_multiply(mapped, self.map_D[None])
+        G[:, self.f_joint] = G0[:, self.sl_f]
+        G[:, self.inherit] = G[:, self.anchor]
+        pel_goal = qrot(np.broadcast_to(c, (F, 4)), gp_s[:, self.s_pelvis] * self.k)
+        root_t = pel_goal - self.root_off if self.root_off is not None else pel_goal
+        P = np.zeros((F, J, 3))
+        P[:, 0] = root_t
+        self._chain(G, P, self.path_prox)
+        if len(self.l_prox):
+            S = P[:, self.l_prox]
+            g3 = gp_s[:, self.l_src]  # (F, L, 3, 3): proximal, middle, distal
+            we = g3[:, :, 2:0:-1] - g3[:, :, :1]  # (F, L, 2, 3): distal - proximal, middle - proximal
+            nl = len(self.l_prox)
+            CT = self.CT
+            n = np.stack([we[:, i, 0] @ CT / self.Ls[i] for i in range(nl)], axis=1)
+            e = np.stack([we[:, i, 1] @ CT for i in range(nl)], axis=1)
+            l1, l2 = self.l1[None], self.l2[None]
+            a, dn = normalize(n * (l1 + l2)[..., None])
+            bend = e - np.sum(e * a, axis=-1, keepdims=True) * a
+            b, bn = normalize(bend)
+            valid = bn > 1e-9 * self.bl_src_mid[None]
+            if not valid.all():
+                b = b.copy()
+                for i in np.flatnonzero(~valid.all(axis=0)).tolist():
+                    b[:, i] = self._straight(a[:, i], b[:, i], valid[:, i])
+            d = np.clip(dn, np.abs(l1 - l2), l1 + l2)
+            cosb = np.clip((l1**2 + d**2 - l2**2) / (2 * l1 * np.maximum(d, 1e-300)), -1.0, 1.0)
+            sinb = np.sqrt(1.0 - cosb**2)
+            E = S + a * (l1 * cosb)[..., None] + b * (l1 * sinb)[..., None]
+            W = S + a * d[..., None]
+            Gp = G0[:, self.sl_p]
+            cur = qrot(Gp, np.broadcast_to(self.cur_p, (F,) + self.cur_p.shape))
+            G[:, self.l_prox] = quat_multiply(min_rotation(cur, E - S), Gp)
+            if len(self.m_joint):
+                G[:, self.inherit] = G[:, self.anchor]
+                self._chain(G, P, self.path_mid)
+                Gm = G0[:, self.sl_m]
+                cur = qrot(Gm, np.broadcast_to(self.cur_m, (F,) + self.cur_m.shape))
+                G[:, self.m_joint] = quat_multiply(min_rotation(cur, W[:, self.m_limb] - P[:, self.m_joint]), Gm)
+            G[:, self.inherit] = G[:, self.anchor]
+        G = G[:, :J]
+        loc = np.empty_like(G)
+        loc[:, 0] = G[:, 0]
+        loc[:, 1:] = quat_multiply(qinv(G[:, self.parents[1:]]), G[:, 1:])
+        loc = loc / np.linalg.norm(loc, axis=-1, keepdims=True)  # as a new Motion renormalises
+        t = np.broadcast_to(self.offsets, (F, J, 3)).copy()
+        t[:, 0] = root_t
+        if self.deep:  # Motion.global_transforms' other path
+            tgt = self.target
+            channels = tgt.channels if tgt.channels is not None else [_POS + _ROT] + [_ROT] * (J - 1)
+            return tgt.motion_with(loc, t, frame_time=1.0, channels=channels, up=self.up).global_positions()
+        return fk_arrays(self.levels_t, loc, t, copy=False)[1]
+
+    def _straight(self, a, b, valid):
+        """``_solve_limb``'s bend plane of one limb with straight frames (F, 3)."""
+        F = a.shape[0]
+        idx = np.where(valid, np.arange(F), -1)
+        idx = np.maximum.accumulate(idx)
+        first = int(np.argmax(valid)) if valid.any() else -1
+        if first >= 0:
+            idx = np.where(idx < 0, first, idx)
+            b = b[idx]
+            return normalize(b - np.sum(b * a, axis=-1, keepdims=True) * a)[0]
+        ref = np.broadcast_to(self.C @ np.array([0.0, 0.0, 1.0]), a.shape)
+        return normalize(cross(a, cross(ref, a)) + 1e-12)[0]
+
+
+def _ref_dir(P, roles_, names, a, b):
+    return _unit(P[names.index(roles_[b])] - P[names.index(roles_[a])])
+
+
+def _bone_delta(src, tgt, Ps, Pt, ax_s, ax_t, C, a, b):
+    """Rotation taking the character's rest frame of bone a->b to the mapped source one.
+
+    The frame: the bone direction and the part's rest axis (left, up or forward of
+    :func:`rest_axes`) least aligned with the bone on both skeletons, so the twist
+    about the bone is carried too (the smallest rotation between the bone directions
+    alone would leave it to the rest poses' accident)."""
+    dt = _ref_dir(Pt, tgt.roles, tgt.joint_names, a, b)
+    ds = C @ _ref_dir(Ps, src.roles, src.joint_names, a, b)
+    part = "leg" if any(x in a for x in ("pelvis", "hip", "knee", "ankle", "toe")) else "arm"
+    at, as_ = ax_t[part], ax_s[part] @ C.T
+    k = int(np.argmin(np.maximum(np.abs(at @ dt), np.abs(as_ @ ds))))
+    return _mat_to_quat(_frame(ds, as_[k]) @ _frame(dt, at[k]).T)
 
 
 def _fix_feet(motion, src, tgt, gp_s, up_t, up_s, root_t, G, P, solve, blend_time):

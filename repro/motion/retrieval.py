@@ -113,9 +113,10 @@ from repro.motion.clustering import (
 from repro.motion.database import MotionDatabase
 from repro.motion.index_build import block_order, build_pose_index
 from repro.motion.morphology import RetargetPlan, retarget
+from repro.motion.motion import _LEVEL_LOOP_MAX_DEPTH as _FK_LEVEL_LOOP_MAX
 from repro.motion.motion import Motion, finite_vector3
 from repro.motion.ops import resample
-from repro.motion.retarget_tree import retarget_across
+from repro.motion.retarget_tree import TreePlan, retarget_across
 from repro.motion.retrieval_exact import ExactSearch
 from repro.motion.retrieval_start import StartScoring
 from repro.motion.roles import check_roles, find_roles
@@ -484,6 +485,7 @@ class MotionRetriever(ExactSearch, StartScoring):
         self._prep_cache: dict = {}
         self._actor_rest: dict = {}  # actor -> its rest pose, Y up (retargeting across trees)
         self._plans: dict = {}  # (actor, pose skeleton) -> RetargetPlan (same tree, other proportions)
+        self._tree_plans: dict = {}  # (actor, pose skeleton, roles) -> TreePlan (another joint tree)
         self._start: dict | None = None
         self._qm_cache = None
         self._bounds_setup()
@@ -509,7 +511,8 @@ class MotionRetriever(ExactSearch, StartScoring):
             of the database actor(s) it is compared with (e.g. made by
             :func:`~repro.motion.skeleton.scale_skeleton`), unless the retriever
             serves across trees (``across_trees``, the default): then any humanoid skeleton, the pose retargeted
-            across trees to the other actors (whether an actor can be, per character, is
+            across trees to the other actors through a cached :class:`~repro.motion.retarget_tree.TreePlan`
+            (:meth:`tree_plan`; whether an actor can be, per character, is
             cached).
 
         Raises
@@ -559,15 +562,15 @@ class MotionRetriever(ExactSearch, StartScoring):
             if mode is None:
                 continue
             if mode == "across":
-                try:  # q on the character -> the actor's tree, through the roles (character's own table)
-                    if a not in self._actor_rest:
-                        self._actor_rest[a] = rest_motion_y_up(actor)
-                    qr = retarget_to_tree(m, actor, roles=dict(ch.roles), target=self._actor_rest[a])
+                try:  # q on the character -> the actor's tree, through the roles (character's own table):
+                    # retarget_to_tree(m, actor, ...).global_positions(), what depends only on the skeletons cached
+                    plan = self.tree_plan(m, a, ch.roles)
                 except MotionError as e:
                     refused[a] = str(e)
                     self._prep_cache[(id(ch), a)] = (ch, None, str(e))  # not again for this character
                     continue
-                g = qr.global_positions()
+                src = (gq_c, gc) if len(m._depth_levels) <= _FK_LEVEL_LOOP_MAX else None
+                g = plan.positions(m.rotations, m.local_translations(), source=src)
                 idx = [actor.index(r) for r in db.pose_roles]
                 pts = pose_points(g, idx, actor.index("pelvis"), actor.index("left_hip"), actor.index("right_hip"),
                                   window=db.window, step=db.step)[-1]
@@ -634,6 +637,30 @@ class MotionRetriever(ExactSearch, StartScoring):
             if len(self._plans) >= 64:
                 self._plans.clear()
             self._plans[key] = plan
+        return plan
+
+    def tree_plan(self, m: Motion, a: int, roles) -> TreePlan:
+        """The :class:`~repro.motion.retarget_tree.TreePlan` from the skeleton of ``m`` (role table
+        ``roles``) to actor ``a``'s rest pose in the database world: :func:`retarget_to_tree`'s
+        positions with what depends only on the skeletons computed once.
+
+        Cached by actor, what :meth:`Skeleton.from_motion` reads of ``m`` (joints, parents,
+        offsets, channels, End Sites, unit), its ``up`` and the role table, so a pose on
+        another skeleton (or with other roles) never reuses a plan; at most 64 are kept.
+        """
+        key = (a, tuple(m.joint_names), m.parents.tobytes(), m.offsets.tobytes(), tuple(m.channels),
+               m.end_site_parents.tobytes(), m.end_site_offsets.tobytes(), m.unit_m, m.up,
+               tuple(sorted(dict(roles).items())))
+        plan = self._tree_plans.get(key)
+        if plan is None:
+            if a not in self._actor_rest:
+                self._actor_rest[a] = rest_motion_y_up(self.db.actors[a])
+            actor = self.db.actors[a]
+            src = m if m.up is not None else dataclasses.replace(m, up="y")
+            plan = TreePlan(src, self._actor_rest[a], roles=dict(roles), character_roles=dict(actor.roles))
+            if len(self._tree_plans) >= 64:
+                self._tree_plans.clear()
+            self._tree_plans[key] = plan
         return plan
 
     def _refusals(self, ch: Skeleton) -> dict[int, str]:

@@ -9,8 +9,8 @@ What is asserted:
 * ``MotionRetriever.prepare`` (which uses the plan for such characters) gives the same
   ``q_r`` as the retargeting it replaces (``retarget`` then the pose cloud), bit for bit;
   plans are cached per (actor, pose skeleton) and a pose on another skeleton gets its own;
-* across joint trees (a Mixamo rig on the synthetic database) ``prepare`` still gives the
-  cloud of ``retarget_to_tree`` (the path the plan does not take);
+* across joint trees (a Mixamo rig on the synthetic database) ``prepare`` (through its cached
+  ``TreePlan``) still gives the cloud of ``retarget_to_tree``;
 * ``retarget_across``'s constants cached per pair of skeletons give the numbers of a fresh
   computation, and a character of other proportions gets its own entry;
 * the plan refuses what ``retarget`` refuses (a target whose rest pose is turned, another
