@@ -206,7 +206,6 @@ class ExactSearch:
         # 1. cluster bounds (units of size), per actor of the query; clip box gaps ("first")
         dcl = {a: self.centroid_index.distances(qn, prepared=prep[a]) for a, qn in q.q_n.items()}
         lq_cl = {a: np.maximum(d - radius - BOUND_SLACK, 0.0) for a, d in dcl.items()}
-        lc_u = self._lb_cr("first", c_hat, None, ex["ulo"], ex["uhi"]) if first else None
 
         def lq_of(g):  # the cluster bound of groups g (inf for actors not in the query)
             if not multi:
@@ -221,7 +220,8 @@ class ExactSearch:
 
         def lb_of(g, lq):  # the group bound of groups g (metres): s (w_q lq + w_c lc)
             if first:
-                lc = lc_u[gu[g]]
+                ug = gu[g]
+                lc = self._lb_cr("first", c_hat, None, ex["ulo"][ug], ex["uhi"][ug])
             else:
                 lc = np.full(g.size, np.inf)
                 ga = ex["gactor"][g] if multi else None
@@ -235,6 +235,7 @@ class ExactSearch:
         B = min(batch, G)
         dmin = next(iter(dcl.values())) if len(dcl) == 1 else np.min(list(dcl.values()), axis=0)
         dcr_u = np.full(ex["uclip"].size, np.nan) if first else None  # exact d_cr per clip (metres), lazily
+        near = None
         clstart = ex["clstart"]
         if G > B:
             ncl = np.diff(clstart)
@@ -244,7 +245,7 @@ class ExactSearch:
             lbp = lb_of(gp, lq_of(gp))
             probe = gp[np.argpartition(lbp, B - 1)[:B]] if gp.size > B else gp
             if first and wc > 0:
-                near = self._nearest_clips(ex, dcr_u, c_hat, NEAR_SAMPLES)
+                near, near_dh, near_far = self._nearest_clips(ex, dcr_u, c_hat, NEAR_SAMPLES)
                 gn = ex["ugroups"][_ranges(ex["ustart"][near], ex["ustart"][near + 1] - ex["ustart"][near])]
                 lbn = gs[gn] * wq * lq_of(gn) + wc * dcr_u[gu[gn]]
                 if gn.size > B:
@@ -268,7 +269,11 @@ class ExactSearch:
             # 3. every other group whose bound can beat it: only clips with a trajectory sample within
             # thr / (w_c smin) of c_hat can (d >= w_c d_cr >= w_c smin d_cr / s); their exact d_cr
             # from one k-d tree query, then the groups of those clips by their exact bound
-            uin = self._ball_dcr(ex, dcr_u, c_hat, thr / (wc * ex["smin"]))
+            rad = thr / (wc * ex["smin"])
+            if near is not None and near_far > _ball_radius(rad):  # the ball is inside the nearest samples
+                uin = near[near_dh <= _ball_radius(rad)]
+            else:
+                uin = self._ball_dcr(ex, dcr_u, c_hat, rad)
             cand = ex["ugroups"][_ranges(ex["ustart"][uin], ex["ustart"][uin + 1] - ex["ustart"][uin])]
             cand = cand[~inprobe[cand]]
             lq_c = lq_of(cand)
@@ -358,7 +363,7 @@ class ExactSearch:
         ``radius`` (positions in the semantics' clips, ascending)."""
         if "tree" not in ex:
             ex["tree"] = cKDTree(ex["tpts"])
-        rad = radius * (1.0 + 1e-9) + BOUND_SLACK
+        rad = _ball_radius(radius)
         M = ex["tpts"].shape[0]
         idx = np.asarray(ex["tree"].query_ball_point(c_hat, rad), dtype=np.intp)
         dh = np.full(dcr_u.size, np.inf)
@@ -384,17 +389,20 @@ class ExactSearch:
         return uin
 
     @staticmethod
-    def _nearest_clips(ex: dict, dcr_u: np.ndarray, c_hat: np.ndarray, k: int) -> np.ndarray:
-        """The clips (positions in the semantics' clips) of the ``k`` trajectory samples nearest ``c_hat``;
-        their ``d_cr`` (metres, paper's frame) is filled in (the first sample of a clip is its nearest)."""
+    def _nearest_clips(ex: dict, dcr_u: np.ndarray, c_hat: np.ndarray, k: int) -> tuple:
+        """The clips (positions in the semantics' clips, ascending) of the ``k`` trajectory samples nearest
+        ``c_hat``; their ``d_cr`` (metres, paper's frame) is filled in (the first sample of a clip is its
+        nearest).  Returns ``(clips, their distance in units of size, the k-th distance)`` (inf for the
+        last when the ``k`` samples are all of them): every sample nearer than the last is among them."""
         if "tree" not in ex:
             ex["tree"] = cKDTree(ex["tpts"])
         k = min(k, ex["tpts"].shape[0])
         dist, idx = ex["tree"].query(c_hat, k=k)
         u, first = np.unique(ex["tclip"][np.atleast_1d(idx)], return_index=True)
         unknown = np.isnan(dcr_u[u])
-        dcr_u[u[unknown]] = np.atleast_1d(dist)[first[unknown]] * ex["usize"][u[unknown]]
-        return u
+        dist = np.atleast_1d(dist)
+        dcr_u[u[unknown]] = dist[first[unknown]] * ex["usize"][u[unknown]]
+        return u, dist[first], (float(dist[-1]) if k < ex["tpts"].shape[0] else np.inf)
 
     def _fill_dcr(self, ex: dict, dcr_u: np.ndarray, u: np.ndarray, c_r: np.ndarray) -> None:
         """Exact ``d_cr`` (metres, the paper's frame) of the semantics' clips ``u`` not yet known."""
@@ -445,6 +453,11 @@ class ExactSearch:
         dcr = self._d_cr_start_per_actor(q, rows[keep], alpha[keep], actor[keep], c_hat, cq)
         d = self.w_q * dqr[keep] + self.w_c * dcr
         return rows[keep], d, dqr[keep], dcr, keep.size
+
+
+def _ball_radius(radius: float) -> float:
+    """The radius (units of size) of the samples taken as within ``radius`` of ``c_hat`` (rounding slack)."""
+    return radius * (1.0 + 1e-9) + BOUND_SLACK
 
 
 def _ranges(start: np.ndarray, length: np.ndarray) -> np.ndarray:
