@@ -155,7 +155,7 @@ class ExactSearch:
                 "rows": rows, "index": self.index.subset(rows), "gstart": gstart, "glen": np.diff(gstart),
                 "gclip": gclip, "gsize": db.size_a[gclip], "gactor": db.actor[gclip], "gcluster": np.concatenate(gcl),
                 "gradius": np.concatenate(rad),
-                "clstart": np.asarray(clstart, dtype=np.intp), "size": psize,
+                "clstart": np.asarray(clstart, dtype=np.intp), "glen_cl": np.diff(clstart), "size": psize,
                 "actor": pactor, "clip": pclip, "sem": sem,
                 "uclip": uclip, "gu": gu, "ulo": self._nbox_lo[uclip], "uhi": self._nbox_hi[uclip],
                 "pu": np.repeat(gu, np.diff(gstart)), "ugroups": np.argsort(gu, kind="stable"),
@@ -238,7 +238,7 @@ class ExactSearch:
         near = None
         clstart = ex["clstart"]
         if G > B:
-            ncl = np.diff(clstart)
+            ncl = ex["glen_cl"]
             order = np.argsort(np.where(ncl > 0, dmin, np.inf), kind="stable")
             take = order[:int(np.searchsorted(np.cumsum(ncl[order]), 8 * B)) + 1]
             gp = _ranges(clstart[take], ncl[take])
@@ -253,7 +253,8 @@ class ExactSearch:
                 probe = np.union1d(probe, gn)
         else:
             probe = np.arange(G)
-        probe = probe[np.isfinite(lb_of(probe, lq_of(probe)))]
+        if multi or not first:  # groups of actors not in the query (one actor, "first": all finite)
+            probe = probe[np.isfinite(lb_of(probe, lq_of(probe)))]
         if probe.size == 0:
             raise RetrievalError("no clip of an actor compatible with the character for this semantics")
         parts = []
