@@ -179,11 +179,16 @@ class ExactSearch:
                       stats: dict | None = None, batch: int = 32, features: bool = False) -> RetrievalResult:
         """Filter cascade over the clip runs (groups) of ``sem``, cheapest bound first.
 
-        1. per group: ``s (w_q max(D(q_r, m) - r, 0) + w_c lc)`` with ``m, r`` its cluster's
-           centroid and radius and ``lc`` its clip's box gap (``"first"``) or its start
-           region (``"start"``); 2. the ``batch`` groups of lowest bound scored exactly: a
-           first best ``d``; 3. groups whose bound exceeds it dropped; with ``"first"`` the
-           exact ``d_cr`` of the clips left replaces their box gap; 4. per pose of what is
+        1. per cluster and actor: ``max(D(q_r, m) - r, 0)`` with ``m, r`` its centroid and
+           radius; a group's bound is ``s (w_q max(D(q_r, m) - r, 0) + w_c lc)`` with ``lc``
+           its clip's box gap (``"first"``) or its start region (``"start"``), computed only
+           for the groups looked at; 2. a first best ``d``: the ``batch`` groups of lowest
+           bound among those of the clusters nearest ``q_r`` and (``"first"``) of the clips
+           passing nearest ``c_r``, scored exactly; 3. the groups whose bound can beat it:
+           with ``"first"`` (``w_c > 0``) those of the clips with a trajectory sample within
+           ``best / (w_c smin)`` of ``c_hat`` (the nearest samples of step 2 when they hold
+           that ball, else one ball query), by their exact ``d_cr``; otherwise those of the
+           clusters with ``smin w_q max(D - r, 0)`` below it, by their group bound; 4. per pose of what is
            left, the alignment-invariant feature bound of ``D`` (:func:`invariant_features`,
            ``features=False`` skips it, for measuring it); 5. the poses still below the best
            ``d`` scored exactly, lowest bound first, in chunks, until the next bound
