@@ -155,7 +155,7 @@ class ExactSearch:
                 "rows": rows, "index": self.index.subset(rows), "gstart": gstart, "glen": np.diff(gstart),
                 "gclip": gclip, "gsize": db.size_a[gclip], "gactor": db.actor[gclip], "gcluster": np.concatenate(gcl),
                 "gradius": np.concatenate(rad),
-                "clstart": np.asarray(clstart, dtype=np.intp), "size": psize,
+                "clstart": np.asarray(clstart, dtype=np.intp), "glen_cl": np.diff(clstart), "size": psize,
                 "actor": pactor, "clip": pclip, "sem": sem,
                 "uclip": uclip, "gu": gu, "ulo": self._nbox_lo[uclip], "uhi": self._nbox_hi[uclip],
                 "pu": np.repeat(gu, np.diff(gstart)), "ugroups": np.argsort(gu, kind="stable"),
@@ -179,11 +179,16 @@ class ExactSearch:
                       stats: dict | None = None, batch: int = 32, features: bool = False) -> RetrievalResult:
         """Filter cascade over the clip runs (groups) of ``sem``, cheapest bound first.
 
-        1. per group: ``s (w_q max(D(q_r, m) - r, 0) + w_c lc)`` with ``m, r`` its cluster's
-           centroid and radius and ``lc`` its clip's box gap (``"first"``) or its start
-           region (``"start"``); 2. the ``batch`` groups of lowest bound scored exactly: a
-           first best ``d``; 3. groups whose bound exceeds it dropped; with ``"first"`` the
-           exact ``d_cr`` of the clips left replaces their box gap; 4. per pose of what is
+        1. per cluster and actor: ``max(D(q_r, m) - r, 0)`` with ``m, r`` its centroid and
+           radius; a group's bound is ``s (w_q max(D(q_r, m) - r, 0) + w_c lc)`` with ``lc``
+           its clip's box gap (``"first"``) or its start region (``"start"``), computed only
+           for the groups looked at; 2. a first best ``d``: the ``batch`` groups of lowest
+           bound among those of the clusters nearest ``q_r`` and (``"first"``) of the clips
+           passing nearest ``c_r``, scored exactly; 3. the groups whose bound can beat it:
+           with ``"first"`` (``w_c > 0``) those of the clips with a trajectory sample within
+           ``best / (w_c smin)`` of ``c_hat`` (the nearest samples of step 2 when they hold
+           that ball, else one ball query), by their exact ``d_cr``; otherwise those of the
+           clusters with ``smin w_q max(D - r, 0)`` below it, by their group bound; 4. per pose of what is
            left, the alignment-invariant feature bound of ``D`` (:func:`invariant_features`,
            ``features=False`` skips it, for measuring it); 5. the poses still below the best
            ``d`` scored exactly, lowest bound first, in chunks, until the next bound
@@ -202,34 +207,59 @@ class ExactSearch:
         G = ex["gsize"].size
         multi = len(self.actors_present) > 1
         radius = self._bb[sem]["radius"]
-        # 1. group bounds (units of size, then metres)
-        lq_g = np.full(G, np.inf)
-        lc_g = np.full(G, np.inf)
-        gsel = {}
-        for a, qn in q.q_n.items():
-            lq_cl = np.maximum(self.centroid_index.distances(qn, prepared=prep[a]) - radius - BOUND_SLACK, 0.0)
-            sel = np.flatnonzero(ex["gactor"] == a) if multi else slice(None)
-            gsel[a] = sel
-            lq_g[sel] = lq_cl[ex["gcluster"][sel]]
-            if not first:
-                lc_g[sel] = self._lb_cr("start", c_hat, cq[a], reg=geo["exgroups"][sem][sel])
-        if first:
-            lc_u = self._lb_cr("first", c_hat, None, ex["ulo"], ex["uhi"])
-            lc_g = lc_u[ex["gu"]]
-        gs = ex["gsize"]
-        lb_g = gs * (wq * lq_g + wc * lc_g)
-        # 2. a first best d from the most promising groups
+        gs, gcl, gu = ex["gsize"], ex["gcluster"], ex["gu"]
+        # 1. cluster bounds (units of size), per actor of the query; clip box gaps ("first")
+        dcl = {a: self.centroid_index.distances(qn, prepared=prep[a]) for a, qn in q.q_n.items()}
+        lq_cl = {a: np.maximum(d - radius - BOUND_SLACK, 0.0) for a, d in dcl.items()}
+
+        def lq_of(g):  # the cluster bound of groups g (inf for actors not in the query)
+            if not multi:
+                (lq,) = lq_cl.values()
+                return lq[gcl[g]]
+            out = np.full(g.size, np.inf)
+            ga = ex["gactor"][g]
+            for a, lq in lq_cl.items():
+                sel = np.flatnonzero(ga == a)
+                out[sel] = lq[gcl[g[sel]]]
+            return out
+
+        def lb_of(g, lq):  # the group bound of groups g (metres): s (w_q lq + w_c lc)
+            if first:
+                ug = gu[g]
+                lc = self._lb_cr("first", c_hat, None, ex["ulo"][ug], ex["uhi"][ug])
+            else:
+                lc = np.full(g.size, np.inf)
+                ga = ex["gactor"][g] if multi else None
+                for a in q.q_n:
+                    sel = np.flatnonzero(ga == a) if multi else slice(None)
+                    lc[sel] = self._lb_cr("start", c_hat, cq[a], reg=geo["exgroups"][sem][g[sel]])
+            return gs[g] * (wq * lq + wc * lc)
+
+        # 2. a first best d from the most promising groups: those of the clusters nearest q_r
+        # (centroid distance), and the best groups of the clips passing nearest to c_r
         B = min(batch, G)
-        probe = np.argpartition(lb_g, B - 1)[:B] if G > B else np.arange(G)
+        dmin = next(iter(dcl.values())) if len(dcl) == 1 else np.min(list(dcl.values()), axis=0)
         dcr_u = np.full(ex["uclip"].size, np.nan) if first else None  # exact d_cr per clip (metres), lazily
-        if first and wc > 0 and G > B:  # and the best groups of the clips passing nearest to c_r
-            near = self._nearest_clips(ex, dcr_u, c_hat, NEAR_SAMPLES)
-            gn = ex["ugroups"][np.concatenate([np.arange(ex["ustart"][u], ex["ustart"][u + 1]) for u in near])]
-            lbn = gs[gn] * wq * lq_g[gn] + wc * dcr_u[ex["gu"][gn]]
-            if gn.size > B:
-                gn = gn[np.argpartition(lbn, B - 1)[:B]]
-            probe = np.union1d(probe, gn)
-        probe = probe[np.isfinite(lb_g[probe])]
+        near = None
+        clstart = ex["clstart"]
+        if G > B:
+            ncl = ex["glen_cl"]
+            order = np.argsort(np.where(ncl > 0, dmin, np.inf), kind="stable")
+            take = order[:int(np.searchsorted(np.cumsum(ncl[order]), 8 * B)) + 1]
+            gp = _ranges(clstart[take], ncl[take])
+            lbp = lb_of(gp, lq_of(gp))
+            probe = gp[np.argpartition(lbp, B - 1)[:B]] if gp.size > B else gp
+            if first and wc > 0:
+                near, near_dh, near_far = self._nearest_clips(ex, dcr_u, c_hat, NEAR_SAMPLES)
+                gn = ex["ugroups"][_ranges(ex["ustart"][near], ex["ustart"][near + 1] - ex["ustart"][near])]
+                lbn = gs[gn] * wq * lq_of(gn) + wc * dcr_u[gu[gn]]
+                if gn.size > B:
+                    gn = gn[np.argpartition(lbn, B - 1)[:B]]
+                probe = np.union1d(probe, gn)
+        else:
+            probe = np.arange(G)
+        if multi or not first:  # groups of actors not in the query (one actor, "first": all finite)
+            probe = probe[np.isfinite(lb_of(probe, lq_of(probe)))]
         if probe.size == 0:
             raise RetrievalError("no clip of an actor compatible with the character for this semantics")
         parts = []
@@ -238,22 +268,45 @@ class ExactSearch:
         best = float(out[1].min())
         parts.append(out)
         n, n_groups = out[4], probe.size
-        # 3. every other group whose bound can beat it
-        lb_g[probe] = np.inf
-        cand = np.flatnonzero(lb_g <= self._near_threshold(best))
-        if first and cand.size and wc > 0:
-            self._ball_dcr(ex, dcr_u, c_hat, self._near_threshold(best) / (wc * ex["smin"]))
-            cand = cand[np.isfinite(dcr_u[ex["gu"][cand]])]
-        if first and cand.size:
-            self._fill_dcr(ex, dcr_u, ex["gu"][cand], c_r)
-            lb_c = gs[cand] * wq * lq_g[cand] + wc * dcr_u[ex["gu"][cand]]
-            cand = cand[lb_c <= self._near_threshold(best)]
+        thr = self._near_threshold(best)
+        inprobe = np.zeros(G, dtype=bool)
+        inprobe[probe] = True
+        if first and wc > 0:
+            # 3. every other group whose bound can beat it: only clips with a trajectory sample within
+            # thr / (w_c smin) of c_hat can (d >= w_c d_cr >= w_c smin d_cr / s); their exact d_cr
+            # from one k-d tree query, then the groups of those clips by their exact bound
+            rad = thr / (wc * ex["smin"])
+            if near is not None and near_far > _ball_radius(rad):  # the ball is inside the nearest samples
+                uin = near[near_dh <= _ball_radius(rad)]
+            else:
+                uin = self._ball_dcr(ex, dcr_u, c_hat, rad)
+            cand = ex["ugroups"][_ranges(ex["ustart"][uin], ex["ustart"][uin + 1] - ex["ustart"][uin])]
+            cand = cand[~inprobe[cand]]
+            lq_c = lq_of(cand)
+            m = gs[cand] * wq * lq_c + wc * dcr_u[gu[cand]] <= thr
+            o = np.argsort(cand[m], kind="stable")  # groups in their stored order, as the other branch
+            cand, lq_c = cand[m][o], lq_c[m][o]
+        else:
+            # 3. every other group whose bound can beat it, in the clusters whose bound can
+            # (s >= smin and lc >= 0: s (w_q lq + w_c lc) >= smin w_q lq)
+            lq_min = next(iter(lq_cl.values())) if len(lq_cl) == 1 else np.min(list(lq_cl.values()), axis=0)
+            keep_cl = np.flatnonzero((ex["smin"] * wq * lq_min <= thr) & (np.diff(clstart) > 0))
+            cand = _ranges(clstart[keep_cl], clstart[keep_cl + 1] - clstart[keep_cl])
+            cand = cand[~inprobe[cand]]
+            lq_c = lq_of(cand)
+            m = lb_of(cand, lq_c) <= thr
+            cand, lq_c = cand[m], lq_c[m]
+            if first and cand.size:
+                self._fill_dcr(ex, dcr_u, gu[cand], c_r)
+                lb_c = gs[cand] * wq * lq_c + wc * dcr_u[gu[cand]]
+                m = lb_c <= thr
+                cand, lq_c = cand[m], lq_c[m]
         n_groups += cand.size
         if cand.size:
             pos = self._group_poses(ex, cand)
             glen = ex["glen"][cand]
             s = ex["size"][pos]
-            lq = np.repeat(lq_g[cand], glen)
+            lq = np.repeat(lq_c, glen)
             if first:
                 lcm = dcr_u[ex["pu"][pos]]  # metres, exact
             else:
@@ -312,38 +365,50 @@ class ExactSearch:
     def _ball_dcr(ex: dict, dcr_u: np.ndarray, c_hat: np.ndarray, radius: float) -> None:
         """``d_cr`` (metres, paper's frame) of every clip of the semantics with a trajectory sample within
         ``radius`` (units of size) of ``c_hat``, from a k-d tree of the samples; the others get inf (their
-        ``d_cr`` exceeds ``radius`` times their size).  Clips already known keep their value."""
+        ``d_cr`` exceeds ``radius`` times their size).  Clips already known keep their value.  Returns the clips within
+        ``radius`` (positions in the semantics' clips, ascending)."""
         if "tree" not in ex:
             ex["tree"] = cKDTree(ex["tpts"])
-        rad = radius * (1.0 + 1e-9) + BOUND_SLACK
+        rad = _ball_radius(radius)
         M = ex["tpts"].shape[0]
-        if ex["tree"].query_ball_point(c_hat, rad, return_length=True) > M // 8:  # a large ball: every sample
+        idx = np.asarray(ex["tree"].query_ball_point(c_hat, rad), dtype=np.intp)
+        dh = np.full(dcr_u.size, np.inf)
+        if idx.size > M // 8:  # a large ball: every sample
             tx, ty, tz = ex["tcols"]  # contiguous coordinates: three 1-D passes, no (M, 3) temporaries
             d2 = np.square(tx - c_hat[0])
             d2 += np.square(ty - c_hat[1])
             d2 += np.square(tz - c_hat[2])
             dh = np.sqrt(np.minimum.reduceat(d2, ex["tstart"]))
+            uin = np.flatnonzero(dh <= rad)
+            dh[dh > rad] = np.inf  # as the ball (its clips only)
+        elif idx.size:
+            idx.sort()  # samples are stored clip by clip: the clips of a sorted ball come in runs
+            diff = ex["tpts"][idx] - c_hat
+            tc = ex["tclip"][idx]
+            at = np.flatnonzero(np.concatenate([[True], tc[1:] != tc[:-1]]))
+            uin = tc[at]
+            dh[uin] = np.sqrt(np.minimum.reduceat(np.einsum("ij,ij->i", diff, diff), at))
         else:
-            idx = np.asarray(ex["tree"].query_ball_point(c_hat, rad), dtype=np.intp)
-            dh = np.full(dcr_u.size, np.inf)
-            if idx.size:
-                diff = ex["tpts"][idx] - c_hat
-                np.minimum.at(dh, ex["tclip"][idx], np.sqrt(np.einsum("ij,ij->i", diff, diff)))
+            uin = np.zeros(0, dtype=np.intp)
         unknown = np.isnan(dcr_u)
         dcr_u[unknown] = dh[unknown] * ex["usize"][unknown]
+        return uin
 
     @staticmethod
-    def _nearest_clips(ex: dict, dcr_u: np.ndarray, c_hat: np.ndarray, k: int) -> np.ndarray:
-        """The clips (positions in the semantics' clips) of the ``k`` trajectory samples nearest ``c_hat``;
-        their ``d_cr`` (metres, paper's frame) is filled in (the first sample of a clip is its nearest)."""
+    def _nearest_clips(ex: dict, dcr_u: np.ndarray, c_hat: np.ndarray, k: int) -> tuple:
+        """The clips (positions in the semantics' clips, ascending) of the ``k`` trajectory samples nearest
+        ``c_hat``; their ``d_cr`` (metres, paper's frame) is filled in (the first sample of a clip is its
+        nearest).  Returns ``(clips, their distance in units of size, the k-th distance)`` (inf for the
+        last when the ``k`` samples are all of them): every sample nearer than the last is among them."""
         if "tree" not in ex:
             ex["tree"] = cKDTree(ex["tpts"])
         k = min(k, ex["tpts"].shape[0])
         dist, idx = ex["tree"].query(c_hat, k=k)
         u, first = np.unique(ex["tclip"][np.atleast_1d(idx)], return_index=True)
         unknown = np.isnan(dcr_u[u])
-        dcr_u[u[unknown]] = np.atleast_1d(dist)[first[unknown]] * ex["usize"][u[unknown]]
-        return u
+        dist = np.atleast_1d(dist)
+        dcr_u[u[unknown]] = dist[first[unknown]] * ex["usize"][u[unknown]]
+        return u, dist[first], (float(dist[-1]) if k < ex["tpts"].shape[0] else np.inf)
 
     def _fill_dcr(self, ex: dict, dcr_u: np.ndarray, u: np.ndarray, c_r: np.ndarray) -> None:
         """Exact ``d_cr`` (metres, the paper's frame) of the semantics' clips ``u`` not yet known."""
@@ -394,6 +459,17 @@ class ExactSearch:
         dcr = self._d_cr_start_per_actor(q, rows[keep], alpha[keep], actor[keep], c_hat, cq)
         d = self.w_q * dqr[keep] + self.w_c * dcr
         return rows[keep], d, dqr[keep], dcr, keep.size
+
+
+def _ball_radius(radius: float) -> float:
+    """The radius (units of size) of the samples taken as within ``radius`` of ``c_hat`` (rounding slack)."""
+    return radius * (1.0 + 1e-9) + BOUND_SLACK
+
+
+def _ranges(start: np.ndarray, length: np.ndarray) -> np.ndarray:
+    """The concatenated ranges ``start[i] .. start[i] + length[i]`` (int arrays), in order."""
+    tot = int(length.sum())
+    return np.repeat(start - np.concatenate([[0], np.cumsum(length)[:-1]]), length) + np.arange(tot)
 
 
 def invariant_features(points: np.ndarray, weights: np.ndarray) -> np.ndarray:

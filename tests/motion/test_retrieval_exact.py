@@ -36,6 +36,7 @@ from repro.motion.augment import augment
 from repro.motion.clustering import aligned_distance, root_frames, rotate_y
 from repro.motion.database import MotionDatabase
 from repro.motion.retrieval import MotionRetriever, make_queries
+from repro.motion.retrieval_exact import _ball_radius
 from repro.motion.sources import build_database
 
 
@@ -255,14 +256,18 @@ def test_trajectory_samples_give_the_exact_d_cr(db, retriever, prepared):
         c_hat = c / q.size_c
         ref = r._d_cr(ex["uclip"], c_r)
         near = np.full(ex["uclip"].size, np.nan)
-        u = r._nearest_clips(ex, near, c_hat, 64)
+        u, dh, far = r._nearest_clips(ex, near, c_hat, 64)
         np.testing.assert_allclose(near[u], ref[u], rtol=1e-12, atol=1e-12)
-        for radius in (0.05, 0.2, 10.0):  # small and large balls (two code paths)
-            ball = np.full(ex["uclip"].size, np.nan)
-            r._ball_dcr(ex, ball, c_hat, radius)
+        np.testing.assert_allclose(dh * ex["usize"][u], ref[u], rtol=1e-12, atol=1e-12)
+        for radius in (0.05, 0.2, 10.0, 0.5 * far):  # small and large balls (two code paths), and one the
+            ball = np.full(ex["uclip"].size, np.nan)  # nearest samples hold (the search's shortcut)
+            uin = r._ball_dcr(ex, ball, c_hat, radius)
+            assert np.array_equal(uin, np.flatnonzero(np.isfinite(ball)))  # the clips within the ball
+            if radius == 0.5 * far:
+                assert np.array_equal(uin, u[dh <= _ball_radius(radius)])
             inside = ref <= radius * ex["usize"] * (1 - 1e-9)
             np.testing.assert_allclose(ball[inside], ref[inside], rtol=1e-12, atol=1e-12)
-            known = np.isfinite(ball)  # inside the ball, or every clip when the ball is large: exact
+            known = np.isfinite(ball)  # the clips inside the ball (on both paths): exact
             np.testing.assert_allclose(ball[known], ref[known], rtol=1e-12, atol=1e-12)
             assert np.all(known | (ref > radius * ex["usize"] * (1 - 1e-9)))  # unknown only outside
 
