@@ -71,7 +71,7 @@ _SAFE_LENGTH_SUM = 1e300
 #: Trees deeper than this use pointer doubling in forward kinematics (log(depth)
 #: vectorised rounds) instead of one round per depth level; real skeletons are far
 #: shallower and keep the level loop (and its exact arithmetic).
-_LEVEL_LOOP_MAX_DEPTH = 64
+LEVEL_LOOP_MAX_DEPTH = 64
 
 
 def finite_vector3(value, name: str, error=None) -> np.ndarray:
@@ -393,7 +393,7 @@ class Motion:
         positions : (F, J, 3) array
             World position of each joint, file units, in :attr:`joint_names` order.
         """
-        if len(self._depth_levels) > _LEVEL_LOOP_MAX_DEPTH:
+        if len(self._depth_levels) > LEVEL_LOOP_MAX_DEPTH:
             return self._global_transforms_doubling()
         # local_translations() is a fresh array: filled level by level in place
         return fk_arrays(self._depth_levels, self.rotations, self.local_translations(), copy=False)

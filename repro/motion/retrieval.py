@@ -113,7 +113,7 @@ from repro.motion.clustering import (
 from repro.motion.database import MotionDatabase
 from repro.motion.index_build import block_order, build_pose_index
 from repro.motion.morphology import RetargetPlan, retarget
-from repro.motion.motion import _LEVEL_LOOP_MAX_DEPTH as _FK_LEVEL_LOOP_MAX
+from repro.motion.motion import LEVEL_LOOP_MAX_DEPTH as _FK_LEVEL_LOOP_MAX
 from repro.motion.motion import Motion, finite_vector3
 from repro.motion.ops import resample
 from repro.motion.retarget_tree import TreePlan, retarget_across
