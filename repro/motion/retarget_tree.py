@@ -166,6 +166,19 @@ def _skeleton_key(sk: Skeleton) -> tuple:
             sk.unit_m)
 
 
+def _checked_pair(motion, character, roles, character_roles):
+    """``(src, tgt, up_t, pair)`` of :func:`retarget_across` and :class:`TreePlan`: both skeletons with their
+    roles checked for retargeting, the character's up axis, and :func:`_pair` of the two."""
+    if not isinstance(motion, Motion):
+        raise MotionError(f"motion must be a Motion, got {type(motion).__name__}")
+    src = Skeleton.from_motion(motion, roles=roles)
+    tgt = skeleton_of(character, roles=character_roles)
+    check_roles(src.roles, "retargeting", src.joint_names)
+    check_roles(tgt.roles, "retargeting", tgt.joint_names)
+    up_t = _up_of(character, tgt)
+    return src, tgt, up_t, _pair(src, tgt, _up_of(motion, src), up_t)
+
+
 def _pair(src: Skeleton, tgt: Skeleton, up_s: str, up_t: str) -> dict:
     """What :func:`retarget_across` reads of two skeletons only (body frames, rest axes), cached."""
     key = (_skeleton_key(src), _skeleton_key(tgt), up_s, up_t)
@@ -215,15 +228,7 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
         Missing roles on either side (named), a character root without position channels,
         a rest pose whose facing cannot be told.
     """
-    if not isinstance(motion, Motion):
-        raise MotionError(f"motion must be a Motion, got {type(motion).__name__}")
-    src = Skeleton.from_motion(motion, roles=roles)
-    tgt = skeleton_of(character, roles=character_roles)
-    check_roles(src.roles, "retargeting", src.joint_names)
-    check_roles(tgt.roles, "retargeting", tgt.joint_names)
-    up_t = _up_of(character, tgt)
-    up_s = _up_of(motion, src)
-    pair = _pair(src, tgt, up_s, up_t)
+    src, tgt, up_t, pair = _checked_pair(motion, character, roles, character_roles)
     C, c, ci = pair["C"], pair["c"], pair["ci"]
     F = motion.n_frames
     gq_s, gp_s = fk_arrays(depth_levels(src.parents), motion.rotations, motion.local_translations())
@@ -376,15 +381,7 @@ class TreePlan:
     """
 
     def __init__(self, motion: Motion, character, *, roles=None, character_roles=None):
-        if not isinstance(motion, Motion):
-            raise MotionError(f"motion must be a Motion, got {type(motion).__name__}")
-        src = Skeleton.from_motion(motion, roles=roles)
-        tgt = skeleton_of(character, roles=character_roles)
-        check_roles(src.roles, "retargeting", src.joint_names)
-        check_roles(tgt.roles, "retargeting", tgt.joint_names)
-        up_t = _up_of(character, tgt)
-        up_s = _up_of(motion, src)
-        pair = _pair(src, tgt, up_s, up_t)
+        src, tgt, up_t, pair = _checked_pair(motion, character, roles, character_roles)
         C, c, ci = pair["C"], pair["c"], pair["ci"]
         Ps, Pt = pair["Ps"], pair["Pt"]
         rs, rt = src.roles, tgt.roles
