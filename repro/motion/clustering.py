@@ -539,6 +539,14 @@ class AlignedPoseIndex:
         """Number of candidate poses N."""
         return self._N
 
+    def terms(self) -> tuple[np.ndarray, ...]:
+        """``(M, X, Z, H, Y2, perm)``: the closed form's stored terms (views) and the stored entry of each
+        candidate (``perm[i]``), for a compiled reader of :meth:`distances` (the exact retrieval's)."""
+        if self._pos is not None:
+            raise MotionError("terms() needs an index stored in candidate order (a subset, or one built without order)")
+        perm = np.arange(self._N, dtype=np.intp) if self._perm is None else self._perm.astype(np.intp, copy=False)
+        return self._M, self._X, self._Z, self._H, self._Y2, perm
+
     def query_matrix(self, q: np.ndarray) -> tuple[np.ndarray, float, float, float, float]:
         """The query-dependent parts: ``(3P, 3)`` matrix and ``X, Z, H, sum w y^2`` of the query."""
         q = real_array(q, "query pose")
@@ -597,18 +605,19 @@ class AlignedPoseIndex:
         out = d, theta, Xa - (c * X + s * Z), Za - (-s * X + c * Z)
         return out if perm is None else tuple(o[perm] for o in out)
 
-    def direct_distance(self, q: np.ndarray, row: int) -> tuple[float, float, float, float]:
+    def direct_distance(self, q: np.ndarray, row: int, *, prepared=None) -> tuple[float, float, float, float]:
         """``(d, theta, x0, z0)`` of query ``q`` (P, 3) to stored pose ``row``, ``d`` summed directly.
 
         The transform is the closed form's; ``d = sqrt(sum w |q - T(p)|^2)`` is then summed
         over the points instead of expanded, so it keeps full precision where the closed
         form cancels (``d2`` of two near-equal poses is the difference of terms ~``H``:
-        ``d`` off by ~1e-8 sqrt(H)).  Needs :attr:`points` (not a :meth:`subset`).
+        ``d`` off by ~1e-8 sqrt(H)).  Needs :attr:`points` (not a :meth:`subset`).  ``prepared``: as in
+        :meth:`distances`.
         """
         if self.points is None:
             raise MotionError("direct_distance needs the candidate clouds (this index is a subset)")
         r = np.array([int(row)])
-        _, theta, x0, z0 = (float(v[0]) for v in self.distances(q, r, return_transform=True))
+        _, theta, x0, z0 = (float(v[0]) for v in self.distances(q, r, return_transform=True, prepared=prepared))
         t = rotate_y(self.points[int(row)].astype(float), theta)
         t[:, 0] += x0
         t[:, 2] += z0

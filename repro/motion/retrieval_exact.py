@@ -13,9 +13,11 @@ optimum of ``d = w_q d_qr + w_c d_cr`` without scoring every pose.  Bounds (issu
 
 Every bound has :data:`BOUND_SLACK` subtracted (rounding of the closed form).  The search is
 a cascade over the *groups* (the poses of one clip inside one cluster), cheapest bound first
-(:meth:`ExactSearch._search_exact`); with ``scoring="first"`` the exact ``d_cr`` of the clips
-within reach of the best ``d`` comes from one k-d tree query over the hit-trajectory samples
-(in units of the actor's size, so that one tree serves every actor).
+(:meth:`ExactSearch._search_exact`).  With ``scoring="first"`` (the paper's frame, the default)
+the cascade runs compiled, in one call (:mod:`repro.motion.retrieval_kernel`, which says why);
+the numpy cascade below serves ``scoring="start"`` and ``features=True``, and there the exact
+``d_cr`` of the clips within reach of the best ``d`` comes from one k-d tree query over the
+hit-trajectory samples (in units of the actor's size, so that one tree serves every actor).
 
 Item 5 of issue 13 (a second, alignment-invariant bound): :func:`invariant_features` gives a
 lower bound of ``D`` (the Euclidean distance between per-point heights and distances from the
@@ -113,13 +115,18 @@ class ExactSearch:
         return np.maximum(lc - BOUND_SLACK, 0.0)
 
 
-    def _prepared(self, q: Query) -> dict:
-        """The query matrices of ``q_r`` (one per actor), computed once per query."""
+    def _prepared(self, q: Query, actor: int | None = None):
+        """The query matrices of ``q_r`` (one per actor; that of ``actor`` alone when given), computed
+        once per query."""
         key = id(q)
         hit = self._qm_cache
         if hit is None or hit[0] != key or hit[1] is not q:
-            self._qm_cache = hit = (key, q, {a: self.index.query_matrix(qn) for a, qn in q.q_n.items()})
-        return hit[2]
+            self._qm_cache = hit = (key, q, {})
+        got = hit[2]
+        for a in (q.q_n if actor is None else (actor,)):
+            if a not in got:
+                got[a] = self.index.query_matrix(q.q_n[a])
+        return got if actor is None else got[actor]
 
     def _c_hat(self, c: np.ndarray, q: Query) -> np.ndarray:
         return c / q.size_c
@@ -151,8 +158,9 @@ class ExactSearch:
             gstart = np.asarray(gstart, dtype=np.intp)
             gclip = db.pose_clip[rows[gstart[:-1]]]
             uclip, gu = np.unique(gclip, return_inverse=True)
+            index = self.index.subset(rows)
             self._ex[sem] = {
-                "rows": rows, "index": self.index.subset(rows), "gstart": gstart, "glen": np.diff(gstart),
+                "rows": rows, "index": index, "gstart": gstart, "glen": np.diff(gstart),
                 "gclip": gclip, "gsize": db.size_a[gclip], "gactor": db.actor[gclip], "gcluster": np.concatenate(gcl),
                 "gradius": np.concatenate(rad),
                 "clstart": np.asarray(clstart, dtype=np.intp), "glen_cl": np.diff(clstart), "size": psize,
@@ -160,7 +168,7 @@ class ExactSearch:
                 "uclip": uclip, "gu": gu, "ulo": self._nbox_lo[uclip], "uhi": self._nbox_hi[uclip],
                 "pu": np.repeat(gu, np.diff(gstart)), "ugroups": np.argsort(gu, kind="stable"),
                 "ustart": np.searchsorted(np.sort(gu), np.arange(uclip.size + 1)), "usize": db.size_a[uclip], "smin": float(db.size_a[uclip].min()),
-                **self._trajectory_samples(uclip),
+                **self._trajectory_samples(uclip), **_index_terms(index),
             }
 
     def _trajectory_samples(self, uclip: np.ndarray) -> dict:
@@ -172,7 +180,7 @@ class ExactSearch:
         idx = np.repeat(st - np.concatenate([[0], np.cumsum(n)[:-1]]), n) + np.arange(int(n.sum()))
         tclip = np.repeat(np.arange(uclip.size), n)
         tpts = db.traj[idx] / db.size_a[uclip][tclip, None]
-        return {"tpts": tpts, "tcols": np.ascontiguousarray(tpts.T), "tclip": tclip,
+        return {"tpts": tpts, "tclip": tclip, "tlen": n.astype(np.intp),
                 "tstart": np.concatenate([[0], np.cumsum(n)[:-1]]).astype(np.intp)}
 
     def _search_exact(self, c, q: Query, sem: str, scoring: str, scale_target: bool = True,
@@ -199,9 +207,11 @@ class ExactSearch:
             return self._search_exhaustive(c, q, sem, scoring, scale_target, method="exact")
         ex = self._ex[sem]
         c_hat = self._c_hat(c, q)
-        cq = self._cq(q)
         prep = self._prepared(q)
         first = scoring == "first"
+        if first and not features:
+            return self._search_exact_compiled(ex, c_r, c_hat, q, prep, stats, batch)
+        cq = self._cq(q)
         geo = None if first else self._start_geometry()
         wq, wc = self.w_q, self.w_c
         G = ex["gsize"].size
@@ -354,6 +364,42 @@ class ExactSearch:
         parts = [(p[0][m], p[1][m]) for p in parts for m in [p[1] <= thr]]
         return self._finish(q, parts, c_r, method="exact", n=n, scoring=scoring, c_hat=c_hat, cq=cq)
 
+    def _search_exact_compiled(self, ex: dict, c_r: np.ndarray, c_hat: np.ndarray, q: Query, prep: dict,
+                               stats: dict | None, batch: int) -> RetrievalResult:
+        """``scoring="first"``: the cascade of :meth:`_search_exact` in one compiled call
+        (:func:`repro.motion.retrieval_kernel.search_first`, which says why)."""
+        from repro.motion.retrieval_kernel import search_first  # numba: imported on first use
+
+        slots = tuple(q.q_n)
+        gslot = ex.setdefault("gslot", {}).get(slots)
+        if gslot is None:  # the query slot of each group's actor (-1: an actor the character cannot use)
+            amap = np.full(int(self.db.actor.max()) + 1, -1, dtype=np.intp)
+            amap[list(slots)] = np.arange(len(slots))
+            gslot = ex["gslot"][slots] = amap[ex["gactor"]]
+        radius = self._bb[ex["sem"]]["radius"]
+        dcl = [self.centroid_index.distances(q.q_n[a], prepared=prep[a]) for a in slots]
+        lq = np.maximum(np.array(dcl) - radius - BOUND_SLACK, 0.0)
+        dmin = dcl[0] if len(dcl) == 1 else np.min(dcl, axis=0)
+        cl_order = np.argsort(np.where(ex["glen_cl"] > 0, dmin, np.inf), kind="stable")
+        qpts = np.array([q.q_n[a].T for a in slots], dtype=float)
+        qscal = np.array([prep[a][1:] for a in slots])
+        if "tree" not in ex:
+            ex["tree"] = cKDTree(ex["tpts"])
+        near_dist, near_idx = ex["tree"].query(c_hat, k=min(NEAR_SAMPLES, ex["tpts"].shape[0]))
+        rtol, atol = self._near_terms()
+        pos, d, n_groups, n_clusters = search_first(
+            c_hat, lq, gslot, ex["gcluster"], ex["gsize"], ex["gstart"], ex["gu"], ex["ugroups"], ex["ustart"],
+            ex["ulo"], ex["uhi"], ex["usize"], ex["tpts"], ex["tstart"], ex["tlen"], ex["M"], ex["perm"], ex["X"],
+            ex["Z"], ex["H"], ex["Y2"], ex["size"], qpts, qscal, self.w_q, self.w_c, rtol, atol, BOUND_SLACK,
+            cl_order, ex["clstart"], ex["tclip"], np.atleast_1d(near_idx).astype(np.intp, copy=False),
+            np.atleast_1d(near_dist), batch)
+        if pos.size == 0:
+            raise RetrievalError("no clip of an actor compatible with the character for this semantics")
+        if stats is not None:
+            stats.update(clusters_visited=int(n_clusters), groups_scored=int(n_groups), poses_scored=int(pos.size))
+        keep = d <= self._near_threshold(float(d.min()))
+        return self._finish(q, [(ex["rows"][pos[keep]], d[keep])], c_r, method="exact", n=pos.size, scoring="first")
+
     @staticmethod
     def _group_poses(ex: dict, gids: np.ndarray) -> np.ndarray:
         """Positions (into the semantics' pose arrays) of the poses of groups ``gids``."""
@@ -374,6 +420,8 @@ class ExactSearch:
         idx = np.asarray(ex["tree"].query_ball_point(c_hat, rad), dtype=np.intp)
         dh = np.full(dcr_u.size, np.inf)
         if idx.size > M // 8:  # a large ball: every sample
+            if "tcols" not in ex:  # the numpy path only (features=True): built on first use
+                ex["tcols"] = np.ascontiguousarray(ex["tpts"].T)
             tx, ty, tz = ex["tcols"]  # contiguous coordinates: three 1-D passes, no (M, 3) temporaries
             d2 = np.square(tx - c_hat[0])
             d2 += np.square(ty - c_hat[1])
@@ -459,6 +507,12 @@ class ExactSearch:
         dcr = self._d_cr_start_per_actor(q, rows[keep], alpha[keep], actor[keep], c_hat, cq)
         d = self.w_q * dqr[keep] + self.w_c * dcr
         return rows[keep], d, dqr[keep], dcr, keep.size
+
+
+def _index_terms(index) -> dict:
+    """The terms of an :class:`~repro.motion.clustering.AlignedPoseIndex` subset the compiled search reads
+    (:meth:`~repro.motion.clustering.AlignedPoseIndex.terms`), C-contiguous (views when they are)."""
+    return dict(zip(("M", "X", "Z", "H", "Y2", "perm"), (np.ascontiguousarray(t) for t in index.terms())))
 
 
 def _ball_radius(radius: float) -> float:

@@ -10,7 +10,8 @@ What is asserted:
 * ``MotionRetriever`` retargets the current pose to every actor (the rest pose per actor
   made once, cached), so a clip of another tree is served, by default (without the
   caller asking: ``across_trees=True`` is the default); with ``across_trees=False`` the
-  single-tree behaviour is unchanged (the other trees are not candidates);
+  single-tree behaviour is unchanged (the other trees are not candidates); the exact search is
+  the exhaustive optimum either way (every actor in the query, or one);
 * :func:`strike` and :class:`KungFuFighter` play the selected clip on a character of
   another tree (a Mixamo-named rig given as a Motion), hitting the target;
 * bad characters: no arm for a punch / no leg for a kick (named, for what), another
@@ -145,6 +146,27 @@ def test_across_trees_serves_clips_of_every_tree(mixed, across):
     assert served - {"own"}  # a clip of another tree was chosen
     with pytest.raises(RetrievalError, match="True or False"):
         MotionRetriever(db, across_trees="yes")
+
+
+@pytest.mark.parametrize("across_trees", [True, False])
+def test_exact_search_on_several_actors(mixed, across, across_trees):
+    """The exact search (compiled with ``scoring="first"``) is the exhaustive optimum, same numbers, when the
+    query has every actor and when it has one (the other actors' clips are not candidates)."""
+    from repro.motion.retrieval import make_queries
+
+    db, _ = mixed
+    r = across if across_trees else MotionRetriever(db, seed=0, across_trees=False)
+    seen = set()
+    for c, pose, ch, sem in make_queries(db, 40, seed=4):
+        q = r.prepare(pose, ch)
+        assert len(q.actors) == (3 if across_trees else 1)
+        for scoring in ("first", "start"):
+            a = r.search(c, q, None, sem, method="exact", scoring=scoring)
+            b = r.search(c, q, None, sem, method="exhaustive", scoring=scoring)
+            assert (a.pose, a.d, a.d_qr, a.d_cr) == (b.pose, b.d, b.d_qr, b.d_cr)
+            assert int(db.actor[a.clip]) in q.actors
+            seen.add(int(db.actor[a.clip]))
+    assert len(seen) > 1
 
 
 def test_across_trees_caches_the_actor_rest_poses(mixed, monkeypatch):
