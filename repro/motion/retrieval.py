@@ -488,6 +488,7 @@ class MotionRetriever(ExactSearch, StartScoring):
         self._tree_plans: dict = {}  # (actor, pose skeleton, roles) -> TreePlan (another joint tree)
         self._start: dict | None = None
         self._qm_cache = None
+        self._cterms = None  # the centroids' index terms (the compiled exact search reads them)
         self._bounds_setup()
         self._exact_setup()
 

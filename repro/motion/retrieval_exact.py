@@ -207,10 +207,10 @@ class ExactSearch:
             return self._search_exhaustive(c, q, sem, scoring, scale_target, method="exact")
         ex = self._ex[sem]
         c_hat = self._c_hat(c, q)
-        prep = self._prepared(q)
         first = scoring == "first"
         if first and not features:
-            return self._search_exact_compiled(ex, c_r, c_hat, q, prep, stats, batch)
+            return self._search_exact_compiled(ex, c_r, c_hat, q, stats, batch)
+        prep = self._prepared(q)
         cq = self._cq(q)
         geo = None if first else self._start_geometry()
         wq, wc = self.w_q, self.w_c
@@ -364,7 +364,7 @@ class ExactSearch:
         parts = [(p[0][m], p[1][m]) for p in parts for m in [p[1] <= thr]]
         return self._finish(q, parts, c_r, method="exact", n=n, scoring=scoring, c_hat=c_hat, cq=cq)
 
-    def _search_exact_compiled(self, ex: dict, c_r: np.ndarray, c_hat: np.ndarray, q: Query, prep: dict,
+    def _search_exact_compiled(self, ex: dict, c_r: np.ndarray, c_hat: np.ndarray, q: Query,
                                stats: dict | None, batch: int) -> RetrievalResult:
         """``scoring="first"``: the cascade of :meth:`_search_exact` in one compiled call
         (:func:`repro.motion.retrieval_kernel.search_first`, which says why)."""
@@ -376,23 +376,19 @@ class ExactSearch:
             amap = np.full(int(self.db.actor.max()) + 1, -1, dtype=np.intp)
             amap[list(slots)] = np.arange(len(slots))
             gslot = ex["gslot"][slots] = amap[ex["gactor"]]
-        radius = self._bb[ex["sem"]]["radius"]
-        dcl = [self.centroid_index.distances(q.q_n[a], prepared=prep[a]) for a in slots]
-        lq = np.maximum(np.array(dcl) - radius - BOUND_SLACK, 0.0)
-        dmin = dcl[0] if len(dcl) == 1 else np.min(dcl, axis=0)
-        cl_order = np.argsort(np.where(ex["glen_cl"] > 0, dmin, np.inf), kind="stable")
         qpts = np.array([q.q_n[a].T for a in slots], dtype=float)
-        qscal = np.array([prep[a][1:] for a in slots])
         if "tree" not in ex:
             ex["tree"] = cKDTree(ex["tpts"])
         near_dist, near_idx = ex["tree"].query(c_hat, k=min(NEAR_SAMPLES, ex["tpts"].shape[0]))
         rtol, atol = self._near_terms()
+        if self._cterms is None:
+            self._cterms = tuple(np.ascontiguousarray(t) for t in self.centroid_index.terms()[:5])
         pos, d, n_groups, n_clusters = search_first(
-            c_hat, lq, gslot, ex["gcluster"], ex["gsize"], ex["gstart"], ex["gu"], ex["ugroups"], ex["ustart"],
-            ex["ulo"], ex["uhi"], ex["usize"], ex["tpts"], ex["tstart"], ex["tlen"], ex["M"], ex["perm"], ex["X"],
-            ex["Z"], ex["H"], ex["Y2"], ex["size"], qpts, qscal, self.w_q, self.w_c, rtol, atol, BOUND_SLACK,
-            cl_order, ex["clstart"], ex["tclip"], np.atleast_1d(near_idx).astype(np.intp, copy=False),
-            np.atleast_1d(near_dist), batch)
+            c_hat, qpts, self.weights, *self._cterms, self._bb[ex["sem"]]["radius"], gslot, ex["gcluster"],
+            ex["gsize"], ex["gstart"], ex["gu"], ex["ugroups"], ex["ustart"], ex["ulo"], ex["uhi"], ex["usize"],
+            ex["tpts"], ex["tstart"], ex["tlen"], ex["M"], ex["perm"], ex["X"], ex["Z"], ex["H"], ex["Y2"],
+            ex["size"], self.w_q, self.w_c, rtol, atol, BOUND_SLACK, ex["clstart"], ex["tclip"],
+            np.atleast_1d(near_idx).astype(np.intp, copy=False), np.atleast_1d(near_dist), batch)
         if pos.size == 0:
             raise RetrievalError("no clip of an actor compatible with the character for this semantics")
         if stats is not None:

@@ -111,9 +111,9 @@ def _lowest(lb, ids, batch):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def search_first(c_hat, lq, gslot, gcl, gs, gstart, gu, ugroups, ustart, ulo, uhi, usize,
-                 tpts, tstart, tlen, M, perm, X, Z, H, Y2, psize, qpts, qscal,
-                 wq, wc, near_rtol, near_atol, slack, cl_order, clstart, tclip, near_idx, near_dist,
+def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, gs, gstart, gu, ugroups,
+                 ustart, ulo, uhi, usize, tpts, tstart, tlen, M, perm, X, Z, H, Y2, psize,
+                 wq, wc, near_rtol, near_atol, slack, clstart, tclip, near_idx, near_dist,
                  batch):  # pragma: no cover - compiled
     """The poses scored by the branch and bound (see the module docstring).
 
@@ -122,9 +122,9 @@ def search_first(c_hat, lq, gslot, gcl, gs, gstart, gu, ugroups, ustart, ulo, uh
     offsets of its poses, ``gu`` clip), clips (``ugroups``/``ustart`` their groups,
     ``ulo``/``uhi`` (U, 3) boxes and ``tpts``/``tstart``/``tlen`` trajectory samples in units
     of size, ``usize``), poses (``M``, ``X``, ``Z``, ``H``, ``Y2`` the index terms at
-    ``perm[p]``, ``psize``).  Query: ``lq`` (slots, k) the cluster bounds, ``qpts`` (slots, 3, P) the
-    query clouds by coordinate and ``qscal`` (slots, 4) their ``X, Z, H, sum w y^2``, ``cl_order`` clusters by distance, ``clstart`` group offsets per
-    cluster, ``near_idx``/``near_dist`` the trajectory samples nearest ``c_hat`` by increasing
+    ``perm[p]``, ``psize``).  Clusters: ``cM, cX, cZ, cH, cY2`` the index terms of the centroids, ``radius``
+    (k,) their radii, ``clstart`` group offsets per cluster.  Query: ``qpts`` (slots, 3, P) the
+    query clouds by coordinate (``weights`` (P,) the point weights), ``near_idx``/``near_dist`` the trajectory samples nearest ``c_hat`` by increasing
     distance (units of size; ``tclip`` the clip of each sample): the first sample of a clip gives
     its exact ``d_cr``.
 
@@ -133,6 +133,27 @@ def search_first(c_hat, lq, gslot, gcl, gs, gstart, gu, ugroups, ustart, ulo, uh
     """
     G = gs.size
     U = usize.size
+    S = qpts.shape[0]
+    K = radius.size
+    # 1. the query's terms (as AlignedPoseIndex.query_matrix), the cluster bounds, clusters by distance
+    qscal = np.empty((S, 4))
+    for s in range(S):
+        xa, ya, za = qpts[s, 0], qpts[s, 1], qpts[s, 2]
+        Xa = (xa * weights).sum()
+        Za = (za * weights).sum()
+        qscal[s, 0] = Xa
+        qscal[s, 1] = Za
+        qscal[s, 2] = ((xa * xa + za * za) * weights).sum() - (Xa * Xa + Za * Za)
+        qscal[s, 3] = (ya * ya * weights).sum()
+    lq = np.empty((S, K))
+    dmin = np.full(K, np.inf)
+    for cl in range(K):
+        for s in range(S):
+            dc = _pose_distance(cM, cl, qpts[s], qscal[s], cX, cZ, cH, cY2)
+            lq[s, cl] = max(dc - radius[cl] - slack, 0.0)
+            if clstart[cl + 1] > clstart[cl] and dc < dmin[cl]:
+                dmin[cl] = dc
+    cl_order = _argsort(dmin)
     gap = np.empty(U)
     for u in range(U):
         g2 = 0.0
@@ -286,8 +307,8 @@ def compile_search() -> None:
     """Compile :func:`search_first` (or load it from numba's cache) on a one-pose problem, with the
     argument types of :meth:`~repro.motion.retrieval_exact.ExactSearch._search_exact_compiled`: the
     first exact search of a process then costs what the others do (the fighter calls it at set-up)."""
-    i1, f1 = np.zeros(1, np.intp), np.zeros(1)
-    search_first(np.zeros(3), np.zeros((1, 1)), i1, i1, np.ones(1), np.array([0, 1], np.intp), i1, i1,
-                 np.array([0, 1], np.intp), np.zeros((1, 3)), np.zeros((1, 3)), np.ones(1), np.zeros((1, 3)), i1,
-                 np.ones(1, np.intp), np.zeros((1, 3)), i1, f1, f1, f1, f1, np.ones(1), np.zeros((1, 3, 1)),
-                 np.zeros((1, 4)), 1.0, 1.0, 1e-9, 1e-7, 1e-6, i1, np.array([0, 1], np.intp), i1, i1, f1, 32)
+    i1, f1, f3 = np.zeros(1, np.intp), np.zeros(1), np.zeros((1, 3))
+    search_first(np.zeros(3), np.zeros((1, 3, 1)), np.ones(1), f3, f1, f1, f1, f1, f1, i1, i1, np.ones(1),
+                 np.array([0, 1], np.intp), i1, i1, np.array([0, 1], np.intp), f3, f3, np.ones(1), f3, i1,
+                 np.ones(1, np.intp), f3, i1, f1, f1, f1, f1, np.ones(1), 1.0, 1.0, 1e-9, 1e-7, 1e-6,
+                 np.array([0, 1], np.intp), i1, i1, f1, 32)
