@@ -49,6 +49,8 @@ BOUND_SLACK: float = 1e-6
 FEATURE_RTOL: float = 1e-5
 #: Trajectory samples nearest the target whose clips seed the first best ``d`` (``scoring="first"``).
 NEAR_SAMPLES: int = 64
+#: Trajectory samples per segment box of the compiled search (:func:`repro.motion.retrieval_kernel._clip_dcr`).
+SEGMENT: int = 8
 
 
 class ExactSearch:
@@ -180,8 +182,14 @@ class ExactSearch:
         idx = np.repeat(st - np.concatenate([[0], np.cumsum(n)[:-1]]), n) + np.arange(int(n.sum()))
         tclip = np.repeat(np.arange(uclip.size), n)
         tpts = db.traj[idx] / db.size_a[uclip][tclip, None]
-        return {"tpts": tpts, "tclip": tclip, "tlen": n.astype(np.intp),
-                "tstart": np.concatenate([[0], np.cumsum(n)[:-1]]).astype(np.intp)}
+        tstart = np.concatenate([[0], np.cumsum(n)[:-1]]).astype(np.intp)
+        # segments of SEGMENT samples (the compiled search's boxes): they tile each clip's samples in order
+        nseg = -(-n // SEGMENT)
+        useg = np.concatenate([[0], np.cumsum(nseg)]).astype(np.intp)
+        seg_start = np.repeat(tstart - SEGMENT * useg[:-1], nseg) + SEGMENT * np.arange(int(useg[-1]))
+        sbox = np.concatenate([np.minimum.reduceat(tpts, seg_start), np.maximum.reduceat(tpts, seg_start)], axis=1)
+        return {"tpts": tpts, "tclip": tclip, "tlen": n.astype(np.intp), "tstart": tstart,
+                "sbox": np.ascontiguousarray(sbox), "useg": useg}
 
     def _search_exact(self, c, q: Query, sem: str, scoring: str, scale_target: bool = True,
                       stats: dict | None = None, batch: int = 32, features: bool = False) -> RetrievalResult:
@@ -386,7 +394,7 @@ class ExactSearch:
         pos, d, n_groups, n_clusters = search_first(
             c_hat, qpts, self.weights, *self._cterms, self._bb[ex["sem"]]["radius"], gslot, ex["gcluster"],
             ex["gsize"], ex["gstart"], ex["gu"], ex["ugroups"], ex["ustart"], ex["ulo"], ex["uhi"], ex["usize"],
-            ex["tpts"], ex["tstart"], ex["tlen"], ex["M"], ex["perm"], ex["X"], ex["Z"], ex["H"], ex["Y2"],
+            ex["tpts"], ex["tstart"], ex["tlen"], ex["sbox"], ex["useg"], SEGMENT, ex["M"], ex["perm"], ex["X"], ex["Z"], ex["H"], ex["Y2"],
             ex["size"], self.w_q, self.w_c, rtol, atol, BOUND_SLACK, ex["clstart"], ex["tclip"],
             np.atleast_1d(near_idx).astype(np.intp, copy=False), np.atleast_1d(near_dist), batch)
         if pos.size == 0:

@@ -3,25 +3,31 @@
 :meth:`repro.motion.retrieval_exact.ExactSearch._search_exact` states the bounds; this module
 runs the same cascade over the clip runs (groups) of one semantics in one compiled call:
 
-1. per clip, the gap between ``c_hat`` and its hit-trajectory box (units of its actor's size);
+1. the query's terms and, per cluster, ``lq = max(D(q_r, m) - r, 0)`` (centroid ``m``, radius ``r``),
+   the clusters ordered by ``D(q_r, m)``; per clip, the gap between ``c_hat`` and its
+   hit-trajectory box (units of its actor's size);
 2. a first best ``d``: the ``batch`` groups of lowest bound among those of the clusters nearest
    ``q_r``, and the ``batch`` groups of lowest bound among those of the clips passing nearest
-   ``c_hat`` (their exact ``d_cr``, from the k-d tree of the trajectory samples, is given);
+   ``c_hat`` (the nearest trajectory samples, from the k-d tree, give their exact ``d_cr``);
 3. every clip whose bound ``s (w_q min lq + w_c gap)`` can beat it gets its exact ``d_cr``,
    and its groups whose bound ``s w_q lq + w_c d_cr`` can beat it are candidates;
 4. the candidates, lowest bound first, scored pose by pose until the next bound exceeds the
    best ``d`` (within :data:`repro.motion.retrieval.NEAR_RTOL`, so that every pose the
    exhaustive scan would re-score is scored here too).
 
-Why compiled, measured (``repro bench retrieval``, the same process): the numpy cascade looks
-at about 1,000 poses and 700 clips of the CMU database at 100x but spends ~1.7 ms in some
-60 array calls of a few microseconds each, against ~10 ms for the exhaustive scan: the
-20x goal of issue 13 cannot be met with per-call overheads of that size.  The arithmetic is
-the numpy path's (the closed form of :meth:`~repro.motion.clustering.AlignedPoseIndex.distances`
-for ``D``); sums may round differently in the last bits, which the near-best re-scoring of
-:meth:`~repro.motion.retrieval.MotionRetriever._select` absorbs.  Compiled once per machine
-(``cache=True``: the first call of a fresh install takes a few seconds; later processes load
-it).
+Why compiled (measured on the CMU database at 100x, 198,207 poses, on a 2-core VM whose speed
+varied by 1.5x within the hour): the numpy cascade scores about 1,000 poses and measures about
+800 clips per query, yet took 1.7-2.5 ms at the median (about 690 Python-level calls per search,
+cProfile) against 10-15 ms for the exhaustive scan, which streams every pose through one matrix
+product.  Interleaved in one process, 300 queries: numpy cascade p50 2.5 ms / p99 9.8 ms, this
+kernel's first version 1.9 / 3.8 ms; with the query's terms and the cluster bounds moved in
+here, 0.8-1.7 ms (``time_search``, by the machine's load).  The arithmetic is the numpy path's
+(the closed form of :meth:`~repro.motion.clustering.AlignedPoseIndex.distances` for ``D``); sums
+round differently in the last bits, which the near-best re-scoring of
+:meth:`~repro.motion.retrieval.MotionRetriever._select` absorbs: both searches report the same
+pose with the same numbers.  Compiled once per machine and source (``cache=True``): about 9 s
+on a fresh install, then about 0.3 s to load in a new process, plus about 1 s to import numba,
+which only the exact search imports.
 """
 
 from __future__ import annotations
@@ -29,7 +35,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["search_first"]
+__all__ = ["compile_search", "search_first"]
 
 
 @numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
@@ -55,17 +61,38 @@ def _pose_distance(M, j, qp, qs, X, Z, H, Y2):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _clip_dcr(tpts, tstart, tlen, u, c_hat):  # pragma: no cover - compiled
-    """Closest approach of clip ``u``'s trajectory samples (units of size) to ``c_hat``."""
-    m2 = np.inf
-    for t in range(tstart[u], tstart[u] + tlen[u]):
-        dx = tpts[t, 0] - c_hat[0]
-        dy = tpts[t, 1] - c_hat[1]
-        dz = tpts[t, 2] - c_hat[2]
-        v = dx * dx + dy * dy + dz * dz
-        if v < m2:
-            m2 = v
-    return np.sqrt(m2)
+def _clip_dcr(tpts, tstart, tlen, sbox, useg, seg, u, c_hat, limit):  # pragma: no cover - compiled
+    """Closest approach of clip ``u``'s trajectory samples (units of size) to ``c_hat`` when it is at
+    most ``limit``, else inf.  The samples come in segments of ``seg`` with their boxes
+    (``sbox`` (n, 6) low and high corners, ``useg`` the clip's segments): a segment whose box is
+    farther than the nearest sample so far (or than ``limit``) is skipped.  The box gap is formed with
+    the same roundings as a sample's distance and never exceeds it, so the minimum is exact."""
+    m2 = limit * limit
+    best = np.inf
+    end = tstart[u] + tlen[u]
+    for k in range(useg[u], useg[u + 1]):
+        g2 = 0.0
+        for a in range(3):
+            lo = sbox[k, a] - c_hat[a]
+            if lo > 0.0:
+                g2 += lo * lo
+            else:
+                hi = c_hat[a] - sbox[k, 3 + a]
+                if hi > 0.0:
+                    g2 += hi * hi
+        if g2 > m2:
+            continue
+        t0 = tstart[u] + seg * (k - useg[u])
+        for t in range(t0, min(t0 + seg, end)):
+            dx = tpts[t, 0] - c_hat[0]
+            dy = tpts[t, 1] - c_hat[1]
+            dz = tpts[t, 2] - c_hat[2]
+            v = dx * dx + dy * dy + dz * dz
+            if v < best:
+                best = v
+                if v < m2:
+                    m2 = v
+    return np.sqrt(best) if best <= limit * limit else np.inf
 
 
 @numba.njit(cache=True, nogil=True)
@@ -112,7 +139,7 @@ def _lowest(lb, ids, batch):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, gs, gstart, gu, ugroups,
-                 ustart, ulo, uhi, usize, tpts, tstart, tlen, M, perm, X, Z, H, Y2, psize,
+                 ustart, ulo, uhi, usize, tpts, tstart, tlen, sbox, useg, seg, M, perm, X, Z, H, Y2, psize,
                  wq, wc, near_rtol, near_atol, slack, clstart, tclip, near_idx, near_dist,
                  batch):  # pragma: no cover - compiled
     """The poses scored by the branch and bound (see the module docstring).
@@ -120,8 +147,9 @@ def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, 
     Arrays of one semantics: groups (``gslot`` the query slot of the group's actor, -1 for
     an actor the query does not have; ``gcl`` cluster, ``gs`` actor size, ``gstart``
     offsets of its poses, ``gu`` clip), clips (``ugroups``/``ustart`` their groups,
-    ``ulo``/``uhi`` (U, 3) boxes and ``tpts``/``tstart``/``tlen`` trajectory samples in units
-    of size, ``usize``), poses (``M``, ``X``, ``Z``, ``H``, ``Y2`` the index terms at
+    ``ulo``/``uhi`` (U, 3) boxes, ``tpts``/``tstart``/``tlen`` trajectory samples in units
+    of size and ``sbox``/``useg`` the boxes of their segments of ``seg`` samples (:func:`_clip_dcr`),
+    ``usize``), poses (``M``, ``X``, ``Z``, ``H``, ``Y2`` the index terms at
     ``perm[p]``, ``psize``).  Clusters: ``cM, cX, cZ, cH, cY2`` the index terms of the centroids, ``radius``
     (k,) their radii, ``clstart`` group offsets per cluster.  Query: ``qpts`` (slots, 3, P) the
     query clouds by coordinate (``weights`` (P,) the point weights), ``near_idx``/``near_dist`` the trajectory samples nearest ``c_hat`` by increasing
@@ -255,8 +283,12 @@ def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, 
                             lqm = v
                 if lqm + base > thr:
                     continue
-                if not known[u]:
-                    dcr[u] = _clip_dcr(tpts, tstart, tlen, u, c_hat) * usize[u]
+                if not known[u]:  # exact when within reach (with rounding slack), else out of reach
+                    reach = _clip_dcr(tpts, tstart, tlen, sbox, useg, seg, u, c_hat,
+                                      (thr - lqm) / (wc * usize[u]) * (1.0 + 1e-9) + slack)
+                    if reach == np.inf:
+                        continue
+                    dcr[u] = reach * usize[u]
                     known[u] = True
                 if lqm + wc * dcr[u] > thr:
                     continue
@@ -281,7 +313,7 @@ def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, 
             s = gslot[g]
             u = gu[g]
             if not known[u]:
-                dcr[u] = _clip_dcr(tpts, tstart, tlen, u, c_hat) * usize[u]
+                dcr[u] = _clip_dcr(tpts, tstart, tlen, sbox, useg, seg, u, c_hat, np.inf) * usize[u]
                 known[u] = True
             n_groups += 1
             visited[gcl[g]] = True
@@ -310,5 +342,5 @@ def compile_search() -> None:
     i1, f1, f3 = np.zeros(1, np.intp), np.zeros(1), np.zeros((1, 3))
     search_first(np.zeros(3), np.zeros((1, 3, 1)), np.ones(1), f3, f1, f1, f1, f1, f1, i1, i1, np.ones(1),
                  np.array([0, 1], np.intp), i1, i1, np.array([0, 1], np.intp), f3, f3, np.ones(1), f3, i1,
-                 np.ones(1, np.intp), f3, i1, f1, f1, f1, f1, np.ones(1), 1.0, 1.0, 1e-9, 1e-7, 1e-6,
+                 np.ones(1, np.intp), np.zeros((1, 6)), np.array([0, 1], np.intp), 8, f3, i1, f1, f1, f1, f1, np.ones(1), 1.0, 1.0, 1e-9, 1e-7, 1e-6,
                  np.array([0, 1], np.intp), i1, i1, f1, 32)
