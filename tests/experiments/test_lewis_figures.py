@@ -74,3 +74,17 @@ def test_repro_run_writes_every_lewis_figure(tmp_path, quick_figures, monkeypatc
         assert (tmp_path / f"{name}.png").read_bytes()[:4] == b"\x89PNG"
         assert len(pd.read_csv(tmp_path / f"{name}.csv")) > 0
     assert (tmp_path / "alpha_sweep-limits.csv").exists()
+
+
+def test_worst_shape_ties_go_to_the_first():
+    """A symmetric face's left and right shapes tie (their excursions differ in the last bits, by machine):
+    the first is named, whatever the rounding; a real difference still wins."""
+    import numpy as np
+
+    from repro.experiments.lewis.bounded_attenuation import _worst
+
+    names = ["browOuterUp_L", "browOuterUp_R", "jaw"]
+    x = 0.0994248511430335
+    assert _worst(names, np.array([x, x * (1 + 2e-9), 0.0])) == "browOuterUp_L"
+    assert _worst(names, np.array([x * (1 + 2e-9), x, 0.0])) == "browOuterUp_L"
+    assert _worst(names, np.array([x, x * (1 + 1e-4), 0.0])) == "browOuterUp_R"

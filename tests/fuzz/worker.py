@@ -81,6 +81,20 @@ def check_finite(obj, where: str = "result", depth: int = 0, seen=None) -> None:
 INFINITE_OK = {"limits"}
 
 
+def _peak_rss_kb() -> int:
+    """This process's peak resident set (KiB) since it was exec'd: ``VmHWM`` where /proc has it.
+    ``ru_maxrss`` is not that on Linux: exec keeps the peak of the memory it replaces, which after
+    subprocess's vfork is the parent's (the test session's, over 1 GiB late in a full run)."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1])
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+
+
 def _registry_module():
     import importlib
 
@@ -375,7 +389,7 @@ def main() -> None:
     warnings.filterwarnings("ignore", category=Warning)
     warnings.filterwarnings("error", category=RuntimeWarning, module=r"repro\..*")
     targets = Targets(ctx)
-    usage = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    usage = _peak_rss_kb()
     import repro
 
     reply(outcome="ready", maxrss_kb=usage, repro_file=repro.__file__)
