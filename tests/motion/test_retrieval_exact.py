@@ -31,20 +31,16 @@ import numpy as np
 import pytest
 
 from repro.errors import RetrievalError
-from repro.motion import synthetic
 from repro.motion.augment import augment
 from repro.motion.clustering import aligned_distance, root_frames, rotate_y
 from repro.motion.database import MotionDatabase
 from repro.motion.retrieval import MotionRetriever, make_queries
 from repro.motion.retrieval_exact import _ball_radius
-from repro.motion.sources import build_database
 
 
 @pytest.fixture(scope="module")
-def db(tmp_path_factory):
-    d = tmp_path_factory.mktemp("synthetic")
-    synthetic.synthetic_database(d, seed=0)
-    return build_database(d)
+def db(synthetic_db):
+    return synthetic_db
 
 
 @pytest.fixture(scope="module")

@@ -18,18 +18,14 @@ import numpy as np
 import pytest
 
 from repro.errors import MotionError
-from repro.motion import synthetic
 from repro.motion.clustering import AlignedPoseIndex
 from repro.motion.retrieval import MotionRetriever, make_queries
 from repro.motion.retrieval_kernel import _argsort, compile_search, search_first
-from repro.motion.sources import build_database
 
 
 @pytest.fixture(scope="module")
-def db(tmp_path_factory):
-    d = tmp_path_factory.mktemp("synthetic")
-    synthetic.synthetic_database(d, seed=0)
-    return build_database(d)
+def db(synthetic_db):
+    return synthetic_db
 
 
 @pytest.fixture(scope="module")
