@@ -61,22 +61,6 @@ def _pose_distance(M, j, qp, qs, X, Z, H, Y2):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _box_gap2(lo, hi, c):  # pragma: no cover - compiled
-    """Squared distance from ``c`` to the box ``[lo, hi]`` (3,), formed with the roundings of a sample's
-    squared distance (per axis ``s - c`` or ``c - s``, summed x, y, z): never above it for a sample inside."""
-    g2 = 0.0
-    for a in range(3):
-        v = lo[a] - c[a]
-        if v > 0.0:
-            g2 += v * v
-        else:
-            v = c[a] - hi[a]
-            if v > 0.0:
-                g2 += v * v
-    return g2
-
-
-@numba.njit(cache=True, nogil=True)
 def _clip_dcr(tpts, tstart, tlen, sbox, useg, seg, u, c_hat, limit):  # pragma: no cover - compiled
     """Closest approach of clip ``u``'s trajectory samples (units of size) to ``c_hat`` when it is at
     most ``limit``, else inf.  The samples come in segments of ``seg`` with their boxes
@@ -87,7 +71,16 @@ def _clip_dcr(tpts, tstart, tlen, sbox, useg, seg, u, c_hat, limit):  # pragma: 
     best = np.inf
     end = tstart[u] + tlen[u]
     for k in range(useg[u], useg[u + 1]):
-        if _box_gap2(sbox[k, :3], sbox[k, 3:], c_hat) > m2:
+        g2 = 0.0
+        for a in range(3):
+            lo = sbox[k, a] - c_hat[a]
+            if lo > 0.0:
+                g2 += lo * lo
+            else:
+                hi = c_hat[a] - sbox[k, 3 + a]
+                if hi > 0.0:
+                    g2 += hi * hi
+        if g2 > m2:
             continue
         t0 = tstart[u] + seg * (k - useg[u])
         for t in range(t0, min(t0 + seg, end)):
@@ -190,8 +183,13 @@ def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, 
                 dmin[cl] = dc
     cl_order = _argsort(dmin)
     gap = np.empty(U)
-    for u in range(U):
-        gap[u] = max(np.sqrt(_box_gap2(ulo[u], uhi[u], c_hat)) - slack, 0.0)
+    for u in range(U):  # the box gap written out, as in _clip_dcr: a helper taking row views measured 15-25 % slower
+        g2 = 0.0
+        for k in range(3):
+            v = max(ulo[u, k] - c_hat[k], c_hat[k] - uhi[u, k])
+            if v > 0.0:
+                g2 += v * v
+        gap[u] = max(np.sqrt(g2) - slack, 0.0)
     dcr = np.zeros(U)
     known = np.zeros(U, np.bool_)
     near_u = np.empty(near_idx.size, np.int64)
