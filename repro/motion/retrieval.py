@@ -488,6 +488,7 @@ class MotionRetriever(ExactSearch, StartScoring):
         self._tree_plans: dict = {}  # (actor, pose skeleton, roles) -> TreePlan (another joint tree)
         self._start: dict | None = None
         self._qm_cache = None
+        self._ratio_cache = None
         self._cterms = None  # the centroids' index terms (the compiled exact search reads them)
         self._bounds_setup()
         self._exact_setup()
@@ -724,13 +725,18 @@ class MotionRetriever(ExactSearch, StartScoring):
             return np.broadcast_to(c, (self.db.n_clips, 3))
         # Eq. 1, c * size_a / size_c (rescale_constraint), for every clip's size_a at once
         rescale_constraint(c, 1.0, size_c)  # validates c and size_c
-        # the same products as c[None, :] * ratio[:, None], formed along the clips (a (C, 3) broadcast
-        # over a length-3 inner axis costs ~5x more, measured at 7,200 clips): a transposed view
-        c_r = (c[:, None] * (self.db.size_a / size_c)[None, :]).T
-        if not np.all(np.abs(c_r) <= MAX_TARGET_M * 1e3):
+        hit = self._ratio_cache  # size_a / size_c per clip, kept while the character's size is the same
+        if hit is None or hit[0] != size_c:
+            ratio = self.db.size_a / size_c
+            self._ratio_cache = hit = (size_c, ratio, float(ratio.max()))
+        _, ratio, rmax = hit
+        # |c_k ratio_i| is largest at the largest ratio (rounding is monotone): one check for every clip
+        if not np.all(np.abs(c * rmax) <= MAX_TARGET_M * 1e3):
             raise RetrievalError(f"target {c.tolist()} rescaled from the character's size {size_c:g} m to the "
                                  f"actors' (Eq. 1) is beyond {MAX_TARGET_M * 1e3:g} m")
-        return c_r
+        # the same products as c[None, :] * ratio[:, None], formed along the clips (a (C, 3) broadcast
+        # over a length-3 inner axis costs ~5x more, measured at 7,200 clips): a transposed view
+        return (c[:, None] * ratio[None, :]).T
 
     def _block(self, rows: np.ndarray, clips=None, size=None, actor=None) -> _Block | None:
         """Contiguous precomputed data of a set of candidate poses (None if empty); ``clips``, ``size``,
@@ -1051,7 +1057,7 @@ class MotionRetriever(ExactSearch, StartScoring):
         qn = q.q_n[a]
         r = np.array([row])
         # the pose distance summed directly: the closed form cancels to ~1e-8 near a match
-        D, alpha, x0, z0 = self.index.direct_distance(qn, row, prepared=self._prepared(q, a))
+        D, alpha, x0, z0 = self.index.direct_distance(qn, row)
         if scoring == "first":
             dcr = float(self._d_cr(np.array([i]), c_r)[0])
         else:

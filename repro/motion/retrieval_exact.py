@@ -172,6 +172,9 @@ class ExactSearch:
                 "ustart": np.searchsorted(np.sort(gu), np.arange(uclip.size + 1)), "usize": db.size_a[uclip], "smin": float(db.size_a[uclip].min()),
                 **self._trajectory_samples(uclip), **_index_terms(index),
             }
+            ex = self._ex[sem]
+            ex["ucl"] = ex["gcluster"][ex["ugroups"]]  # the cluster of each clip's groups, clip by clip
+            ex["uactor"] = db.actor[uclip]  # a clip's groups are of its actor (gactor == uactor[gu])
 
     def _trajectory_samples(self, uclip: np.ndarray) -> dict:
         """The hit-trajectory samples of clips ``uclip`` in units of their actor's size, and the position in
@@ -384,6 +387,7 @@ class ExactSearch:
             amap = np.full(int(self.db.actor.max()) + 1, -1, dtype=np.intp)
             amap[list(slots)] = np.arange(len(slots))
             gslot = ex["gslot"][slots] = amap[ex["gactor"]]
+            ex.setdefault("uslot", {})[slots] = amap[ex["uactor"]]
         qpts = np.array([q.q_n[a].T for a in slots], dtype=float)
         if "tree" not in ex:
             ex["tree"] = cKDTree(ex["tpts"])
@@ -393,7 +397,7 @@ class ExactSearch:
             self._cterms = tuple(np.ascontiguousarray(t) for t in self.centroid_index.terms()[:5])
         pos, d, n_groups, n_clusters = search_first(
             c_hat, qpts, self.weights, *self._cterms, self._bb[ex["sem"]]["radius"], gslot, ex["gcluster"],
-            ex["gsize"], ex["gstart"], ex["gu"], ex["ugroups"], ex["ustart"], ex["ulo"], ex["uhi"], ex["usize"],
+            ex["gsize"], ex["gstart"], ex["gu"], ex["ugroups"], ex["ustart"], ex["ucl"], ex["uslot"][slots], ex["ulo"], ex["uhi"], ex["usize"],
             ex["tpts"], ex["tstart"], ex["tlen"], ex["sbox"], ex["useg"], SEGMENT, ex["M"], ex["perm"], ex["X"], ex["Z"], ex["H"], ex["Y2"],
             ex["size"], self.w_q, self.w_c, rtol, atol, BOUND_SLACK, ex["clstart"], ex["tclip"],
             np.atleast_1d(near_idx).astype(np.intp, copy=False), np.atleast_1d(near_dist), batch)

@@ -139,7 +139,7 @@ def _lowest(lb, ids, batch):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, gs, gstart, gu, ugroups,
-                 ustart, ulo, uhi, usize, tpts, tstart, tlen, sbox, useg, seg, M, perm, X, Z, H, Y2, psize,
+                 ustart, ucl, uslot, ulo, uhi, usize, tpts, tstart, tlen, sbox, useg, seg, M, perm, X, Z, H, Y2, psize,
                  wq, wc, near_rtol, near_atol, slack, clstart, tclip, near_idx, near_dist,
                  batch):  # pragma: no cover - compiled
     """The poses scored by the branch and bound (see the module docstring).
@@ -270,17 +270,19 @@ def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, 
             clb = np.empty(G)
             nc = 0
             for u in range(U):
+                s = uslot[u]
                 base = wc * usize[u] * gap[u]
-                if base > thr:
+                if s < 0 or base > thr:
                     continue
+                # s w_q lq of the clip's groups by clip (ucl): read in order, not through ugroups (cache misses,
+                # measured 0.5 ms of 0.85 at CMU 100x); (s w_q) min lq is min (s w_q) lq, rounding being monotone
+                sw = usize[u] * wq
                 lqm = np.inf
                 for a in range(ustart[u], ustart[u + 1]):
-                    g = ugroups[a]
-                    s = gslot[g]
-                    if s >= 0:
-                        v = gs[g] * wq * lq[s, gcl[g]]
-                        if v < lqm:
-                            lqm = v
+                    v = lq[s, ucl[a]]
+                    if v < lqm:
+                        lqm = v
+                lqm = sw * lqm
                 if lqm + base > thr:
                     continue
                 if not known[u]:  # exact when within reach (with rounding slack), else out of reach
@@ -294,10 +296,9 @@ def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, 
                     continue
                 for a in range(ustart[u], ustart[u + 1]):
                     g = ugroups[a]
-                    s = gslot[g]
-                    if s < 0 or scored[g]:
+                    if scored[g]:
                         continue
-                    v = gs[g] * wq * lq[s, gcl[g]] + wc * dcr[u]
+                    v = sw * lq[s, ucl[a]] + wc * dcr[u]
                     if v <= thr:
                         cand[nc] = g
                         clb[nc] = v
@@ -341,6 +342,6 @@ def compile_search() -> None:
     first exact search of a process then costs what the others do (the fighter calls it at set-up)."""
     i1, f1, f3 = np.zeros(1, np.intp), np.zeros(1), np.zeros((1, 3))
     search_first(np.zeros(3), np.zeros((1, 3, 1)), np.ones(1), f3, f1, f1, f1, f1, f1, i1, i1, np.ones(1),
-                 np.array([0, 1], np.intp), i1, i1, np.array([0, 1], np.intp), f3, f3, np.ones(1), f3, i1,
+                 np.array([0, 1], np.intp), i1, i1, np.array([0, 1], np.intp), i1, i1, f3, f3, np.ones(1), f3, i1,
                  np.ones(1, np.intp), np.zeros((1, 6)), np.array([0, 1], np.intp), 8, f3, i1, f1, f1, f1, f1, np.ones(1), 1.0, 1.0, 1e-9, 1e-7, 1e-6,
                  np.array([0, 1], np.intp), i1, i1, f1, 32)
