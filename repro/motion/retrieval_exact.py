@@ -40,7 +40,7 @@ from repro.motion.clustering import AlignedPoseIndex, aligned_distance
 if TYPE_CHECKING:  # annotations only (retrieval imports this module)
     from repro.motion.retrieval import Query, RetrievalResult
 
-__all__ = ["BOUND_SLACK", "FEATURE_RTOL", "ExactSearch", "invariant_features"]
+__all__ = ["BOUND_SLACK", "FEATURE_RTOL", "ExactSearch", "invariant_features", "sample_grid"]
 
 #: Slack (units of the actor's size) subtracted from the lower bounds of the exact search, above the
 #: rounding error of the closed-form aligned distance (about 1e-8 near 0).
@@ -199,7 +199,7 @@ class ExactSearch:
         seg_start = np.repeat(tstart - SEGMENT * useg[:-1], nseg) + SEGMENT * np.arange(int(useg[-1]))
         sbox = np.concatenate([np.minimum.reduceat(tpts, seg_start), np.maximum.reduceat(tpts, seg_start)], axis=1)
         return {"tpts": tpts, "tclip": tclip, "tlen": n.astype(np.intp), "tstart": tstart,
-                "sbox": np.ascontiguousarray(sbox), "useg": useg}
+                "sbox": np.ascontiguousarray(sbox), "useg": useg, "grid": sample_grid(tpts, tclip)}
 
     def _search_exact(self, c, q: Query, sem: str, scoring: str, scale_target: bool = True,
                       stats: dict | None = None, batch: int = 32, features: bool = False) -> RetrievalResult:
@@ -396,9 +396,6 @@ class ExactSearch:
             gslot = ex["gslot"][slots] = amap[ex["gactor"]]
             ex.setdefault("uslot", {})[slots] = amap[ex["uactor"]]
         qpts = np.array([q.q_n[a].T for a in slots], dtype=float)
-        if "tree" not in ex:
-            ex["tree"] = cKDTree(ex["tpts"])
-        near_dist, near_idx = ex["tree"].query(c_hat, k=min(NEAR_SAMPLES, ex["tpts"].shape[0]))
         rtol, atol = self._near_terms()
         if self._cterms is None:
             self._cterms = tuple(np.ascontiguousarray(t) for t in self.centroid_index.terms()[:5])
@@ -406,8 +403,8 @@ class ExactSearch:
             c_hat, qpts, self.weights, *self._cterms, self._bb[ex["sem"]]["radius"], gslot, ex["gcluster"],
             ex["gsize"], ex["gstart"], ex["gu"], ex["ugroups"], ex["ustart"], ex["ucl"], ex["uslot"][slots], ex["ulo"], ex["uhi"], ex["usize"],
             ex["tpts"], ex["tstart"], ex["tlen"], ex["sbox"], ex["useg"], SEGMENT, ex["M"], ex["perm"], ex["X"], ex["Z"], ex["H"], ex["Y2"],
-            ex["size"], *ex["gterms"], ex["gradius"], self.w_q, self.w_c, rtol, atol, BOUND_SLACK, ex["clstart"], ex["tclip"],
-            np.atleast_1d(near_idx).astype(np.intp, copy=False), np.atleast_1d(near_dist), batch)
+            ex["size"], *ex["gterms"], ex["gradius"], self.w_q, self.w_c, rtol, atol, BOUND_SLACK, ex["clstart"], *ex["grid"],
+            NEAR_SAMPLES, batch)
         if pos.size == 0:
             raise RetrievalError("no clip of an actor compatible with the character for this semantics")
         if stats is not None:
@@ -522,6 +519,28 @@ class ExactSearch:
         dcr = self._d_cr_start_per_actor(q, rows[keep], alpha[keep], actor[keep], c_hat, cq)
         d = self.w_q * dqr[keep] + self.w_c * dcr
         return rows[keep], d, dqr[keep], dcr, keep.size
+
+
+def sample_grid(pts: np.ndarray, label: np.ndarray, per_cell: int = 8, max_cells: int = 1 << 21) -> tuple:
+    """A uniform grid of the points ``pts`` (n, 3) for :func:`repro.motion.retrieval_kernel._nearest_samples`:
+    ``(lo, h, dims, cell_start, points, labels)``, the points and their ``label`` sorted by cell (x fastest),
+    about ``per_cell`` points per cell of the bounding box and at most ``max_cells`` cells (a point beyond
+    the last cell of an axis goes to it: edge cells extend to infinity, which the search allows for)."""
+    pts = np.asarray(pts, dtype=float)
+    lo = pts.min(axis=0) if pts.size else np.zeros(3)
+    ext = np.maximum((pts.max(axis=0) if pts.size else np.zeros(3)) - lo, 1e-9)
+    h = float((np.prod(ext) * per_cell / max(pts.shape[0], 1)) ** (1.0 / 3.0))
+    while True:  # an axis of small extent gets one cell; the others about ``per_cell`` points each
+        h = max(h, float(ext.max()) / 1024.0)
+        dims = np.maximum(np.ceil(ext / h), 1).astype(np.intp)
+        if int(np.prod(dims)) <= max_cells:
+            break
+        h *= 1.25
+    cell3 = np.minimum(((pts - lo) / h).astype(np.intp), dims - 1)
+    cell = (cell3[:, 2] * dims[1] + cell3[:, 1]) * dims[0] + cell3[:, 0]
+    order = np.argsort(cell, kind="stable")
+    start = np.concatenate([[0], np.cumsum(np.bincount(cell, minlength=int(np.prod(dims))))]).astype(np.intp)
+    return (lo, h, dims, start, np.ascontiguousarray(pts[order]), np.asarray(label, dtype=np.intp)[order])
 
 
 def _index_terms(index) -> dict:

@@ -8,7 +8,9 @@ runs the same cascade over the clip runs (groups) of one semantics in one compil
    hit-trajectory box (units of its actor's size);
 2. a first best ``d``: the ``batch`` groups of lowest bound among those of the clusters nearest
    ``q_r``, and the ``batch`` groups of lowest bound among those of the clips passing nearest
-   ``c_hat`` (the nearest trajectory samples, from the k-d tree, give their exact ``d_cr``);
+   ``c_hat`` (the nearest trajectory samples give their exact ``d_cr``; found on a uniform grid of
+   the samples, :func:`_nearest_samples`: scipy's k-d tree costs 60-130 us per query here in call
+   overhead alone, measured, against a few us in the compiled call);
 3. every clip whose bound ``s (w_q min lq + w_c gap)`` can beat it gets its exact ``d_cr``,
    and its groups whose bound ``s w_q lq + w_c d_cr`` can beat it are candidates;
 4. the candidates, lowest bound first, scored pose by pose until the next bound exceeds the
@@ -99,6 +101,61 @@ def _clip_dcr(tpts, tstart, tlen, sbox, useg, seg, u, c_hat, limit):  # pragma: 
 
 
 @numba.njit(cache=True, nogil=True)
+def _nearest_samples(c, k, glo, gh, gdims, gcell, gpts, gclip):  # pragma: no cover - compiled
+    """The ``k`` samples nearest ``c`` of a uniform grid (:func:`repro.motion.retrieval_exact.sample_grid`), by increasing distance:
+    ``(clip, distance)`` of each (fewer when the grid holds fewer).  Exact: the cells are visited in
+    rings of growing Chebyshev index distance ``r`` around the cell of ``c`` (clamped to the grid), and
+    a sample of a cell at ``r`` or more is farther than ``(r - 1) gh`` from ``c``, edge cells included
+    (they extend to infinity), so the search stops before ring ``r`` once the ``k``-th distance is within
+    that.  Ties keep the sample met first."""
+    ci = np.empty(3, np.int64)
+    rmax = 0
+    for a in range(3):
+        v = (c[a] - glo[a]) / gh
+        i = 0 if v < 0.0 else (gdims[a] - 1 if v >= gdims[a] else int(v))
+        ci[a] = min(i, gdims[a] - 1)
+        rmax = max(rmax, ci[a], gdims[a] - 1 - ci[a])
+    k = min(k, gpts.shape[0])
+    bd = np.full(k, np.inf)  # squared distances, ascending
+    bc = np.full(k, -1, np.int64)
+    for r in range(rmax + 1):
+        if r >= 1 and bd[k - 1] <= ((r - 1) * gh) ** 2:
+            break
+        for dz in range(-r, r + 1):
+            z = ci[2] + dz
+            if z < 0 or z >= gdims[2]:
+                continue
+            for dy in range(-r, r + 1):
+                y = ci[1] + dy
+                if y < 0 or y >= gdims[1]:
+                    continue
+                full = abs(dz) == r or abs(dy) == r  # on a face of the ring: the whole row, else its two ends
+                step = 1 if full else 2 * r
+                for dx in range(-r, r + 1, step):
+                    x = ci[0] + dx
+                    if x < 0 or x >= gdims[0]:
+                        continue
+                    cell = (z * gdims[1] + y) * gdims[0] + x
+                    for t in range(gcell[cell], gcell[cell + 1]):
+                        ex = gpts[t, 0] - c[0]
+                        ey = gpts[t, 1] - c[1]
+                        ez = gpts[t, 2] - c[2]
+                        d2 = ex * ex + ey * ey + ez * ez
+                        if d2 < bd[k - 1]:
+                            j = k - 1
+                            while j > 0 and bd[j - 1] > d2:
+                                bd[j] = bd[j - 1]
+                                bc[j] = bc[j - 1]
+                                j -= 1
+                            bd[j] = d2
+                            bc[j] = gclip[t]
+    n = 0
+    while n < k and bc[n] >= 0:
+        n += 1
+    return bc[:n], np.sqrt(bd[:n])
+
+
+@numba.njit(cache=True, nogil=True)
 def _argsort(keys):  # pragma: no cover - compiled
     """Stable argsort (bottom-up merge sort).  Ours, not ``np.argsort``: numba compiles its sorts in
     about 2.5 s each (measured), this in a fraction of that, for the same order."""
@@ -144,7 +201,7 @@ def _lowest(lb, ids, batch):  # pragma: no cover - compiled
 def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, gs, gstart, gu, ugroups,
                  ustart, ucl, uslot, ulo, uhi, usize, tpts, tstart, tlen, sbox, useg, seg, M, perm, X, Z, H, Y2, psize,
                  gM, gX, gZ, gH, gY2, gradius,
-                 wq, wc, near_rtol, near_atol, slack, clstart, tclip, near_idx, near_dist,
+                 wq, wc, near_rtol, near_atol, slack, clstart, glo, gh, gdims, gcell, gpts, gclip, n_near,
                  batch):  # pragma: no cover - compiled
     """The poses scored by the branch and bound (see the module docstring).
 
@@ -157,9 +214,10 @@ def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, 
     (``M``, ``X``, ``Z``, ``H``, ``Y2`` the index terms at ``perm[p]``, ``psize``), and the groups'
     centroids (``gM, gX, gZ, gH, gY2`` their index terms, ``gradius`` their radii).  Clusters: ``cM, cX, cZ, cH, cY2`` the index terms of the centroids, ``radius``
     (k,) their radii, ``clstart`` group offsets per cluster.  Query: ``qpts`` (slots, 3, P) the
-    query clouds by coordinate (``weights`` (P,) the point weights), ``near_idx``/``near_dist`` the trajectory samples nearest ``c_hat`` by increasing
-    distance (units of size; ``tclip`` the clip of each sample): the first sample of a clip gives
-    its exact ``d_cr``.
+    query clouds by coordinate (``weights`` (P,) the point weights).  The trajectory samples on a
+    grid (``glo, gh, gdims, gcell, gpts, gclip``, :func:`repro.motion.retrieval_exact.sample_grid`): the
+    ``n_near`` nearest ``c_hat`` seed the search, and the first sample of a clip among them gives its
+    exact ``d_cr``.
 
     Returns ``(pos, d, n_groups, clusters_visited)``: the positions and ``d`` of every pose
     scored, the number of groups scored and of their distinct clusters.
@@ -197,10 +255,11 @@ def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, 
         gap[u] = max(np.sqrt(g2) - slack, 0.0)
     dcr = np.zeros(U)
     known = np.zeros(U, np.bool_)
-    near_u = np.empty(near_idx.size, np.int64)
+    near_clip, near_dist = _nearest_samples(c_hat, n_near, glo, gh, gdims, gcell, gpts, gclip)
+    near_u = np.empty(near_clip.size, np.int64)
     nn = 0
-    for i in range(near_idx.size):
-        u = tclip[near_idx[i]]
+    for i in range(near_clip.size):
+        u = near_clip[i]
         if not known[u]:
             dcr[u] = near_dist[i] * usize[u]
             known[u] = True
@@ -353,4 +412,4 @@ def compile_search() -> None:
     search_first(np.zeros(3), np.zeros((1, 3, 1)), np.ones(1), f3, f1, f1, f1, f1, f1, i1, i1, np.ones(1),
                  np.array([0, 1], np.intp), i1, i1, np.array([0, 1], np.intp), i1, i1, f3, f3, np.ones(1), f3, i1,
                  np.ones(1, np.intp), np.zeros((1, 6)), np.array([0, 1], np.intp), 8, f3, i1, f1, f1, f1, f1, np.ones(1), f3, f1, f1, f1, f1, f1, 1.0, 1.0, 1e-9, 1e-7, 1e-6,
-                 np.array([0, 1], np.intp), i1, i1, f1, 32)
+                 np.array([0, 1], np.intp), np.zeros(3), 1.0, np.ones(3, np.intp), np.array([0, 1], np.intp), f3, i1, 64, 32)

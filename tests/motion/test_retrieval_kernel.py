@@ -8,6 +8,9 @@ What is asserted:
   of them not the query's: tests/motion/test_mixed_database.py);
 * :func:`compile_search` compiles the very specialisation a real search calls (one signature
   after both), so that the fighter's set-up leaves nothing to compile at its first order;
+* the nearest trajectory samples from the grid (:func:`sample_grid`, ``_nearest_samples``) are those
+  of a brute-force sort, by increasing distance, for targets inside, at the edge of and far
+  outside the samples, flat clouds, fewer samples than asked for and one sample;
 * :meth:`AlignedPoseIndex.terms` gives the stored terms of every candidate (they reproduce
   :meth:`~AlignedPoseIndex.distances`), and refuses an index stored in another order.
 """
@@ -20,7 +23,8 @@ import pytest
 from repro.errors import MotionError
 from repro.motion.clustering import AlignedPoseIndex
 from repro.motion.retrieval import MotionRetriever, make_queries
-from repro.motion.retrieval_kernel import _argsort, compile_search, search_first
+from repro.motion.retrieval_exact import sample_grid
+from repro.motion.retrieval_kernel import _argsort, _nearest_samples, compile_search, search_first
 
 
 @pytest.fixture(scope="module")
@@ -39,6 +43,27 @@ def test_argsort_is_numpys_stable_order():
         keys = rng.integers(0, max(n // 3, 1), n).astype(float)  # many ties
         keys[rng.random(n) < 0.1] = np.inf
         assert np.array_equal(_argsort(keys), np.argsort(keys, kind="stable"))
+
+
+@pytest.mark.parametrize("shape", ["cloud", "flat", "line", "few", "one"])
+def test_nearest_samples_are_a_brute_force_sort(shape):
+    rng = np.random.default_rng(len(shape))
+    n = {"few": 5, "one": 1}.get(shape, 3000)
+    pts = rng.normal(size=(n, 3)) * [1.0, 0.3, 2.0]
+    if shape == "flat":
+        pts[:, 1] = 0.25
+    if shape == "line":
+        pts[:, 1:] = 0.0
+    label = rng.integers(0, 40, n)
+    grid = sample_grid(pts, label)
+    targets = [np.zeros(3), pts[0], pts.max(axis=0), pts.min(axis=0) - 0.01, np.array([40.0, -3.0, 9.0]),
+               np.array([1e5, 1e5, -1e5]), *rng.normal(size=(20, 3)) * 2.0]
+    for c in targets:
+        got_label, got_d = _nearest_samples(c, 64, *grid)
+        ref = np.sqrt(((pts - c) ** 2).sum(axis=1))
+        o = np.argsort(ref, kind="stable")[:64]
+        np.testing.assert_allclose(got_d, ref[o], rtol=1e-12, atol=0)
+        assert np.array_equal(np.sort(got_label), np.sort(label[o]))
 
 
 def test_exact_with_more_seeds_than_clip_runs(db, retriever):
