@@ -118,6 +118,8 @@ def _nearest_samples(c, k, glo, gh, gdims, gcell, gpts, gclip):  # pragma: no co
     k = min(k, gpts.shape[0])
     bd = np.full(k, np.inf)  # squared distances, ascending
     bc = np.full(k, -1, np.int64)
+    if k == 0:
+        return bc, bd
     for r in range(rmax + 1):
         if r >= 1 and bd[k - 1] <= ((r - 1) * gh) ** 2:
             break

@@ -10,7 +10,7 @@ What is asserted:
   after both), so that the fighter's set-up leaves nothing to compile at its first order;
 * the nearest trajectory samples from the grid (:func:`sample_grid`, ``_nearest_samples``) are those
   of a brute-force sort, by increasing distance, for targets inside, at the edge of and far
-  outside the samples, flat clouds, fewer samples than asked for and one sample;
+  outside the samples, flat clouds, fewer samples than asked for, one sample and none;
 * :meth:`AlignedPoseIndex.terms` gives the stored terms of every candidate (they reproduce
   :meth:`~AlignedPoseIndex.distances`), and refuses an index stored in another order.
 """
@@ -45,10 +45,10 @@ def test_argsort_is_numpys_stable_order():
         assert np.array_equal(_argsort(keys), np.argsort(keys, kind="stable"))
 
 
-@pytest.mark.parametrize("shape", ["cloud", "flat", "line", "few", "one"])
+@pytest.mark.parametrize("shape", ["cloud", "flat", "line", "few", "one", "none"])
 def test_nearest_samples_are_a_brute_force_sort(shape):
     rng = np.random.default_rng(len(shape))
-    n = {"few": 5, "one": 1}.get(shape, 3000)
+    n = {"few": 5, "one": 1, "none": 0}.get(shape, 3000)
     pts = rng.normal(size=(n, 3)) * [1.0, 0.3, 2.0]
     if shape == "flat":
         pts[:, 1] = 0.25
@@ -56,8 +56,9 @@ def test_nearest_samples_are_a_brute_force_sort(shape):
         pts[:, 1:] = 0.0
     label = rng.integers(0, 40, n)
     grid = sample_grid(pts, label)
-    targets = [np.zeros(3), pts[0], pts.max(axis=0), pts.min(axis=0) - 0.01, np.array([40.0, -3.0, 9.0]),
-               np.array([1e5, 1e5, -1e5]), *rng.normal(size=(20, 3)) * 2.0]
+    targets = [np.zeros(3), np.array([40.0, -3.0, 9.0]), np.array([1e5, 1e5, -1e5]), *rng.normal(size=(20, 3)) * 2.0]
+    if n:
+        targets += [pts[0], pts.max(axis=0), pts.min(axis=0) - 0.01]
     for c in targets:
         got_label, got_d = _nearest_samples(c, 64, *grid)
         ref = np.sqrt(((pts - c) ** 2).sum(axis=1))
