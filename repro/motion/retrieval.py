@@ -296,7 +296,7 @@ class _Block:
     # groups (the poses of one clip in the block, contiguous since rows are sorted), for the exact search
     gstart: np.ndarray | None = None  # (G+1,) offsets
     gradius: np.ndarray | None = None  # (G,) largest aligned distance centroid -> pose
-    gterms: tuple | None = None  # the centroids' index terms, until the exact search gathers them
+    gcent: np.ndarray | None = None  # (G, P, 3) float32 centroids, until the exact search gathers them
 
 
 def _check_target(target) -> np.ndarray:

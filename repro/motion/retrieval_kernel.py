@@ -65,6 +65,39 @@ def _pose_distance(M, j, qp, qs, X, Z, H, Y2):  # pragma: no cover - compiled
     return np.sqrt(d2) if d2 > 0.0 else 0.0
 
 
+@numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+def _cloud_distance(C, g, qp, qs, w):  # pragma: no cover - compiled
+    """The aligned distance of cloud ``C[g]`` (P, 3), float32, to the query: :func:`_pose_distance` with
+    the cloud's terms formed on the way (the clip runs' centroids are kept as clouds, not terms)."""
+    P = qp.shape[1]
+    X = 0.0
+    Z = 0.0
+    H2 = 0.0
+    Y2 = 0.0
+    r0 = 0.0
+    r1 = 0.0
+    r2 = 0.0
+    for i in range(P):
+        x = np.float64(C[g, i, 0])
+        y = np.float64(C[g, i, 1])
+        z = np.float64(C[g, i, 2])
+        mx = w[i] * x
+        mz = w[i] * z
+        my = w[i] * y
+        X += mx
+        Z += mz
+        H2 += mx * x + mz * z
+        Y2 += my * y
+        r0 += mx * qp[0, i] + mz * qp[2, i]
+        r1 += mz * qp[0, i] - mx * qp[2, i]
+        r2 += my * qp[1, i]
+    Xa, Za, Ha, Ya2 = qs[0], qs[1], qs[2], qs[3]
+    a = r0 - (Xa * X + Za * Z)
+    b = r1 - (Xa * Z - Za * X)
+    d2 = Ya2 - 2.0 * r2 + Y2 + Ha + (H2 - (X * X + Z * Z)) - 2.0 * np.sqrt(a * a + b * b)
+    return np.sqrt(d2) if d2 > 0.0 else 0.0
+
+
 @numba.njit(cache=True, nogil=True)
 def _clip_dcr(tpts, tstart, tlen, sbox, useg, seg, u, c_hat, limit):  # pragma: no cover - compiled
     """Closest approach of clip ``u``'s trajectory samples (units of size) to ``c_hat`` when it is at
@@ -202,7 +235,7 @@ def _lowest(lb, ids, batch):  # pragma: no cover - compiled
 @numba.njit(cache=True, nogil=True)
 def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, gs, gstart, gu, ugroups,
                  ustart, ucl, uslot, ulo, uhi, usize, tpts, tstart, tlen, sbox, useg, seg, M, perm, X, Z, H, Y2, psize,
-                 gM, gX, gZ, gH, gY2, gradius,
+                 gcent, gradius,
                  wq, wc, near_rtol, near_atol, slack, clstart, glo, gh, gdims, gcell, gpts, gclip, n_near,
                  batch):  # pragma: no cover - compiled
     """The poses scored by the branch and bound (see the module docstring).
@@ -214,7 +247,7 @@ def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, 
     of size and ``sbox``/``useg`` the boxes of their segments of ``seg`` samples (:func:`_clip_dcr`),
     ``usize``; ``ucl`` the cluster of each group of ``ugroups``, ``uslot`` the clip's query slot), poses
     (``M``, ``X``, ``Z``, ``H``, ``Y2`` the index terms at ``perm[p]``, ``psize``), and the groups'
-    centroids (``gM, gX, gZ, gH, gY2`` their index terms, ``gradius`` their radii).  Clusters: ``cM, cX, cZ, cH, cY2`` the index terms of the centroids, ``radius``
+    centroids (``gcent`` (G, P, 3) float32, ``gradius`` their radii).  Clusters: ``cM, cX, cZ, cH, cY2`` the index terms of the centroids, ``radius``
     (k,) their radii, ``clstart`` group offsets per cluster.  Query: ``qpts`` (slots, 3, P) the
     query clouds by coordinate (``weights`` (P,) the point weights).  The trajectory samples on a
     grid (``glo, gh, gdims, gcell, gpts, gclip``, :func:`repro.motion.retrieval_exact.sample_grid`): the
@@ -383,7 +416,7 @@ def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, 
                 dcr[u] = _clip_dcr(tpts, tstart, tlen, sbox, useg, seg, u, c_hat, np.inf) * usize[u]
                 known[u] = True
             if gstart[g + 1] - gstart[g] > 1:  # the run's own bound (one distance, to its centroid)
-                dg = _pose_distance(gM, g, qpts[s], qscal[s], gX, gZ, gH, gY2)
+                dg = _cloud_distance(gcent, g, qpts[s], qscal[s], weights)
                 if gs[g] * wq * max(dg - gradius[g] - slack, 0.0) + wc * dcr[u] > best + near_rtol * abs(best) + near_atol:
                     continue
             n_groups += 1
@@ -413,5 +446,5 @@ def compile_search() -> None:
     i1, f1, f3 = np.zeros(1, np.intp), np.zeros(1), np.zeros((1, 3))
     search_first(np.zeros(3), np.zeros((1, 3, 1)), np.ones(1), f3, f1, f1, f1, f1, f1, i1, i1, np.ones(1),
                  np.array([0, 1], np.intp), i1, i1, np.array([0, 1], np.intp), i1, i1, f3, f3, np.ones(1), f3, i1,
-                 np.ones(1, np.intp), np.zeros((1, 6)), np.array([0, 1], np.intp), 8, f3, i1, f1, f1, f1, f1, np.ones(1), f3, f1, f1, f1, f1, f1, 1.0, 1.0, 1e-9, 1e-7, 1e-6,
+                 np.ones(1, np.intp), np.zeros((1, 6)), np.array([0, 1], np.intp), 8, f3, i1, f1, f1, f1, f1, np.ones(1), np.zeros((1, 1, 3), np.float32), f1, 1.0, 1.0, 1e-9, 1e-7, 1e-6,
                  np.array([0, 1], np.intp), np.zeros(3), 1.0, np.ones(3, np.intp), np.array([0, 1], np.intp), f3, i1, 64, 32)

@@ -11,6 +11,8 @@ What is asserted:
 * the nearest trajectory samples from the grid (:func:`sample_grid`, ``_nearest_samples``) are those
   of a brute-force sort, by increasing distance, for targets inside, at the edge of and far
   outside the samples, flat clouds, fewer samples than asked for, one sample and none;
+* a clip run's bound, its float32 centroid's distance (``_cloud_distance``, the aligned distance
+  to within rounding) minus its radius, is below the distance of each of its poses;
 * :meth:`AlignedPoseIndex.terms` gives the stored terms of every candidate (they reproduce
   :meth:`~AlignedPoseIndex.distances`), and refuses an index stored in another order.
 """
@@ -21,10 +23,10 @@ import numpy as np
 import pytest
 
 from repro.errors import MotionError
-from repro.motion.clustering import AlignedPoseIndex
+from repro.motion.clustering import AlignedPoseIndex, aligned_distance
 from repro.motion.retrieval import MotionRetriever, make_queries
 from repro.motion.retrieval_exact import sample_grid
-from repro.motion.retrieval_kernel import _argsort, _nearest_samples, compile_search, search_first
+from repro.motion.retrieval_kernel import _argsort, _cloud_distance, _nearest_samples, compile_search, search_first
 
 
 @pytest.fixture(scope="module")
@@ -65,6 +67,23 @@ def test_nearest_samples_are_a_brute_force_sort(shape):
         o = np.argsort(ref, kind="stable")[:64]
         np.testing.assert_allclose(got_d, ref[o], rtol=1e-12, atol=0)
         assert np.array_equal(np.sort(got_label), np.sort(label[o]))
+
+
+def test_clip_run_bound_is_below_each_of_its_poses(db, retriever):
+    r = retriever
+    rng = np.random.default_rng(4)
+    for c, pose, ch, sem in make_queries(db, 8, seed=7):
+        ex = r._ex[sem]
+        q = r.prepare(pose, ch)
+        (qn,) = q.q_n.values()
+        qs = np.array(r.index.query_matrix(qn)[1:])
+        for g in rng.choice(ex["gsize"].size, 40, replace=False):
+            dg = _cloud_distance(ex["gcent"], g, np.ascontiguousarray(qn.T), qs, r.weights)
+            ref = float(aligned_distance(qn, ex["gcent"][g].astype(float), r.weights))
+            assert dg == pytest.approx(ref, rel=1e-9, abs=1e-7)
+            rows = ex["rows"][ex["gstart"][g]:ex["gstart"][g + 1]]
+            d_poses = aligned_distance(qn[None], db.pose_points[rows].astype(float), r.weights)
+            assert np.all(dg - ex["gradius"][g] - 1e-6 <= d_poses)
 
 
 def test_exact_with_more_seeds_than_clip_runs(db, retriever):
