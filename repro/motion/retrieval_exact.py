@@ -83,8 +83,8 @@ class ExactSearch:
         """Split a block into its clips' runs of poses: offsets, radius and centroid terms of each (exact search).
 
         The radius is the largest aligned distance from the run's centroid
-        (:meth:`_group_centroids`, rounded to float32 and kept as ``b.gcent`` until
-        :meth:`_exact_setup` gathers them) to its poses, so that ``D(q, p) >= D(q, m) - r`` for
+        (:meth:`_group_centroids`, rounded to float32 and kept, for the runs of more than one
+        pose, as ``b.gcent`` until :meth:`_exact_setup` gathers them) to its poses, so that ``D(q, p) >= D(q, m) - r`` for
         each pose ``p`` of the run (the compiled search's bound of a run, before its poses are
         scored).  The radius is measured from the rounded centroid, which keeps the bound exact
         (any centre will do), in half the memory (at 1,000x the float64 terms of the centroids
@@ -96,9 +96,10 @@ class ExactSearch:
             raise AssertionError("block rows are not grouped by clip")
         b.gstart = gstart
         pts = self.db.pose_points[b.rows]
-        b.gcent = self._group_centroids(b, pts).astype(np.float32)
-        r = aligned_distance(b.gcent[b.inv].astype(float), pts, self.weights)
+        cent = self._group_centroids(b, pts).astype(np.float32)
+        r = aligned_distance(cent[b.inv].astype(float), pts, self.weights)
         b.gradius = np.maximum.reduceat(r, gstart[:-1])
+        b.gcent = cent[np.diff(gstart) > 1]  # a run of one pose is bounded by scoring it
 
     def _group_centroids(self, b, pts: np.ndarray | None = None) -> np.ndarray:
         """(G, P, 3) float64: the mean cloud of each clip run of block ``b`` (after :meth:`_groups`)."""
@@ -148,7 +149,8 @@ class ExactSearch:
         self._ex = {}
         for sem in SEMANTICS:
             blocks = [b for b in (self.cluster_block[cl][sem] for cl in range(self.clusters.k)) if b is not None]
-            gcent = np.empty((sum(b.uclips.size for b in blocks), self.weights.size, 3), dtype=np.float32)
+            gcent = np.empty((sum(b.gcent.shape[0] for b in blocks), self.weights.size, 3), dtype=np.float32)
+            nc = 0
             rows, gstart, gcl, rad, clstart = [], [0], [], [], [0]
             for cl in range(self.clusters.k):
                 b = self.cluster_block[cl][sem]
@@ -157,7 +159,8 @@ class ExactSearch:
                     gstart.extend((b.gstart[1:] + gstart[-1] - 0).tolist())
                     gcl.append(np.full(b.uclips.size, cl))
                     rad.append(b.gradius)
-                    gcent[len(gstart) - 1 - b.uclips.size:len(gstart) - 1] = b.gcent  # filled in place (memory)
+                    gcent[nc:nc + b.gcent.shape[0]] = b.gcent  # filled in place (memory)
+                    nc += b.gcent.shape[0]
                     b.gcent = None
                 clstart.append(clstart[-1] + (0 if b is None else b.uclips.size))
             if not rows:
@@ -181,7 +184,9 @@ class ExactSearch:
                 **self._trajectory_samples(uclip), **_index_terms(index),
             }
             ex = self._ex[sem]
-            ex["gcent"] = gcent  # the runs' centroids (float32)
+            ex["gcent"] = gcent  # the centroids (float32) of the runs of more than one pose, in order
+            multi = ex["glen"] > 1
+            ex["gci"] = np.where(multi, np.cumsum(multi) - 1, -1).astype(np.int32)  # a run's row in gcent, or -1
             ex["ucl"] = ex["gcluster"][ex["ugroups"]]  # the cluster of each clip's groups, clip by clip
             ex["uactor"] = db.actor[uclip]  # a clip's groups are of its actor (gactor == uactor[gu])
 
@@ -201,7 +206,7 @@ class ExactSearch:
         seg_start = np.repeat(tstart - SEGMENT * useg[:-1], nseg) + SEGMENT * np.arange(int(useg[-1]))
         sbox = np.concatenate([np.minimum.reduceat(tpts, seg_start), np.maximum.reduceat(tpts, seg_start)], axis=1)
         return {"tpts": tpts, "tclip": tclip, "tlen": n.astype(np.intp), "tstart": tstart,
-                "sbox": np.ascontiguousarray(sbox), "useg": useg, "grid": sample_grid(tpts, tclip)}
+                "sbox": np.ascontiguousarray(sbox), "useg": useg, "grid": sample_grid(tpts)}
 
     def _search_exact(self, c, q: Query, sem: str, scoring: str, scale_target: bool = True,
                       stats: dict | None = None, batch: int = 32, features: bool = False) -> RetrievalResult:
@@ -405,7 +410,7 @@ class ExactSearch:
             c_hat, qpts, self.weights, *self._cterms, self._bb[ex["sem"]]["radius"], gslot, ex["gcluster"],
             ex["gsize"], ex["gstart"], ex["gu"], ex["ugroups"], ex["ustart"], ex["ucl"], ex["uslot"][slots], ex["ulo"], ex["uhi"], ex["usize"],
             ex["tpts"], ex["tstart"], ex["tlen"], ex["sbox"], ex["useg"], SEGMENT, ex["M"], ex["perm"], ex["X"], ex["Z"], ex["H"], ex["Y2"],
-            ex["size"], ex["gcent"], ex["gradius"], self.w_q, self.w_c, rtol, atol, BOUND_SLACK, ex["clstart"], *ex["grid"],
+            ex["size"], ex["gcent"], ex["gci"], ex["gradius"], self.w_q, self.w_c, rtol, atol, BOUND_SLACK, ex["clstart"], *ex["grid"], ex["tclip"],
             NEAR_SAMPLES, batch)
         if pos.size == 0:
             raise RetrievalError("no clip of an actor compatible with the character for this semantics")
@@ -523,9 +528,10 @@ class ExactSearch:
         return rows[keep], d, dqr[keep], dcr, keep.size
 
 
-def sample_grid(pts: np.ndarray, label: np.ndarray, per_cell: int = 8, max_cells: int = 1 << 21) -> tuple:
+def sample_grid(pts: np.ndarray, per_cell: int = 8, max_cells: int = 1 << 21) -> tuple:
     """A uniform grid of the points ``pts`` (n, 3) for :func:`repro.motion.retrieval_kernel._nearest_samples`:
-    ``(lo, h, dims, cell_start, points, labels)``, the points and their ``label`` sorted by cell (x fastest),
+    ``(lo, h, dims, cell_start, order)``, ``order`` (int32) the points by cell (x fastest; an index, not
+    a sorted copy of the points: 4 bytes a point, not 32, which counts at 1,000x),
     about ``per_cell`` points per cell of the bounding box and at most ``max_cells`` cells (a point beyond
     the last cell of an axis goes to it: edge cells extend to infinity, which the search allows for)."""
     pts = np.asarray(pts, dtype=float)
@@ -542,7 +548,7 @@ def sample_grid(pts: np.ndarray, label: np.ndarray, per_cell: int = 8, max_cells
     cell = (cell3[:, 2] * dims[1] + cell3[:, 1]) * dims[0] + cell3[:, 0]
     order = np.argsort(cell, kind="stable")
     start = np.concatenate([[0], np.cumsum(np.bincount(cell, minlength=int(np.prod(dims))))]).astype(np.intp)
-    return (lo, h, dims, start, np.ascontiguousarray(pts[order]), np.asarray(label, dtype=np.intp)[order])
+    return lo, h, dims, start, order.astype(np.int32)
 
 
 def _index_terms(index) -> dict:

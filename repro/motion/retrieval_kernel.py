@@ -134,7 +134,7 @@ def _clip_dcr(tpts, tstart, tlen, sbox, useg, seg, u, c_hat, limit):  # pragma: 
 
 
 @numba.njit(cache=True, nogil=True)
-def _nearest_samples(c, k, glo, gh, gdims, gcell, gpts, gclip):  # pragma: no cover - compiled
+def _nearest_samples(c, k, glo, gh, gdims, gcell, gorder, pts, label):  # pragma: no cover - compiled
     """The ``k`` samples nearest ``c`` of a uniform grid (:func:`repro.motion.retrieval_exact.sample_grid`), by increasing distance:
     ``(clip, distance)`` of each (fewer when the grid holds fewer).  Exact: the cells are visited in
     rings of growing Chebyshev index distance ``r`` around the cell of ``c`` (clamped to the grid), and
@@ -148,7 +148,7 @@ def _nearest_samples(c, k, glo, gh, gdims, gcell, gpts, gclip):  # pragma: no co
         i = 0 if v < 0.0 else (gdims[a] - 1 if v >= gdims[a] else int(v))
         ci[a] = min(i, gdims[a] - 1)
         rmax = max(rmax, ci[a], gdims[a] - 1 - ci[a])
-    k = min(k, gpts.shape[0])
+    k = min(k, gorder.size)
     bd = np.full(k, np.inf)  # squared distances, ascending
     bc = np.full(k, -1, np.int64)
     if k == 0:
@@ -171,10 +171,11 @@ def _nearest_samples(c, k, glo, gh, gdims, gcell, gpts, gclip):  # pragma: no co
                     if x < 0 or x >= gdims[0]:
                         continue
                     cell = (z * gdims[1] + y) * gdims[0] + x
-                    for t in range(gcell[cell], gcell[cell + 1]):
-                        ex = gpts[t, 0] - c[0]
-                        ey = gpts[t, 1] - c[1]
-                        ez = gpts[t, 2] - c[2]
+                    for i in range(gcell[cell], gcell[cell + 1]):
+                        t = gorder[i]
+                        ex = pts[t, 0] - c[0]
+                        ey = pts[t, 1] - c[1]
+                        ez = pts[t, 2] - c[2]
                         d2 = ex * ex + ey * ey + ez * ez
                         if d2 < bd[k - 1]:
                             j = k - 1
@@ -183,7 +184,7 @@ def _nearest_samples(c, k, glo, gh, gdims, gcell, gpts, gclip):  # pragma: no co
                                 bc[j] = bc[j - 1]
                                 j -= 1
                             bd[j] = d2
-                            bc[j] = gclip[t]
+                            bc[j] = label[t]
     n = 0
     while n < k and bc[n] >= 0:
         n += 1
@@ -235,8 +236,8 @@ def _lowest(lb, ids, batch):  # pragma: no cover - compiled
 @numba.njit(cache=True, nogil=True)
 def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, gs, gstart, gu, ugroups,
                  ustart, ucl, uslot, ulo, uhi, usize, tpts, tstart, tlen, sbox, useg, seg, M, perm, X, Z, H, Y2, psize,
-                 gcent, gradius,
-                 wq, wc, near_rtol, near_atol, slack, clstart, glo, gh, gdims, gcell, gpts, gclip, n_near,
+                 gcent, gci, gradius,
+                 wq, wc, near_rtol, near_atol, slack, clstart, glo, gh, gdims, gcell, gorder, tclip, n_near,
                  batch):  # pragma: no cover - compiled
     """The poses scored by the branch and bound (see the module docstring).
 
@@ -247,10 +248,11 @@ def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, 
     of size and ``sbox``/``useg`` the boxes of their segments of ``seg`` samples (:func:`_clip_dcr`),
     ``usize``; ``ucl`` the cluster of each group of ``ugroups``, ``uslot`` the clip's query slot), poses
     (``M``, ``X``, ``Z``, ``H``, ``Y2`` the index terms at ``perm[p]``, ``psize``), and the groups'
-    centroids (``gcent`` (G, P, 3) float32, ``gradius`` their radii).  Clusters: ``cM, cX, cZ, cH, cY2`` the index terms of the centroids, ``radius``
+    centroids (``gcent`` (n, P, 3) float32 those of the runs of more than one pose, ``gci`` (G,) int32 a
+    group's row in it or -1, ``gradius`` (G,) the radii).  Clusters: ``cM, cX, cZ, cH, cY2`` the index terms of the centroids, ``radius``
     (k,) their radii, ``clstart`` group offsets per cluster.  Query: ``qpts`` (slots, 3, P) the
     query clouds by coordinate (``weights`` (P,) the point weights).  The trajectory samples on a
-    grid (``glo, gh, gdims, gcell, gpts, gclip``, :func:`repro.motion.retrieval_exact.sample_grid`): the
+    grid (``glo, gh, gdims, gcell, gorder``, :func:`repro.motion.retrieval_exact.sample_grid`; ``tclip`` the clip of each sample): the
     ``n_near`` nearest ``c_hat`` seed the search, and the first sample of a clip among them gives its
     exact ``d_cr``.
 
@@ -290,7 +292,7 @@ def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, 
         gap[u] = max(np.sqrt(g2) - slack, 0.0)
     dcr = np.zeros(U)
     known = np.zeros(U, np.bool_)
-    near_clip, near_dist = _nearest_samples(c_hat, n_near, glo, gh, gdims, gcell, gpts, gclip)
+    near_clip, near_dist = _nearest_samples(c_hat, n_near, glo, gh, gdims, gcell, gorder, tpts, tclip)
     near_u = np.empty(near_clip.size, np.int64)
     nn = 0
     for i in range(near_clip.size):
@@ -415,8 +417,8 @@ def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, 
             if not known[u]:
                 dcr[u] = _clip_dcr(tpts, tstart, tlen, sbox, useg, seg, u, c_hat, np.inf) * usize[u]
                 known[u] = True
-            if gstart[g + 1] - gstart[g] > 1:  # the run's own bound (one distance, to its centroid)
-                dg = _cloud_distance(gcent, g, qpts[s], qscal[s], weights)
+            if gci[g] >= 0:  # a run of more than one pose: its own bound (one distance, to its centroid)
+                dg = _cloud_distance(gcent, gci[g], qpts[s], qscal[s], weights)
                 if gs[g] * wq * max(dg - gradius[g] - slack, 0.0) + wc * dcr[u] > best + near_rtol * abs(best) + near_atol:
                     continue
             n_groups += 1
@@ -446,5 +448,5 @@ def compile_search() -> None:
     i1, f1, f3 = np.zeros(1, np.intp), np.zeros(1), np.zeros((1, 3))
     search_first(np.zeros(3), np.zeros((1, 3, 1)), np.ones(1), f3, f1, f1, f1, f1, f1, i1, i1, np.ones(1),
                  np.array([0, 1], np.intp), i1, i1, np.array([0, 1], np.intp), i1, i1, f3, f3, np.ones(1), f3, i1,
-                 np.ones(1, np.intp), np.zeros((1, 6)), np.array([0, 1], np.intp), 8, f3, i1, f1, f1, f1, f1, np.ones(1), np.zeros((1, 1, 3), np.float32), f1, 1.0, 1.0, 1e-9, 1e-7, 1e-6,
-                 np.array([0, 1], np.intp), np.zeros(3), 1.0, np.ones(3, np.intp), np.array([0, 1], np.intp), f3, i1, 64, 32)
+                 np.ones(1, np.intp), np.zeros((1, 6)), np.array([0, 1], np.intp), 8, f3, i1, f1, f1, f1, f1, np.ones(1), np.zeros((1, 1, 3), np.float32), np.zeros(1, np.int32), f1, 1.0, 1.0, 1e-9, 1e-7, 1e-6,
+                 np.array([0, 1], np.intp), np.zeros(3), 1.0, np.ones(3, np.intp), np.array([0, 1], np.intp), i1.astype(np.int32), i1, 64, 32)

@@ -57,12 +57,12 @@ def test_nearest_samples_are_a_brute_force_sort(shape):
     if shape == "line":
         pts[:, 1:] = 0.0
     label = rng.integers(0, 40, n)
-    grid = sample_grid(pts, label)
+    grid = sample_grid(pts)
     targets = [np.zeros(3), np.array([40.0, -3.0, 9.0]), np.array([1e5, 1e5, -1e5]), *rng.normal(size=(20, 3)) * 2.0]
     if n:
         targets += [pts[0], pts.max(axis=0), pts.min(axis=0) - 0.01]
     for c in targets:
-        got_label, got_d = _nearest_samples(c, 64, *grid)
+        got_label, got_d = _nearest_samples(c, 64, *grid, pts, label)
         ref = np.sqrt(((pts - c) ** 2).sum(axis=1))
         o = np.argsort(ref, kind="stable")[:64]
         np.testing.assert_allclose(got_d, ref[o], rtol=1e-12, atol=0)
@@ -77,9 +77,12 @@ def test_clip_run_bound_is_below_each_of_its_poses(db, retriever):
         q = r.prepare(pose, ch)
         (qn,) = q.q_n.values()
         qs = np.array(r.index.query_matrix(qn)[1:])
-        for g in rng.choice(ex["gsize"].size, 40, replace=False):
-            dg = _cloud_distance(ex["gcent"], g, np.ascontiguousarray(qn.T), qs, r.weights)
-            ref = float(aligned_distance(qn, ex["gcent"][g].astype(float), r.weights))
+        multi = np.flatnonzero(ex["gci"] >= 0)
+        assert np.array_equal(multi, np.flatnonzero(ex["glen"] > 1))
+        for g in rng.choice(multi, 40, replace=False):
+            j = ex["gci"][g]
+            dg = _cloud_distance(ex["gcent"], j, np.ascontiguousarray(qn.T), qs, r.weights)
+            ref = float(aligned_distance(qn, ex["gcent"][j].astype(float), r.weights))
             assert dg == pytest.approx(ref, rel=1e-9, abs=1e-7)
             rows = ex["rows"][ex["gstart"][g]:ex["gstart"][g + 1]]
             d_poses = aligned_distance(qn[None], db.pose_points[rows].astype(float), r.weights)
