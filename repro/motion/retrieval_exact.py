@@ -80,12 +80,12 @@ class ExactSearch:
             self._bb[sem] = {"radius": rad}
 
     def _groups(self, b) -> None:
-        """Split a block into its clips' runs of poses: offsets, radius and centroid terms of each (exact search).
+        """Split a block into its clips' runs of poses: offsets, radius and centroid of each (exact search).
 
         The radius is the largest aligned distance from the run's centroid
         (:meth:`_group_centroids`, rounded to float32 and kept, for the runs of more than one
-        pose, as ``b.gcent`` until :meth:`_exact_setup` gathers them) to its poses, so that ``D(q, p) >= D(q, m) - r`` for
-        each pose ``p`` of the run (the compiled search's bound of a run, before its poses are
+        pose, as ``b.gcent`` until :meth:`_exact_setup` gathers them) to its poses, so that
+        ``D(q, p) >= D(q, m) - r`` for each pose ``p`` of the run (the compiled search's bound of a run, before its poses are
         scored).  The radius is measured from the rounded centroid, which keeps the bound exact
         (any centre will do), in half the memory (at 1,000x the float64 terms of the centroids
         took the build's traced peak from 3.4 to 4.3 GB, measured).
@@ -186,7 +186,7 @@ class ExactSearch:
             ex = self._ex[sem]
             ex["gcent"] = gcent  # the centroids (float32) of the runs of more than one pose, in order
             multi = ex["glen"] > 1
-            ex["gci"] = np.where(multi, np.cumsum(multi) - 1, -1).astype(np.int32)  # a run's row in gcent, or -1
+            ex["gci"] = np.where(multi, np.cumsum(multi) - 1, -1).astype(_index_dtype(multi.size))  # row in gcent, or -1
             ex["ucl"] = ex["gcluster"][ex["ugroups"]]  # the cluster of each clip's groups, clip by clip
             ex["uactor"] = db.actor[uclip]  # a clip's groups are of its actor (gactor == uactor[gu])
 
@@ -530,7 +530,7 @@ class ExactSearch:
 
 def sample_grid(pts: np.ndarray, per_cell: int = 8, max_cells: int = 1 << 21) -> tuple:
     """A uniform grid of the points ``pts`` (n, 3) for :func:`repro.motion.retrieval_kernel._nearest_samples`:
-    ``(lo, h, dims, cell_start, order)``, ``order`` (int32) the points by cell (x fastest; an index, not
+    ``(lo, h, dims, cell_start, order)``, ``order`` (int32 when it fits) the points by cell (x fastest; an index, not
     a sorted copy of the points: 4 bytes a point, not 32, which counts at 1,000x),
     about ``per_cell`` points per cell of the bounding box and at most ``max_cells`` cells (a point beyond
     the last cell of an axis goes to it: edge cells extend to infinity, which the search allows for)."""
@@ -548,7 +548,12 @@ def sample_grid(pts: np.ndarray, per_cell: int = 8, max_cells: int = 1 << 21) ->
     cell = (cell3[:, 2] * dims[1] + cell3[:, 1]) * dims[0] + cell3[:, 0]
     order = np.argsort(cell, kind="stable")
     start = np.concatenate([[0], np.cumsum(np.bincount(cell, minlength=int(np.prod(dims))))]).astype(np.intp)
-    return lo, h, dims, start, order.astype(np.int32)
+    return lo, h, dims, start, order.astype(_index_dtype(order.size))
+
+
+def _index_dtype(n: int):
+    """int32 for indices below ``n`` when they fit (half the memory of intp at 1,000x), else int64."""
+    return np.int32 if n < 2 ** 31 else np.int64
 
 
 def _index_terms(index) -> dict:
