@@ -163,14 +163,12 @@ def _nearest_samples(c, k, glo, gh, gdims, gcell, gorder, pts, label):  # pragma
     for r in range(rmax + 1):
         if r >= 1 and bd[k - 1] <= ((r - 1) * gh) ** 2:
             break
-        for dz in range(-r, r + 1):
+        # the ring's rows inside the grid only (a far target on a long thin grid would otherwise loop
+        # over (2 r + 1)^2 rows a ring, for r up to the grid's length)
+        for dz in range(max(-r, -ci[2]), min(r, gdims[2] - 1 - ci[2]) + 1):
             z = ci[2] + dz
-            if z < 0 or z >= gdims[2]:
-                continue
-            for dy in range(-r, r + 1):
+            for dy in range(max(-r, -ci[1]), min(r, gdims[1] - 1 - ci[1]) + 1):
                 y = ci[1] + dy
-                if y < 0 or y >= gdims[1]:
-                    continue
                 full = abs(dz) == r or abs(dy) == r  # on a face of the ring: the whole row, else its two ends
                 step = 1 if full else 2 * r
                 for dx in range(-r, r + 1, step):

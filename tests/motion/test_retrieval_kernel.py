@@ -50,7 +50,7 @@ def test_argsort_is_numpys_stable_order():
 @pytest.mark.parametrize("shape", ["cloud", "flat", "line", "few", "one", "none"])
 def test_nearest_samples_are_a_brute_force_sort(shape):
     rng = np.random.default_rng(len(shape))
-    n = {"few": 5, "one": 1, "none": 0}.get(shape, 3000)
+    n = {"few": 5, "one": 1, "none": 0, "line": 20000}.get(shape, 3000)
     pts = rng.normal(size=(n, 3)) * [1.0, 0.3, 2.0]
     if shape == "flat":
         pts[:, 1] = 0.25
