@@ -85,8 +85,8 @@ class ExactSearch:
         The radius is the largest aligned distance from the run's centroid
         (:meth:`_group_centroids`, rounded to float32 and kept, for the runs of more than one
         pose, as ``b.gcent`` until :meth:`_exact_setup` gathers them) to its poses, so that
-        ``D(q, p) >= D(q, m) - r`` for each pose ``p`` of the run (the compiled search's bound of a run, before its poses are
-        scored).  The radius is measured from the rounded centroid, which keeps the bound exact
+        ``D(q, p) >= D(q, m) - r`` for each pose ``p`` of the run (the compiled search's bound
+        of a run, before its poses are scored).  The radius is measured from the rounded centroid, which keeps the bound exact
         (any centre will do), in half the memory (at 1,000x the float64 terms of the centroids
         took the build's traced peak from 3.4 to 4.3 GB, measured).
         """

@@ -27,10 +27,10 @@ cProfile) against 10-15 ms for the exhaustive scan, which streams every pose thr
 product.  Interleaved in one process, 300 queries: numpy cascade p50 2.5 ms / p99 9.8 ms, this
 kernel's first version 1.9 / 3.8 ms; with the query's terms and the cluster bounds moved in
 here, 0.8-1.7 ms (``time_search``, by the machine's load).  Later, on a slower VM (exhaustive
-20-30 ms), separate processes alternating with the previous commit (``time_search``, 300
-queries): 1.2-1.9 ms at the median before the three changes that followed, 0.7-0.95 ms after
+17-23 ms), four processes alternating with the commit before the three changes that followed
+(``time_search``, 300 queries): 0.81-1.39 ms at the median before them, 0.72-0.95 ms after
 them (the clips' group clusters read clip by clip, step 3; the runs' own bound, step 4; the grid
-for step 2), 22-30x faster than the exhaustive scan against 12-21x.  Where the rest goes, at
+for step 2), 22.9-30.0x faster than the exhaustive scan against 12.6-21.4x.  Where the rest goes, at
 the median (stage timers inside the kernel, CMU 100x): ~0.1 ms the query's terms, box gaps and
 nearest samples, ~0.2 ms the seeds, ~0.25 ms step 3 (about 690 clips pass the box bound, 600
 get their segments measured, 80 are within reach), ~0.2 ms step 4.  The arithmetic is the numpy path's
