@@ -13,6 +13,7 @@ from __future__ import annotations
 
 __all__ = [
     "ReproError",
+    "ArgumentError",
     "DataError",
     "ModelError",
     "SelectionError",
@@ -31,6 +32,14 @@ __all__ = [
 
 class ReproError(Exception):
     """Base class of every error raised on purpose by :mod:`repro`."""
+
+
+class ArgumentError(ReproError, ValueError):
+    """An argument of the wrong type, shape or range (the message names it and what was expected).
+
+    The packages raise their own subclass-free errors (``ModelError``, ``MotionError`` ...) for
+    their arguments; this is the default of :mod:`repro.checks` and the error of the shared ground.
+    """
 
 
 class DataError(ReproError):

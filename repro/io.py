@@ -2,8 +2,13 @@
 
 Every file repro writes goes to a temporary file in the destination folder and
 is moved into place with :func:`os.replace` only once it is complete.  Every
-file repro reads goes through :func:`read_bytes`, which names the path in its
-errors and caps what a file (or a gzip stream) may make the reader hold.
+file repro reads goes through :func:`open_regular` (directly or through
+:func:`read_bytes`), which opens regular files only (never a FIFO, a device or a
+folder, so nothing hangs or streams forever), knows the size before reading and
+caps what a file (or a gzip stream) may make the reader hold.  A path that a
+file or a user names (a glTF buffer, a dataset entry, a cache member) goes
+through :func:`inside` first, which keeps it inside its folder after ``..`` and
+symlinks are resolved.
 Read-modify-write of a shared file is serialised with :func:`file_lock`.
 An ``.npz`` archive from outside the process (a cache, a saved database) is read
 with :func:`read_npz`, which checks every member's ``.npy`` header against the
@@ -17,6 +22,7 @@ import errno
 import gzip
 import math
 import os
+import stat
 import struct
 import tempfile
 import tokenize
@@ -36,6 +42,8 @@ __all__ = [
     "save_figure",
     "read_bytes",
     "read_npz",
+    "open_regular",
+    "inside",
     "file_lock",
     "lock_path",
     "MAX_READ_BYTES",
@@ -46,12 +54,84 @@ MAX_READ_BYTES = 2 << 30
 _CHUNK = 1 << 20
 
 
+def _kind(mode: int) -> str:
+    for test, name in ((stat.S_ISDIR, "is a folder"), (stat.S_ISFIFO, "is a FIFO (named pipe)"),
+                       (stat.S_ISCHR, "is a character device"), (stat.S_ISBLK, "is a block device"),
+                       (stat.S_ISSOCK, "is a socket")):
+        if test(mode):
+            return name
+    return "is not a regular file"
+
+
+def open_regular(path, *, error: type[ReproError] = DataError, max_bytes: int | None = MAX_READ_BYTES):
+    """``path`` opened for binary reading if it is a regular file of at most ``max_bytes``, else ``error``.
+
+    The file is opened with ``O_NONBLOCK`` (so opening a FIFO never waits for a writer) and
+    checked with ``fstat`` on that descriptor (so a symlink swapped in between cannot
+    change what is checked): a FIFO, a device (``/dev/zero``), a socket or a folder is
+    refused, and its size is known before a byte is read.  ``max_bytes=None`` skips the
+    size check (the caller bounds what it reads).  Returns ``(binary file object, size)``.
+    """
+    try:
+        p = os.fspath(path)
+    except TypeError:
+        raise error(f"expected a path, got {type(path).__name__}") from None
+    if isinstance(p, bytes):
+        p = os.fsdecode(p)
+    if "\x00" in p:
+        raise error(f"{p!r}: a path cannot hold a NUL character")
+    flags = os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0) | getattr(os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(p, flags)
+    except OSError as exc:
+        raise _open_error(p, exc, error) from (None if isinstance(exc, _PLAIN_OPEN_ERRORS) else exc)
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise error(f"{p}: {_kind(st.st_mode)}, not a file; only regular files are read")
+        if max_bytes is not None and st.st_size > max_bytes:
+            raise error(f"{p}: {st.st_size} bytes, more than the {max_bytes} allowed; refusing to read it")
+        if hasattr(os, "set_blocking"):
+            os.set_blocking(fd, True)
+        fh = os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+    return fh, st.st_size
+
+
+def inside(folder, name, *, error: type[ReproError] = DataError, what: str = "file") -> Path:
+    """``folder / name`` with ``..`` and symlinks resolved, if it stays inside ``folder``; else ``error``.
+
+    ``name`` is a relative path that a file or a user gave (a glTF buffer ``uri`` after
+    percent-decoding, a dataset entry, a cache member): an absolute path, a NUL byte, or a
+    path that leaves the folder (``../../etc/passwd``, or a symlink pointing out) is refused,
+    naming ``what``.  Existence and kind are not checked here (:func:`open_regular` does).
+    """
+    if not isinstance(name, (str, os.PathLike)):
+        raise error(f"{what} must be a path, got {type(name).__name__}")
+    n = os.fspath(name)
+    if isinstance(n, bytes):
+        n = os.fsdecode(n)
+    if "\x00" in n:
+        raise error(f"{what} {n[:60]!r}: a path cannot hold a NUL character")
+    if os.path.isabs(n) or n.startswith(("/", "\\")):
+        raise error(f"{what} {n[:60]!r} is an absolute path; only paths relative to {folder} are allowed")
+    base = Path(os.path.realpath(folder))
+    target = Path(os.path.realpath(base / n))
+    if target != base and base not in target.parents:
+        raise error(f"{what} {n[:60]!r} leads outside its folder {base} (to {target}); refusing to read it")
+    return target
+
+
 def read_bytes(src, *, error: type[ReproError] = DataError, max_bytes: int = MAX_READ_BYTES) -> tuple[bytes, str | None]:
     """Content of a path (``.gz`` undone, streamed with a cap) or of a stream, and its name.
 
     Every failure is raised as ``error`` naming the source: a missing file, a
-    folder, no permission, a corrupt gzip stream, or more than ``max_bytes`` of
-    content (checked while reading, so a gzip bomb never reaches memory).
+    folder, a FIFO or device (only regular files are opened, see :func:`open_regular`),
+    no permission, a corrupt gzip stream, or more than ``max_bytes`` of content (the
+    file's size is checked before reading, and a gzip stream's while reading, so a
+    gzip bomb never reaches memory).
     """
     if hasattr(src, "read"):
         name = getattr(src, "name", None)
@@ -70,12 +150,10 @@ def read_bytes(src, *, error: type[ReproError] = DataError, max_bytes: int = MAX
         p = Path(src)
     except TypeError:
         raise error(f"expected a path or a readable stream, got {type(src).__name__}") from None
+    gz = p.suffix == ".gz"
+    raw, _ = open_regular(p, error=error, max_bytes=None if gz else max_bytes)
     try:
-        if p.suffix == ".gz":
-            opener = gzip.open
-        else:
-            opener = open
-        with opener(p, "rb") as fh:
+        with (gzip.GzipFile(fileobj=raw, mode="rb") if gz else raw) as fh, raw:
             chunks, total = [], 0
             while chunk := fh.read(_CHUNK):
                 total += len(chunk)
@@ -189,10 +267,8 @@ def read_npz(
         except TypeError:
             raise error(f"expected a path or a binary stream, got {type(src).__name__}") from None
         where = str(p)
-        try:
-            fh, own = open(p, "rb"), True
-        except OSError as exc:
-            raise _open_error(p, exc, error) from (None if isinstance(exc, _PLAIN_OPEN_ERRORS) else exc)
+        fh, _ = open_regular(p, error=error, max_bytes=None)  # (each member's size is bounded below)
+        own = True
     out: dict = {}
     member = None
     budget = max_bytes

@@ -6,7 +6,7 @@ cycle cannot hide behind a lazy import) and checks:
 * the library (the two papers' packages and the shared ground) never imports presentation,
   measurement or command-line layers, and never imports matplotlib, pyvista or ipywidgets
   at module level;
-* the two papers share only the shared ground (errors, io, data);
+* the two papers share only the shared ground (errors, checks, io, data);
 * no private name (``_x``) is imported from another module;
 * the import graph of ``repro`` has no cycle.
 """
@@ -21,7 +21,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1] / "repro"
 
 #: the shared ground both papers may use
-SHARED = {"repro", "repro.errors", "repro.io", "repro.data"}
+SHARED = {"repro", "repro.errors", "repro.checks", "repro.io", "repro.data"}
 #: the two papers' library packages
 PAPERS = ("repro.blendshapes", "repro.motion")
 #: layers above the library: figures, measurements, ledger, user interface, command line

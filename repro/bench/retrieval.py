@@ -58,7 +58,7 @@ def check_bench_arguments(databases, factors, n_queries):
         An unknown database, a factor that is not an int >= 1, ``n_queries`` not an int >= 1.
     """
     from repro.errors import RetrievalError
-    from repro.motion.clustering import check_int
+    from repro.checks import as_int
 
     if databases is not None:
         databases = [databases] if isinstance(databases, str) else list(databases)
@@ -72,9 +72,9 @@ def check_bench_arguments(databases, factors, n_queries):
             raise RetrievalError(f"factors must be a sequence of ints >= 1, got {factors!r}") from None
         if not factors:
             raise RetrievalError("factors must name at least one size (an int >= 1)")
-        factors = tuple(check_int(f, "factor", 1, None, RetrievalError) for f in factors)
+        factors = tuple(as_int(f, "factor", 1, None, error=RetrievalError) for f in factors)
     if n_queries is not None:
-        n_queries = check_int(n_queries, "n_queries", 1, None, RetrievalError)
+        n_queries = as_int(n_queries, "n_queries", 1, None, error=RetrievalError)
     return databases, factors, n_queries
 
 

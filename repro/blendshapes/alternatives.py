@@ -30,7 +30,7 @@ from repro.blendshapes.attenuation import (
     scaled,
     check_selection,
 )
-from repro.blendshapes.checks import as_real_array
+from repro.checks import as_real_array
 from repro.errors import AttenuationError
 
 __all__ = ["zero_rows", "edit_zeroed", "orthogonal_lock", "edit_orthogonal"]

@@ -70,7 +70,7 @@ import math
 import numpy as np
 import scipy.linalg
 
-from repro.blendshapes.checks import abs_max, as_int, as_real, as_real_array, describe
+from repro.checks import abs_max, as_int, as_real, as_real_array, describe
 from repro.blendshapes.model import AXES, BlendshapeModel
 from repro.errors import AttenuationError, SelectionError
 

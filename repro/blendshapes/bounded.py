@@ -42,7 +42,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from repro.blendshapes.attenuation import Attenuator, check_w_max
-from repro.blendshapes.checks import as_int, as_real_array, describe
+from repro.checks import as_int, as_real_array, describe
 from repro.errors import AttenuationError
 
 __all__ = [

@@ -50,7 +50,7 @@ from repro.blendshapes.attenuation import (
     select_vertices,
 )
 from repro.blendshapes.bounded import check_bounds, solve_box_qp
-from repro.blendshapes.checks import as_real, as_real_array, describe
+from repro.checks import as_real, as_real_array, describe
 from repro.blendshapes.model import BlendshapeModel
 from repro.errors import AttenuationError, SelectionError
 

@@ -26,7 +26,7 @@ import numpy as np
 import scipy.linalg
 
 from repro.blendshapes.attenuation import check_selection
-from repro.blendshapes.checks import as_real_array
+from repro.checks import as_real_array
 from repro.blendshapes.model import BlendshapeModel
 from repro.errors import ModelError
 
@@ -43,7 +43,7 @@ __all__ = [
 
 
 def _flat(d, name: str = "displacement") -> np.ndarray:
-    d = as_real_array(d, name, finite=False)
+    d = as_real_array(d, name, finite=False, error=ModelError)
     if d.ndim == 2 and d.shape[1] == 3:
         d = d.reshape(-1)
     if d.ndim != 1 or d.size % 3:
@@ -162,7 +162,7 @@ def roughness_near(model: BlendshapeModel, d, vertices) -> float:
     its neighbours, the tear shows here, whatever happens elsewhere on the face.
     """
     model = _model(model)
-    v = np.unique(as_real_array(vertices, "vertices", integer=True))
+    v = np.unique(as_real_array(vertices, "vertices", integer=True, error=ModelError))
     if v.size == 0 or v.min() < 0 or v.max() >= model.n_vertices:
         raise ModelError(f"vertices must be ids in 0..{model.n_vertices - 1}")
     e = model.edges

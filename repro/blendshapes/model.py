@@ -13,7 +13,7 @@ available through :meth:`BlendshapeModel.to_whole_face` and
 are "identical in power" is what the round-trip tests check.
 
 Every argument of the blendshape package is checked by the helpers of this
-package (:mod:`repro.blendshapes.checks`): real arrays
+package (:mod:`repro.checks`): real arrays
 must hold real numbers (no strings, ``None``, objects, booleans, complex values,
 NaN/inf), indices and counts must be integers (numpy integers accepted; bools,
 floats and strings refused) in range, and the error names the argument.
@@ -28,7 +28,7 @@ from functools import cached_property
 
 import numpy as np
 
-from repro.blendshapes.checks import abs_max, as_int, as_real, as_real_array, as_str, describe
+from repro.checks import abs_max, as_int, as_real, as_real_array, as_str, describe
 from repro.errors import ModelError
 
 __all__ = ["BlendshapeModel", "AXES"]
@@ -92,8 +92,8 @@ class BlendshapeModel:
     regions: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        f0 = as_real_array(self.f0, "f0", finite=False)
-        D = as_real_array(self.D, "D", finite=False)
+        f0 = as_real_array(self.f0, "f0", finite=False, error=ModelError)
+        D = as_real_array(self.D, "D", finite=False, error=ModelError)
         if f0.ndim != 2 or f0.shape[1] != 3 or f0.shape[0] == 0:
             raise ModelError(f"f0 must have shape (n, 3) with n >= 1, got {f0.shape}")
         n = f0.shape[0]
@@ -119,9 +119,9 @@ class BlendshapeModel:
         if not np.isfinite(D).all():
             bad = np.unique(np.nonzero(~np.isfinite(D))[1])
             raise ModelError(f"D has NaN/inf values in shapes {[names[i] for i in bad]}")
-        as_str(self.name, "name")
-        as_str(self.units, "units")
-        faces = as_real_array(self.faces, "faces", integer=True)
+        as_str(self.name, "name", error=ModelError)
+        as_str(self.units, "units", error=ModelError)
+        faces = as_real_array(self.faces, "faces", integer=True, error=ModelError)
         if faces.size == 0:
             faces = np.zeros((0, 3), dtype=np.int64)
         if faces.ndim != 2 or faces.shape[1] != 3:
@@ -134,7 +134,7 @@ class BlendshapeModel:
             raise ModelError(f"sliders must be a mapping of name to {{shape: coefficient}}, got {describe(self.sliders)}")
         sliders = {}
         for slider, combo in self.sliders.items():
-            as_str(slider, "a slider name")
+            as_str(slider, "a slider name", error=ModelError)
             if slider in names:
                 raise ModelError(f"slider {slider!r} has the name of a shape")
             if not isinstance(combo, Mapping):
@@ -143,14 +143,14 @@ class BlendshapeModel:
             if unknown:
                 raise ModelError(f"slider {slider!r} combines unknown shapes {unknown}")
             sliders[str(slider)] = {
-                str(s): as_real(c, f"coefficient of {s!r} in slider {slider!r}") for s, c in combo.items()
+                str(s): as_real(c, f"coefficient of {s!r} in slider {slider!r}", error=ModelError) for s, c in combo.items()
             }
         if not isinstance(self.regions, Mapping):
             raise ModelError(f"regions must be a mapping of name to vertex ids, got {describe(self.regions)}")
         regions = {}
         for region, verts in self.regions.items():
-            as_str(region, "a region name")
-            v = as_real_array(verts, f"region {region!r}", integer=True)
+            as_str(region, "a region name", error=ModelError)
+            v = as_real_array(verts, f"region {region!r}", integer=True, error=ModelError)
             if v.ndim > 1:
                 raise ModelError(f"region {region!r} must be a 1-D array of vertex ids, got shape {v.shape}")
             v = v.ravel()
@@ -223,7 +223,7 @@ class BlendshapeModel:
 
     def _accumulate(self, w: np.ndarray, items: dict) -> None:
         for key, value in items.items():
-            value = as_real(value, f"slider {key!r}", finite=False)
+            value = as_real(value, f"slider {key!r}", finite=False, error=ModelError)
             if not math.isfinite(value):
                 raise ModelError(f"slider {key!r} has a non-finite value {value}")
             if not isinstance(key, str):
@@ -243,7 +243,7 @@ class BlendshapeModel:
         """``w`` as a finite float vector of length m, or a :class:`ModelError`."""
         if isinstance(w, Mapping):
             return self.weights(w)
-        w = as_real_array(w, "weights", shape=(self.n_shapes,), finite=False)
+        w = as_real_array(w, "weights", shape=(self.n_shapes,), finite=False, error=ModelError)
         if not np.isfinite(w).all():
             raise ModelError(f"weights contain NaN/inf at shapes {list(np.flatnonzero(~np.isfinite(w)))}")
         return w
@@ -295,7 +295,7 @@ class BlendshapeModel:
     @staticmethod
     def whole_face_weights(w) -> np.ndarray:
         """Whole-face weights ``(1 - sum(w), w_1, w_2, ...)`` of a delta pose (Section 3)."""
-        w = as_real_array(w, "delta weights", ndim=1)
+        w = as_real_array(w, "delta weights", ndim=1, error=ModelError)
         return np.concatenate([[1.0 - w.sum()], w])
 
     @staticmethod
@@ -305,7 +305,7 @@ class BlendshapeModel:
         Whole-face weights must sum to one (the "barycentric" constraint of
         Section 3), otherwise the pose scales the face and has no delta form.
         """
-        c = as_real_array(c, "whole-face weights", finite=False)
+        c = as_real_array(c, "whole-face weights", finite=False, error=ModelError)
         if c.ndim != 1 or c.size < 1:
             raise ModelError(f"whole-face weights must be a non-empty vector, got shape {c.shape}")
         if not np.isfinite(c).all():
@@ -324,10 +324,10 @@ class BlendshapeModel:
 
         ``names`` names the ``M - 1`` non-neutral columns, in order.
         """
-        B = as_real_array(B, "B")
+        B = as_real_array(B, "B", error=ModelError)
         if B.ndim != 2 or B.shape[0] % 3 or B.shape[0] == 0 or B.shape[1] < 1:
             raise ModelError(f"B must have shape (3n, M) with n >= 1 and M >= 1, got {B.shape}")
-        neutral = as_int(neutral, "neutral (column of B)", lo=0, hi=B.shape[1] - 1)
+        neutral = as_int(neutral, "neutral (column of B)", lo=0, hi=B.shape[1] - 1, error=ModelError)
         f0 = B[:, neutral]
         with np.errstate(over="ignore", invalid="ignore"):
             D = np.delete(B, neutral, axis=1) - f0[:, None]
@@ -375,12 +375,12 @@ class BlendshapeModel:
         Triangles with a vertex outside the subset are dropped and the rest
         re-indexed; shapes that become all-zero are kept (their columns are zero).
         """
-        v = as_real_array(vertices, "restrict() vertices", integer=True)
+        v = as_real_array(vertices, "restrict() vertices", integer=True, error=ModelError)
         if v.ndim > 1:
             raise ModelError(f"restrict() needs a 1-D array of vertex ids, got shape {v.shape}")
         v = v.ravel()
         if name is not None:
-            as_str(name, "name")
+            as_str(name, "name", error=ModelError)
         if v.size == 0 or v.min() < 0 or v.max() >= self.n_vertices or np.unique(v).size != v.size:
             raise ModelError(
                 f"restrict() needs distinct vertex ids in 0..{self.n_vertices - 1}, got {v.size} ids"

@@ -98,7 +98,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from repro.blendshapes.checks import as_int
+from repro.checks import as_int
 from repro.blendshapes.model import BlendshapeModel
 from repro.errors import ModelError
 
@@ -193,7 +193,7 @@ _SLIDERS = {
 
 # ---------------------------------------------------------------- the grid
 def _check_n(n_vertices) -> int:
-    n = as_int(n_vertices, "n_vertices")
+    n = as_int(n_vertices, "n_vertices", error=ModelError)
     if not MIN_N_VERTICES <= n <= MAX_N_VERTICES:
         raise ModelError(
             f"n_vertices must be in {MIN_N_VERTICES}..{MAX_N_VERTICES} "

@@ -33,7 +33,7 @@ import numpy as np
 from repro.blendshapes import metrics
 from repro.blendshapes.alternatives import edit_orthogonal, edit_zeroed
 from repro.blendshapes.attenuation import Attenuator, check_alpha, select_vertices
-from repro.blendshapes.checks import as_int, as_str, describe
+from repro.checks import as_int, as_str, describe
 from repro.blendshapes.model import AXES, BlendshapeModel
 from repro.errors import ModelError
 
@@ -66,11 +66,11 @@ class Scenario:
 
     def __post_init__(self) -> None:
         for f in ("key", "figure", "description", "region", "axes"):
-            as_str(getattr(self, f), f"Scenario.{f}")
+            as_str(getattr(self, f), f"Scenario.{f}", error=ModelError)
         for f in ("moves", "base"):
             if not isinstance(getattr(self, f), Mapping):
                 raise ModelError(f"Scenario.{f} must be a mapping of slider name to value, got {describe(getattr(self, f))}")
-        as_int(self.top_moved, "Scenario.top_moved", lo=0)
+        as_int(self.top_moved, "Scenario.top_moved", lo=0, error=ModelError)
 
     def vertices(self, model: BlendshapeModel) -> np.ndarray:
         """Vertex ids this scenario selects on ``model``."""

@@ -85,6 +85,7 @@ import numpy as np
 from scipy.cluster.vq import kmeans2
 from scipy.sparse import csr_matrix
 
+from repro.checks import as_int
 from repro.errors import MotionError, ReproWarning
 
 __all__ = [
@@ -102,7 +103,6 @@ __all__ = [
     "PoseClusters",
     "cluster_poses",
     "default_k",
-    "check_int",
     "real_array",
     "float_poses",
     "CHUNK",
@@ -127,29 +127,6 @@ MAX_ITERATIONS: int = 10_000
 
 
 # ------------------------------------------------------------- argument checks
-def check_int(value, name: str, lo: int | None = None, hi: int | None = None, error=MotionError) -> int:
-    """``value`` as a Python int in ``[lo, hi]``, or ``error`` naming ``name`` and the range.
-
-    Integers only (Python or numpy ints): a float such as ``2.5`` (or ``2.0``), a bool, a
-    string or None is refused rather than truncated.
-    """
-    if isinstance(value, (bool, np.bool_)):
-        raise error(f"{name} must be an integer, got {value!r}")
-    try:
-        v = operator.index(value)
-    except TypeError:
-        raise error(f"{name} must be an integer, got {value!r} ({type(value).__name__})") from None
-    if (lo is not None and v < lo) or (hi is not None and v > hi):
-        if hi is None:
-            allowed = f">= {lo}"
-        elif lo is None:
-            allowed = f"<= {hi}"
-        else:
-            allowed = f"in [{lo}, {hi}]"
-        raise error(f"{name} must be an integer {allowed}, got {v}")
-    return int(v)
-
-
 def real_array(value, name: str, error=MotionError) -> np.ndarray:
     """``value`` as a float array, or ``error`` if it is not made of real numbers.
 
@@ -300,12 +277,12 @@ def pose_points(global_positions: np.ndarray, joints: Sequence[int], pelvis: int
     g = real_array(global_positions, "global_positions")
     if g.ndim != 3 or g.shape[-1] != 3 or g.shape[0] == 0:
         raise MotionError(f"global_positions must be a non-empty (F, J, 3) array, got {g.shape}")
-    window = check_int(window, "window", 1)
-    step = check_int(step, "step", 1)
+    window = as_int(window, "window", 1, error=MotionError)
+    step = as_int(step, "step", 1, error=MotionError)
     J = g.shape[1]
     for name, j in (("pelvis", pelvis), ("left_hip", left_hip), ("right_hip", right_hip)):
-        check_int(j, name, 0, J - 1)
-    idx = np.array([check_int(j, "pose joint", 0, J - 1) for j in joints], dtype=np.intp)
+        as_int(j, name, 0, J - 1, error=MotionError)
+    idx = np.array([as_int(j, "pose joint", 0, J - 1, error=MotionError) for j in joints], dtype=np.intp)
     theta, origin = root_frames(g, pelvis, left_hip, right_hip)
     F = g.shape[0]
     offs = np.arange(-(window - 1) * step, 1, step)
@@ -789,14 +766,14 @@ def cluster_poses(points: np.ndarray, k: int | None = None, *, weights=None, see
     """
     p = float_poses(points, "poses")
     N, P, _ = p.shape
-    k = default_k(N) if k is None else check_int(k, "k (number of clusters)", 1)
-    seed = check_int(seed, "seed", 0)
-    iterations = check_int(iterations, "iterations", 1, MAX_ITERATIONS)
+    k = default_k(N) if k is None else as_int(k, "k (number of clusters)", 1, error=MotionError)
+    seed = as_int(seed, "seed", 0, error=MotionError)
+    iterations = as_int(iterations, "iterations", 1, MAX_ITERATIONS, error=MotionError)
     if k > N:
         warnings.warn(f"k = {k} clusters asked for {N} poses; using k = {N}", ReproWarning, stacklevel=2)
         k = N
     if max_fit is not None:
-        max_fit = check_int(max_fit, "max_fit", k)
+        max_fit = as_int(max_fit, "max_fit", k, error=MotionError)
     w = pose_weights(P, weights)
     sw = np.sqrt(w)[None, :, None]
     if max_fit is not None and N > max_fit and k > 1:

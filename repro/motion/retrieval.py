@@ -101,11 +101,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
+from repro.checks import as_int
 from repro.errors import MotionError, RetrievalError
 from repro.motion.annotation import SEMANTICS
 from repro.motion.clustering import (
     AlignedPoseIndex,
-    check_int,
     pose_points,
     root_frames,
     rotate_y,
@@ -458,11 +458,11 @@ class MotionRetriever(ExactSearch, StartScoring):
             raise RetrievalError("the motion database is empty")
         w_q, w_c = _check_weight("w_q", w_q), _check_weight("w_c", w_c)
         if k is not None:
-            k = check_int(k, "k (number of clusters)", 1, db.n_poses, RetrievalError)
-        seed = check_int(seed, "seed", 0, None, RetrievalError)
+            k = as_int(k, "k (number of clusters)", 1, db.n_poses, error=RetrievalError)
+        seed = as_int(seed, "seed", 0, None, error=RetrievalError)
         self.db = db
         self.w_q, self.w_c = w_q, w_c
-        self.kd_neighbours = check_int(kd_neighbours, "kd_neighbours", 1, None, RetrievalError)
+        self.kd_neighbours = as_int(kd_neighbours, "kd_neighbours", 1, None, error=RetrievalError)
         self.across_trees = _check_flag("across_trees", across_trees)
         try:
             self.index, self.clusters = build_pose_index(db, k, weights=weights, seed=seed)
@@ -536,7 +536,7 @@ class MotionRetriever(ExactSearch, StartScoring):
             raise RetrievalError("current_pose is not on the character's skeleton (joint names / parents differ)")
         db = self.db
         F = current_pose.n_frames
-        f = F - 1 if frame is None else check_int(frame, "frame", None, None, RetrievalError)
+        f = F - 1 if frame is None else as_int(frame, "frame", None, None, error=RetrievalError)
         if not 0 <= f < F:
             raise RetrievalError(f"frame {frame} outside the current pose's {F} frames (expected 0 to {F - 1})")
         need = (db.window - 1) * db.step + 1
@@ -1222,8 +1222,8 @@ def make_queries(db: MotionDatabase, n: int, seed: int = 0, *, noise: float = 0.
     """
     if not isinstance(db, MotionDatabase):
         raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
-    n = check_int(n, "n (number of queries)", 0, None, RetrievalError)
-    seed = check_int(seed, "seed", 0, None, RetrievalError)
+    n = as_int(n, "n (number of queries)", 0, None, error=RetrievalError)
+    seed = as_int(seed, "seed", 0, None, error=RetrievalError)
     noise = _check_noise(noise)
     rng = np.random.default_rng(seed)
     originals = np.flatnonzero(db.source_clip == np.arange(db.n_clips))
@@ -1274,8 +1274,8 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
     """
     if not isinstance(db, MotionDatabase):
         raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
-    n_queries = check_int(n_queries, "n_queries", 1, None, RetrievalError)
-    repeats = check_int(repeats, "repeats", 1, None, RetrievalError)
+    n_queries = as_int(n_queries, "n_queries", 1, None, error=RetrievalError)
+    repeats = as_int(repeats, "repeats", 1, None, error=RetrievalError)
     if isinstance(methods, str):
         methods = (methods,)
     try:

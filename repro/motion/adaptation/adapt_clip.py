@@ -44,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from repro.checks import as_int
 from repro.errors import MotionError
 from repro.motion.adaptation.ccd_solver import (
     DEFAULT_HINGE_RANGE_DEG,
@@ -52,7 +53,7 @@ from repro.motion.adaptation.ccd_solver import (
 )
 from repro.motion.adaptation.limb import limb_dmax, solve_limb
 from repro.motion.adaptation.offset import offset_curve
-from repro.motion.adaptation.rig import Chain, Rig, check_extension, check_frames, check_int, default_tol, rig_of, vec3
+from repro.motion.adaptation.rig import Chain, Rig, check_extension, check_frames, default_tol, rig_of, vec3
 from repro.motion.kinematics import fk_arrays
 from repro.motion.quaternion import quat_rotate as qrot
 from repro.motion.motion import Motion
@@ -234,8 +235,8 @@ def adapt(
     ch = rig.chain(effector, hit_point)
     F = motion.n_frames
     X = vec3("target", target)
-    t0 = check_int("t0", t0, 0, F - 1)
-    tc = check_int("tc", tc, 0, F - 1)
+    t0 = as_int(t0, "t0", 0, F - 1, error=MotionError)
+    tc = as_int(tc, "tc", 0, F - 1, error=MotionError)
     if t0 > tc:
         raise MotionError(f"t0={t0} is after the contact frame tc={tc}")
     if feet not in ("pin", "plant", "track", None):
@@ -256,7 +257,7 @@ def adapt(
         raise MotionError(f"tol must be finite and > 0, got {tol!r}")
     ext = check_extension(max_extension)
     spec = ccd_spec(rig, ch, chain, limits, hinge_range_deg)
-    max_iter = check_int("max_iter", max_iter, 0, 10**6)
+    max_iter = as_int(max_iter, "max_iter", 0, 10**6, error=MotionError)
 
     gq, gp = rig.globals
     p = gp[:, ch.hit] + qrot(gq[:, ch.hit], ch.hit_offset)

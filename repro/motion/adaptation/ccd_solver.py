@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from repro.checks import as_int
 from repro.errors import MotionError
 from repro.motion.adaptation.limb import limb_dmax, solve_limb
 from repro.motion.adaptation.rig import (
@@ -40,7 +41,6 @@ from repro.motion.adaptation.rig import (
     Rig,
     check_extension,
     check_frames,
-    check_int,
     check_targets,
     default_tol,
     path_fk,
@@ -395,7 +395,7 @@ def ccd(
     idx, _ = check_frames(frames, motion.n_frames)
     goal = np.array(check_targets(targets, len(idx)))
     tol = default_tol(rig, ch) if tol is None else float(tol)
-    max_iter = check_int("max_iter", max_iter, 0, 10**6)
+    max_iter = as_int(max_iter, "max_iter", 0, 10**6, error=MotionError)
     ext = check_extension(max_extension)
     rot = start_rotations(motion, idx, rotations)
     spec = ccd_spec(rig, ch, chain, limits, hinge_range_deg)

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from repro.checks import as_int
 from repro.errors import MotionError
-from repro.motion.adaptation.rig import check_int, vec3
+from repro.motion.adaptation.rig import vec3
 
 __all__ = ["EASINGS", "offset_curve"]
 
@@ -59,16 +60,16 @@ def offset_curve(
         Non-integer or out-of-range frames, ``t0 > tc``, non-finite ``d_tc``, unknown
         ``kind``, negative ``release``.
     """
-    F = check_int("frames", frames, 1, 2**62)
-    t0 = check_int("t0", t0, 0, F - 1)
-    tc = check_int("tc", tc, 0, F - 1)
+    F = as_int(frames, "frames", 1, 2**62, error=MotionError)
+    t0 = as_int(t0, "t0", 0, F - 1, error=MotionError)
+    tc = as_int(tc, "tc", 0, F - 1, error=MotionError)
     if t0 > tc:
         raise MotionError(f"t0={t0} is after the contact frame tc={tc}; the offset must grow towards the contact")
     d_tc = vec3("d_tc", d_tc)
     if kind not in EASINGS:
         raise MotionError(f"kind must be one of {list(EASINGS)}, got {kind!r}")
     if release is not None:
-        release = check_int("release", release, 0, 2**62)
+        release = as_int(release, "release", 0, 2**62, error=MotionError)
     t = np.arange(F, dtype=float)
     if tc > t0:
         w = _ease(np.clip((t - t0) / (tc - t0), 0.0, 1.0), kind)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from repro.checks import as_int
 from repro.errors import MotionError
 from repro.motion.feet import foot_contacts
 from repro.motion.kinematics import depth_levels, matvec
@@ -29,7 +30,6 @@ __all__ = [
     "rig_of",
     "path_fk",
     "path_fk_from",
-    "check_int",
     "vec3",
     "check_frames",
     "check_targets",
@@ -47,15 +47,6 @@ EFFECTOR_STEMS: dict[str, str] = {
     "toe": "leg",
     "ankle": "leg",
 }
-
-
-def check_int(name: str, v, lo: int, hi: int) -> int:
-    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)):
-        raise MotionError(f"{name} must be an integer frame index, got {v!r}")
-    v = int(v)
-    if not lo <= v <= hi:
-        raise MotionError(f"{name}={v} is out of range [{lo}, {hi}]")
-    return v
 
 
 def vec3(name: str, v) -> np.ndarray:

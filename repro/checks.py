@@ -1,9 +1,15 @@
-"""Argument checks of the whole blendshape package (model, attenuation, alternatives, metrics, scenarios).
+"""Argument checks: the one set of validators every public function of both papers uses at its entry.
 
 Numbers must be real numbers (not strings, ``None``, objects, booleans or complex
 values), integers must be integers (numpy integers accepted; bools, floats and
-strings refused) in range, and the error is the caller's ReproError subclass
-naming the argument.
+strings refused) in range, flags must be booleans, choices one of their names, and
+the error is the caller's :class:`~repro.errors.ReproError` subclass naming the
+argument (default :class:`~repro.errors.ArgumentError`).  :func:`check_alloc`
+checks what an argument will make the library allocate against a stated budget
+(:data:`MEMORY_BUDGET`) before anything is allocated.
+
+This module belongs to the shared ground (with errors, io and data): it imports
+nothing of either paper.
 """
 
 from __future__ import annotations
@@ -15,9 +21,22 @@ import reprlib
 
 import numpy as np
 
-from repro.errors import ModelError
+import os
 
-__all__ = ["describe", "as_real_array", "abs_max", "as_int", "as_real", "as_str"]
+from repro.errors import ArgumentError
+
+__all__ = [
+    "describe",
+    "as_real_array",
+    "abs_max",
+    "as_int",
+    "as_real",
+    "as_str",
+    "as_bool",
+    "as_choice",
+    "check_alloc",
+    "MEMORY_BUDGET",
+]
 
 _INT64_MAX = np.iinfo(np.int64).max
 
@@ -35,7 +54,7 @@ def as_real_array(
     x,
     name: str,
     *,
-    error: type[Exception] = ModelError,
+    error: type[Exception] = ArgumentError,
     integer: bool = False,
     ndim: int | None = None,
     shape: tuple[int | None, ...] | None = None,
@@ -97,7 +116,7 @@ def abs_max(X: np.ndarray) -> float:
 
 
 def as_int(
-    x, name: str, *, error: type[Exception] = ModelError, lo: int | None = None, hi: int | None = None
+    x, name: str, lo: int | None = None, hi: int | None = None, *, error: type[Exception] = ArgumentError
 ) -> int:
     """``x`` as a Python int (numpy integers accepted; bools, floats, strings refused) in ``lo..hi``."""
     if isinstance(x, (bool, np.bool_)):
@@ -109,14 +128,26 @@ def as_int(
     if (lo is not None and v < lo) or (hi is not None and v > hi):
         lo_s = "-inf" if lo is None else str(lo)
         hi_s = "inf" if hi is None else str(hi)
-        raise error(f"{name} must be an integer in {lo_s}..{hi_s}, got {v}")
+        raise error(f"{name} must be an integer in {lo_s}..{hi_s}, got {v} (out of range)")
     return v
 
 
-def as_real(x, name: str, *, error: type[Exception] = ModelError, finite: bool = True) -> float:
+def as_real(
+    x,
+    name: str,
+    *,
+    error: type[Exception] = ArgumentError,
+    finite: bool = True,
+    lo: float | None = None,
+    hi: float | None = None,
+    lo_open: bool = False,
+    hi_open: bool = False,
+) -> float:
     """``x`` as a finite Python float: an int/float/numpy number or a 0-d real array.
 
     Strings (even ``"5"``), ``None``, booleans, complex numbers and objects are refused.
+    ``lo`` / ``hi`` bound it (closed, or open with ``lo_open`` / ``hi_open``); NaN is
+    never in range.
     """
     if isinstance(x, (bool, np.bool_, str, bytes)) or x is None:
         raise error(f"{name} must be a real number, got {describe(x)}")
@@ -131,10 +162,77 @@ def as_real(x, name: str, *, error: type[Exception] = ModelError, finite: bool =
         raise error(f"{name} must be a real number, got {describe(x)}")
     if finite and not math.isfinite(v):
         raise error(f"{name} must be finite, got {v}")
+    if lo is not None or hi is not None:
+        below = lo is not None and (v <= lo if lo_open else v < lo)
+        above = hi is not None and (v >= hi if hi_open else v > hi)
+        if below or above or math.isnan(v):
+            left = "-inf" if lo is None else f"{lo:g}"
+            right = "inf" if hi is None else f"{hi:g}"
+            span = f"{'(' if lo_open or lo is None else '['}{left}, {right}{')' if hi_open or hi is None else ']'}"
+            raise error(f"{name} must be in {span}, got {v}")
     return v
 
 
-def as_str(x, name: str, *, error: type[Exception] = ModelError) -> str:
+def as_str(x, name: str, *, error: type[Exception] = ArgumentError) -> str:
+    """``x`` itself if it is a ``str``, else ``error`` naming ``name``."""
     if not isinstance(x, str):
         raise error(f"{name} must be a string, got {describe(x)}")
     return x
+
+
+def as_bool(x, name: str, *, error: type[Exception] = ArgumentError) -> bool:
+    """``x`` as a bool: ``True``/``False`` or a numpy bool only (not ``1``, ``"yes"`` or ``None``)."""
+    if not isinstance(x, (bool, np.bool_)):
+        raise error(f"{name} must be True or False, got {describe(x)}")
+    return bool(x)
+
+
+def as_choice(x, name: str, choices, *, error: type[Exception] = ArgumentError):
+    """``x`` if it is one of ``choices`` (compared by equality, hashable values only), else ``error`` listing them."""
+    choices = tuple(choices)
+    try:
+        ok = any(type(x) is type(c) and x == c for c in choices) or (
+            isinstance(x, str) and x in [c for c in choices if isinstance(c, str)]
+        )
+    except (TypeError, ValueError):  # e.g. an array compared with a string
+        ok = False
+    if not ok:
+        raise error(f"{name} must be one of {', '.join(repr(c) for c in choices)}; got {describe(x)}")
+    return x
+
+
+def _budget_from_env() -> int:
+    raw = os.environ.get("REPRO_MEMORY_BUDGET", "")
+    try:
+        v = int(float(raw)) if raw else 0
+    except ValueError:
+        v = 0
+    return v if v > 0 else 8 << 30
+
+
+#: Largest allocation (bytes) one argument may ask of the library: 8 GiB, or ``REPRO_MEMORY_BUDGET``
+#: (bytes) when that is set to a positive number.  The 1,000x retrieval build, the largest thing the
+#: project makes on purpose, peaks at about 3.6 GB; a request beyond the budget is refused before
+#: anything is allocated, with a message naming the argument and what it would take.
+MEMORY_BUDGET: int = _budget_from_env()
+
+
+def check_alloc(nbytes, what: str, *, error: type[Exception] = ArgumentError, budget: int | None = None) -> int:
+    """Refuse (``error``) an allocation of ``nbytes`` above ``budget`` (default :data:`MEMORY_BUDGET`).
+
+    ``nbytes`` is computed by the caller from the arguments (a Python int, so it cannot
+    overflow); ``what`` says which argument asks for it, e.g. ``"factors=10**9 (the
+    augmented database)"``.  Returns ``nbytes``.
+    """
+    budget = MEMORY_BUDGET if budget is None else budget
+    n = int(nbytes)
+    if n > budget:
+        raise error(
+            f"{what} would need about {_gib(n)} of memory, more than the budget of {_gib(budget)} "
+            f"(REPRO_MEMORY_BUDGET, bytes, raises it)"
+        )
+    return n
+
+
+def _gib(n: int) -> str:
+    return f"{n / (1 << 30):.3g} GiB" if n >= 1 << 30 else f"{n / (1 << 20):.3g} MiB"
