@@ -22,6 +22,8 @@ import hashlib
 import io
 import logging
 import os
+import stat
+import zlib
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -29,7 +31,9 @@ from functools import lru_cache
 from importlib import resources
 from pathlib import Path
 
+from repro.checks import as_bool, as_str, describe
 from repro.errors import DataError
+from repro.io import MAX_READ_BYTES, _kind, inside, open_regular
 
 __all__ = [
     "DataFile",
@@ -38,6 +42,9 @@ __all__ = [
     "data_dir",
     "cache_dir",
     "locate",
+    "cache_file",
+    "cache_writable",
+    "content_sha256",
     "fetch",
     "open_file",
     "status",
@@ -98,6 +105,7 @@ def registry() -> dict[str, DataFile]:
 
 def files(dataset: str) -> list[DataFile]:
     """The registered files of one dataset."""
+    as_str(dataset, "dataset", error=DataError)
     if dataset not in DATASETS:
         raise DataError(f"unknown dataset {dataset!r}; known: {sorted(DATASETS)}")
     return [f for f in registry().values() if f.dataset == dataset]
@@ -124,11 +132,39 @@ def cache_dir() -> Path:
     return Path(pooch.os_cache("repro")) / "derived"
 
 
+def cache_file(name) -> Path:
+    """The path of cache member ``name`` (relative, e.g. ``"motion/x.npz"``) inside :func:`cache_dir`.
+
+    The cache folder itself may be a symlink (the user chose it); inside it, ``..`` and
+    symlinks are resolved and a member (or a sub-folder) that leads outside the folder is
+    refused with :class:`~repro.errors.DataError`, so a cache is never read from, nor written
+    through, a link to elsewhere.  Callers treat that as a damaged cache (a
+    :class:`~repro.errors.CacheWarning`, built in memory; see :func:`cache_writable`).
+    """
+    return inside(cache_dir(), name, error=DataError, what="cache file")
+
+
+def cache_writable(name) -> bool:
+    """Whether cache member ``name`` may be (re)written: its folder stays inside :func:`cache_dir`.
+
+    The member itself may be a symlink or a special file (an atomic write replaces the link
+    or the FIFO with a regular file, never writes through it); a sub-folder that is a symlink
+    leading outside the cache folder is never written into.
+    """
+    parent = os.path.dirname(os.fspath(name)) or "."
+    try:
+        inside(cache_dir(), parent, error=DataError, what="cache folder")
+    except DataError:
+        return False
+    return True
+
+
 def _offline() -> bool:
     return os.environ.get("REPRO_OFFLINE", "").strip().lower() not in ("", "0", "false", "no")
 
 
 def _entry(path: str) -> DataFile:
+    as_str(path, "data file path", error=DataError)
     try:
         return registry()[path]
     except KeyError:
@@ -136,34 +172,97 @@ def _entry(path: str) -> DataFile:
 
 
 def locate(path: str, root: Path | None = None) -> Path | None:
-    """The file on disk for registered ``path`` (itself or ``path.gz``), or None."""
-    root = data_dir() if root is None else Path(root)
-    for candidate in (root / path, root / (path + ".gz")):
-        if candidate.is_file():
-            return candidate
+    """The file on disk for registered ``path`` (itself or ``path.gz``), or None.
+
+    ``path`` is relative to the data folder (``root``, default :func:`data_dir`) and must
+    stay inside it once ``..`` and symlinks are resolved (:func:`repro.io.inside`): a path
+    leading out (``../../etc/passwd``, an absolute path, a symlink pointing elsewhere) is a
+    :class:`~repro.errors.DataError`, as is something there that is not a regular file (a
+    FIFO, a device, a folder).  Returns the resolved path.
+    """
+    as_str(path, "data file path", error=DataError)
+    if root is None:
+        root = data_dir()
+    else:
+        try:
+            root = Path(root)
+        except TypeError:
+            raise DataError(f"root must be a folder path, got {describe(root)}") from None
+    for name in (path, path + ".gz"):
+        candidate = inside(root, name, error=DataError, what="data file")
+        try:
+            mode = os.stat(candidate).st_mode
+        except (FileNotFoundError, NotADirectoryError):  # absent (or below a file): missing
+            continue
+        except OSError as exc:
+            raise DataError(f"{candidate} cannot be read: {exc}") from exc
+        if not stat.S_ISREG(mode):
+            raise DataError(f"{candidate}: {_kind(mode)}, not a file; only regular files are read")
+        return candidate
     return None
 
 
-def _open_raw(p: Path):
-    return gzip.open(p, "rb") if p.suffix == ".gz" else open(p, "rb")
+class _ClosingGzip(gzip.GzipFile):
+    """A gzip reader that closes the file it reads from (``GzipFile(fileobj=...)`` leaves it open)."""
+
+    def close(self) -> None:
+        raw = self.fileobj
+        try:
+            super().close()
+        finally:
+            if raw is not None:
+                raw.close()
+
+
+def _open_raw(p: Path, *, max_bytes: int | None = MAX_READ_BYTES):
+    """``p`` opened for reading (a regular file only, :func:`repro.io.open_regular`; ``.gz`` undone)
+    and its size on disk.  ``max_bytes`` bounds the size on disk of a plain file (the caller bounds
+    what it decompresses from a ``.gz``)."""
+    gz = Path(p).suffix == ".gz"
+    fh, size = open_regular(p, error=DataError, max_bytes=None if gz else max_bytes)
+    fh.raw.name = str(p)  # (os.fdopen names the file by its descriptor; messages name the path)
+    return (_ClosingGzip(fileobj=fh, mode="rb") if gz else fh), size
 
 
 @lru_cache(maxsize=512)
 def _content_sha256(p: str, size: int, mtime_ns: int) -> str:
-    # keyed on (path, size, mtime) so a file is hashed once per process unless it changes
+    # keyed on (path, size, mtime) so a file is hashed once per process unless it changes.
+    # Only a regular file is opened (a FIFO or /dev/zero would never end), at most the size fstat
+    # gave is read from a plain file, and at most MAX_READ_BYTES are decompressed from a .gz.
     h = hashlib.sha256()
+    gz = Path(p).suffix == ".gz"
+    fh, n = _open_raw(Path(p), max_bytes=MAX_READ_BYTES)
+    left = MAX_READ_BYTES if gz else n
     try:
-        with _open_raw(Path(p)) as fh:
-            for chunk in iter(lambda: fh.read(1 << 20), b""):
+        with fh:
+            while chunk := fh.read(min(1 << 20, left + 1)):
+                left -= len(chunk)
+                if left < 0:
+                    raise DataError(f"{p}: more than {MAX_READ_BYTES if gz else n} bytes of content "
+                                    f"({'decompressed' if gz else 'its size when opened'}); refusing to hash it")
                 h.update(chunk)
-    except (OSError, EOFError, gzip.BadGzipFile) as exc:
+    except (OSError, EOFError, gzip.BadGzipFile, zlib.error) as exc:
         raise DataError(f"{p} cannot be read: {exc}") from exc
     return h.hexdigest()
 
 
 def content_sha256(p: Path) -> str:
-    """sha256 of a file's content, decompressing ``.gz`` files."""
-    st = Path(p).stat()
+    """sha256 of a file's content, decompressing ``.gz`` files.
+
+    Regular files only (:func:`repro.io.open_regular`): a FIFO, a device or a folder is a
+    :class:`~repro.errors.DataError`, as is a file that grows while read or a ``.gz`` holding
+    more than :data:`repro.io.MAX_READ_BYTES`.
+    """
+    try:
+        p = Path(p)
+    except TypeError:
+        raise DataError(f"expected a file path, got {describe(p)}") from None
+    try:
+        st = p.stat()
+    except OSError as exc:
+        raise DataError(f"{p}: {'no such file' if isinstance(exc, FileNotFoundError) else exc}") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise DataError(f"{p}: {_kind(st.st_mode)}, not a file; only regular files are read")
     return _content_sha256(str(p), st.st_size, st.st_mtime_ns)
 
 
@@ -192,6 +291,9 @@ def fetch(path: str, *, download: bool | None = None, progressbar: bool = False)
         get it), the download failed, or a file's hash does not match.
     """
     entry = _entry(path)
+    if download is not None:
+        download = as_bool(download, "download", error=DataError)
+    progressbar = as_bool(progressbar, "progressbar", error=DataError)
     root = data_dir()
     found = locate(path, root)
     if found is not None:
@@ -207,7 +309,7 @@ def fetch(path: str, *, download: bool | None = None, progressbar: bool = False)
 def _download(entry: DataFile, url: str, root: Path, *, progressbar: bool = False) -> Path:
     import pooch
 
-    target = root / entry.path
+    target = inside(root, entry.path, error=DataError, what="data file")  # (a registry row cannot write elsewhere)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         with _quiet_pooch(not progressbar):
@@ -259,8 +361,8 @@ def _plain_bar():
 
 
 def open_file(path: str):
-    """A binary file object with the verified content of ``path`` (gzip undone)."""
-    return _open_raw(fetch(path))
+    """A binary file object with the verified content of ``path`` (gzip undone; a regular file only)."""
+    return _open_raw(fetch(path))[0]
 
 
 def status(dataset: str) -> dict:
@@ -308,6 +410,9 @@ def missing_reason(dataset: str) -> str | None:
 def require(dataset: str, *, download: bool | None = None, progressbar: bool = False) -> Path:
     """Fetch (verify or download) every file of ``dataset``; its folder in :func:`data_dir`."""
     entries = files(dataset)
+    if download is not None:
+        download = as_bool(download, "download", error=DataError)
+    progressbar = as_bool(progressbar, "progressbar", error=DataError)
     it: Iterator[DataFile] = iter(entries)
     if progressbar:
         import sys
@@ -382,8 +487,14 @@ def choose(choice: str = "auto", needs=("ict", "cmu-bvh")) -> DataChoice:
         raise DataError(f"DATA = {choice!r} is not a known choice; expected one of "
                         f"{', '.join(repr(c) for c in DATA_CHOICES)}")
     choice = choice.strip().lower()
-    needs = tuple(needs)
+    if isinstance(needs, str):
+        raise DataError(f"needs must be a sequence of dataset names, got the string {needs!r}")
+    try:
+        needs = tuple(needs)
+    except TypeError:
+        raise DataError(f"needs must be a sequence of dataset names, got {describe(needs)}") from None
     for name in needs:
+        as_str(name, "a dataset name in needs", error=DataError)
         if name not in DATASETS:
             raise DataError(f"unknown dataset {name!r}; known: {sorted(DATASETS)}")
     _switched_off.clear()

@@ -129,3 +129,149 @@ def test_fetch_downloads_through_the_registry_when_online(private_dir, http_serv
     monkeypatch.setenv("REPRO_OFFLINE", "1")
     with pytest.raises(DataError, match="downloads are off"):
         data.fetch(entry.path)
+
+
+# ------------------------------------------------------------------ issue 23: paths stay inside, special files refused
+def _finishes(fn, unblock=None, seconds=60):
+    """``fn()``'s outcome (value or exception), run in a thread so that a regression (a read that
+    blocks on a FIFO or never ends on /dev/zero) fails the test instead of hanging the suite;
+    ``unblock`` is called if it did not finish (e.g. opens the FIFO for writing to free the reader)."""
+    out = {}
+
+    def run():
+        try:
+            out["value"] = fn()
+        except BaseException as exc:  # noqa: BLE001 (handed to the test)
+            out["error"] = exc
+
+    t = threading.Thread(target=run, daemon=True)
+    t.start()
+    t.join(seconds)
+    if t.is_alive():
+        if unblock is not None:
+            unblock()
+        pytest.fail(f"{fn} did not return within {seconds} s: it hangs on a special file")
+    if "error" in out:
+        raise out["error"]
+    return out.get("value")
+
+
+def _free_fifo(path):
+    def unblock():
+        import os
+
+        fd = os.open(path, os.O_WRONLY | os.O_NONBLOCK)
+        os.close(fd)
+    return unblock
+
+
+@pytest.mark.parametrize("name", ["../../../../etc/passwd", "../outside.txt", "faces/../../outside.txt",
+                                  "/etc/passwd", "faces/ict/\x00LICENSE"])
+def test_locate_refuses_a_path_leaving_the_data_folder(private_dir, name):
+    private_dir.mkdir()
+    (private_dir.parent / "outside.txt").write_text("secret")
+    with pytest.raises(DataError, match="outside its folder|absolute path|NUL"):
+        data.locate(name)
+
+
+def test_locate_refuses_a_symlink_leading_outside_and_fetch_never_reads_it(private_dir, tmp_path):
+    folder = private_dir / "faces" / "ict"
+    folder.mkdir(parents=True)
+    (tmp_path / "elsewhere").write_text("not the licence")
+    (folder / "LICENSE").symlink_to(tmp_path / "elsewhere")
+    with pytest.raises(DataError, match="outside its folder"):
+        data.locate("faces/ict/LICENSE")
+    with pytest.raises(DataError, match="outside its folder"):
+        data.fetch("faces/ict/LICENSE")
+    (folder / "LICENSE").unlink()
+    (folder / "LICENSE.gz").symlink_to(tmp_path / "elsewhere")  # the .gz form: the same rule
+    with pytest.raises(DataError, match="outside its folder"):
+        data.locate("faces/ict/LICENSE")
+    # a symlink that stays inside the folder is followed
+    (folder / "LICENSE.gz").unlink()
+    (folder / "real").write_text("x")
+    (folder / "LICENSE").symlink_to(folder / "real")
+    assert data.locate("faces/ict/LICENSE") == (folder / "real").resolve()
+
+
+def test_locate_refuses_what_is_not_a_regular_file(private_dir):
+    import os
+
+    folder = private_dir / "faces" / "ict"
+    folder.mkdir(parents=True)
+    os.mkfifo(folder / "LICENSE")
+    with pytest.raises(DataError, match="FIFO"):
+        data.locate("faces/ict/LICENSE")
+    with pytest.raises(DataError, match="FIFO"):
+        _finishes(lambda: data.fetch("faces/ict/LICENSE"), _free_fifo(folder / "LICENSE"))
+    os.unlink(folder / "LICENSE")
+    (folder / "LICENSE").mkdir()
+    with pytest.raises(DataError, match="folder"):
+        data.locate("faces/ict/LICENSE")
+    assert data.locate("faces/ict/nothing-here") is None
+
+
+def test_content_sha256_opens_regular_files_only(tmp_path):
+    import os
+
+    (tmp_path / "zero.npz").symlink_to("/dev/zero")  # read forever before the fix
+    with pytest.raises(DataError, match="character device"):
+        _finishes(lambda: data.content_sha256(tmp_path / "zero.npz"))
+    os.mkfifo(tmp_path / "pipe.gz")
+    with pytest.raises(DataError, match="FIFO"):
+        _finishes(lambda: data.content_sha256(tmp_path / "pipe.gz"), _free_fifo(tmp_path / "pipe.gz"))
+    with pytest.raises(DataError, match="folder"):
+        data.content_sha256(tmp_path)
+    with pytest.raises(DataError, match="no such file"):
+        data.content_sha256(tmp_path / "absent")
+    with pytest.raises(DataError, match="expected a file path"):
+        data.content_sha256(None)
+    body = b"some content\n" * 100
+    (tmp_path / "plain").write_bytes(body)
+    with gzip.open(tmp_path / "packed.gz", "wb") as fh:
+        fh.write(body)
+    want = hashlib.sha256(body).hexdigest()
+    assert data.content_sha256(tmp_path / "plain") == data.content_sha256(tmp_path / "packed.gz") == want
+
+
+def test_content_sha256_bounds_what_a_gz_decompresses(tmp_path, monkeypatch):
+    with gzip.open(tmp_path / "bomb.gz", "wb") as fh:
+        fh.write(bytes(1 << 20))
+    monkeypatch.setattr(data, "MAX_READ_BYTES", 1 << 16)
+    with pytest.raises(DataError, match="more than 65536 bytes"):
+        data.content_sha256(tmp_path / "bomb.gz")
+
+
+def test_open_file_names_the_file_and_reads_only_regular_files(private_dir):
+    import os
+
+    body = b"MIT License\n"
+    entry = data.DataFile("ict", "faces/ict/LICENSE", hashlib.sha256(body).hexdigest(), "")
+    folder = private_dir / "faces" / "ict"
+    folder.mkdir(parents=True)
+    with gzip.open(folder / "LICENSE.gz", "wb") as fh:
+        fh.write(body)
+    import unittest.mock
+
+    with unittest.mock.patch.dict(data.registry(), {entry.path: entry}):
+        fh = data.open_file(entry.path)
+        raw = fh.fileobj
+        with fh:
+            assert fh.read() == body and str(fh.name).endswith("LICENSE.gz")
+    assert raw.closed  # the gzip reader closed the file it read from
+    os.mkfifo(folder / "other")
+    with pytest.raises(DataError, match="FIFO"):
+        data._open_raw(folder / "other")
+
+
+@pytest.mark.parametrize("call", [
+    lambda: data.files(["ict"]), lambda: data.files(None), lambda: data.status({}),
+    lambda: data.missing_reason(3), lambda: data.require(b"ict"), lambda: data.fetch(["x"]),
+    lambda: data.fetch(None), lambda: data.locate(3), lambda: data.locate("x", root=3.5),
+    lambda: data.fetch("faces/ict/LICENSE", download="yes"), lambda: data.require("ict", progressbar=None),
+    lambda: data.choose("auto", needs="ict"), lambda: data.choose("auto", needs=3),
+    lambda: data.choose("auto", needs=[["ict"]]),
+])
+def test_names_of_the_wrong_type_are_data_errors(private_dir, call):
+    with pytest.raises(DataError, match="must be"):
+        call()
