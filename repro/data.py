@@ -33,7 +33,7 @@ from pathlib import Path
 
 from repro.checks import as_bool, as_str, describe
 from repro.errors import DataError
-from repro.io import MAX_READ_BYTES, _kind, inside, open_regular
+from repro.io import MAX_READ_BYTES, file_kind, inside, open_regular
 
 __all__ = [
     "DataFile",
@@ -197,7 +197,7 @@ def locate(path: str, root: Path | None = None) -> Path | None:
         except OSError as exc:
             raise DataError(f"{candidate} cannot be read: {exc}") from exc
         if not stat.S_ISREG(mode):
-            raise DataError(f"{candidate}: {_kind(mode)}, not a file; only regular files are read")
+            raise DataError(f"{candidate}: {file_kind(mode)}, not a file; only regular files are read")
         return candidate
     return None
 
@@ -262,7 +262,7 @@ def content_sha256(p: Path) -> str:
     except OSError as exc:
         raise DataError(f"{p}: {'no such file' if isinstance(exc, FileNotFoundError) else exc}") from None
     if not stat.S_ISREG(st.st_mode):
-        raise DataError(f"{p}: {_kind(st.st_mode)}, not a file; only regular files are read")
+        raise DataError(f"{p}: {file_kind(st.st_mode)}, not a file; only regular files are read")
     return _content_sha256(str(p), st.st_size, st.st_mtime_ns)
 
 

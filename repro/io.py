@@ -44,6 +44,7 @@ __all__ = [
     "read_npz",
     "open_regular",
     "inside",
+    "file_kind",
     "file_lock",
     "lock_path",
     "MAX_READ_BYTES",
@@ -54,7 +55,7 @@ MAX_READ_BYTES = 2 << 30
 _CHUNK = 1 << 20
 
 
-def _kind(mode: int) -> str:
+def file_kind(mode: int) -> str:
     for test, name in ((stat.S_ISDIR, "is a folder"), (stat.S_ISFIFO, "is a FIFO (named pipe)"),
                        (stat.S_ISCHR, "is a character device"), (stat.S_ISBLK, "is a block device"),
                        (stat.S_ISSOCK, "is a socket")):
@@ -88,7 +89,7 @@ def open_regular(path, *, error: type[ReproError] = DataError, max_bytes: int | 
     try:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):
-            raise error(f"{p}: {_kind(st.st_mode)}, not a file; only regular files are read")
+            raise error(f"{p}: {file_kind(st.st_mode)}, not a file; only regular files are read")
         if max_bytes is not None and st.st_size > max_bytes:
             raise error(f"{p}: {st.st_size} bytes, more than the {max_bytes} allowed; refusing to read it")
         if hasattr(os, "set_blocking"):
