@@ -56,6 +56,7 @@ _CHUNK = 1 << 20
 
 
 def file_kind(mode: int) -> str:
+    """How a file of this ``st_mode`` is named in messages ("is a folder", "is a FIFO (named pipe)" ...)."""
     for test, name in ((stat.S_ISDIR, "is a folder"), (stat.S_ISFIFO, "is a FIFO (named pipe)"),
                        (stat.S_ISCHR, "is a character device"), (stat.S_ISBLK, "is a block device"),
                        (stat.S_ISSOCK, "is a socket")):
