@@ -419,7 +419,7 @@ class MotionDatabase:
 
 
     # ---------------------------------------------------------------- I/O
-    def save(self, path) -> Path:
+    def save(self, path, *, identity: Mapping | None = None) -> Path:
         """Write the database to ``path`` (``.npz``, no pickles), atomically.
 
         Arrays are stored as they are; strings and structure (joint names, channels,
@@ -427,12 +427,19 @@ class MotionDatabase:
         (:meth:`equals`).  The file is written to a temporary file beside ``path`` and
         moved into place only once complete (:func:`repro.io.atomic_path`), so saving
         over the file a database was loaded from is safe, and a failed save leaves the
-        previous file as it was.
+        previous file as it was (a ``path`` that is a symlink is replaced by the file, the
+        file it pointed to is left alone).
+
+        ``identity``: a JSON object saying what the file is (for a cache: the inputs it was
+        built from, e.g. base, factor, seed, code fingerprint, format); stored in the
+        archive (member ``identity``, covered by the archive's CRCs and by any hash of the
+        file) so that ``load(path, identity=...)`` refuses a file that is another one,
+        even a valid database put in its place.
 
         Raises
         ------
         repro.errors.MotionError
-            :attr:`meta` is not JSON-serialisable.
+            :attr:`meta` or ``identity`` is not JSON-serialisable (``identity`` not an object).
         repro.errors.DataError
             ``path`` cannot be written (a folder, no permission, disk full ...).
         """
@@ -441,6 +448,13 @@ class MotionDatabase:
         except TypeError:
             raise DataError(f"expected a path to save the database to, got {type(path).__name__}") from None
         out: dict[str, np.ndarray] = {}
+        if identity is not None:
+            if not isinstance(identity, Mapping):
+                raise MotionError(f"identity must be a mapping (a JSON object), got {type(identity).__name__}")
+            try:
+                out["identity"] = np.array(json.dumps(dict(identity), sort_keys=True, allow_nan=False))
+            except (TypeError, ValueError) as exc:
+                raise MotionError(f"identity cannot be saved as JSON: {exc}") from None
         for k in _CLIP_STR:
             out[k] = np.array(json.dumps(getattr(self, k).tolist()))
         for k in _CLIP_NUM + _POSE_NUM:
@@ -486,7 +500,7 @@ class MotionDatabase:
         return path
 
     @classmethod
-    def load(cls, path, *, max_bytes: int = MAX_READ_BYTES) -> MotionDatabase:
+    def load(cls, path, *, max_bytes: int = MAX_READ_BYTES, identity: Mapping | None = None) -> MotionDatabase:
         """Read a database written by :meth:`save` (``allow_pickle=False``).
 
         Everything is checked before use: the archive, every array's declared size
@@ -500,19 +514,41 @@ class MotionDatabase:
         path : path-like or binary stream
         max_bytes : int, default :data:`repro.io.MAX_READ_BYTES` (2 GiB)
             Cap on the file's bytes and on the decompressed arrays.
+        identity : mapping, optional
+            What the file must be: the archive's ``identity`` (written by ``save(...,
+            identity=...)``) must equal it, else the file is refused (another database in
+            its place, or one saved without an identity).
 
         Raises
         ------
         repro.errors.DataError
             A missing, unreadable, truncated, corrupt or foreign file, or one whose
-            content is inconsistent; the message names the file and what is wrong.
+            content is inconsistent, or whose identity is not ``identity``; the message
+            names the file and what is wrong.
         """
         where = str(path) if not hasattr(path, "read") else str(getattr(path, "name", "<stream>"))
+        from repro.checks import as_int
+
+        max_bytes = as_int(max_bytes, "max_bytes", lo=0, error=DataError)
+        if identity is not None and not isinstance(identity, Mapping):
+            raise DataError(f"identity must be a mapping (a JSON object), got {type(identity).__name__}")
         # the archive, each array's declared size (before allocating) and dtypes: repro.io.read_npz;
         # finiteness and the schema: _Check below, with messages about the database
         arrays = read_npz(path, error=DataError, finite=False, max_bytes=max_bytes)
         if not arrays:
             raise DataError(f"{where}: not a motion database (the archive holds no .npy arrays)")
+        if identity is not None:
+            try:  # (compared as JSON: the form save wrote it in)
+                want = json.loads(json.dumps(dict(identity), sort_keys=True, allow_nan=False))
+            except (TypeError, ValueError) as exc:
+                raise DataError(f"identity cannot be compared as JSON: {exc}") from None
+            got = _Check(arrays, where).json("identity") if "identity" in arrays else None
+            if got != want:
+                differ = (sorted(k for k in set(got) | set(want) if got.get(k) != want.get(k))
+                          if isinstance(got, dict) else None)
+                raise DataError(f"{where}: " + ("holds no identity" if got is None else
+                                f"is another database (its identity differs in {differ or 'its form'})")
+                                + "; refusing it for the one requested")
         return _database_from_arrays(cls, arrays, where)
 
     def equals(self, other: MotionDatabase) -> bool:
