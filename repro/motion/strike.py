@@ -56,12 +56,16 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from repro.checks import as_bool, as_choice, as_int, as_real, as_real_array, describe
 from repro.errors import MotionError, RetrievalError
 from repro.motion.adaptation import EFFECTOR_STEMS, Adaptation, adapt
+from repro.motion.adaptation.offset import EASINGS
+from repro.motion.annotation import SEMANTICS
 from repro.motion.adaptation.cost import adaptation_cost
 from repro.motion.adaptation.offset import offset_curve
 from repro.motion.clustering import from_root_frame, rotate_y, to_root_frame
@@ -74,7 +78,7 @@ from repro.motion.morphology import retarget
 from repro.motion.motion import Motion, finite_vector3
 from repro.motion.paper import REACTION_BUDGET_S
 from repro.motion.quaternion import quat_multiply
-from repro.motion.retrieval import MotionRetriever, RetrievalResult, character_skeleton, retarget_to_tree
+from repro.motion.retrieval import MotionRetriever, Query, RetrievalResult, character_skeleton, retarget_to_tree
 from repro.motion.skeleton import Skeleton, rescale_constraint
 
 __all__ = [
@@ -110,17 +114,26 @@ ROOT_MAX_ITER: int = 20
 #: A target horizontally closer than this fraction of the character's size to the current
 #: pose's root (and below the head) is inside the body.
 BODY_RADIUS: float = 0.08
+#: Most equal-count bins :func:`reach_by_distance` makes (a table of reach, not a histogram of millions).
+MAX_BINS: int = 10_000
 #: Measured stages of an order, in :attr:`Strike.timings` (seconds).
 STAGES: tuple[str, ...] = ("prepare", "search", "load_convert", "adapt", "first_frame")
 
 
 # ------------------------------------------------------------------ helpers (one home each)
+def _check_motion(m, name: str) -> None:
+    if not isinstance(m, Motion):
+        raise MotionError(f"{name} must be a Motion, got {describe(m)}")
+
+
 def one_frame(motion: Motion, f: int) -> Motion:
     """The one-frame motion holding frame ``f`` of ``motion`` (a current pose)."""
+    _check_motion(motion, "motion")
     F = motion.n_frames
-    if not -F <= int(f) < F:
+    f = as_int(f, "f (a frame)", error=MotionError)
+    if not -F <= f < F:
         raise MotionError(f"frame {f} outside the motion's {F} frames")
-    f = int(f) % F
+    f %= F
     return dataclasses.replace(motion, rotations=motion.rotations[f:f + 1], positions=motion.positions[f:f + 1])
 
 
@@ -130,10 +143,13 @@ def _qy(theta: float) -> np.ndarray:
 
 def turn_and_move(motion: Motion, theta: float, translation) -> Motion:
     """The motion rotated by ``theta`` about the vertical axis through the world origin, then translated."""
+    _check_motion(motion, "motion")
+    theta = as_real(theta, "theta (radians)", error=MotionError)
+    translation = finite_vector3(translation, "translation (x, y, z)", MotionError)
     rot = np.array(motion.rotations)
     rot[:, 0] = quat_multiply(np.broadcast_to(_qy(theta), rot[:, 0].shape), rot[:, 0])
     pos = np.array(motion.positions)
-    pos[:, 0] = rotate_y(pos[:, 0], theta) + np.asarray(translation, dtype=float)
+    pos[:, 0] = rotate_y(pos[:, 0], theta) + translation
     return dataclasses.replace(motion, rotations=rot, positions=pos)
 
 
@@ -147,8 +163,12 @@ def blend_into(pose: Motion, placed: Motion, n_blend: int) -> Motion:
 
     Joint rotations by slerp, the root position by an offset that decays to 0 (smootherstep).
     """
+    _check_motion(pose, "pose")
+    _check_motion(placed, "placed")
+    if pose.rotations.shape[1:] != placed.rotations.shape[1:]:
+        raise MotionError(f"pose and placed must have the same joints, got {pose.n_joints} and {placed.n_joints}")
     F = placed.n_frames
-    nb = max(1, int(n_blend))
+    nb = max(1, as_int(n_blend, "n_blend (frames)", 0, error=MotionError))
     w = _smooth(np.arange(F) / nb)
     r0 = np.broadcast_to(pose.rotations[-1], placed.rotations.shape)
     rot = slerp(r0, placed.rotations, w[:, None, None])
@@ -159,6 +179,11 @@ def blend_into(pose: Motion, placed: Motion, n_blend: int) -> Motion:
 
 def clip_effector(db: MotionDatabase, clip: int, character: Skeleton) -> str:
     """The effector role (on ``character``) of the joint clip ``clip`` strikes with; MotionError if it has none."""
+    if not isinstance(db, MotionDatabase):
+        raise RetrievalError(f"db must be a MotionDatabase, got {describe(db)}")
+    clip = as_int(clip, "clip", 0, db.n_clips - 1, error=RetrievalError)
+    if not isinstance(getattr(character, "roles", None), Mapping):
+        raise MotionError(f"character must be a Skeleton (with roles), got {describe(character)}")
     hit_role, hit_joint = str(db.hit_roles[clip]), str(db.hit_joints[clip])
     role = effector_role(db.actor_skeleton(clip).roles, hit_role, hit_joint)
     if role not in character.roles:
@@ -443,15 +468,30 @@ def strike(
     repro.errors.MotionError
         A target inside the body; a character without the clip's effector; bad options.
     """
-    t_order = time.perf_counter() if t_order is None else t_order
-    if reach not in LEVELS:
-        raise MotionError(f"reach must be one of {list(LEVELS)}, got {reach!r}")
-    if frame not in ("world", "root"):
-        raise MotionError(f"frame must be 'world' or 'root', got {frame!r}")
-    blend_s = float(blend_s)
-    if not (np.isfinite(blend_s) and blend_s >= 0):
-        raise MotionError(f"blend_s must be a finite number of seconds >= 0, got {blend_s!r}")
+    now = time.perf_counter()
+    # every argument checked here, at the entry: a later level (the root shift, the step) never sees a bad one
+    t_order = now if t_order is None else as_real(t_order, "t_order (a time.perf_counter() value)",
+                                                   error=MotionError, hi=now)
+    reach = as_choice(reach, "reach", LEVELS, error=MotionError)
+    frame = as_choice(frame, "frame", ("world", "root"), error=MotionError)
+    semantics = as_choice(semantics, "semantics", SEMANTICS, error=RetrievalError)
+    blend_s = as_real(blend_s, "blend_s (seconds)", error=MotionError, lo=0.0)
+    max_root_shift = as_real(max_root_shift, "max_root_shift (per metre of leg length)", error=MotionError, lo=0.0)
+    feet = as_choice(feet, "feet", ("pin", "plant", "track", None), error=MotionError)
+    floor = None if floor is None else as_real(floor, "floor (a height)", error=MotionError)
+    kind = as_choice(kind, "kind", EASINGS, error=MotionError)
+    release = None if release is None else as_real(release, "release (seconds)", error=MotionError, lo=0.0)
+    seed = as_int(seed, "seed", 0, 2**63 - 1, error=MotionError)
+    fix_feet = as_bool(fix_feet, "fix_feet", error=MotionError)
+    early_stop = as_bool(early_stop, "early_stop", error=MotionError)
+    stream = as_bool(stream, "stream", error=MotionError)
+    if not isinstance(current_motion, Motion):
+        raise RetrievalError(f"current_motion must be a Motion (the character's current motion), got "
+                             f"{describe(current_motion)}")
+    if query is not None and not isinstance(query, Query):
+        raise RetrievalError(f"query must be None or a Query (MotionRetriever.prepare), got {describe(query)}")
     retriever = _retriever_of(source, seed)
+    method, scoring = retriever.check_method(method, scoring)
     db = retriever.db
     # a character of any tree: what the strike needs, named (an arm for a punch, a leg for a kick)
     ch = character_skeleton(character, {"punch": ("a punch",), "kick": ("a kick",)}.get(semantics, ()))
@@ -479,7 +519,7 @@ def strike(
     k = res.size_c / res.size_a
     placed = turn_and_move(mc, res.heading + res.rotation_y, rotate_y(k * res.translation, res.heading) + res.origin)
     tc = res.lead_frames
-    nb = min(int(round(blend_s * db.fps)), tc, placed.n_frames - 1)
+    nb = int(round(min(blend_s * db.fps, tc, placed.n_frames - 1)))  # a long blend_s stops at the contact
     blended = blend_into(current_motion, placed, nb) if nb >= 1 else placed
     # ---- 5. the constraints: the level decided on the contact frame, the next frame, the rest streamed
     t_solver = time.perf_counter()
@@ -588,22 +628,31 @@ def reach_by_distance(distances, reached, levels, bins=5) -> list[dict]:
     ``step_fraction``: the fraction of the bin's targets reached at that level (they add up to
     ``reached_fraction``), ``unreached_fraction``.
     """
-    d = np.asarray(distances, dtype=float).reshape(-1)
-    ok = np.asarray(reached, dtype=bool).reshape(-1)
-    lv = np.asarray(levels).astype(str).reshape(-1)
-    if not (d.shape == ok.shape == lv.shape) or not np.all(np.isfinite(d)):
+    d = as_real_array(distances, "distances (metres)", error=MotionError).reshape(-1)
+    try:
+        ok, lv = np.asarray(reached), np.asarray(levels)
+    except (TypeError, ValueError) as e:
+        raise MotionError(f"reached and levels must be 1-D arrays (bool, str): {e}") from None
+    if ok.dtype.kind != "b" and ok.size:
+        raise MotionError(f"reached must hold booleans, got dtype {ok.dtype}")
+    if lv.dtype.kind not in "UO" and lv.size:
+        raise MotionError(f"levels must hold level names ({list(LEVELS)}), got dtype {lv.dtype}")
+    ok = ok.astype(bool).reshape(-1)
+    lv = lv.astype(str).reshape(-1)
+    if not (d.shape == ok.shape == lv.shape):
         raise MotionError("distances, reached and levels must be equal-length 1-D arrays of finite distances")
     bad = set(lv.tolist()) - set(LEVELS)
     if bad:
         raise MotionError(f"unknown levels {sorted(bad)}; expected {list(LEVELS)}")
     if d.size == 0:
         return []
-    if isinstance(bins, (int, np.integer)):
-        if bins < 1:
-            raise MotionError(f"bins must be >= 1, got {bins}")
-        edges = np.quantile(d, np.linspace(0.0, 1.0, int(bins) + 1))
+    if isinstance(bins, (int, np.integer)) and not isinstance(bins, (bool, np.bool_)):
+        bins = as_int(bins, "bins", 1, MAX_BINS, error=MotionError)
+        edges = np.quantile(d, np.linspace(0.0, 1.0, bins + 1))
     else:
-        edges = np.asarray(bins, dtype=float)
+        edges = as_real_array(bins, "bins (an int or increasing bin edges)", error=MotionError, ndim=1)
+        if edges.size < 2 or np.any(np.diff(edges) < 0):
+            raise MotionError(f"bin edges must be at least 2 non-decreasing values, got {edges.size} values")
     which = np.clip(np.searchsorted(edges, d, side="right") - 1, 0, edges.size - 2)
     out = []
     for b in range(edges.size - 1):

@@ -552,3 +552,55 @@ def test_quat_multiply_and_cross_fill_in_place_with_the_same_numbers():
         np.testing.assert_array_equal(quat_multiply(b, a).shape, want.shape)
         np.testing.assert_array_equal(cross(a[..., :3], b[..., :3]), np.cross(a[..., :3], b[..., :3]))
     assert quat_multiply([0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 1.0]).tolist() == [0.0, 0.0, 0.0, 1.0]
+
+
+# ------------------------------------------------------------- every argument checked (issue 23)
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        ({"floor": "x"}, "floor"),
+        ({"release": "x"}, "release"),
+        ({"release": float("inf")}, "release"),
+        ({"foot_blend": None}, "foot_blend"),
+        ({"tol": "1e-3"}, "tol"),
+        ({"tol": 0.0}, "tol"),
+        ({"max_extension": "0.5"}, "max_extension"),
+        ({"max_extension": True}, "max_extension"),
+        ({"max_foot_error": "x"}, "max_foot_error"),
+        ({"kind": ["linear"]}, "kind"),
+        ({"feet": ["pin"]}, "feet"),
+        ({"hinge_range_deg": ("a", "b")}, "hinge_range_deg"),
+        ({"hinge_range_deg": (0.0, 1.0, 2.0)}, "hinge_range_deg"),
+        ({"limits": {"spine": "x"}}, "limit"),
+    ],
+)
+def test_adapt_refuses_bad_options_with_motion_errors(kw, match):
+    """Strings, None, booleans and non-finite values used to reach float() (bare ValueError / TypeError)."""
+    m = _fixture_motion()
+    with pytest.raises(MotionError, match=match):
+        adapt(m, "right_wrist", [0.0, 1.0, 0.5], 0, 5, **kw)
+
+
+def test_the_solvers_refuse_bad_tolerances_rotations_and_repeats():
+    from repro.motion.adaptation import time_adaptation
+    from repro.motion.adaptation.cost import adaptation_cost
+
+    m = _fixture_motion()
+    with pytest.raises(MotionError, match="tol"):
+        reach_limb(m, 0, "right_wrist", [0.0, 1.0, 0.5], tol="x")
+    with pytest.raises(MotionError, match="tol"):
+        ccd(m, 0, "right_wrist", [0.0, 1.0, 0.5], tol=float("nan"))
+    with pytest.raises(MotionError, match="finish_with_limb"):
+        ccd(m, 0, "right_wrist", [0.0, 1.0, 0.5], finish_with_limb="no")
+    with pytest.raises(MotionError, match="targets"):
+        reach_limb(m, 0, "right_wrist", [1j, 0.0, 0.0])
+    with pytest.raises(MotionError, match="non-zero quaternions"):
+        reach_limb(m, [0], "right_wrist", [0.0, 1.0, 0.5], rotations=np.zeros((1, m.n_joints, 4)))
+    with pytest.raises(MotionError, match="include_pelvis"):
+        default_chain(m, "right_wrist", include_pelvis="yes")
+    with pytest.raises(MotionError, match="frames"):
+        adaptation_cost(m, m, frames=[1, 2])
+    with pytest.raises(MotionError, match="skeleton"):
+        adaptation_cost(m, m, "sk")
+    with pytest.raises(MotionError, match="repeats"):
+        time_adaptation(m, "right_wrist", repeats=10**9)

@@ -12,10 +12,12 @@ from repro.motion.feet import foot_contacts, max_foot_slide, min_toe_height
 from repro.motion.strike import (
     LEVELS,
     Strike,
+    blend_into,
     clip_effector,
     one_frame,
     reach_by_distance,
     strike,
+    turn_and_move,
 )
 
 STANCE_CLIP = "actor2_punch_left_high"
@@ -339,3 +341,91 @@ def test_adapt_streaming_and_step_options_refuse_bad_input(setup):
         adapt(s.original, s.effector, s.target, 0, s.tc, frames=[F + 3])
     with pytest.raises(MotionError, match="frames"):
         adapt(s.original, s.effector, s.target, 0, s.tc, frames=[0.5])
+
+
+# ------------------------------------------------------------------ every argument checked at the entry (issue 23)
+@pytest.mark.parametrize(
+    "kw, error, match",
+    [
+        ({"t_order": float("nan")}, MotionError, "t_order"),
+        ({"t_order": float("inf")}, MotionError, "t_order"),
+        ({"t_order": "x"}, MotionError, "t_order"),
+        ({"t_order": 1e300}, MotionError, "t_order"),  # after now: negative stage timings
+        ({"max_root_shift": float("nan")}, MotionError, "max_root_shift"),
+        ({"max_root_shift": -1}, MotionError, "max_root_shift"),
+        ({"max_root_shift": float("inf")}, MotionError, "max_root_shift"),
+        ({"max_root_shift": "x"}, MotionError, "max_root_shift"),
+        ({"max_root_shift": None}, MotionError, "max_root_shift"),
+        ({"blend_s": -1}, MotionError, "blend_s"),
+        ({"blend_s": "x"}, MotionError, "blend_s"),
+        ({"blend_s": float("nan")}, MotionError, "blend_s"),
+        ({"floor": "x"}, MotionError, "floor"),
+        ({"floor": float("nan")}, MotionError, "floor"),
+        ({"release": "x"}, MotionError, "release"),
+        ({"release": -0.5}, MotionError, "release"),
+        ({"seed": -1}, MotionError, "seed"),
+        ({"seed": 1.5}, MotionError, "seed"),
+        ({"feet": 3}, MotionError, "feet"),
+        ({"kind": ["smoothstep"]}, MotionError, "kind"),
+        ({"fix_feet": "yes"}, MotionError, "fix_feet"),
+        ({"early_stop": None}, MotionError, "early_stop"),
+        ({"stream": 1}, MotionError, "stream"),
+        ({"reach": None}, MotionError, "reach"),
+        ({"frame": ["root"]}, MotionError, "frame"),
+        ({"method": 3}, RetrievalError, "method"),
+        ({"scoring": None}, RetrievalError, "scoring"),
+    ],
+)
+def test_every_option_is_checked_before_any_level_runs(setup, kw, error, match):
+    """Known cases of issue 23: NaN / inf / -1 / strings / None used to give NaN timings, be accepted by the
+    root level, or raise bare TypeErrors once the root level ran (a target the spine cannot reach)."""
+    with pytest.raises(error, match=match):
+        run(setup, [0.0, 0.9, 1.2], "punch", **kw)
+
+
+def test_semantics_and_the_current_motion_are_checked(setup):
+    db, ch, stance, retriever, q = setup
+    with pytest.raises(RetrievalError, match="semantics"):
+        run(setup, [0.0, 1.2, 1.0], ["punch"])
+    with pytest.raises(RetrievalError, match="current_motion"):
+        strike(retriever, ch, "pose", [0.0, 1.2, 1.0], "punch", query=q, frame="root")
+    with pytest.raises(RetrievalError, match="query"):
+        strike(retriever, ch, stance, [0.0, 1.2, 1.0], "punch", query="q", frame="root")
+
+
+def test_a_blend_longer_than_the_clip_stops_at_the_contact(setup):
+    a = run(setup, [0.0, 1.2, 1.0], "punch", blend_s=1e300)  # used to overflow in round()
+    b = run(setup, [0.0, 1.2, 1.0], "punch", blend_s=1e3)
+    np.testing.assert_array_equal(a.motion.rotations, b.motion.rotations)
+
+
+def test_the_helpers_check_their_arguments(setup):
+    db, ch, stance, *_ = setup
+    with pytest.raises(MotionError, match="f \\(a frame\\)"):
+        one_frame(stance, "a")
+    with pytest.raises(MotionError, match="outside"):
+        one_frame(stance, 5)
+    with pytest.raises(MotionError, match="must be a Motion"):
+        one_frame("stance", 0)
+    with pytest.raises(MotionError, match="theta"):
+        turn_and_move(stance, float("nan"), np.zeros(3))
+    with pytest.raises(MotionError, match="translation"):
+        turn_and_move(stance, 0.0, [0.0, "x", 0.0])
+    with pytest.raises(MotionError, match="n_blend"):
+        blend_into(stance, stance, -1)
+    with pytest.raises(MotionError, match="n_blend"):
+        blend_into(stance, stance, 2.5)
+    with pytest.raises(RetrievalError, match="clip"):
+        clip_effector(db, db.n_clips, ch)
+    with pytest.raises(RetrievalError, match="clip"):
+        clip_effector(db, -1, ch)
+    with pytest.raises(MotionError, match="character"):
+        clip_effector(db, 0, "ch")
+    with pytest.raises(MotionError, match="bins"):
+        reach_by_distance([1.0, 2.0], [True, False], ["limb", "root"], bins=10**12)
+    with pytest.raises(MotionError, match="bins"):
+        reach_by_distance([1.0, 2.0], [True, False], ["limb", "root"], bins="x")
+    with pytest.raises(MotionError, match="distances"):
+        reach_by_distance(["a", "b"], [True, False], ["limb", "root"])
+    with pytest.raises(MotionError, match="reached"):
+        reach_by_distance([1.0, 2.0], ["yes", "no"], ["limb", "root"])

@@ -44,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from repro.checks import as_int
+from repro.checks import as_choice, as_int, as_real
 from repro.errors import MotionError
 from repro.motion.adaptation.ccd_solver import (
     DEFAULT_HINGE_RANGE_DEG,
@@ -52,7 +52,7 @@ from repro.motion.adaptation.ccd_solver import (
     ccd_sweeps,
 )
 from repro.motion.adaptation.limb import limb_dmax, solve_limb
-from repro.motion.adaptation.offset import offset_curve
+from repro.motion.adaptation.offset import EASINGS, offset_curve
 from repro.motion.adaptation.rig import Chain, Rig, check_extension, check_frames, default_tol, rig_of, vec3
 from repro.motion.kinematics import fk_arrays
 from repro.motion.quaternion import quat_rotate as qrot
@@ -239,22 +239,18 @@ def adapt(
     tc = as_int(tc, "tc", 0, F - 1, error=MotionError)
     if t0 > tc:
         raise MotionError(f"t0={t0} is after the contact frame tc={tc}")
-    if feet not in ("pin", "plant", "track", None):
-        raise MotionError(f"feet must be 'pin', 'plant', 'track' or None, got {feet!r}")
+    feet = as_choice(feet, "feet", ("pin", "plant", "track", None), error=MotionError)
+    kind = as_choice(kind, "kind", EASINGS, error=MotionError)
     contacts = rig.contacts if contacts is None else _check_contacts(contacts, F)
     if foot_offsets is not None:
         foot_offsets = _check_offsets(foot_offsets, F, (F, 2, 3), "foot_offsets")
     if floor is not None:
-        floor = float(floor)
-        if not np.isfinite(floor):
-            raise MotionError(f"floor must be a finite height or None, got {floor!r}")
+        floor = as_real(floor, "floor (a finite height or None)", error=MotionError)
     n_release = _release_frames(release, motion.frame_time)
-    foot_blend = float(foot_blend)
-    if not np.isfinite(foot_blend) or foot_blend < 0:
-        raise MotionError(f"foot_blend must be a finite number of seconds >= 0, got {foot_blend!r}")
-    tol = default_tol(rig, ch) if tol is None else float(tol)
-    if not np.isfinite(tol) or tol <= 0:
-        raise MotionError(f"tol must be finite and > 0, got {tol!r}")
+    foot_blend = as_real(foot_blend, "foot_blend (seconds)", error=MotionError, lo=0.0)
+    tol = default_tol(rig, ch) if tol is None else as_real(tol, "tol", error=MotionError, lo=0.0, lo_open=True)
+    if max_foot_error is not None:
+        max_foot_error = as_real(max_foot_error, "max_foot_error", error=MotionError, lo=0.0)
     ext = check_extension(max_extension)
     spec = ccd_spec(rig, ch, chain, limits, hinge_range_deg)
     max_iter = as_int(max_iter, "max_iter", 0, 10**6, error=MotionError)
@@ -385,10 +381,9 @@ _SIDE_INDEX = {"left": 0, "right": 1}
 def _release_frames(release, frame_time: float) -> int | None:
     if release is None:
         return None
-    release = float(release)
-    if not np.isfinite(release) or release < 0:
-        raise MotionError(f"release must be None or a finite number of seconds >= 0, got {release!r}")
-    return int(round(release / frame_time))
+    release = as_real(release, "release (None or seconds)", error=MotionError, lo=0.0)
+    # a release longer than any clip is a release that never ends within it: bounded, not overflowed
+    return int(round(min(release / frame_time, 2.0**62)))
 
 
 def _start_frame(contacts: np.ndarray, ch: Chain, t0: int, tc: int) -> int:

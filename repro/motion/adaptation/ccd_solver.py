@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from repro.checks import as_int
+from repro.checks import as_bool, as_int, as_real, as_real_array
 from repro.errors import MotionError
 from repro.motion.adaptation.limb import limb_dmax, solve_limb
 from repro.motion.adaptation.rig import (
@@ -116,6 +116,8 @@ def default_chain(motion: Motion, effector: str, *, include_pelvis: bool | None 
     its foot step.  Joints without three rotation channels are skipped.
     """
     rig = rig_of(motion, roles)
+    if include_pelvis is not None:
+        include_pelvis = as_bool(include_pelvis, "include_pelvis", error=MotionError)
     return chain_joints(rig, rig.chain(effector), include_pelvis)
 
 
@@ -147,12 +149,7 @@ def _check_limits(rig: Rig, limits: Mapping[str, float] | None) -> dict[str, flo
             raise MotionError(
                 f"limits: {k!r} is neither a kind {sorted(DEFAULT_LIMITS_DEG)}, a role nor a joint name"
             )
-        try:
-            v = float(v)
-        except (TypeError, ValueError):
-            raise MotionError(f"limit for {k!r} must be a number of degrees, got {v!r}") from None
-        if not (np.isfinite(v) and 0 <= v <= 180):
-            raise MotionError(f"limit for {k!r} must be in [0, 180] degrees, got {v!r}")
+        v = as_real(v, f"limit for {k!r} (degrees)", error=MotionError, lo=0.0, hi=180.0)
         lim[k] = float(np.radians(v))
     return lim
 
@@ -193,11 +190,9 @@ def ccd_spec(rig: Rig, ch: Chain, chain, limits, hinge_range_deg):
     pl = [int(j) for j in ch.path]
     lim = _check_limits(rig, limits)
     spec = []
-    try:
-        lo, hi = (float(np.radians(float(x))) for x in hinge_range_deg)
-    except (TypeError, ValueError):
-        raise MotionError(f"hinge_range_deg must be two numbers (lo, hi) in degrees, got {hinge_range_deg!r}") from None
-    if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+    h = as_real_array(hinge_range_deg, "hinge_range_deg (lo, hi) in degrees", error=MotionError, shape=(2,))
+    lo, hi = (float(np.radians(x)) for x in h)
+    if not lo < hi:
         raise MotionError(f"hinge_range_deg must be two finite numbers lo < hi, got {hinge_range_deg!r}")
     for nm in names:
         try:
@@ -394,8 +389,9 @@ def ccd(
     ch = rig.chain(effector, hit_point)
     idx, _ = check_frames(frames, motion.n_frames)
     goal = np.array(check_targets(targets, len(idx)))
-    tol = default_tol(rig, ch) if tol is None else float(tol)
+    tol = default_tol(rig, ch) if tol is None else as_real(tol, "tol", error=MotionError, lo=0.0, lo_open=True)
     max_iter = as_int(max_iter, "max_iter", 0, 10**6, error=MotionError)
+    finish_with_limb = as_bool(finish_with_limb, "finish_with_limb", error=MotionError)
     ext = check_extension(max_extension)
     rot = start_rotations(motion, idx, rotations)
     spec = ccd_spec(rig, ch, chain, limits, hinge_range_deg)

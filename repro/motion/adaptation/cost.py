@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from repro.checks import describe
 from repro.errors import MotionError
 from repro.motion.adaptation.ccd_solver import DEFAULT_HINGE_RANGE_DEG, cone_limits
 from repro.motion.motion import Motion
@@ -60,6 +61,12 @@ def adaptation_cost(reference: Motion, adapted: Motion, skeleton: Skeleton | Non
         raise MotionError("adaptation_cost needs two Motion objects")
     if reference.rotations.shape != adapted.rotations.shape:
         raise MotionError(f"the motions differ in shape: {reference.rotations.shape} vs {adapted.rotations.shape}")
+    if not isinstance(frames, slice):
+        raise MotionError(f"frames must be a slice of frames (e.g. slice(1, None)), got {describe(frames)}")
+    if skeleton is not None and not isinstance(skeleton, Skeleton):
+        raise MotionError(f"skeleton must be None or a Skeleton, got {describe(skeleton)}")
+    if skeleton is not None and skeleton.n_joints != adapted.n_joints:
+        raise MotionError(f"skeleton has {skeleton.n_joints} joints, the motions {adapted.n_joints}")
     sk = skeleton_of(adapted) if skeleton is None else skeleton
     u = adapted.unit_m if adapted.unit_m is not None else 1.0
     r0 = np.asarray(reference.rotations)[frames]

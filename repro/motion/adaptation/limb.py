@@ -14,6 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from repro.checks import as_real
+from repro.errors import MotionError
+
 from repro.motion.adaptation.rig import (
     Chain,
     check_extension,
@@ -349,7 +352,7 @@ def reach_limb(
     ch = rig.chain(effector, hit_point)
     idx, scalar = check_frames(frames, motion.n_frames)
     goal = check_targets(targets, len(idx))
-    tol = default_tol(rig, ch) if tol is None else float(tol)
+    tol = default_tol(rig, ch) if tol is None else as_real(tol, "tol", error=MotionError, lo=0.0, lo_open=True)
     ext = check_extension(max_extension)
     rot = start_rotations(motion, idx, rotations)
     if len(idx) == 1:

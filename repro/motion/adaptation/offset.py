@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from repro.checks import as_int
+from repro.checks import as_choice, as_int
 from repro.errors import MotionError
 from repro.motion.adaptation.rig import vec3
 
@@ -66,8 +66,7 @@ def offset_curve(
     if t0 > tc:
         raise MotionError(f"t0={t0} is after the contact frame tc={tc}; the offset must grow towards the contact")
     d_tc = vec3("d_tc", d_tc)
-    if kind not in EASINGS:
-        raise MotionError(f"kind must be one of {list(EASINGS)}, got {kind!r}")
+    kind = as_choice(kind, "kind", EASINGS, error=MotionError)
     if release is not None:
         release = as_int(release, "release", 0, 2**62, error=MotionError)
     t = np.arange(F, dtype=float)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from repro.checks import as_int
+from repro.checks import as_int, as_real, as_real_array
 from repro.errors import MotionError
 from repro.motion.feet import foot_contacts
 from repro.motion.kinematics import depth_levels, matvec
@@ -274,10 +274,7 @@ def check_frames(frames, F: int) -> tuple[np.ndarray, bool]:
 
 
 def check_targets(targets, n: int) -> np.ndarray:
-    try:
-        t = np.asarray(targets, dtype=float)
-    except (TypeError, ValueError):
-        raise MotionError(f"targets must be numbers, got {targets!r}") from None
+    t = as_real_array(targets, "targets", error=MotionError, finite=False)
     if t.shape == (3,):
         t = np.broadcast_to(t, (n, 3))
     if t.shape != (n, 3):
@@ -290,22 +287,19 @@ def check_targets(targets, n: int) -> np.ndarray:
 def start_rotations(motion: Motion, idx: np.ndarray, rotations) -> np.ndarray:
     if rotations is None:
         return np.array(motion.rotations[idx])
-    r = np.array(rotations, dtype=float)
+    r = np.array(as_real_array(rotations, "rotations", error=MotionError, finite=False))
     if r.shape != (len(idx), motion.n_joints, 4):
         raise MotionError(f"rotations must be ({len(idx)}, {motion.n_joints}, 4), got {r.shape}")
     if not np.all(np.isfinite(r)):
         raise MotionError("rotations contain NaN or inf")
-    return r / np.linalg.norm(r, axis=-1, keepdims=True)
+    n = np.linalg.norm(r, axis=-1, keepdims=True)
+    if not np.all((n > 1e-12) & np.isfinite(n)):  # a zero (or overflowing) quaternion is no rotation
+        raise MotionError("rotations must be non-zero quaternions of finite length")
+    return r / n
 
 
 def check_extension(v) -> float:
-    try:
-        v = float(v)
-    except (TypeError, ValueError):
-        raise MotionError(f"max_extension must be a number in (0, 1], got {v!r}") from None
-    if not (0.0 < v <= 1.0):
-        raise MotionError(f"max_extension must be in (0, 1], got {v!r}")
-    return v
+    return as_real(v, "max_extension", error=MotionError, lo=0.0, hi=1.0, lo_open=True)
 
 
 def default_tol(rig: Rig, ch: Chain) -> float:

@@ -6,6 +6,8 @@ import time
 
 import numpy as np
 
+from repro.checks import as_int
+from repro.errors import MotionError
 from repro.motion.adaptation.ccd_solver import ccd
 from repro.motion.adaptation.limb import reach_limb
 from repro.motion.adaptation.rig import check_frames, rig_of, vec3
@@ -34,13 +36,14 @@ def time_adaptation(motion: Motion, effector: str, *, frames=None, offset=(0.0, 
     """
     rig = rig_of(motion)
     ch = rig.chain(effector)
+    repeats = as_int(repeats, "repeats", 1, 1000, error=MotionError)
     idx = np.arange(motion.n_frames) if frames is None else check_frames(frames, motion.n_frames)[0]
     gq, gp = rig.globals
     p = gp[idx, ch.hit] + qrot(gq[idx, ch.hit], ch.hit_offset)
     off = vec3("offset", offset)
     goal = p + off
     best_b = best_c = np.inf
-    for _ in range(max(1, repeats)):
+    for _ in range(repeats):
         t = time.perf_counter()
         reach_limb(motion, idx, effector, goal)
         best_b = min(best_b, time.perf_counter() - t)
