@@ -32,7 +32,11 @@ assembled arrays are cached in an ``.npz`` file in ``$REPRO_CACHE_DIR`` (else
 ``pooch.os_cache("repro") / "derived"``), named after the registry sha256s of
 the files used; the data folder itself is never written to.  The file records
 those sha256s and a sha256 of its arrays, both checked when it is loaded; a
-damaged cache is rebuilt with a :class:`~repro.errors.CacheWarning`.  The model
+damaged cache is rebuilt with a :class:`~repro.errors.CacheWarning`.  A cache
+file is read only as a regular file inside the cache folder (a FIFO, a device or a
+link leading elsewhere in its place is damage, never a hang or a read elsewhere),
+and its identity (format, source sha256s, shape names) is inside the checked
+content, so another valid cache put in its place is refused.  The model
 is also kept in memory per process (see :func:`load_ict`).  :func:`read_cache`
 reads and checks one cache file (through :func:`repro.io.read_npz`: no member is
 allocated before its ``.npy`` header is checked against the archive) and says
@@ -53,6 +57,7 @@ import numpy as np
 
 from repro import data
 from repro.blendshapes.model import BlendshapeModel
+from repro.checks import as_bool, as_str, describe
 from repro.errors import CacheWarning, DataError, ModelError
 from repro.io import atomic_path, read_bytes, read_npz
 
@@ -584,7 +589,10 @@ def read_cache(path, shapes: Sequence[str] | None = None) -> dict[str, np.ndarra
         other than the registry's, or arrays whose content hash is not the recorded
         one.  :func:`load_ict` rebuilds such a cache with a :class:`CacheWarning`.
     """
-    path = Path(path)
+    try:
+        path = Path(path)
+    except TypeError:
+        raise DataError(f"read_cache: expected a path to an ICT cache file, got {describe(path)}") from None
     arrays, damage = _check_cache(path, _normalise_shapes(shapes))
     if arrays is None:
         raise DataError(f"ICT cache {path}: {damage or 'no such file'}")
@@ -599,7 +607,11 @@ def _check_cache(path: Path, shapes: tuple[str, ...]) -> tuple[dict[str, np.ndar
     source hashes other than the registry's, or arrays whose content hash is not
     the recorded one.
     """
-    if not path.exists():  # no cache yet (or no cache folder; also a cache folder below a file)
+    try:
+        there = path.exists()
+    except (OSError, ValueError) as exc:  # a NUL byte, a name too long, a loop of links
+        return None, f"cannot be looked up ({exc})"
+    if not there:  # no cache yet (or no cache folder; also a cache folder below a file)
         return None, None
     allow = dict(_CACHE_ARRAYS, sources="U", content="U")
     allow.update(faces="iu", landmarks="iu", format="iu")
@@ -655,10 +667,21 @@ def _save_cache(path: Path, arrays: dict[str, np.ndarray], sources: dict[str, st
 
 
 def _arrays(shapes: tuple[str, ...], use_cache: bool) -> dict[str, np.ndarray]:
+    """The arrays for ``shapes``, from the cache file when it is good, else built (and cached).
+
+    The cache file is read only as a regular file inside the cache folder
+    (:func:`repro.data.cache_file`): a FIFO, a device or a symlink leading outside the folder in
+    its place is damage (a :class:`CacheWarning`, rebuilt), and the rebuilt file replaces
+    whatever was there (an atomic rename replaces a link, it never writes through it).
+    """
     if not use_cache:
         return _build_arrays(shapes)
-    path = cache_dir() / _cache_key(shapes)
-    arrays, damage = _check_cache(path, shapes)
+    name = _cache_key(shapes)
+    path = cache_dir() / name  # where it is written
+    try:
+        arrays, damage = _check_cache(data.cache_file(name), shapes)
+    except DataError as exc:  # a link leading outside the cache folder
+        arrays, damage = None, str(exc)
     if arrays is None:
         if damage is not None:  # a first build is silent; only a damaged cache is reported
             warnings.warn(f"ICT cache {path} is damaged ({damage}); rebuilding it", CacheWarning, stacklevel=5)
@@ -672,7 +695,12 @@ def _normalise_shapes(shapes) -> tuple[str, ...]:
         return ICT_SHAPES
     if isinstance(shapes, str):
         shapes = (shapes,)
-    shapes = tuple(str(s) for s in shapes)
+    try:
+        shapes = tuple(shapes)
+    except TypeError:
+        raise ModelError(f"shapes must be a sequence of shape names, got {describe(shapes)}") from None
+    for s in shapes:
+        as_str(s, "a shape name in shapes", error=ModelError)
     if not shapes:
         raise ModelError("load_ict(shapes=...) needs at least one shape")
     unknown = [s for s in shapes if s not in ICT_SHAPES]
@@ -780,10 +808,12 @@ def load_ict(
     0.3 s of imports in a new process), and nothing from the in-process memo
     (models are immutable, so the same object is returned).
     """
+    face_only = as_bool(face_only, "face_only", error=ModelError)
+    cache = as_bool(cache, "cache", error=ModelError)
     names = _normalise_shapes(shapes)
     if not cache:
-        return _make_model(_arrays(names, use_cache=False), bool(face_only))
-    return _load_memo(bool(face_only), names, str(data.data_dir()), str(cache_dir()))
+        return _make_model(_arrays(names, use_cache=False), face_only)
+    return _load_memo(face_only, names, str(data.data_dir()), str(cache_dir()))
 
 
 #: Forget the in-process memo of :func:`load_ict` (the on-disk cache stays).

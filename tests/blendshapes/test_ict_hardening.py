@@ -310,3 +310,104 @@ def test_lying_npy_header_in_a_cache_is_damage_not_an_allocation(tiny_cache):
             z.writestr(n, d)
     got, damage = ict._check_cache(path, shapes)
     assert got is None and "member 'D.npy': the .npy header claims shape (10000000000,)" in damage, damage
+
+
+# --------------------------------------------------------- issue 23: special files, links, identity, arguments
+@pytest.fixture
+def tiny_build(tiny_cache, cache, monkeypatch):
+    """``ict._arrays`` on the tiny arrays (no data files needed): (shapes, arrays, builds, run)."""
+    _, shapes, arrays, _ = tiny_cache
+    builds = []
+    monkeypatch.setattr(ict, "_build_arrays", lambda s: builds.append(s) or {k: v.copy() for k, v in arrays.items()})
+
+    def run(seconds=120):
+        import threading
+
+        out = {}
+
+        def go():
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                out["arrays"] = ict._arrays(shapes, use_cache=True)
+            out["warned"] = [str(w.message) for w in caught if issubclass(w.category, CacheWarning)]
+
+        t = threading.Thread(target=go, daemon=True)  # a regression (a blocking read) fails, not hangs
+        t.start()
+        t.join(seconds)
+        if t.is_alive():
+            fifo = cache / ict._cache_key(shapes)
+            import os
+
+            with __import__("contextlib").suppress(OSError):
+                os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+            pytest.fail("the ICT cache read hangs")
+        return out["arrays"], out["warned"]
+
+    return shapes, arrays, builds, run
+
+
+@pytest.mark.parametrize("kind", ["fifo", "dev-zero", "folder"])
+def test_a_special_file_in_place_of_the_cache_is_damage_not_a_hang(tiny_build, cache, kind):
+    import os
+
+    shapes, arrays, builds, run = tiny_build
+    run()
+    path = cache / ict._cache_key(shapes)
+    path.unlink()
+    if kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "dev-zero":
+        path.symlink_to("/dev/zero")
+    else:
+        path.mkdir()
+    got, warned = run()
+    assert len(builds) == 2 and len(warned) == 1 and "damaged" in warned[0], warned
+    assert {"fifo": "FIFO", "dev-zero": "leads outside", "folder": "folder"}[kind] in warned[0]
+    np.testing.assert_array_equal(got["D"], arrays["D"])
+    if kind != "folder":  # (a folder is not replaced by a rename; the model is built each time)
+        assert path.is_file() and not path.is_symlink()
+        assert run()[1] == [] and len(builds) == 2  # the rebuilt file is read silently
+
+
+def test_a_cache_linked_from_outside_the_cache_folder_is_refused_and_replaced(tiny_build, cache, tmp_path):
+    import shutil
+
+    shapes, arrays, builds, run = tiny_build
+    run()
+    path = cache / ict._cache_key(shapes)
+    outside = tmp_path / "outside.npz"
+    shutil.copy(path, outside)  # a valid cache, but outside the cache folder
+    path.unlink()
+    path.symlink_to(outside)
+    before = outside.read_bytes()
+    got, warned = run()
+    assert len(builds) == 2 and len(warned) == 1 and "leads outside" in warned[0], warned
+    assert path.is_file() and not path.is_symlink() and outside.read_bytes() == before
+
+
+def test_another_valid_cache_in_its_place_is_refused(tiny_cache, tmp_path):
+    """The identity (format, source sha256s, shape names) is inside the checked content."""
+    path, shapes, arrays, _ = tiny_cache
+    other = tmp_path / "other.npz"
+    one = {k: v for k, v in arrays.items()}
+    one["D"], one["names"] = arrays["D"][:, :1], arrays["names"][:1]
+    assert ict._save_cache(other, one, ict._source_hashes(shapes[:1]))
+    assert ict.read_cache(other, shapes[:1])["D"].shape == (18, 1)
+    with pytest.raises(DataError, match="other source files|other shapes"):
+        ict.read_cache(other, shapes)
+
+
+@pytest.mark.parametrize("call, error, match", [
+    (lambda: ict.read_cache(None), DataError, "expected a path"),
+    (lambda: ict.read_cache(3.5), DataError, "expected a path"),
+    (lambda: ict.read_cache("a\x00b"), DataError, "ICT cache"),
+    (lambda: ict.read_cache("x" * 5000 + ".npz"), DataError, "ICT cache"),
+    (lambda: load_ict(face_only="no"), ModelError, "face_only must be True or False"),
+    (lambda: load_ict(cache=None), ModelError, "cache must be True or False"),
+    (lambda: load_ict(shapes=5), ModelError, "shapes must be a sequence"),
+    (lambda: load_ict(shapes=[None]), ModelError, "a shape name in shapes must be a string"),
+    (lambda: ict.read_cache("x.npz", shapes=[1]), ModelError, "must be a string"),
+])
+def test_arguments_of_the_cache_and_loader_are_checked(cache, call, error, match):
+    with pytest.raises(error, match=match):
+        call()
