@@ -54,13 +54,14 @@ def kept_on_disk(on: bool = True):
 def source_fingerprint() -> str:
     """sha256 over every source file of the ``repro`` package (any code change invalidates)."""
     import repro
+    from repro.io import read_bytes
 
     root = Path(repro.__file__).parent
     h = hashlib.sha256()
     for f in sorted(root.rglob("*")):
         if f.suffix in (".py", ".csv") and "__pycache__" not in f.parts:
             h.update(str(f.relative_to(root)).encode())
-            h.update(f.read_bytes())
+            h.update(read_bytes(f)[0])  # (regular files only, bounded: as every read of the library)
     return h.hexdigest()
 
 
