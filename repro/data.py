@@ -371,7 +371,12 @@ def status(dataset: str) -> dict:
     present = verified = 0
     problems: list[str] = []
     for e in entries:
-        p = locate(e.path)
+        try:
+            p = locate(e.path)
+        except DataError as exc:  # something there, but refused (a link leading out, a FIFO ...)
+            present += 1
+            problems.append(str(exc))
+            continue
         if p is None:
             continue
         present += 1

@@ -183,6 +183,8 @@ def test_locate_refuses_a_symlink_leading_outside_and_fetch_never_reads_it(priva
         data.locate("faces/ict/LICENSE")
     with pytest.raises(DataError, match="outside its folder"):
         data.fetch("faces/ict/LICENSE")
+    s = data.status("ict")  # `repro data list`: reported as a problem, not raised
+    assert s["present"] == 1 and s["verified"] == 0 and "outside its folder" in s["problems"][0]
     (folder / "LICENSE").unlink()
     (folder / "LICENSE.gz").symlink_to(tmp_path / "elsewhere")  # the .gz form: the same rule
     with pytest.raises(DataError, match="outside its folder"):
