@@ -91,6 +91,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from repro.checks import as_bool, as_int, as_real, as_real_array, check_alloc, describe
 from repro.errors import MotionError, RetrievalError
 from repro.motion.clustering import root_frames
 from repro.motion.annotation import SEMANTICS
@@ -136,6 +137,14 @@ MAX_SPEED: float = 2.0
 MAX_TURN_RATE: float = math.radians(270.0)
 #: The supervisor's orders (the database's semantics).
 ORDER_KINDS: tuple[str, ...] = tuple(SEMANTICS)
+#: Most frames :meth:`KungFuFighter.current_pose` returns (an order asks for the pose window, a few
+#: dozen frames): an hour of the stance loop at 30 Hz, far beyond any window.
+MAX_POSE_FRAMES: int = 108_000
+#: Longest single clock step of :meth:`KungFuFighter.advance` / :meth:`~KungFuFighter.follow` (s): a day.
+MAX_DT: float = 86_400.0
+#: Longest :func:`simulated_user` trajectory (s) and highest rate (Hz).
+MAX_DURATION: float = 86_400.0
+MAX_FPS: float = 1_000.0
 
 # ------------------------------------------------------------------ characters
 def character_from(height: float = 1.75, arm_scale: float = 1.0, leg_scale: float = 1.0, *, base=None) -> Skeleton:
@@ -204,17 +213,19 @@ def simulated_user(seed: int = 0, duration: float = 10.0, fps: float = 30.0, *, 
     repro.errors.MotionError
         Non-positive duration or fps, bad ranges.
     """
-    for name, v in (("duration", duration), ("fps", fps), ("crouch_every", crouch_every)):
-        if not (isinstance(v, (int, float, np.integer, np.floating)) and np.isfinite(v) and v > 0):
-            raise MotionError(f"{name} must be a finite number > 0, got {v!r}")
-    lo, hi = (float(v) for v in heights)
-    dlo, dhi = (float(v) for v in crouch_depth)
+    seed = as_int(seed, "seed", 0, 2**63 - 1, error=MotionError)
+    duration = as_real(duration, "duration (seconds)", error=MotionError, lo=0.0, lo_open=True, hi=MAX_DURATION)
+    fps = as_real(fps, "fps", error=MotionError, lo=0.0, lo_open=True, hi=MAX_FPS)
+    crouch_every = as_real(crouch_every, "crouch_every (seconds)", error=MotionError, lo=0.0, lo_open=True)
+    lo, hi = as_real_array(heights, "heights (lo, hi) in metres", error=MotionError, shape=(2,)).tolist()
+    dlo, dhi = as_real_array(crouch_depth, "crouch_depth (lo, hi) in metres", error=MotionError, shape=(2,)).tolist()
     if not (0 < lo <= hi <= AREA[1][1]) or not (0 <= dlo <= dhi < lo):
         raise MotionError(f"bad heights {heights!r} or crouch_depth {crouch_depth!r}")
     (x0, x1), _, (z0, z1) = AREA
-    m = float(margin)
-    if not 0 <= m < (x1 - x0) / 2:
-        raise MotionError(f"margin must be in [0, {(x1 - x0) / 2}), got {margin!r}")
+    m = as_real(margin, "margin (metres)", error=MotionError, lo=0.0, hi=(x1 - x0) / 2, hi_open=True)
+    # about ten float arrays of n samples (t, segments, easing, x, y, z, bumps, the output)
+    check_alloc(16 * 8 * (int(duration * fps) + 1), f"simulated_user(duration={duration:g}, fps={fps:g})",
+                error=MotionError)
     rng = np.random.default_rng(seed)
     n = int(math.floor(duration * fps + 1e-9)) + 1
     t = np.arange(n) / float(fps)
@@ -252,6 +263,11 @@ def simulated_user(seed: int = 0, duration: float = 10.0, fps: float = 30.0, *, 
 
 
 # ------------------------------------------------------------------ helpers
+def _check_dt(dt) -> float:
+    """A clock step: finite seconds in ``[0, MAX_DT]`` (a larger one would run the clock past float precision)."""
+    return as_real(dt, "dt (seconds)", error=MotionError, lo=0.0, hi=MAX_DT)
+
+
 def _wrap(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
@@ -336,6 +352,14 @@ class KungFuFighter:
         from repro.motion.sources import default_database
 
         t0 = time.perf_counter()
+        # every argument checked before the (slow) database and retriever are built
+        seed = as_int(seed, "seed", 0, 2**63 - 1, error=MotionError)
+        if across_trees is not None:
+            across_trees = as_bool(across_trees, "across_trees", error=MotionError)
+        if character is None:
+            for name, v in (("height", height), ("arm_scale", arm_scale), ("leg_scale", leg_scale)):
+                as_real(v, name, error=MotionError, lo=0.0, lo_open=True)
+        position, heading = self._checked_place(position, heading)
         if isinstance(database, str):
             db = default_database(database)
         elif isinstance(database, MotionDatabase):
@@ -352,7 +376,7 @@ class KungFuFighter:
             self.retriever = MotionRetriever(db, seed=seed, **kw)
         t2 = time.perf_counter()
         self.db = db
-        self.seed = int(seed)
+        self.seed = seed
         # the retrieval of every order: the exact optimum of Eq. 1's d by default (Section 3.3's
         # pruned search is method="pruned"); checked once here, not at the first order
         self.method, self.scoring = self.retriever.check_method(method, scoring)
@@ -441,14 +465,20 @@ class KungFuFighter:
     # ------------------------------------------------------------- state
     def place(self, position, heading: float | None = None) -> None:
         """Put the fighter at ``position`` = (x, z) on the floor, facing ``heading`` (radians)."""
-        p = np.asarray(position, dtype=float).reshape(-1)
-        if p.shape != (2,) or not np.all(np.isfinite(p)):
-            raise MotionError(f"position must be a finite (x, z) pair, got {position!r}")
-        self.position = p.copy()
+        p, h = self._checked_place(position, heading)
+        self.position = p
+        if h is not None:
+            self.heading = _wrap(h)
+
+    @staticmethod
+    def _checked_place(position, heading):
+        try:
+            p = as_real_array(position, "position (x, z) in metres", error=MotionError, shape=(2,))
+        except MotionError as e:
+            raise MotionError(f"position must be a finite (x, z) pair: {e}") from None
         if heading is not None:
-            if not np.isfinite(heading):
-                raise MotionError(f"heading must be finite, got {heading!r}")
-            self.heading = _wrap(float(heading))
+            heading = as_real(heading, "heading (radians)", error=MotionError)
+        return p.copy(), heading
 
     @property
     def stance_frame(self) -> int:
@@ -460,18 +490,22 @@ class KungFuFighter:
 
         One frame by default; :meth:`order` passes the database's pose window
         (``(window - 1) * step + 1`` frames) so that ``q_r`` has the same window as the
-        database's poses.
+        database's poses.  At most :data:`MAX_POSE_FRAMES` frames (and what they take within
+        :data:`repro.checks.MEMORY_BUDGET`).
         """
+        frames = as_int(frames, "frames", 1, MAX_POSE_FRAMES, error=MotionError)
+        J = self.stance.n_joints
+        # rotations (4) and positions (3) per joint and frame: the selection and turn_and_move's two copies
+        check_alloc(3 * frames * J * 7 * 8, f"current_pose(frames={frames})", error=MotionError)
         F = self.stance.n_frames
-        idx = (self.stance_frame - np.arange(int(frames) - 1, -1, -1)) % F
+        idx = (self.stance_frame - np.arange(frames - 1, -1, -1)) % F
         m = dataclasses.replace(self.stance, rotations=self.stance.rotations[idx], positions=self.stance.positions[idx])
         return turn_and_move(m, self.heading, np.array([self.position[0], 0.0, self.position[1]]))
 
     def advance(self, dt: float) -> None:
-        """Advance the clock by ``dt`` seconds (the stance loop plays)."""
-        if not (np.isfinite(dt) and dt >= 0):
-            raise MotionError(f"dt must be a finite number >= 0, got {dt!r}")
-        self.time += float(dt)
+        """Advance the clock by ``dt`` seconds (the stance loop plays), ``0 <= dt <=`` :data:`MAX_DT`."""
+        dt = _check_dt(dt)
+        self.time += dt
         if self.playing is not None and self.time >= self._play_end - 1e-9:
             s, self.playing = self.playing, None
             self._finish(s)
@@ -490,8 +524,8 @@ class KungFuFighter:
             A head position that is not a finite 3-vector in the area.
         """
         head = check_target(head_position)
-        if not (np.isfinite(dt) and dt >= 0):
-            raise MotionError(f"dt must be a finite number >= 0, got {dt!r}")
+        dt = _check_dt(dt)
+        snap = as_bool(snap, "snap", error=MotionError)
         v = np.array([head[0], head[2]]) - self.position
         dist = float(np.hypot(*v))
         if dist > 1e-9 and self.playing is None:  # no following while a strike plays
@@ -541,11 +575,12 @@ class KungFuFighter:
         repro.errors.MotionError
             An order while a strike plays; a target inside the fighter's body.
         """
-        if not (isinstance(commit, bool) or commit == "play"):
-            raise MotionError(f"commit must be True, False or 'play', got {commit!r}")
+        if not (isinstance(commit, (bool, np.bool_)) or (isinstance(commit, str) and commit == "play")):
+            raise MotionError(f"commit must be True, False or 'play', got {describe(commit)}")
+        commit = commit if isinstance(commit, str) else bool(commit)
         t_order = time.perf_counter()
-        if kind not in ORDER_KINDS:
-            raise RetrievalError(f"unknown order {kind!r}; the supervisor orders one of {list(ORDER_KINDS)}")
+        if not isinstance(kind, str) or kind not in ORDER_KINDS:
+            raise RetrievalError(f"unknown order {describe(kind)}; the supervisor orders one of {list(ORDER_KINDS)}")
         if self.playing is not None:
             p = self.playing
             raise MotionError(

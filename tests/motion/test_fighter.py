@@ -311,3 +311,65 @@ def test_a_second_order_while_a_strike_plays_is_refused_and_keeps_the_target(fig
     assert f.order("kick", head).kind == "kick"  # accepted once the strike is over
     with pytest.raises(MotionError, match="commit"):
         f.order("kick", head, commit="later")
+
+
+# ------------------------------------------------------------------ every argument checked (issue 23)
+@pytest.mark.parametrize(
+    "call, match",
+    [
+        (lambda f: f.place("ab"), "position"),
+        (lambda f: f.place((0, 0), "x"), "heading"),
+        (lambda f: f.place((0, 0), float("inf")), "heading"),
+        (lambda f: f.place((0, 0, 0)), "position"),
+        (lambda f: f.advance("x"), "dt"),
+        (lambda f: f.advance(None), "dt"),
+        (lambda f: f.advance(-1.0), "dt"),
+        (lambda f: f.advance(1e300), "dt"),
+        (lambda f: f.follow((0.0, 1.6, 0.5), dt="x"), "dt"),
+        (lambda f: f.follow((0.0, 1.6, 0.5), snap="yes"), "snap"),
+        (lambda f: f.current_pose("a"), "frames"),
+        (lambda f: f.current_pose(float("nan")), "frames"),
+        (lambda f: f.current_pose(0), "frames"),
+        (lambda f: f.current_pose(10**6), "frames"),  # used to raise MemoryError
+        (lambda f: f.current_pose(10**18), "frames"),
+        (lambda f: f.order(["punch"], (0.0, 1.6, 0.5)), "unknown order"),
+        (lambda f: f.order("punch", (0.0, 1.6, 0.5), commit=np.array([True, False])), "commit"),
+    ],
+)
+def test_fighter_methods_refuse_bad_arguments_with_motion_errors(fighter, call, match):
+    f = fresh(fighter)
+    with pytest.raises((MotionError, RetrievalError), match=match):
+        call(f)
+    assert not f.strikes and f.time == 0.0  # nothing changed
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [({"seed": -1}, "seed"), ({"seed": "x"}, "seed"), ({"position": "ab"}, "position"),
+     ({"heading": "x"}, "heading"), ({"across_trees": "yes"}, "across_trees"), ({"height": "tall"}, "height")],
+)
+def test_fighter_constructor_checks_its_arguments_first(fighter, kw, match):
+    with pytest.raises(MotionError, match=match):
+        KungFuFighter(fighter.db, retriever=fighter.retriever, **kw)
+
+
+def test_current_pose_is_bounded_by_the_memory_budget(fighter, monkeypatch):
+    """check_alloc refuses what a frame count would allocate beyond the stated budget."""
+    import repro.checks
+
+    monkeypatch.setattr(repro.checks, "MEMORY_BUDGET", 1 << 20)
+    f = fresh(fighter)
+    assert f.current_pose(10).n_frames == 10
+    with pytest.raises(MotionError, match="budget"):
+        f.current_pose(100_000)
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [({"seed": -1}, "seed"), ({"duration": float("inf")}, "duration"), ({"duration": 1e12}, "duration"),
+     ({"fps": "30"}, "fps"), ({"heights": "ab"}, "heights"), ({"crouch_depth": (0.1,)}, "crouch_depth"),
+     ({"margin": None}, "margin")],
+)
+def test_simulated_user_checks_its_arguments(kw, match):
+    with pytest.raises(MotionError, match=match):
+        simulated_user(**kw)
