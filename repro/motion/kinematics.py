@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from repro.checks import as_real_array, describe
+from repro.errors import MotionError
 from repro.motion.quaternion import cross, quat_multiply, quat_rotate, vector_norm
 
 __all__ = [
@@ -76,6 +78,12 @@ def fk_arrays(levels, rotations: np.ndarray, translations: np.ndarray, *,
     -------
     (F, J, 4) world rotations, (F, J, 3) world positions
     """
+    # shapes only (this runs in every solver): what fails here would fail as a bare numpy error below
+    if not (isinstance(rotations, np.ndarray) and isinstance(translations, np.ndarray)) or rotations.ndim != 3 or \
+            rotations.shape[2:] != (4,) or translations.shape != rotations.shape[:2] + (3,):
+        raise MotionError(f"fk_arrays needs (F, J, 4) rotations and (F, J, 3) translations arrays, got "
+                          f"{getattr(rotations, 'shape', describe(rotations))} and "
+                          f"{getattr(translations, 'shape', describe(translations))}")
     gq = np.empty_like(rotations)
     gp = translations.copy() if copy else translations
     gq[:, 0] = rotations[:, 0]
@@ -109,7 +117,10 @@ def depth_levels(parents) -> list[tuple[np.ndarray, np.ndarray]]:
 
     Linear in the number of joints (a scan per depth level would be quadratic for chains).
     """
-    parents = np.asarray(parents, dtype=np.intp)
+    parents = as_real_array(parents, "parents", error=MotionError, integer=True, ndim=1).astype(np.intp)
+    if parents.size == 0 or parents[0] != -1 or np.any(parents[1:] < 0) or \
+            np.any(parents[1:] >= np.arange(1, parents.size)):
+        raise MotionError("parents must be -1 for joint 0 and parents[j] < j for the others")
     par = parents.tolist()
     depth = [0] * len(par)
     for j in range(1, len(par)):

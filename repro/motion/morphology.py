@@ -94,6 +94,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from repro.checks import as_bool, as_int, as_real, describe
 from repro.errors import MotionError
 from repro.motion.channels import POSITION_CHANNELS
 from repro.motion.feet import UP_AXIS, foot_contacts, foot_goals, foot_scale
@@ -104,7 +105,7 @@ from repro.motion.quaternion import quat_conjugate as qinv
 from repro.motion.quaternion import quat_rotate as qrot
 from repro.motion.retarget_tree import retarget_across
 from repro.motion.roles import LIMBS
-from repro.motion.skeleton import Skeleton, skeleton_of
+from repro.motion.skeleton import Skeleton, check_role_table, skeleton_of
 
 __all__ = [
     "LIMB_NAMES",
@@ -290,7 +291,8 @@ def encode(motion: Motion, roles=None) -> MorphologyIndependentMotion:
     repro.errors.MotionError
         Missing roles, zero-length limb bones, coincident left/right joints.
     """
-    sk = Skeleton.from_motion(motion, roles=roles)
+    _check_motion(motion)
+    sk = Skeleton.from_motion(motion, roles=check_role_table(roles))
     prox, mid, dist, par = _limb_indices(sk)
     bl = sk.bone_lengths
     l1, l2 = bl[mid], bl[dist]
@@ -347,7 +349,19 @@ def encode(motion: Motion, roles=None) -> MorphologyIndependentMotion:
     )
 
 
+def _check_motion(motion) -> None:
+    if not isinstance(motion, Motion):
+        raise MotionError(f"motion must be a Motion, got {describe(motion)}")
+
+
+def _check_target(target) -> None:
+    if not isinstance(target, (Skeleton, Motion)):
+        raise MotionError(f"target must be a Skeleton or a Motion, got {describe(target)}")
+
+
 def _check_mi(mi: MorphologyIndependentMotion) -> None:
+    if not isinstance(mi, MorphologyIndependentMotion):
+        raise MotionError(f"expected a MorphologyIndependentMotion (encode), got {describe(mi)}")
     for name in ("rotations", "translations", "limb_vectors", "limb_swivel", "limb_end_rotations", "ankle_heights"):
         arr = np.asarray(getattr(mi, name))
         if not np.all(np.isfinite(arr)):
@@ -422,7 +436,7 @@ def _pin_planted_feet(mi, tgt, want, S, Rp, L, local_t, gp, prox, root_moves_up:
     lowered = 0.0
     legs = [LIMB_NAMES.index("left_leg"), LIMB_NAMES.index("right_leg")]
     A = S[:, legs] + qrot(Rp[:, legs], want[:, legs])
-    n_blend = int(round(blend_time / mi.frame_time))
+    n_blend = int(round(min(blend_time / mi.frame_time, 2.0**53)))  # longer than any clip: no overflow
     goal, w = foot_goals(A, mi.contacts, mi.ankle_heights * foot_scale(tgt), n_blend)
     goal = A + w[..., None] * (goal - A)
     if root_moves_up:
@@ -451,6 +465,9 @@ def decode_with_report(
 ) -> tuple[Motion, DecodeReport]:
     """:func:`decode`, also returning a :class:`DecodeReport`."""
     _check_mi(mi)
+    fix_feet = as_bool(fix_feet, "fix_feet", error=MotionError)
+    blend_time = as_real(blend_time, "blend_time (seconds)", error=MotionError, lo=0.0)
+    max_rest_angle_deg = as_real(max_rest_angle_deg, "max_rest_angle_deg", error=MotionError, lo=0.0, hi=180.0)
     tgt = _target_skeleton(mi, target, max_rest_angle_deg)
     channels = tgt.channels if tgt.channels is not None else mi.channels
     mask = _position_mask(channels)
@@ -601,8 +618,10 @@ def retarget(motion: Motion, target, *, roles=None, fix_feet: bool = False) -> M
     the roles on the same joints, the joints are renamed and decoded as above (exact);
     otherwise through the body-part roles, :func:`repro.motion.retarget_tree.retarget_across`.
     """
-    if not (isinstance(target, Skeleton) or hasattr(target, "offsets")):
-        raise MotionError(f"target must be a Skeleton or a Motion, got {type(target).__name__}")
+    _check_motion(motion)
+    _check_target(target)
+    roles = check_role_table(roles, "roles")
+    fix_feet = as_bool(fix_feet, "fix_feet", error=MotionError)
     if list(target.joint_names) == list(motion.joint_names) and np.array_equal(target.parents, motion.parents):
         return decode(encode(motion, roles=roles), target, fix_feet=fix_feet)
     mi = encode(motion, roles=roles)
@@ -647,8 +666,7 @@ class RetargetPlan:
     """
 
     def __init__(self, source, target):
-        if not (isinstance(target, Skeleton) or hasattr(target, "offsets")):
-            raise MotionError(f"target must be a Skeleton or a Motion, got {type(target).__name__}")
+        _check_target(target)
         sk = skeleton_of(source)
         if list(target.joint_names) != list(sk.joint_names) or not np.array_equal(target.parents, sk.parents):
             raise MotionError("RetargetPlan: the target must have the source's joint names and parents")
@@ -817,6 +835,9 @@ def naive_retarget(motion: Motion, target, *, scale_root: bool = False) -> Motio
         Same joint names and parents.
     scale_root : bool, default False
     """
+    _check_motion(motion)
+    _check_target(target)
+    scale_root = as_bool(scale_root, "scale_root", error=MotionError)
     tgt = skeleton_of(target)
     if not tgt.is_compatible(motion):
         raise MotionError("target skeleton has a different topology (joint names / parents) from the motion")
@@ -837,9 +858,12 @@ def time_retarget(motion: Motion, target, *, repeats: int = 5) -> dict[str, floa
     For reports only (the paper: "motion retargetting and adaptation is very fast (only
     spends 88 us)" per frame); the tests never assert on time.
     """
+    _check_motion(motion)
+    _check_target(target)
+    repeats = as_int(repeats, "repeats", 1, 1000, error=MotionError)
     tgt = skeleton_of(target)
     enc, dec = [], []
-    for _ in range(max(1, repeats)):
+    for _ in range(repeats):
         t0 = time.perf_counter()
         mi = encode(motion)
         t1 = time.perf_counter()

@@ -44,6 +44,7 @@ from functools import cached_property
 
 import numpy as np
 
+from repro.checks import as_real, as_real_array, describe
 from repro.errors import BVHError, MotionError
 from repro.motion.channels import channel_layout, channel_table
 from repro.motion.kinematics import depth_levels, fk_arrays
@@ -54,6 +55,7 @@ __all__ = [
     "CMU_UNIT_M",
     "BANDAI_UNIT_M",
     "finite_vector3",
+    "UnknownJointError",
 ]
 
 #: Metres per CMU length unit.  CMU ASF files declare ``:units length 0.45``: lengths
@@ -81,15 +83,22 @@ def finite_vector3(value, name: str, error=None) -> np.ndarray:
     offsets, positions), so bad input gets the same clear message everywhere.
     """
     error = MotionError if error is None else error
-    try:
-        a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise error(f"{name} must be a 3-vector of numbers, got {value!r}") from None
+    try:  # no strings, None, booleans or complex parts taken for numbers
+        a = as_real_array(value, name, error=error, finite=False)
+    except error as e:
+        raise error(f"{name} must be a 3-vector of numbers: {e}") from None
     if a.shape != (3,):
         raise error(f"{name} must be a 3-vector, got shape {a.shape}")
     if not np.all(np.isfinite(a)):
         raise error(f"{name} contains NaN or inf: {a.tolist()}")
     return a
+
+
+class UnknownJointError(MotionError, KeyError):
+    """No joint of that name (:meth:`Motion.joint_index`): a MotionError, and a KeyError as lookups raise."""
+
+    def __str__(self) -> str:  # the message, not KeyError's quoted repr of it
+        return str(self.args[0]) if self.args else ""
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:
@@ -202,6 +211,8 @@ class Motion:
         self._validate(renormalise=True)
 
     def _validate(self, renormalise: bool) -> None:
+        if isinstance(self.joint_names, (str, bytes)) or not isinstance(self.joint_names, (list, tuple, np.ndarray)):
+            raise BVHError(f"joint_names must be a list of joint names, got {describe(self.joint_names)}")
         names = [str(n) for n in self.joint_names]
         J = len(names)
         if J == 0:
@@ -215,20 +226,23 @@ class Motion:
         parents = parents.astype(np.intp)
         if parents[0] != -1 or np.any(parents[1:] < 0) or np.any(parents[1:] >= np.arange(1, J)):
             raise BVHError("parents must be -1 for joint 0 (the only root) and parents[j] < j for the others")
-        offsets = np.asarray(self.offsets, dtype=float)
+        offsets = as_real_array(self.offsets, "offsets", error=BVHError, finite=False)
         if offsets.shape != (J, 3) or not np.all(np.isfinite(offsets)):
             raise BVHError(f"offsets must be a finite ({J}, 3) array, got shape {offsets.shape}")
-        channels = [tuple(str(c) for c in ch) for ch in self.channels]
+        try:
+            channels = [tuple(str(c) for c in ch) for ch in self.channels]
+        except TypeError:
+            raise BVHError(f"channels must list each joint's channel names, got {describe(self.channels)}") from None
         if len(channels) != J:
             raise BVHError(f"channels must list {J} joints, got {len(channels)}")
         for name, ch in zip(names, channels):
             if len(set(ch)) != len(ch):
                 raise BVHError(f"joint {name!r}: repeated channel in {list(ch)}")
         channel_layout(channels)
-        ft = float(self.frame_time)
+        ft = as_real(self.frame_time, "frame_time (seconds)", error=BVHError, finite=False)
         if not np.isfinite(ft) or ft <= 0 or not np.isfinite(1.0 / ft):
             raise BVHError(f"frame_time must be finite and > 0 with a finite frame rate, got {self.frame_time!r}")
-        rot = np.asarray(self.rotations, dtype=float)
+        rot = as_real_array(self.rotations, "rotations", error=BVHError, finite=False)
         if rot.ndim != 3 or rot.shape[1:] != (J, 4):
             raise BVHError(f"rotations must be (F, {J}, 4), got shape {rot.shape}")
         F = rot.shape[0]
@@ -243,21 +257,23 @@ class Motion:
             rot = rot / norm
         elif not np.all(np.abs(norm - 1.0) <= self.UNIT_TOLERANCE):
             raise BVHError(f"rotations are not unit quaternions (|q| - 1 up to {float(np.abs(norm - 1.0).max()):.3g})")
-        pos = np.asarray(self.positions, dtype=float)
+        pos = as_real_array(self.positions, "positions", error=BVHError, finite=False)
         if pos.shape != (F, J, 3):
             raise BVHError(f"positions must be ({F}, {J}, 3), got shape {pos.shape}")
         if not np.all(np.isfinite(pos)):
             raise BVHError("positions contain NaN or inf")
         esp = np.asarray(self.end_site_parents)
-        eso = np.asarray(self.end_site_offsets, dtype=float)
+        eso = as_real_array(self.end_site_offsets, "end_site_offsets", error=BVHError, finite=False)
         if esp.size == 0:
             esp = np.zeros(0, dtype=np.intp)
         if esp.ndim != 1 or not np.issubdtype(esp.dtype, np.integer) or np.any((esp < 0) | (esp >= J)):
             raise BVHError(f"end_site_parents must be joint indices in [0, {J})")
         if eso.shape != (esp.size, 3) or not np.all(np.isfinite(eso)):
             raise BVHError(f"end_site_offsets must be a finite ({esp.size}, 3) array, got {eso.shape}")
-        if self.unit_m is not None and not (np.isfinite(self.unit_m) and self.unit_m > 0):
-            raise BVHError(f"unit_m must be > 0, got {self.unit_m!r}")
+        if self.unit_m is not None:
+            as_real(self.unit_m, "unit_m (metres per unit)", error=BVHError, lo=0.0, lo_open=True)
+        if self.up is not None and not isinstance(self.up, str):
+            raise BVHError(f"up must be 'y', 'z' or None, got {describe(self.up)}")
         set_ = object.__setattr__
         set_(self, "joint_names", names)
         set_(self, "parents", _readonly(parents))
@@ -342,13 +358,16 @@ class Motion:
 
         Raises
         ------
-        KeyError
-            If there is no such joint (the message lists the known names).
+        UnknownJointError
+            If there is no such joint (the message lists the known names); a
+            :class:`~repro.errors.MotionError` and a ``KeyError``.
         """
+        if not isinstance(name, str):
+            raise UnknownJointError(f"a joint name must be a string, got {describe(name)}")
         try:
             return self.joint_names.index(name)
         except ValueError:
-            raise KeyError(f"no joint {name!r}; joints: {self.joint_names}") from None
+            raise UnknownJointError(f"no joint {name!r}; joints: {self.joint_names}") from None
 
     @cached_property
     def _layout(self) -> tuple[np.ndarray, list[str]]:
@@ -458,9 +477,9 @@ class Motion:
             Metres per unit of the result; by default ``self.unit_m / factor`` when
             ``self.unit_m`` is known, else None.
         """
-        factor = float(factor)
-        if not np.isfinite(factor) or factor <= 0:
-            raise BVHError(f"scale factor must be finite and > 0, got {factor!r}")
+        factor = as_real(factor, "scale factor", error=BVHError, lo=0.0, lo_open=True)
+        if unit_m is not None:
+            unit_m = as_real(unit_m, "unit_m (metres per unit)", error=BVHError, lo=0.0, lo_open=True)
         if unit_m is None and self.unit_m is not None:
             unit_m = self.unit_m / factor
         return dataclasses.replace(
@@ -479,7 +498,8 @@ class Motion:
         repro.errors.BVHError
             If neither ``unit_m`` nor :attr:`unit_m` is known.
         """
-        unit_m = self.unit_m if unit_m is None else unit_m
+        unit_m = self.unit_m if unit_m is None else as_real(unit_m, "unit_m (metres per unit)", error=BVHError,
+                                                             lo=0.0, lo_open=True)
         if unit_m is None:
             raise BVHError(
                 "the length unit of this motion is unknown; pass unit_m "

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from repro.checks import as_bool, as_real
 from repro.errors import MotionError
 from repro.motion.kinematics import depth_levels, fk_arrays, normalize
 from repro.motion.motion import Motion
@@ -39,7 +40,7 @@ from repro.motion.quaternion import cross, min_rotation, quat_multiply
 from repro.motion.quaternion import quat_conjugate as qinv
 from repro.motion.quaternion import quat_rotate as qrot
 from repro.motion.roles import check_roles
-from repro.motion.skeleton import Skeleton, skeleton_of
+from repro.motion.skeleton import Skeleton, check_role_table, skeleton_of
 from repro.motion.units import infer_up
 
 __all__ = ["TreePlan", "body_frame", "rest_axes", "retarget_across"]
@@ -171,6 +172,8 @@ def _checked_pair(motion, character, roles, character_roles):
     roles checked for retargeting, the character's up axis, and :func:`_pair` of the two."""
     if not isinstance(motion, Motion):
         raise MotionError(f"motion must be a Motion, got {type(motion).__name__}")
+    roles = check_role_table(roles, "roles")
+    character_roles = check_role_table(character_roles, "character_roles")
     src = Skeleton.from_motion(motion, roles=roles)
     tgt = skeleton_of(character, roles=character_roles)
     check_roles(src.roles, "retargeting", src.joint_names)
@@ -228,6 +231,8 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
         Missing roles on either side (named), a character root without position channels,
         a rest pose whose facing cannot be told.
     """
+    fix_feet = as_bool(fix_feet, "fix_feet", error=MotionError)
+    blend_time = as_real(blend_time, "blend_time (seconds)", error=MotionError, lo=0.0)
     src, tgt, up_t, pair = _checked_pair(motion, character, roles, character_roles)
     C, c, ci = pair["C"], pair["c"], pair["ci"]
     F = motion.n_frames
@@ -633,7 +638,7 @@ def _fix_feet(motion, src, tgt, gp_s, up_t, up_s, root_t, G, P, solve, blend_tim
     L = np.array([tgt.limb_lengths[f"{s}_leg"] for s in ("left", "right")])
     contacts = foot_contacts(motion, skeleton=src, global_positions=gp_s, up_axis=2 if up_s == "z" else 1)
     A = P[:, ank]
-    n_blend = round(blend_time / motion.frame_time)
+    n_blend = round(min(blend_time / motion.frame_time, 2.0**53))  # longer than any clip: no overflow
     goal, w = foot_goals(A, contacts, A[..., 1], n_blend)  # every coordinate: the phase mean
     goal = A + w[..., None] * (goal - A)
     r = goal - P[:, hips]

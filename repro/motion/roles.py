@@ -58,10 +58,11 @@ from functools import lru_cache
 
 import numpy as np
 
+from repro.checks import as_real_array, describe
 from repro.errors import MotionError
 
-__all__ = ["LIMBS", "REQUIRED_ROLES", "ROLES", "ROLES_FOR", "SIDE_ROLES", "check_roles", "effector_role", "find_roles",
-           "is_helper_name"]
+__all__ = ["LIMBS", "REQUIRED_ROLES", "ROLES", "ROLES_FOR", "SIDE_ROLES", "bone_lengths_of", "check_roles",
+           "effector_role", "find_roles", "is_helper_name"]
 
 #: Per-side role stems, in proximal-to-distal order (``left_`` / ``right_`` prefixed).
 SIDE_ROLES: tuple[str, ...] = (
@@ -250,8 +251,25 @@ def find_roles(
         the joints), an override names an unknown joint or role, or a limb is not a
         parent-child chain.
     """
+    # the arguments checked at the entry (a string is no list of joint names, a float no parent index)
+    if isinstance(joint_names, (str, bytes)) or not isinstance(joint_names, Sequence | np.ndarray):
+        raise MotionError(f"joint_names must be a sequence of joint names, got {describe(joint_names)}")
     names = [str(n) for n in joint_names]
-    par = None if parents is None else np.asarray(parents, dtype=np.intp)
+    par = None if parents is None else as_real_array(parents, "parents", error=MotionError, integer=True,
+                                                     shape=(len(names),)).astype(np.intp)
+    if overrides is not None and not isinstance(overrides, Mapping):
+        raise MotionError(f"overrides must be a mapping role -> joint name, got {describe(overrides)}")
+    if isinstance(required, (str, bytes)) or not isinstance(required, Sequence | np.ndarray) or \
+            not all(isinstance(r, str) for r in required):
+        raise MotionError(f"required must be a sequence of role names, got {describe(required)}")
+    if offsets is not None:
+        offsets = as_real_array(offsets, "offsets", error=MotionError, shape=(len(names), 3))
+        bone_lengths_of(offsets)  # a skeleton too large or small to compute with, named as such
+    if end_site_parents is not None:
+        esp = as_real_array(end_site_parents, "end_site_parents", error=MotionError, integer=True).reshape(-1)
+        if np.any((esp < 0) | (esp >= len(names))):
+            raise MotionError(f"end_site_parents must be joint indices in [0, {len(names)})")
+        end_site_parents = esp
     key = None
     try:
         off_key = None if offsets is None else np.asarray(offsets, dtype=float).tobytes()
@@ -278,6 +296,34 @@ def find_roles(
             except KeyError:
                 break
     return roles
+
+
+#: Largest / smallest sum of a skeleton's bone lengths (its units): beyond them squared lengths
+#: (distances, IK) overflow or underflow float64 (1.8e308, 2.2e-308), so such a skeleton is refused.
+MAX_LENGTH_SUM: float = 1e100
+MIN_LENGTH_SUM: float = 1e-100
+
+
+def bone_lengths_of(offsets: np.ndarray) -> np.ndarray:
+    """``|offsets[j]|`` (J,) of finite (J, 3) offsets, measured without overflow or underflow.
+
+    MotionError when their sum is beyond :data:`MAX_LENGTH_SUM` or below
+    :data:`MIN_LENGTH_SUM`: such a skeleton is too large (or small) to compute with, and
+    is named as such rather than, say, as having zero-length bones.
+    """
+    big = float(np.abs(offsets).max(initial=0.0))
+    # scaled by the largest component first: the squares of 1e300 (or 1e-300) would overflow (underflow)
+    lengths = big * np.linalg.norm(offsets / big, axis=1) if big > 0 else np.zeros(len(offsets))
+    total = float(lengths.sum())
+    if not total <= MAX_LENGTH_SUM:
+        raise MotionError(
+            f"skeleton bone lengths add up to {total:.3g} units (largest offset component {big:.3g}): beyond "
+            f"{MAX_LENGTH_SUM:g} their squares and products overflow float64 (to inf); rescale the offsets")
+    if 0 < total < MIN_LENGTH_SUM:
+        raise MotionError(
+            f"skeleton bone lengths add up to {total:.3g} units: below {MIN_LENGTH_SUM:g} their squares "
+            "underflow float64 (to 0); rescale the offsets")
+    return lengths
 
 
 #: Role tables of recent skeletons (the same skeleton is encoded once per clip).

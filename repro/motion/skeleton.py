@@ -31,9 +31,10 @@ from functools import cached_property
 
 import numpy as np
 
+from repro.checks import as_int, as_real, check_alloc, describe
 from repro.errors import MotionError, UnitWarning
 from repro.motion.motion import CMU_UNIT_M
-from repro.motion.roles import LIMBS, REQUIRED_ROLES, find_roles
+from repro.motion.roles import LIMBS, REQUIRED_ROLES, bone_lengths_of, find_roles
 
 __all__ = [
     "Skeleton",
@@ -152,6 +153,10 @@ class Skeleton:
             raise MotionError(f"offsets must be ({J}, 3), got {offsets.shape}")
         if not np.all(np.isfinite(offsets)):
             raise MotionError("skeleton offsets contain NaN or inf")
+        # lengths of any magnitude, without overflow: a skeleton too large or small to compute
+        # with is named as such, not reported as having zero-length bones
+        lengths = bone_lengths_of(offsets)
+        total = float(lengths.sum())
         channels = None if self.channels is None else [tuple(str(c) for c in ch) for ch in self.channels]
         if channels is not None and len(channels) != J:
             raise MotionError(f"channels must list {J} joints, got {len(channels)}")
@@ -159,8 +164,9 @@ class Skeleton:
         eso = np.asarray(self.end_site_offsets, dtype=float).reshape(-1, 3)
         if eso.shape[0] != esp.size or np.any((esp < 0) | (esp >= J)) or not np.all(np.isfinite(eso)):
             raise MotionError("end_site_parents / end_site_offsets are inconsistent or not finite")
-        if self.unit_m is not None and not (np.isfinite(self.unit_m) and self.unit_m > 0):
-            raise MotionError(f"unit_m must be finite and > 0, got {self.unit_m!r}")
+        if self.unit_m is not None:
+            as_real(self.unit_m, "unit_m (metres per unit)", error=MotionError, lo=0.0, lo_open=True)
+        check_role_table(self.roles)
         roles = (dict(self.roles) if self.roles is not None
                  else find_roles(names, parents, offsets=offsets, end_site_parents=esp))
         bad = [f"{r}->{j}" for r, j in roles.items() if j not in names]
@@ -182,8 +188,7 @@ class Skeleton:
         set_(self, "unit_m", None if self.unit_m is None else float(self.unit_m))
         set_(self, "roles", dict(roles))
         # zero-length bones where a role needs a length
-        lengths = np.linalg.norm(offsets, axis=1)
-        scale = max(float(lengths.sum()), 1e-300)
+        scale = max(total, 1e-300)
         zero = []
         for limb, (_, mid, dist) in LIMBS.items():
             for r in (mid, dist):
@@ -251,6 +256,8 @@ class Skeleton:
 
     def index(self, name_or_role: str) -> int:
         """Joint index of a joint name or of a role (``"left_knee"``)."""
+        if not isinstance(name_or_role, str):
+            raise MotionError(f"a joint name or role must be a string, got {describe(name_or_role)}")
         name = self.roles.get(name_or_role, name_or_role)
         try:
             return self.joint_names.index(name)
@@ -263,7 +270,8 @@ class Skeleton:
 
     @cached_property
     def bone_lengths(self) -> np.ndarray:
-        """(J,) ``|offsets[j]|``: length of the bone from joint j's parent to joint j."""
+        """(J,) ``|offsets[j]|``: length of the bone from joint j's parent to joint j (no overflow: the
+        constructor refused lengths beyond :data:`repro.motion.roles.MAX_LENGTH_SUM`)."""
         return np.linalg.norm(self.offsets, axis=1)
 
     def bone_length(self, name_or_role: str) -> float:
@@ -294,6 +302,8 @@ class Skeleton:
 
     def is_compatible(self, other) -> bool:
         """Same joint names and parents (same topology) as ``other`` (Skeleton or Motion)."""
+        if not hasattr(other, "joint_names") or not hasattr(other, "parents"):
+            raise MotionError(f"is_compatible needs a Skeleton or a Motion, got {describe(other)}")
         return list(other.joint_names) == self.joint_names and np.array_equal(other.parents, self.parents)
 
     # ------------------------------------------------------------------- sizes
@@ -452,7 +462,7 @@ class Skeleton:
                 "the length unit of this skeleton is unknown; read the motion with "
                 "read_bvh(..., unit_m=repro.motion.CMU_UNIT_M) (or BANDAI_UNIT_M), or use Motion.to_metres()"
             )
-        return float(value) * self.unit_m
+        return as_real(value, "value (a length in file units)", error=MotionError, finite=False) * self.unit_m
 
     @property
     def size(self) -> float:
@@ -483,6 +493,9 @@ class Skeleton:
         if self.channels is None:
             raise MotionError("this skeleton has no channel layout; build it with Skeleton.from_motion")
         J = self.n_joints
+        n_frames = as_int(n_frames, "n_frames", 1, error=MotionError)
+        # rotations (4), positions (3) and the Motion's own copies of them, per joint and frame
+        check_alloc(2 * n_frames * J * 7 * 8, f"rest_motion(n_frames={n_frames})", error=MotionError)
         rot = np.zeros((n_frames, J, 4))
         rot[..., 3] = 1.0
         return self.motion_with(rot, np.broadcast_to(self.offsets, (n_frames, J, 3)), frame_time=frame_time)
@@ -515,8 +528,21 @@ class Skeleton:
         return f"Skeleton({self.n_joints} joints, height {h}, pelvis={self.roles['pelvis']!r})"
 
 
+def check_role_table(roles, name: str = "roles"):
+    """``roles`` if it is None or a mapping role name -> joint name (strings), else MotionError naming ``name``."""
+    if roles is None:
+        return None
+    if not isinstance(roles, Mapping):
+        raise MotionError(f"{name} must be a mapping role -> joint name (or None), got {describe(roles)}")
+    bad = [(k, v) for k, v in roles.items() if not (isinstance(k, str) and isinstance(v, str))]
+    if bad:
+        raise MotionError(f"{name} must map role names to joint names (strings), got {describe(bad[0])}")
+    return roles
+
+
 def skeleton_of(x, roles: Mapping[str, str] | None = None) -> Skeleton:
     """``x`` if it is a :class:`Skeleton`, else :meth:`Skeleton.from_motion` of the motion ``x``."""
+    roles = check_role_table(roles)
     if isinstance(x, Skeleton):
         return x if roles is None else dataclasses.replace(x, roles=roles)
     if hasattr(x, "rotations") and hasattr(x, "offsets"):
@@ -525,13 +551,7 @@ def skeleton_of(x, roles: Mapping[str, str] | None = None) -> Skeleton:
 
 
 def _positive(name: str, v) -> float:
-    try:
-        v = float(v)
-    except (TypeError, ValueError):
-        raise MotionError(f"{name} must be a number, got {v!r}") from None
-    if not np.isfinite(v) or v <= 0:
-        raise MotionError(f"{name} must be finite and > 0, got {v!r}")
-    return v
+    return as_real(v, name, error=MotionError, lo=0.0, lo_open=True)
 
 
 def scale_skeleton(
@@ -594,6 +614,8 @@ def scale_skeleton(
         f[sk.index(f"{side}_ankle")] *= leg_scale
     trunk = sk.path("pelvis", "head")
     f[trunk] *= trunk_scale
+    if bone_scales is not None and not isinstance(bone_scales, Mapping):
+        raise MotionError(f"bone_scales must be a mapping joint name -> factor, got {describe(bone_scales)}")
     for name, s in (bone_scales or {}).items():
         if name not in sk.joint_names:
             raise MotionError(f"bone_scales: no joint {name!r}; joints: {sk.joint_names}")

@@ -1,9 +1,12 @@
 """The shared kinematics helpers against scipy's Rotation and the Motion type's FK."""
 
 import numpy as np
+import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
+from repro.errors import MotionError
 from repro.motion import kinematics as K
+from repro.motion.kinematics import depth_levels, fk_arrays
 from repro.motion import quaternion as Q4
 from repro.motion.quaternion import quat_multiply
 
@@ -71,3 +74,18 @@ def test_matrix_helpers_match_scipy():
     np.testing.assert_allclose(K.matvec(M, V), Rotation.from_quat(Q).apply(V), atol=1e-12)
     np.testing.assert_allclose(K.matvec_t(M, V), Rotation.from_quat(Q).inv().apply(V), atol=1e-12)
     np.testing.assert_allclose(K.dot(V, V[::-1]), np.sum(V * V[::-1], axis=-1), atol=1e-12)
+
+
+# ------------------------------------------------------------------ hostile arguments (issue 23)
+@pytest.mark.parametrize("parents", ["ab", [0.5, 0], [[-1, 0]], [-1, 1], [0, 0], [], None])
+def test_depth_levels_refuses_what_is_not_a_joint_tree(parents):
+    with pytest.raises(MotionError, match="parents"):
+        depth_levels(parents)
+
+
+def test_fk_arrays_refuses_mismatched_shapes():
+    lv = depth_levels([-1, 0, 1])
+    with pytest.raises(MotionError, match="fk_arrays"):
+        fk_arrays(lv, np.zeros((2, 3, 4)), np.zeros((2, 2, 3)))
+    with pytest.raises(MotionError, match="fk_arrays"):
+        fk_arrays(lv, "q", np.zeros((2, 3, 3)))

@@ -408,3 +408,37 @@ def test_bandai_roundtrip_and_retarget(tmp_path):
 def test_time_retarget_reports(front_kick):
     t = time_retarget(front_kick, Skeleton.from_motion(front_kick), repeats=1)
     assert t["frames"] == 1316 and t["total_per_frame"] > 0  # measured, never asserted on
+
+
+# --------------------------------------------------------------- hostile arguments (issue 23)
+@pytest.mark.parametrize(
+    "call, match",
+    [
+        (lambda m, sk: encode("m"), "Motion"),
+        (lambda m, sk: encode(m, roles=["a"]), "roles"),
+        (lambda m, sk: decode("mi", sk), "MorphologyIndependentMotion"),
+        (lambda m, sk: decode(encode(m), sk, blend_time=float("nan")), "blend_time"),
+        (lambda m, sk: decode(encode(m), sk, blend_time=-1.0, fix_feet=True), "blend_time"),
+        (lambda m, sk: decode(encode(m), sk, fix_feet="yes"), "fix_feet"),
+        (lambda m, sk: decode(encode(m), sk, max_rest_angle_deg="5"), "max_rest_angle_deg"),
+        (lambda m, sk: decode_with_report(encode(m), sk, max_rest_angle_deg=float("inf")), "max_rest_angle_deg"),
+        (lambda m, sk: retarget("m", sk), "Motion"),
+        (lambda m, sk: retarget(m, "sk"), "target"),
+        (lambda m, sk: retarget(m, sk, fix_feet=1), "fix_feet"),
+        (lambda m, sk: retarget(m, sk, roles="x"), "roles"),
+        (lambda m, sk: naive_retarget(m, sk, scale_root="yes"), "scale_root"),
+        (lambda m, sk: naive_retarget(m, None), "target"),
+        (lambda m, sk: time_retarget(m, sk, repeats=10**9), "repeats"),
+        (lambda m, sk: time_retarget(m, sk, repeats="5"), "repeats"),
+    ],
+)
+def test_morphology_entries_refuse_bad_arguments(call, match):
+    with pytest.raises(MotionError, match=match):
+        call(random_motion(0, F=4), rest_skeleton())
+
+
+def test_a_blend_longer_than_any_clip_does_not_overflow():
+    m = random_motion(0, F=4)
+    a = decode(encode(m), rest_skeleton(), fix_feet=True, blend_time=1.7e308)  # used to overflow in round()
+    b = decode(encode(m), rest_skeleton(), fix_feet=True, blend_time=1e6)
+    np.testing.assert_array_equal(a.rotations, b.rotations)

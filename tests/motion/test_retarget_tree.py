@@ -209,3 +209,31 @@ def test_prepare_refusal_unchanged(synthetic_db):
         with pytest.raises(RetrievalError) as got:
             r.prepare(flat, ch)
         assert str(ref.value) in str(got.value)
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        ({"blend_time": float("nan"), "fix_feet": True}, "blend_time"),  # was a ValueError in _fix_feet
+        ({"blend_time": -1.0, "fix_feet": True}, "blend_time"),
+        ({"blend_time": "x"}, "blend_time"),
+        ({"fix_feet": "yes"}, "fix_feet"),
+        ({"character_roles": ["a"]}, "character_roles"),  # was a bare exception
+        ({"character_roles": {"pelvis": 3}}, "character_roles"),
+        ({"roles": "pelvis"}, "roles"),
+    ],
+)
+def test_retarget_across_checks_its_arguments(clip, kw, match):
+    rig = build("mixamo")[0].motion(unit_m=1.0)
+    with pytest.raises(MotionError, match=match):
+        retarget_across(clip, rig, **kw)
+    if "blend_time" not in kw and "fix_feet" not in kw:
+        with pytest.raises(MotionError, match=match):
+            TreePlan(clip, rig, **kw)
+
+
+def test_a_blend_longer_than_the_clip_is_the_whole_clip(clip):
+    rig = build("mixamo")[0].motion(unit_m=1.0)
+    a = retarget_across(clip, rig, fix_feet=True, blend_time=1.7e308)  # / frame_time = inf: used to overflow in round()
+    b = retarget_across(clip, rig, fix_feet=True, blend_time=1e6)
+    np.testing.assert_array_equal(a.rotations, b.rotations)

@@ -78,3 +78,24 @@ def test_find_roles_rejects_broken_limb_chain():
 
 def test_required_roles_are_roles():
     assert set(REQUIRED_ROLES) <= set(ROLES)
+
+
+# ------------------------------------------------------------------ hostile arguments (issue 23)
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        (dict(joint_names="Hips"), "joint_names"),
+        (dict(joint_names=None), "joint_names"),
+        (dict(joint_names=["Hips", "Spine"], parents=[-1, 0.5]), "parents"),
+        (dict(joint_names=["Hips", "Spine"], parents="ab"), "parents"),
+        (dict(joint_names=["Hips", "Spine"], parents=[-1, 0], offsets="x"), "offsets"),
+        (dict(joint_names=["Hips", "Spine"], parents=[-1, 0], offsets=[[0, 0, 0], [0, 1j, 0]]), "offsets"),
+        (dict(joint_names=["Hips", "Spine"], parents=[-1, 0], offsets=[[0, 0, 0], [0, 1e300, 0]]), "overflow"),
+        (dict(joint_names=["Hips", "Spine"], overrides=["pelvis"]), "overrides"),
+        (dict(joint_names=["Hips", "Spine"], required="pelvis"), "required"),
+        (dict(joint_names=["Hips", "Spine"], parents=[-1, 0], end_site_parents=[7]), "end_site_parents"),
+    ],
+)
+def test_find_roles_refuses_bad_arguments(kw, match):
+    with pytest.raises(MotionError, match=match):
+        find_roles(**kw)

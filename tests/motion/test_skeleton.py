@@ -196,3 +196,51 @@ def test_bandai_sizes():
     assert sk.head_top == 0.0 and sk.ankle_height == 0.0
     # stature up to the head joint; the Head joint stands 1.34-1.41 m above the lowest joint
     assert 1.25 < sk.size < 1.45
+
+
+# ------------------------------------------------------------------- hostile arguments (issue 23)
+@pytest.mark.parametrize("factor", [1e300, 1e200, 1e160])
+def test_offsets_too_large_are_named_as_overflow_not_zero_length(factor):
+    """Scaled by 1e300 the squared lengths overflow: it used to be reported as zero-length limb bones."""
+    with pytest.raises(MotionError, match="overflow") as info:
+        scale_skeleton(mixamo_skeleton(), scale=factor)
+    assert "zero-length" not in str(info.value)
+    off = np.array([o for _, _, o in MIXAMO]) * factor
+    with pytest.raises(MotionError, match="overflow"):
+        mixamo_skeleton(offsets=off)
+    with pytest.raises(MotionError, match="overflow"):
+        mixamo_skeleton(offsets=off, roles=dict(mixamo_skeleton().roles))
+
+
+def test_offsets_too_small_are_named_as_underflow():
+    with pytest.raises(MotionError, match="underflow"):
+        scale_skeleton(mixamo_skeleton(), scale=1e-300)
+
+
+def test_a_large_but_computable_skeleton_is_accepted():
+    sk = scale_skeleton(mixamo_skeleton(), scale=1e50)
+    assert np.isfinite(sk.bone_lengths).all() and sk.leg_length > 1e49
+
+
+@pytest.mark.parametrize(
+    "call, match",
+    [
+        (lambda sk: skeleton_of(sk, roles=["a"]), "roles"),
+        (lambda sk: skeleton_of(sk, roles={"pelvis": 0}), "roles"),
+        (lambda sk: sk.index(["Hips"]), "string"),
+        (lambda sk: sk.bone_length(None), "string"),
+        (lambda sk: sk.path(1, "Head"), "string"),
+        (lambda sk: sk.to_metres("x"), "value"),
+        (lambda sk: sk.rest_motion(0), "n_frames"),
+        (lambda sk: sk.rest_motion("3"), "n_frames"),
+        (lambda sk: sk.rest_motion(10**12), "n_frames"),  # a budget, not a MemoryError
+        (lambda sk: sk.is_compatible("sk"), "Skeleton or a Motion"),
+        (lambda sk: scale_skeleton(sk, arm_scale="1"), "arm_scale"),
+        (lambda sk: scale_skeleton(sk, height=True), "height"),
+        (lambda sk: scale_skeleton(sk, bone_scales=[("Hips", 2.0)]), "bone_scales"),
+        (lambda sk: mixamo_skeleton(unit_m="m"), "unit_m"),
+    ],
+)
+def test_skeleton_methods_refuse_bad_arguments(call, match):
+    with pytest.raises(MotionError, match=match):
+        call(mixamo_skeleton())
