@@ -151,7 +151,9 @@ def cache_writable(name) -> bool:
     or the FIFO with a regular file, never writes through it); a sub-folder that is a symlink
     leading outside the cache folder is never written into.
     """
-    parent = os.path.dirname(os.fspath(name)) or "."
+    if not isinstance(name, (str, os.PathLike)):
+        raise DataError(f"cache file must be a path, got {describe(name)}")
+    parent = os.path.dirname(os.fsdecode(os.fspath(name))) or "."
     try:
         inside(cache_dir(), parent, error=DataError, what="cache folder")
     except DataError:

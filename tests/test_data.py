@@ -272,8 +272,28 @@ def test_open_file_names_the_file_and_reads_only_regular_files(private_dir):
     lambda: data.fetch(None), lambda: data.locate(3), lambda: data.locate("x", root=3.5),
     lambda: data.fetch("faces/ict/LICENSE", download="yes"), lambda: data.require("ict", progressbar=None),
     lambda: data.choose("auto", needs="ict"), lambda: data.choose("auto", needs=3),
-    lambda: data.choose("auto", needs=[["ict"]]),
+    lambda: data.choose("auto", needs=[["ict"]]), lambda: data.cache_file(None), lambda: data.cache_writable(3),
 ])
 def test_names_of_the_wrong_type_are_data_errors(private_dir, call):
     with pytest.raises(DataError, match="must be"):
         call()
+
+
+def test_cache_members_stay_inside_the_cache_folder(tmp_path, monkeypatch):
+    cache = tmp_path / "derived"
+    (cache / "motion").mkdir(parents=True)
+    monkeypatch.setenv("REPRO_CACHE_DIR", str(cache))
+    assert data.cache_file("motion/a.npz") == cache.resolve() / "motion" / "a.npz"
+    for bad in ("../a.npz", "motion/../../a.npz", "/tmp/a.npz"):
+        with pytest.raises(DataError, match="cache file"):
+            data.cache_file(bad)
+    (tmp_path / "elsewhere").mkdir()
+    (cache / "linked").symlink_to(tmp_path / "elsewhere")
+    (cache / "motion" / "b.npz").symlink_to(tmp_path / "elsewhere" / "b.npz")
+    with pytest.raises(DataError, match="leads outside"):
+        data.cache_file("linked/a.npz")
+    with pytest.raises(DataError, match="leads outside"):
+        data.cache_file("motion/b.npz")
+    assert data.cache_writable("motion/b.npz")  # the link itself is replaced by a write, never followed
+    assert not data.cache_writable("linked/a.npz")  # a folder leading out is never written into
+    assert not data.cache_writable("../a.npz")
