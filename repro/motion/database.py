@@ -55,6 +55,7 @@ from pathlib import Path
 
 import numpy as np
 
+from repro.checks import as_int, as_real_array, describe
 from repro.errors import DataError, MotionError, ReproError
 from repro.io import MAX_READ_BYTES, atomic_path, read_npz
 from repro.motion.annotation import (
@@ -299,12 +300,23 @@ class MotionDatabase:
         }
 
     # ------------------------------------------------------------------ access
+    def clip_index(self, i, name: str = "i") -> int:
+        """``i`` as a clip index in ``0..C-1``, else a :class:`MotionError` naming ``name``.
+
+        Python's negative indices are refused: ``motion(-1)`` silently answered the last
+        clip (issue 23, section 5).
+        """
+        return as_int(i, f"{name} (a clip index of a {self.n_clips}-clip database)", 0, self.n_clips - 1,
+                      error=MotionError)
+
     def trajectory(self, i: int) -> np.ndarray:
         """(n_frames, 3) hit-point trajectory of clip ``i`` (first-frame root frame, metres)."""
+        i = self.clip_index(i)
         return self.traj[self.traj_start[i]:self.traj_start[i + 1]]
 
     def poses_of(self, i: int) -> np.ndarray:
         """Pose indices of clip ``i``."""
+        i = self.clip_index(i)
         return np.arange(self.pose_start[i], self.pose_start[i + 1])
 
     def stored_motions(self) -> dict[int, Motion]:
@@ -313,6 +325,7 @@ class MotionDatabase:
 
     def actor_skeleton(self, i: int) -> Skeleton:
         """Skeleton of the actor of clip ``i`` (base actor scaled by ``scale[i]``)."""
+        i = self.clip_index(i)
         base = self.actors[int(self.actor[i])]
         s = float(self.scale[i])
         return base if s == 1.0 else base.with_offsets(base.offsets * s, base.end_site_offsets * s)
@@ -323,7 +336,7 @@ class MotionDatabase:
         For a variant made by :func:`augment` the motion is rebuilt from its source clip
         (time warp, rescaling, mirror); the feature noise is not applied to it.
         """
-        i = int(i)
+        i = self.clip_index(i)
         if i in self._motions:
             return self._motions[i]
         src = int(self.source_clip[i])
@@ -334,6 +347,7 @@ class MotionDatabase:
 
     def clip(self, i: int) -> Clip:
         """Clip ``i`` as a :class:`Clip`."""
+        i = self.clip_index(i)
         return Clip(name=str(self.names[i]), motion=self.motion(i), semantics=str(self.semantics[i]),
                     hit_role=str(self.hit_roles[i]), hit_joint=str(self.hit_joints[i]),
                     hit_where=str(self.hit_wheres[i]), hit_frame=int(self.hit_frame[i]), kind=str(self.kinds[i]),
@@ -345,8 +359,34 @@ class MotionDatabase:
         return [self.clip(i) for i in range(self.n_clips)]
 
     def select(self, mask) -> MotionDatabase:
-        """A database of the clips where ``mask`` (bool (C,) or indices) is true."""
-        idx = np.flatnonzero(np.asarray(mask)) if np.asarray(mask).dtype == bool else np.asarray(mask, dtype=np.intp)
+        """A database of the clips where ``mask`` is true: a boolean mask of length C, or clip indices.
+
+        Indices are integers in ``0..C-1`` without repeats (kept in the order given);
+        anything else -- floats (``[0.5]`` used to select clip 0), negative or too-large
+        indices, a mask of another length, strings, NaN, an empty selection -- is a
+        :class:`MotionError` (issue 23, sections 5-6).
+        """
+        C = self.n_clips
+        what = f"mask (a boolean mask of length {C} or clip indices in 0..{C - 1})"
+        try:
+            a = None if isinstance(mask, (str, bytes)) or mask is None else np.asarray(mask)
+        except (ValueError, TypeError):  # ragged nesting
+            a = None
+        if a is None or a.ndim != 1:
+            raise MotionError(f"{what} must be a 1-D sequence, got {describe(mask)}")
+        if a.dtype.kind == "b":
+            if a.shape != (C,):
+                raise MotionError(f"{what}: a boolean mask of length {a.size}, not {C}")
+            idx = np.flatnonzero(a)
+        else:
+            idx = as_real_array(a, what, error=MotionError, integer=True, ndim=1)
+            bad = idx[(idx < 0) | (idx >= C)]
+            if bad.size:
+                raise MotionError(f"{what} holds {bad.size} index(es) out of range, e.g. {int(bad[0])}")
+            if np.unique(idx).size != idx.size:
+                raise MotionError(f"{what} repeats a clip index (clip names must stay unique)")
+        if idx.size == 0:
+            raise MotionError(f"{what} selects no clip")
         return _subset(self, idx)
 
     # ----------------------------------------------------------- construction
