@@ -114,8 +114,8 @@ def files(dataset: str) -> list[DataFile]:
 def data_dir() -> Path:
     """The data folder: ``$REPRO_DATA_DIR`` or pooch's per-user cache for repro."""
     env = os.environ.get("REPRO_DATA_DIR")
-    if env:
-        return Path(env).expanduser().resolve()
+    if env:  # (realpath: a symlink loop is left as it is, and reported when a file is looked up)
+        return Path(os.path.realpath(Path(env).expanduser()))
     import pooch
 
     return Path(pooch.os_cache("repro"))
@@ -125,8 +125,8 @@ def cache_dir() -> Path:
     """Folder for derived caches (never the data folder): ``$REPRO_CACHE_DIR``, else
     ``pooch.os_cache("repro") / "derived"``.  The ICT arrays and the figures' shared databases live here."""
     env = os.environ.get("REPRO_CACHE_DIR")
-    if env:
-        return Path(env).expanduser().resolve()
+    if env:  # (realpath: a symlink loop is left as it is: no cache, not an error)
+        return Path(os.path.realpath(Path(env).expanduser()))
     import pooch
 
     return Path(pooch.os_cache("repro")) / "derived"

@@ -222,7 +222,9 @@ def augmented_database(name: str = "synthetic", factor: int = 1, seed: int = 0, 
         _warn(f"database cache {path} is refused ({exc}); building the database", stacklevel=3)
     with contextlib.ExitStack() as stack:
         if _WRITE[0]:  # writers (repro run / all, its --jobs workers, other processes) take turns per file:
-            with contextlib.suppress(OSError):  # the second waits for the first and reads what it wrote
+            # the second waits for the first and reads what it wrote (no lock when the cache folder is a
+            # symlink loop, which resolving raises RuntimeError for: then there is no cache either)
+            with contextlib.suppress(OSError, RuntimeError):
                 stack.enter_context(file_lock(_lock_path(path)))
         db = None if npz is None else _load(npz, side, identity, key)
         if db is not None:
@@ -240,7 +242,12 @@ def augmented_database(name: str = "synthetic", factor: int = 1, seed: int = 0, 
 
 
 def _lock_path(path: Path) -> Path:
-    """The lock of one cache file: in the temp folder, one per user and file (the cache folder holds only caches)."""
+    """The lock of one cache file: in the temp folder, one per user and file (the cache folder holds only caches).
+
+    Keyed on the cache folder and the file's name, never on what the file resolves to: a
+    symlink (even a loop) in place of the cache file cannot change or break its lock.
+    """
+    from repro import data
     from repro.io import lock_path
 
-    return lock_path("database", path)
+    return lock_path(f"database-{path.stem}", data.cache_dir())

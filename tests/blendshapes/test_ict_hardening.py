@@ -411,3 +411,19 @@ def test_another_valid_cache_in_its_place_is_refused(tiny_cache, tmp_path):
 def test_arguments_of_the_cache_and_loader_are_checked(cache, call, error, match):
     with pytest.raises(error, match=match):
         call()
+
+
+def test_a_symlink_loop_in_place_of_the_cache_or_as_the_cache_folder_is_no_cache(tiny_build, cache, monkeypatch):
+    shapes, arrays, builds, run = tiny_build
+    run()
+    path = cache / ict._cache_key(shapes)
+    path.unlink()
+    path.symlink_to(path.name)  # a link to itself
+    got, _ = run()
+    assert len(builds) == 2 and path.is_file() and not path.is_symlink()
+    loop = cache.parent / "loop"
+    loop.symlink_to("loop")
+    monkeypatch.setenv("REPRO_CACHE_DIR", str(loop))
+    got, warned = run()
+    assert len(builds) == 3 and warned == []
+    np.testing.assert_array_equal(got["D"], arrays["D"])

@@ -268,3 +268,21 @@ def test_a_factor_past_the_memory_budget_is_refused_before_building(cache, monke
         shared.augmented_database("synthetic", 10**7, use_cache=use_cache)
     base = shared.augmented_database("synthetic", 1)
     assert shared.estimated_bytes(base, 10) > 10 * shared.estimated_bytes(base, 1) / 2
+
+
+def test_a_symlink_loop_in_place_of_the_cache_is_replaced_not_an_error(cache):
+    x2 = _kept(2)
+    npz, side = _files(cache, 2)
+    for f in (npz, side):
+        f.unlink()
+        f.symlink_to(f.name)  # a link to itself: resolving it raised RuntimeError (in the lock's path)
+    again = _kept(2)
+    assert again.equals(x2) and npz.is_file() and not npz.is_symlink() and not side.is_symlink()
+
+
+def test_a_cache_folder_that_is_a_symlink_loop_is_no_cache(tmp_path, monkeypatch):
+    (tmp_path / "loop").symlink_to("loop")
+    monkeypatch.setenv("REPRO_CACHE_DIR", str(tmp_path / "loop"))
+    with shared.kept_on_disk():
+        db = shared.augmented_database("synthetic", 2, seed=0)
+    assert db.n_clips == 2 * shared.augmented_database("synthetic", 1).n_clips
