@@ -172,6 +172,8 @@ def character_from(height: float = 1.75, arm_scale: float = 1.0, leg_scale: floa
         from repro.motion.synthetic import synthetic_skeleton
 
         base = synthetic_skeleton()
+    if not isinstance(base, (Skeleton, Motion)):
+        raise MotionError(f"base must be a Skeleton or a Motion, got {describe(base)}")
     return scale_skeleton(skeleton_of(base), height=height, arm_scale=arm_scale, leg_scale=leg_scale)
 
 

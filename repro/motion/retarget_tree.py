@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from repro.checks import as_bool, as_real
+from repro.checks import as_bool, as_choice, as_real, describe
 from repro.errors import MotionError
 from repro.motion.kinematics import depth_levels, fk_arrays, normalize
 from repro.motion.motion import Motion
@@ -50,6 +50,11 @@ _POS = ("Xposition", "Yposition", "Zposition")
 _AXIS = {"y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
 
 
+def _check_skeleton(sk) -> None:
+    if not isinstance(sk, Skeleton):
+        raise MotionError(f"expected a Skeleton (repro.motion.skeleton.skeleton_of), got {describe(sk)}")
+
+
 def body_frame(sk: Skeleton, up: str) -> np.ndarray:
     """(3, 3) columns left, up, forward of a skeleton's rest pose (``up`` = world axis).
 
@@ -57,7 +62,8 @@ def body_frame(sk: Skeleton, up: str) -> np.ndarray:
     trunk does not stand along the world up axis (Bandai Namco's lies along +X, every
     bone on its local X) cannot tell where the body faces in the world: then left is the
     world X axis (forward = left x up: +Z when Y is up, -Y when Z is up)."""
-    u = _AXIS[up]
+    _check_skeleton(sk)
+    u = _AXIS[as_choice(up, "up", tuple(_AXIS), error=MotionError)]
     p = sk.rest_positions()
     trunk = _unit(p[sk.index("head")] - p[sk.index("pelvis")])
     if abs(float(trunk @ u)) < np.cos(np.radians(45.0)):
@@ -86,6 +92,7 @@ def rest_axes(sk: Skeleton) -> dict[str, np.ndarray]:
     the shoulders, for the chest, the neck, the head and the arms), made orthogonal to up.
     They fix the twist of a segment about its bone when rest poses differ by more than
     their bone directions (Bandai Namco: the pelvis' left is -Y at rest, the chest's +Z)."""
+    _check_skeleton(sk)
     p = sk.rest_positions()
     r = sk.roles
     up = _unit(p[sk.index("head")] - p[sk.index("pelvis")])

@@ -304,6 +304,11 @@ MAX_LENGTH_SUM: float = 1e100
 MIN_LENGTH_SUM: float = 1e-100
 
 
+def _check_role_map(roles) -> None:
+    if not isinstance(roles, Mapping):
+        raise MotionError(f"roles must be a mapping role -> joint name, got {describe(roles)}")
+
+
 def bone_lengths_of(offsets: np.ndarray) -> np.ndarray:
     """``|offsets[j]|`` (J,) of finite (J, 3) offsets, measured without overflow or underflow.
 
@@ -492,6 +497,10 @@ def effector_role(roles: Mapping[str, str], hit_role: str, hit_joint: str) -> st
     synthetic side and round kicks strike with the heel (``LeftFoot``, the ankle).
     Driving the role's own joint onto the target would put the toe there instead.
     """
+    _check_role_map(roles)
+    for name, v in (("hit_role", hit_role), ("hit_joint", hit_joint)):
+        if not isinstance(v, str):
+            raise MotionError(f"{name} must be a string, got {describe(v)}")
     side, _, stem = hit_role.partition("_")
     stems = ("fist", "hand", "wrist") if stem in ("fist", "hand", "wrist") else ("foot", "toe", "ankle")
     for role in (hit_role,) + tuple(f"{side}_{s}" for s in stems):
@@ -518,11 +527,17 @@ _SKIP_WHOLE = re.compile(r"^(ring|middle|mid|little|lip|lid|ear|nose|nostril|han
 _SKIP_END = re.compile(r"(end|nub|site|tip)\d*$")
 
 
-@lru_cache(maxsize=8192)
 def is_helper_name(name: str) -> bool:
     """True for joints that carry no body role by name: twist/roll/helper bones, fingers,
     face joints, props and ``..._End`` leaves (``Unreal upperarm_twist_01_l``, ``mixamorig:
     LeftHandIndex1``, ``mFaceJaw``, ``HeadTop_End``)."""
+    if not isinstance(name, str):  # checked before the cache, which needs a hashable name
+        raise MotionError(f"a joint name must be a string, got {describe(name)}")
+    return _is_helper_name(name)
+
+
+@lru_cache(maxsize=8192)
+def _is_helper_name(name: str) -> bool:
     n = _strip(name)
     bases = [b for _, b in _side_and_base(name)] or [_alnum(n)]
     for b in bases:
@@ -570,8 +585,16 @@ def _rest_positions(parents: np.ndarray, offsets: np.ndarray) -> np.ndarray:
 
 def rest_up_axis(names: Sequence[str], parents, offsets) -> np.ndarray | None:
     """Unit up direction of a rest pose (mean of the upper-body tips minus the leg tips), or None."""
+    if isinstance(names, (str, bytes)) or not isinstance(names, Sequence | np.ndarray):
+        raise MotionError(f"names must be a sequence of joint names, got {describe(names)}")
+    J = len(names)
+    par = as_real_array(parents, "parents", error=MotionError, integer=True, shape=(J,)).astype(np.intp)
+    if J == 0 or par[0] != -1 or np.any(par[1:] < 0) or np.any(par[1:] >= np.arange(1, J)):
+        raise MotionError("parents must be -1 for joint 0 and parents[j] < j for the others")
+    off = as_real_array(offsets, "offsets", error=MotionError, shape=(J, 3))
+    bone_lengths_of(off)
     try:
-        st = _structure([str(n) for n in names], np.asarray(parents, np.intp), np.asarray(offsets, float))
+        st = _structure([str(n) for n in names], par, off)
     except MotionError:
         return None
     return st["up"]
@@ -840,7 +863,8 @@ def check_roles(roles: Mapping[str, str], purpose: str, joint_names: Sequence[st
     """Raise :class:`MotionError` naming the roles ``purpose`` needs and the skeleton lacks.
 
     ``purpose`` is a key of :data:`ROLES_FOR` (``"a punch"``, ``"a kick"``, ``"retargeting"``)."""
-    if purpose not in ROLES_FOR:
+    _check_role_map(roles)
+    if not isinstance(purpose, str) or purpose not in ROLES_FOR:
         raise MotionError(f"unknown purpose {purpose!r}; one of {list(ROLES_FOR)}")
     need = ROLES_FOR[purpose]
     if purpose in ("a punch", "a kick"):

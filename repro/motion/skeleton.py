@@ -31,9 +31,9 @@ from functools import cached_property
 
 import numpy as np
 
-from repro.checks import as_int, as_real, check_alloc, describe
+from repro.checks import as_int, as_real, as_real_array, check_alloc, describe
 from repro.errors import MotionError, UnitWarning
-from repro.motion.motion import CMU_UNIT_M
+from repro.motion.motion import CMU_UNIT_M, Motion
 from repro.motion.roles import LIMBS, REQUIRED_ROLES, bone_lengths_of, find_roles
 
 __all__ = [
@@ -148,7 +148,7 @@ class Skeleton:
             raise MotionError(f"parents must be a ({J},) int array, got {parents.shape}")
         if parents[0] != -1 or np.any(parents[1:] < 0) or np.any(parents[1:] >= np.arange(1, J)):
             raise MotionError("parents must be -1 for joint 0 and parents[j] < j for the others")
-        offsets = np.asarray(self.offsets, dtype=float)
+        offsets = as_real_array(self.offsets, "offsets", error=MotionError, finite=False)
         if offsets.shape != (J, 3):
             raise MotionError(f"offsets must be ({J}, 3), got {offsets.shape}")
         if not np.all(np.isfinite(offsets)):
@@ -161,7 +161,10 @@ class Skeleton:
         if channels is not None and len(channels) != J:
             raise MotionError(f"channels must list {J} joints, got {len(channels)}")
         esp = np.asarray(self.end_site_parents).astype(np.intp).reshape(-1)
-        eso = np.asarray(self.end_site_offsets, dtype=float).reshape(-1, 3)
+        eso = as_real_array(self.end_site_offsets, "end_site_offsets", error=MotionError, finite=False)
+        if eso.size % 3:
+            raise MotionError(f"end_site_offsets must be an (E, 3) array, got shape {eso.shape}")
+        eso = eso.reshape(-1, 3)
         if eso.shape[0] != esp.size or np.any((esp < 0) | (esp >= J)) or not np.all(np.isfinite(eso)):
             raise MotionError("end_site_parents / end_site_offsets are inconsistent or not finite")
         if self.unit_m is not None:
@@ -210,6 +213,9 @@ class Skeleton:
         overrides : mapping, optional
             Passed to :func:`find_roles`.
         """
+        if not isinstance(motion, Motion):
+            raise MotionError(f"Skeleton.from_motion needs a Motion, got {describe(motion)}")
+        roles = check_role_table(roles)
         if roles is None:
             roles = find_roles(motion.joint_names, motion.parents, overrides=overrides, offsets=motion.offsets,
                                end_site_parents=motion.end_site_parents)
@@ -652,7 +658,9 @@ def rescale_constraint(c, size_actor: float, size_character: float) -> np.ndarra
         The constraint for the actor's skeleton ("an adimensional constraint which is
         multiplied by the size of the actor").
     """
-    c = np.asarray(c, dtype=float)
+    c = as_real_array(c, "constraint c", error=MotionError, finite=False)
+    if c.ndim == 0 or c.shape[-1] != 3:
+        raise MotionError(f"constraint c must be a (..., 3) array, got shape {c.shape}")
     if not np.all(np.isfinite(c)):
         raise MotionError("constraint contains NaN or inf")
     return c * (_positive("size_actor", size_actor) / _positive("size_character", size_character))

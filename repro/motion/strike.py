@@ -293,6 +293,7 @@ class Strike:
 
     def summary(self, timings: bool = True) -> dict:
         """Flat numbers for tables; ``timings=False`` keeps only the deterministic ones."""
+        timings = as_bool(timings, "timings", error=MotionError)
         r = self.retrieval
         out = {
             "kind": self.kind, "clip": r.name, "start_frame": r.start_frame, "contact_frame": self.tc,

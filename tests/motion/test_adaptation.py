@@ -604,3 +604,14 @@ def test_the_solvers_refuse_bad_tolerances_rotations_and_repeats():
         adaptation_cost(m, m, "sk")
     with pytest.raises(MotionError, match="repeats"):
         time_adaptation(m, "right_wrist", repeats=10**9)
+
+
+def test_effector_of_any_type_and_huge_offset_curves_are_motion_errors():
+    m = _fixture_motion()
+    for eff in (["right_wrist"], np.zeros(2)):  # unhashable: used to fail in the chain cache
+        with pytest.raises(MotionError, match="effector"):
+            reach_limb(m, 0, eff, [0.0, 1.0, 0.5])
+    with pytest.raises(MotionError, match="hit_point"):
+        reach_limb(m, 0, "right_wrist", [0.0, 1.0, 0.5], hit_point=["joint"])
+    with pytest.raises(MotionError, match="budget"):  # was a MemoryError
+        offset_curve(0, 3, [0.0, 0.0, 0.1], 10**12)

@@ -31,7 +31,7 @@ from repro.errors import MotionError, RetrievalError
 from repro.motion import BANDAI_UNIT_M, CMU_UNIT_M, read_bvh
 from repro.motion.clustering import pose_points
 from repro.motion.morphology import retarget
-from repro.motion.retarget_tree import TreePlan, retarget_across
+from repro.motion.retarget_tree import TreePlan, body_frame, rest_axes, retarget_across
 from repro.motion.retrieval import MotionRetriever, rest_motion_y_up, retarget_to_tree
 from repro.motion.skeleton import Skeleton
 from repro.motion.synthetic import synthetic_clip
@@ -237,3 +237,11 @@ def test_a_blend_longer_than_the_clip_is_the_whole_clip(clip):
     a = retarget_across(clip, rig, fix_feet=True, blend_time=1.7e308)  # / frame_time = inf: used to overflow in round()
     b = retarget_across(clip, rig, fix_feet=True, blend_time=1e6)
     np.testing.assert_array_equal(a.rotations, b.rotations)
+
+
+@pytest.mark.parametrize("call", [lambda sk: body_frame("sk", "y"), lambda sk: body_frame(sk, "x"),
+                                  lambda sk: body_frame(sk, ["y"]), lambda sk: rest_axes(None)])
+def test_body_frame_and_rest_axes_check_their_arguments(call):
+    sk = Skeleton.from_motion(build("mixamo")[0].motion(unit_m=1.0))
+    with pytest.raises(MotionError):
+        call(sk)

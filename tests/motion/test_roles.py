@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from repro.errors import MotionError
-from repro.motion.roles import REQUIRED_ROLES, ROLES, find_roles
+from repro.motion.roles import REQUIRED_ROLES, ROLES, check_roles, effector_role, find_roles, is_helper_name, rest_up_axis
 from tests.motion.role_tables import (
     BANDAI_EXPECTED,
     BANDAI_NAMES,
@@ -99,3 +99,23 @@ def test_required_roles_are_roles():
 def test_find_roles_refuses_bad_arguments(kw, match):
     with pytest.raises(MotionError, match=match):
         find_roles(**kw)
+
+
+@pytest.mark.parametrize(
+    "call, match",
+    [
+        (lambda: is_helper_name(["Hips"]), "string"),  # an unhashable name used to fail in the cache
+        (lambda: is_helper_name(None), "string"),
+        (lambda: effector_role(None, "right_fist", "RightHand"), "roles"),
+        (lambda: effector_role({}, 3, "RightHand"), "hit_role"),
+        (lambda: effector_role({}, "right_fist", None), "hit_joint"),
+        (lambda: check_roles(0, "a punch"), "roles"),
+        (lambda: check_roles({}, ["a punch"]), "purpose"),
+        (lambda: rest_up_axis(["a", "b"], [-1, 0], "x"), "offsets"),
+        (lambda: rest_up_axis(["a", "b"], None, [[0, 0, 0], [0, 1, 0]]), "parents"),
+        (lambda: rest_up_axis("ab", [-1, 0], [[0, 0, 0], [0, 1, 0]]), "names"),
+    ],
+)
+def test_role_helpers_refuse_bad_arguments(call, match):
+    with pytest.raises(MotionError, match=match):
+        call()

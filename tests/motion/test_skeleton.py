@@ -244,3 +244,17 @@ def test_a_large_but_computable_skeleton_is_accepted():
 def test_skeleton_methods_refuse_bad_arguments(call, match):
     with pytest.raises(MotionError, match=match):
         call(mixamo_skeleton())
+
+
+def test_from_motion_with_offsets_and_rescale_constraint_check_their_arguments():
+    sk = mixamo_skeleton()
+    with pytest.raises(MotionError, match="Motion"):
+        Skeleton.from_motion(sk)
+    with pytest.raises(MotionError, match="offsets"):
+        sk.with_offsets("x")
+    with pytest.raises(MotionError, match="end_site_offsets"):
+        sk.with_offsets(sk.offsets, [1.0, 2.0])
+    with pytest.raises(MotionError, match="constraint"):
+        rescale_constraint("abc", 1.0, 1.0)
+    with pytest.raises(MotionError, match="constraint"):
+        rescale_constraint([1.0, 2.0], 1.0, 1.0)

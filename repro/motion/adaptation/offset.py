@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from repro.checks import as_choice, as_int
+from repro.checks import as_choice, as_int, check_alloc
 from repro.errors import MotionError
 from repro.motion.adaptation.rig import vec3
 
@@ -61,6 +61,8 @@ def offset_curve(
         ``kind``, negative ``release``.
     """
     F = as_int(frames, "frames", 1, 2**62, error=MotionError)
+    # the weights, their eased copy and the (F, 3) result
+    check_alloc(6 * 8 * F, f"offset_curve(frames={F})", error=MotionError)
     t0 = as_int(t0, "t0", 0, F - 1, error=MotionError)
     tc = as_int(tc, "tc", 0, F - 1, error=MotionError)
     if t0 > tc:

@@ -161,6 +161,10 @@ class Rig:
         return np.array(out[::-1], dtype=np.intp)
 
     def chain(self, effector: str, hit_point: str = "joint") -> Chain:
+        if not isinstance(effector, str):  # before the cache lookup: a list is no key
+            raise MotionError(f"effector must be a role name such as 'right_fist', got {effector!r}")
+        if not isinstance(hit_point, str):
+            raise MotionError(f"hit_point must be 'joint' or 'end_site', got {hit_point!r}")
         key = (effector, hit_point)
         ch = self.chains.get(key)
         if ch is None:
