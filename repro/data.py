@@ -190,6 +190,8 @@ def locate(path: str, root: Path | None = None) -> Path | None:
             root = Path(root)
         except TypeError:
             raise DataError(f"root must be a folder path, got {describe(root)}") from None
+        if "\x00" in str(root):
+            raise DataError(f"root {str(root)[:60]!r}: a path cannot hold a NUL character")
     for name in (path, path + ".gz"):
         candidate = inside(root, name, error=DataError, what="data file")
         try:
@@ -259,6 +261,8 @@ def content_sha256(p: Path) -> str:
         p = Path(p)
     except TypeError:
         raise DataError(f"expected a file path, got {describe(p)}") from None
+    if "\x00" in str(p):
+        raise DataError(f"{str(p)[:60]!r}: a path cannot hold a NUL character")
     try:
         st = p.stat()
     except OSError as exc:
@@ -402,6 +406,7 @@ def missing_reason(dataset: str) -> str | None:
 
     Only presence is checked here (cheap); :func:`fetch` verifies hashes on use.
     """
+    as_str(dataset, "dataset", error=DataError)
     if dataset in _switched_off:
         return (f"dataset {dataset!r} is switched off in this process (DATA = 'embedded', "
                 f"repro.data.choose); choose('auto') uses it again")

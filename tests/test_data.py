@@ -228,6 +228,10 @@ def test_content_sha256_opens_regular_files_only(tmp_path):
         data.content_sha256(tmp_path / "absent")
     with pytest.raises(DataError, match="expected a file path"):
         data.content_sha256(None)
+    with pytest.raises(DataError, match="NUL"):
+        data.content_sha256("a\x00b")
+    with pytest.raises(DataError, match="NUL"):
+        data.locate("faces/ict/LICENSE", root="a\x00b")
     body = b"some content\n" * 100
     (tmp_path / "plain").write_bytes(body)
     with gzip.open(tmp_path / "packed.gz", "wb") as fh:
@@ -268,7 +272,7 @@ def test_open_file_names_the_file_and_reads_only_regular_files(private_dir):
 
 @pytest.mark.parametrize("call", [
     lambda: data.files(["ict"]), lambda: data.files(None), lambda: data.status({}),
-    lambda: data.missing_reason(3), lambda: data.require(b"ict"), lambda: data.fetch(["x"]),
+    lambda: data.missing_reason(3), lambda: data.missing_reason(["ict"]), lambda: data.require(b"ict"), lambda: data.fetch(["x"]),
     lambda: data.fetch(None), lambda: data.locate(3), lambda: data.locate("x", root=3.5),
     lambda: data.fetch("faces/ict/LICENSE", download="yes"), lambda: data.require("ict", progressbar=None),
     lambda: data.choose("auto", needs="ict"), lambda: data.choose("auto", needs=3),
