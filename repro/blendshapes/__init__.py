@@ -64,6 +64,9 @@ def load_model(name="procedural", **kw) -> BlendshapeModel:
     if isinstance(name, os.PathLike) or (isinstance(name, str) and name.lower().endswith((".gltf", ".glb"))):
         from repro.blendshapes.gltf import read_gltf
 
+        unknown = sorted(set(kw) - {"mesh", "primitive", "max_bytes"})
+        if unknown:
+            raise ModelError(f"load_model of a glTF file takes only mesh=, primitive= and max_bytes=, got {unknown}")
         return read_gltf(name, **kw)
     if not isinstance(name, str):
         raise ModelError(f"model name must be a string or a .gltf/.glb path, got {name!r}; known: {sorted(MODELS)}")
@@ -77,5 +80,8 @@ def load_model(name="procedural", **kw) -> BlendshapeModel:
     if name == "ict":
         from repro.blendshapes.ict import load_ict
 
+        unknown = sorted(set(kw) - {"face_only", "shapes", "cache"})
+        if unknown:
+            raise ModelError(f"load_model('ict') takes only face_only=, shapes= and cache=, got {unknown}")
         return load_ict(**kw)
     raise ModelError(f"unknown model {name!r}; known: {sorted(MODELS)}")

@@ -51,7 +51,11 @@ Every problem with a file (not glTF, an HTML page saved as ``.glb``, a
 truncated GLB, a missing buffer, an unsupported required extension, a
 primitive that is not triangles, targets of the wrong length, out-of-bounds
 accessors, NaN positions ...) is a :class:`~repro.errors.ModelError` naming the
-file.  Decoded sizes are bounded by the file's size.
+file.  Nothing escapes the file's bounds (issue 23): a buffer is read only from a
+regular file inside the file's folder, at most its ``byteLength``; the JSON's counts
+are bounded before the document is built; and what the whole file may make the
+loader allocate (every primitive, target and accessor, as float64) is summed and
+checked against a cap before anything is allocated (:func:`_plan`).
 """
 
 from __future__ import annotations
@@ -66,14 +70,22 @@ import numpy as np
 
 from repro.blendshapes.gltf_write import CHUNK_JSON, GLB_MAGIC
 from repro.blendshapes.model import BlendshapeModel
+from repro.checks import MEMORY_BUDGET, as_int, describe
 from repro.errors import ModelError
-from repro.io import MAX_READ_BYTES, read_bytes
+from repro.io import MAX_READ_BYTES, inside, open_regular, read_bytes
 
 __all__ = [
     "read_gltf",
     "arkit_rig",
     "ARKIT_SLIDERS",
     "SUPPORTED_EXTENSIONS",
+    "MAX_NODES",
+    "MAX_MESHES",
+    "MAX_PRIMITIVES",
+    "MAX_TARGETS",
+    "MAX_OBJECTS",
+    "MODEL_BYTES_RATIO",
+    "MODEL_BYTES_FLOOR",
 ]
 
 #: Extensions whose use this reader honours when a file lists them as required.
@@ -115,9 +127,25 @@ _NCOMP = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "M
 _MODES = {0: "POINTS", 1: "LINES", 2: "LINE_LOOP", 3: "LINE_STRIP", 4: "TRIANGLES", 5: "TRIANGLE_STRIP", 6: "TRIANGLE_FAN"}
 #: meshopt-decoded buffer views may be at most this many times the file's size.
 _MESHOPT_MAX_RATIO = 256
-#: the dense delta matrix (float64) may be at most this many times the file's size (or 64 MiB):
-#: float32 targets take 3x less, quantised 6x, sparse ones any less.
-_DENSE_MAX_RATIO = 64
+#: What one file may make the loader allocate (summed over every primitive, morph target and
+#: accessor it materialises, as float64, before anything is allocated): at most this many times
+#: the bytes of the file and the buffers it uses (a float32 target takes 2x as float64, a quantised
+#: one 4-8x, a sparse one more) ...
+MODEL_BYTES_RATIO = 64
+#: ... or this many bytes (64 MiB), whichever is more; never more than :data:`repro.checks.MEMORY_BUDGET`.
+MODEL_BYTES_FLOOR = 64 << 20
+#: Bounds on the glTF JSON's counts, checked on the parsed JSON before the document is handed to
+#: pygltflib (whose dataclass mapping costs ~0.5 ms per object: 100,000 nodes took 29 s).  Real
+#: avatars (Ready Player Me, VRM) have hundreds of nodes, tens of meshes, 50-100 targets per
+#: primitive and a few thousand objects in all.
+MAX_NODES = 4096
+MAX_MESHES = 1024
+#: primitives over all meshes
+MAX_PRIMITIVES = 4096
+#: morph targets of one primitive
+MAX_TARGETS = 1024
+#: items of every top-level array (nodes, accessors, bufferViews, materials ...) plus primitives
+MAX_OBJECTS = 12_000
 
 
 # ====================================================================== reading
@@ -128,6 +156,7 @@ class _Reader:
         self.path, self.where = path, str(path)
         self.budget = max(len(raw), 1 << 16)  # bound on decoded sizes, from the file's size
         self.max_bytes = max_bytes
+        self.read_total = len(raw)  # bytes of the file and its buffers read: at most max_bytes
         self.glb_bin: bytes | None = None
         glb = raw[:4] == GLB_MAGIC or path.suffix.lower() == ".glb"
         text = self._split_glb(raw) if glb else self._text(raw)
@@ -191,6 +220,7 @@ class _Reader:
         version = str(obj["asset"].get("version", ""))
         if not version.startswith("2"):
             raise self.err(f"glTF version {version!r}; only 2.x is supported")
+        self._check_counts(obj)
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
@@ -209,6 +239,28 @@ class _Reader:
                 "(re-export without them, e.g. without Draco compression)"
             )
         return doc
+
+    def _check_counts(self, obj: dict) -> None:
+        """Refuse a document with more nodes, meshes, primitives, targets or objects than the limits (before pygltflib)."""
+        def n(v):
+            return len(v) if isinstance(v, list) else 0
+
+        meshes = obj.get("meshes")
+        prims = [p for m in (meshes if isinstance(meshes, list) else []) if isinstance(m, dict)
+                 for p in (m.get("primitives") if isinstance(m.get("primitives"), list) else [])]
+        for what, count, limit in (("nodes", n(obj.get("nodes")), MAX_NODES), ("meshes", n(meshes), MAX_MESHES),
+                                   ("mesh primitives", len(prims), MAX_PRIMITIVES)):
+            if count > limit:
+                raise self.err(f"has {count} {what}, more than the {limit} this reader accepts (gltf.MAX_{what.split()[-1].upper()}); refusing")
+        for j, p in enumerate(prims):
+            t = n(p.get("targets")) if isinstance(p, dict) else 0
+            if t > MAX_TARGETS:
+                raise self.err(f"a mesh primitive (number {j} over all meshes) has {t} targets (morph targets), more than "
+                               f"the {MAX_TARGETS} this reader accepts (gltf.MAX_TARGETS); refusing")
+        total = sum(n(v) for v in obj.values()) + len(prims)
+        if total > MAX_OBJECTS:
+            raise self.err(f"has {total} glTF objects (items of its top-level arrays and mesh primitives), more than "
+                           f"the {MAX_OBJECTS} this reader accepts (gltf.MAX_OBJECTS); refusing")
 
     # -------------------------------------------------------------- helpers
     def item(self, kind: str, index):
@@ -251,19 +303,42 @@ class _Reader:
             except (binascii.Error, ValueError) as exc:
                 raise self.err(f"buffers[{i}]: corrupt base64 data URI ({exc})") from None
         else:
-            from urllib.parse import unquote, urlsplit
-
-            if urlsplit(uri).scheme or uri.startswith(("/", "\\")):
-                raise self.err(f"buffers[{i}] uri {uri[:60]!r} is not a file name relative to the model; only those and data: URIs are read")
-            target = self.path.parent / unquote(uri)
-            try:
-                data, _ = read_bytes(target, error=ModelError, max_bytes=self.max_bytes)
-            except ModelError as exc:
-                raise self.err(f"missing buffer {i} ({uri!r}): {exc}") from None
-            self.budget += len(data)
+            data = self._external(i, uri, length)
         if len(data) < length:
             raise self.err(f"buffers[{i}] is {len(data)} bytes, shorter than its byteLength {length}")
         self._buffers[i] = data
+        return data
+
+    def _external(self, i: int, uri, length: int) -> bytes:
+        """Buffer ``i``'s file: inside the model's folder, a regular file, and only its ``byteLength`` bytes read."""
+        from urllib.parse import unquote, urlsplit
+
+        what = f"buffers[{i}] uri"
+        if not isinstance(uri, str):
+            raise self.err(f"{what} must be a string, got {describe(uri)}")
+        if urlsplit(uri).scheme or uri.startswith(("/", "\\")):
+            raise self.err(f"{what} {uri[:60]!r} is not a file name relative to the model; only those and data: URIs are read")
+        if self.read_total + length > self.max_bytes:
+            raise self.err(f"buffers[{i}].byteLength {length} would bring what is read to more than max_bytes={self.max_bytes}; refusing")
+        try:
+            # after percent-decoding (%2e%2e is ..), with .. and symlinks resolved: inside the folder
+            target = inside(self.path.parent, unquote(uri), error=ModelError, what=what)
+        except ModelError as exc:
+            raise self.err(f"buffer {i} ({uri[:60]!r}) is refused: {exc}") from None
+        try:
+            fh, size = open_regular(target, error=ModelError, max_bytes=None)  # no FIFO, device, folder
+        except ModelError as exc:
+            kind = "missing buffer" if str(exc).endswith("no such file") else "unreadable buffer"
+            raise self.err(f"{kind} {i} ({uri[:60]!r}): {exc}") from None
+        with fh:
+            if size < length:
+                raise self.err(f"buffers[{i}] file {uri[:60]!r} is {size} bytes, shorter than its byteLength {length}")
+            try:
+                data = fh.read(length)  # a larger file: only the declared bytes
+            except OSError as exc:
+                raise self.err(f"buffer {i} ({uri[:60]!r}) cannot be read: {exc}") from None
+        self.read_total += len(data)
+        self.budget += len(data)
         return data
 
     def view(self, i: int) -> memoryview:
@@ -314,8 +389,8 @@ class _Reader:
         return memoryview(raw + bytes(length - len(raw)))
 
     # ------------------------------------------------------------ accessors
-    def accessor(self, i: int, what: str, *, want: tuple[str, ...] | None = None) -> np.ndarray:
-        """Accessor ``i`` as float64 (count, ncomp) (dequantised) -- or int64 for index data."""
+    def meta(self, i: int, what: str, *, want: tuple[str, ...] | None = None):
+        """Accessor ``i``'s checked description, nothing decoded: ``(acc, label, dtype, divisor, ncomp, count)``."""
         acc = self.item("accessors", i)
         label = f"accessors[{i}] ({what})"
         if not isinstance(acc.type, str) or acc.type not in _NCOMP or (want and acc.type not in want):
@@ -324,8 +399,26 @@ class _Reader:
             raise self.err(f"{label} has componentType {acc.componentType!r}, not one of {sorted(_COMPONENTS)}")
         dtype, divisor = _COMPONENTS[acc.componentType]
         dtype = np.dtype(dtype).newbyteorder("<")
-        ncomp = _NCOMP[acc.type]
         count = self.integer(acc.count, f"{label}.count", lo=1)
+        return acc, label, dtype, divisor, _NCOMP[acc.type], count
+
+    def buffers_of(self, i: int) -> None:
+        """Read the buffers accessor ``i``'s views lie in (so that the size of what the file holds is known)."""
+        acc = self.doc.accessors[i]
+        views = [acc.bufferView]
+        if acc.sparse is not None:
+            views += [getattr(acc.sparse.indices, "bufferView", None), getattr(acc.sparse.values, "bufferView", None)]
+        for v in views:
+            if v is None:
+                continue
+            bv = self.item("bufferViews", self.integer(v, f"accessors[{i}] bufferView"))
+            ext = (bv.extensions or {}).get("EXT_meshopt_compression") if isinstance(bv.extensions, dict) else None
+            b = ext.get("buffer") if isinstance(ext, dict) else bv.buffer
+            self.buffer(self.integer(b, f"bufferViews[{v}].buffer"))
+
+    def accessor(self, i: int, what: str, *, want: tuple[str, ...] | None = None) -> np.ndarray:
+        """Accessor ``i`` as float64 (count, ncomp) (dequantised) -- or int64 for index data."""
+        acc, label, dtype, divisor, ncomp, count = self.meta(i, what, want=want)
         esize = ncomp * dtype.itemsize
         if count * esize > 16 * self.budget:
             raise self.err(f"{label}: {count} elements is more than the file's size can hold; refusing")
@@ -448,7 +541,78 @@ def _target_names(r: _Reader, mesh, prim, m: int) -> list[str]:
     return [f"target_{k}" for k in range(m)]
 
 
-def _read_primitive(r: _Reader, mi: int, pj: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _plan(r: _Reader, mi: int, prims: list[int]) -> tuple[int, int]:
+    """Vertices and targets of the chosen primitives, after checking what reading them will allocate.
+
+    Sums, before anything is allocated, every array the loader materialises for this file:
+    the neutral and the dense float64 deltas of every primitive (and the model's own copies),
+    the faces, and the largest accessor being decoded; refuses the file above
+    ``min(MEMORY_BUDGET, max(MODEL_BYTES_RATIO x bytes of the file and its buffers, MODEL_BYTES_FLOOR))``.
+    Primitives sharing one accessor (a 7 KB file whose 20 primitives all point at one
+    zero-filled 87k-vertex accessor, x 32 targets) count once per use: each use is a copy.
+    """
+    mesh = r.doc.meshes[mi]
+    uses: dict[int, int] = {}
+    n_total = faces_total = 0
+    m = 0
+    for pj in prims:
+        prim = mesh.primitives[pj]
+        label = f"meshes[{mi}] ({mesh.name!r}) primitive {pj}"
+        if not isinstance(prim.targets, list):
+            raise r.err(f"{label} targets must be a list, got {prim.targets!r:.60}")
+        m = len(prim.targets)
+        pos_i = getattr(prim.attributes, "POSITION", None)
+        if pos_i is None:
+            raise r.err(f"{label} has no POSITION attribute")
+        n = r.meta(pos_i, f"{label} POSITION", want=("VEC3",))[5]
+        used = [pos_i]
+        for k, target in enumerate(prim.targets):
+            ti = target.get("POSITION") if isinstance(target, dict) else getattr(target, "POSITION", None)
+            if ti is not None:
+                c = r.meta(ti, f"{label} target {k} POSITION", want=("VEC3",))[5]
+                if c != n:
+                    raise r.err(f"{label} target {k} has {c} vertices, the primitive has {n}")
+                used.append(ti)
+        if prim.indices is None:
+            faces_total += n
+        else:
+            faces_total += r.meta(prim.indices, f"{label} indices", want=("SCALAR",))[5]
+            used.append(prim.indices)
+        for a in used:
+            uses[a] = uses.get(a, 0) + 1
+        n_total += n
+    for a in sorted(uses):
+        r.buffers_of(a)
+    transient = 0
+    for a in uses:
+        acc, _, dtype, _, ncomp, count = r.meta(a, "size")
+        copies = 2 if acc.sparse is not None else 1
+        transient = max(transient, count * ncomp * (copies * dtype.itemsize + 8))
+    dense = n_total * 3 * m * 8
+    # deltas and neutral (ours, and the model's copies), their finiteness masks, faces twice, one accessor
+    need = 2 * dense + dense // 8 + 2 * n_total * 3 * 8 + 2 * faces_total * 8 + transient
+    cap = min(MEMORY_BUDGET, max(MODEL_BYTES_RATIO * r.read_total, MODEL_BYTES_FLOOR))
+    if need > cap:
+        shared, times = max(uses.items(), key=lambda kv: (kv[1], -kv[0]))
+        why = f"; accessor {shared} is used {times} times" if times > 1 else ""
+        raise r.err(
+            f"asks for {_size(need)} of vertex data across {len(prims)} primitive(s) of meshes[{mi}] "
+            f"({n_total} vertices x {m} targets in all, as float64{why}); the cap for this file is {_size(cap)} "
+            f"({MODEL_BYTES_RATIO}x the {_size(r.read_total)} of the file and its buffers, at least {_size(MODEL_BYTES_FLOOR)}, "
+            f"at most the memory budget {_size(MEMORY_BUDGET)}); refusing"
+        )
+    return n_total, m
+
+
+def _size(n: int) -> str:
+    for unit, shift in (("GiB", 30), ("MiB", 20), ("KiB", 10)):
+        if n >= 1 << shift:
+            return f"{n / (1 << shift):.3g} {unit}"
+    return f"{n} bytes"
+
+
+def _read_primitive(r: _Reader, mi: int, pj: int, f0_out: np.ndarray, d_out: np.ndarray) -> tuple[int, np.ndarray]:
+    """Primitive ``pj``'s neutral and deltas written into ``f0_out`` / ``d_out`` (n, 3, m); its vertex count and faces."""
     mesh = r.doc.meshes[mi]
     prim = mesh.primitives[pj]
     label = f"meshes[{mi}] ({mesh.name!r}) primitive {pj}"
@@ -456,19 +620,12 @@ def _read_primitive(r: _Reader, mi: int, pj: int) -> tuple[np.ndarray, np.ndarra
     if mode != 4:
         kind = _MODES.get(mode, "unknown") if isinstance(mode, int) else "unknown"
         raise r.err(f"{label} has mode {mode!r} ({kind}); only triangles (mode 4) are supported")
-    if not isinstance(prim.targets, list):
-        raise r.err(f"{label} targets must be a list, got {prim.targets!r:.60}")
-    pos_i = getattr(prim.attributes, "POSITION", None)
-    if pos_i is None:
-        raise r.err(f"{label} has no POSITION attribute")
-    f0 = r.accessor(pos_i, f"{label} POSITION", want=("VEC3",))
+    f0 = r.accessor(prim.attributes.POSITION, f"{label} POSITION", want=("VEC3",))
     n = len(f0)
     if not np.isfinite(f0).all():
         raise r.err(f"{label} POSITION has {np.count_nonzero(~np.isfinite(f0))} NaN/inf values")
-    dense = n * 3 * len(prim.targets) * 8
-    if dense > max(_DENSE_MAX_RATIO * r.budget, 1 << 26):
-        raise r.err(f"{label}: {len(prim.targets)} targets of {n} vertices would take {dense} bytes; refusing (bounded by the file size)")
-    deltas = np.zeros((n, 3, len(prim.targets)))
+    f0_out[:n] = f0
+    del f0
     for k, target in enumerate(prim.targets):
         ti = target.get("POSITION") if isinstance(target, dict) else getattr(target, "POSITION", None)
         if ti is None:
@@ -478,7 +635,7 @@ def _read_primitive(r: _Reader, mi: int, pj: int) -> tuple[np.ndarray, np.ndarra
             raise r.err(f"{label} target {k} has {len(d)} vertices, the primitive has {n}")
         if not np.isfinite(d).all():
             raise r.err(f"{label} target {k} has NaN/inf deltas")
-        deltas[:, :, k] = d
+        d_out[:n, :, k] = d
     if prim.indices is None:
         if n % 3:
             raise r.err(f"{label} has no indices and {n} vertices, not a multiple of 3")
@@ -494,7 +651,7 @@ def _read_primitive(r: _Reader, mi: int, pj: int) -> tuple[np.ndarray, np.ndarra
         if idx.size and idx.max() >= n:
             raise r.err(f"{label} indices reach vertex {idx.max()}, the primitive has {n}")
         faces = idx.reshape(-1, 3)
-    return f0, deltas, faces
+    return n, faces
 
 
 def _choose(r: _Reader, mesh, primitive) -> tuple[int, list[int]]:
@@ -551,6 +708,11 @@ def read_gltf(
         The mesh to read (name or index); default the mesh with the most morph targets.
     primitive : int, optional
         One primitive of that mesh; default all its primitives with that many targets, merged.
+    max_bytes : int, default :data:`repro.io.MAX_READ_BYTES`
+        Cap on the bytes read: the file and the buffers it uses, together.  What the file may
+        make the loader allocate is bounded separately (:data:`MODEL_BYTES_RATIO`), and so are
+        its counts (:data:`MAX_NODES`, :data:`MAX_MESHES`, :data:`MAX_PRIMITIVES`,
+        :data:`MAX_TARGETS`, :data:`MAX_OBJECTS`).
 
     Returns
     -------
@@ -563,8 +725,22 @@ def read_gltf(
     Raises
     ------
     ModelError
-        Naming the file and the problem.
+        Naming the file and the problem; also for an argument of the wrong type (a stream
+        instead of a path, ``max_bytes="10"``).  A buffer ``uri`` that leaves the file's
+        folder (``..``, ``%2e%2e``, a symlink pointing out), that is not a regular file (a
+        FIFO, ``/dev/zero``), or is shorter than its ``byteLength`` is refused before it is
+        read; only ``byteLength`` bytes of it are read.
     """
+    import os
+
+    if hasattr(path, "read") or not isinstance(path, (str, os.PathLike)):
+        # a stream has no folder for the file's buffers, and no size known before reading
+        raise ModelError(f"read_gltf reads a path to a .gltf or .glb file (its buffers are found beside it), got {describe(path)}")
+    if mesh is not None and not isinstance(mesh, str):
+        mesh = as_int(mesh, "mesh= (a mesh's name or index)", lo=0, error=ModelError)
+    if primitive is not None:
+        primitive = as_int(primitive, "primitive=", lo=0, error=ModelError)
+    max_bytes = as_int(max_bytes, "max_bytes", lo=1, error=ModelError)
     p = Path(path)
     raw, _ = read_bytes(p, error=ModelError, max_bytes=max_bytes)
     if not raw:
@@ -584,17 +760,25 @@ def _read(p: Path, raw: bytes, mesh, primitive, max_bytes: int) -> BlendshapeMod
     r = _Reader(p, raw, max_bytes)
     mi, prims = _choose(r, mesh, primitive)
     gmesh = r.doc.meshes[mi]
-    parts = [_read_primitive(r, mi, j) for j in prims]
-    m = parts[0][1].shape[2]
+    n_total, m = _plan(r, mi, prims)  # what this will allocate, checked first
+    # one neutral and one delta array for all primitives, filled in place (no per-primitive copies)
+    f0 = np.empty((n_total, 3))
+    D3 = np.zeros((n_total, 3, m))
+    faces_parts, o = [], 0
+    for j in prims:
+        n, fc = _read_primitive(r, mi, j, f0[o:], D3[o:])
+        faces_parts.append(fc + o)
+        o += n
     names = _target_names(r, gmesh, gmesh.primitives[prims[0]], m)
-    f0 = np.concatenate([q[0] for q in parts])
-    D = np.concatenate([q[1] for q in parts]).reshape(-1, m)
-    offsets = np.cumsum([0] + [len(q[0]) for q in parts[:-1]])
-    faces = np.concatenate([q[2] + o for q, o in zip(parts, offsets)])
+    faces = np.concatenate(faces_parts)
     M, _ = _world_of_mesh(r, mi)
     L = M[:3, :3]
     f0 = f0 @ L.T + M[:3, 3]
-    D = np.einsum("ij,vjk->vik", L, D.reshape(-1, 3, m)).reshape(-1, m)
+    if not np.array_equal(L, np.eye(3)):
+        step = max(1, (1 << 22) // max(1, 3 * m))  # in place, a block of vertices at a time
+        for s in range(0, n_total, step):
+            D3[s : s + step] = np.einsum("ij,vjk->vik", L, D3[s : s + step])
+    D = D3.reshape(-1, m)
     label = f"{p.name}:{gmesh.name or f'mesh{mi}'}/{','.join(map(str, prims))}"
     extra = (gmesh.extras or {}).get("repro") if isinstance(gmesh.extras, dict) else None
     try:
