@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from repro.checks import as_int, as_real, as_real_array, check_alloc, describe
 from repro.errors import MotionError
 from repro.motion.clustering import pose_points, root_frames, to_root_frame
 from repro.motion.database import MotionDatabase
@@ -61,9 +62,8 @@ def augment(db: MotionDatabase, factor: int, seed: int = 0, *, scale_range=(0.85
         ``factor * n_clips`` clips; the variants store no motion of their own
         (:meth:`MotionDatabase.motion` rebuilds it from the source clip).
     """
-    factor = int(factor)
-    if factor < 1:
-        raise MotionError(f"factor must be >= 1, got {factor}")
+    db, factor, seed, scale_range, warp_range, noise, mirror_probability = _checked(
+        db, factor, seed, scale_range, warp_range, noise, mirror_probability)
     C = db.n_clips
     if factor == 1 and pose_dtype is None:
         return db
@@ -142,6 +142,45 @@ def augment(db: MotionDatabase, factor: int, seed: int = 0, *, scale_range=(0.85
                                      "note": "synthetic variants of the original clips, for latency-vs-size only"}}
     return MotionDatabase(fps=db.fps, pose_roles=db.pose_roles, window=db.window, step=db.step, actors=db.actors,
                           motions=db.stored_motions(), arrays=arrays, meta=meta)
+
+
+def _checked(db, factor, seed, scale_range, warp_range, noise, mirror_probability) -> tuple:
+    """:func:`augment`'s arguments checked (:class:`MotionError` naming the bad one), and what
+    ``factor`` will allocate against :data:`repro.checks.MEMORY_BUDGET` before anything is.
+
+    ``factor=10**9`` asked numpy for 67-99 GiB (issue 23, section 3), ``"x"`` or NaN raised
+    bare ``ValueError``s.
+    """
+    if not isinstance(db, MotionDatabase):
+        raise MotionError(f"db must be a MotionDatabase, got {describe(db)}")
+    factor = as_int(factor, "factor", 1, None, error=MotionError)
+    seed = as_int(seed, "seed", 0, None, error=MotionError)
+    ranges = []
+    for name, r in (("scale_range", scale_range), ("warp_range", warp_range)):
+        lo, hi = as_real_array(r, name, error=MotionError, shape=(2,)).tolist()
+        if not 0 < lo <= hi <= MAX_RANGE:
+            raise MotionError(f"{name} must be (lo, hi) with 0 < lo <= hi <= {MAX_RANGE:g}, got ({lo}, {hi})")
+        ranges.append((lo, hi))
+    noise = as_real(noise, "noise (metres)", lo=0.0, error=MotionError)
+    mirror_probability = as_real(mirror_probability, "mirror_probability", lo=0.0, hi=1.0, error=MotionError)
+    # the base's arrays factor times, the per-pose ones up to the longest warp (the buffers are sized
+    # for it); Python ints, so a huge factor cannot overflow the estimate
+    per_clip = sum(getattr(db, k).nbytes for k in ("names",) + _PER_CLIP)
+    per_pose = db.pose_points.nbytes + db.traj.nbytes + db.pose_heading.nbytes + db.pose_origin.nbytes
+    per_pose += db.pose_clip.nbytes + db.pose_frame.nbytes
+    headroom = max(1.0, ranges[1][1]) * (db.n_poses + 2 * db.n_clips) / max(1, db.n_poses)
+    check_alloc(factor * per_clip + int(factor * per_pose * headroom) + per_clip + per_pose,
+                f"factor={factor} (an augmented database of {factor} x {db.n_clips} clips)", error=MotionError)
+    return db, factor, seed, ranges[0], ranges[1], noise, mirror_probability
+
+
+#: Largest time warp or actor rescaling factor :func:`augment` accepts (a variant 100 times longer
+#: or taller than its clip is no longer a variant of it).
+MAX_RANGE: float = 100.0
+
+_PER_CLIP = ("hit_frame", "n_frames", "actor", "scale", "size_a", "source_clip", "source_time", "mirror", "warp",
+             "noise", "box_min", "box_max", "hit_position", "traj_start", "pose_start", "sources", "semantics",
+             "kinds", "levels", "hit_wheres", "hit_roles", "sides", "hit_joints")
 
 
 def _draw(rng, V, C, F0, mir, sc, wp, nf, scale_range, warp_range, mirror_probability, noise, out_p, out_t,
