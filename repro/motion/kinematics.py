@@ -23,6 +23,7 @@ __all__ = [
     "fk_arrays",
     "chain_positions",
     "depth_levels",
+    "world_of",
     "matvec",
     "matvec_t",
 ]
@@ -90,6 +91,22 @@ def fk_arrays(levels, rotations: np.ndarray, translations: np.ndarray, *,
     for idx, par in levels:
         gq[:, idx] = quat_multiply(gq[:, par], rotations[:, idx])
     return gq, chain_positions(levels, gq, gp)
+
+
+def world_of(levels, rotations, translations, source=None) -> tuple[np.ndarray, np.ndarray]:
+    """``source`` = world ``(rotations (F, J, 4), positions (F, J, 3))`` checked against ``levels``' J joints,
+    or :func:`fk_arrays` of ``rotations`` and ``translations`` when it is None (a plan's ``source=`` argument)."""
+    if source is None:
+        return fk_arrays(levels, rotations, translations)
+    J = 1 + sum(len(i) for i, _ in levels)
+    ok = isinstance(source, tuple) and len(source) == 2 and all(isinstance(a, np.ndarray) for a in source)
+    if ok:
+        gq, gp = source
+        ok = gq.ndim == 3 and gq.shape[1:] == (J, 4) and gp.shape == gq.shape[:2] + (3,)
+    if not ok:
+        raise MotionError(f"source must be a pair of world (F, {J}, 4) rotations and (F, {J}, 3) positions "
+                          f"arrays (Motion.global_transforms()), got {describe(source)}")
+    return source
 
 
 def chain_positions(levels, gq: np.ndarray, gp: np.ndarray) -> np.ndarray:

@@ -442,3 +442,14 @@ def test_a_blend_longer_than_any_clip_does_not_overflow():
     a = decode(encode(m), rest_skeleton(), fix_feet=True, blend_time=1.7e308)  # used to overflow in round()
     b = decode(encode(m), rest_skeleton(), fix_feet=True, blend_time=1e6)
     np.testing.assert_array_equal(a.rotations, b.rotations)
+
+
+def test_retarget_plan_checks_the_source_transforms():
+    from repro.motion.morphology import RetargetPlan
+
+    m = random_motion(0, F=4)
+    plan = RetargetPlan(m, rest_skeleton())
+    with pytest.raises(MotionError, match="source"):
+        plan.positions(m.rotations, m.local_translations(), source="x")
+    with pytest.raises(MotionError, match="source"):
+        plan.positions(m.rotations, m.local_translations(), source=(m.rotations, m.positions[:, :3]))

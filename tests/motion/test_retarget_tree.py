@@ -245,3 +245,14 @@ def test_body_frame_and_rest_axes_check_their_arguments(call):
     sk = Skeleton.from_motion(build("mixamo")[0].motion(unit_m=1.0))
     with pytest.raises(MotionError):
         call(sk)
+
+
+def test_plans_check_the_source_transforms(clip):
+    rig = build("mixamo")[0].motion(unit_m=1.0)
+    plan = TreePlan(clip, rig)
+    rot, tr = clip.rotations, clip.local_translations()
+    for bad in ("x", (rot,), (np.zeros((2, 3, 4)), np.zeros((2, 3, 3))), [clip.global_transforms()]):
+        with pytest.raises(MotionError, match="source"):  # "x" used to fail unpacking (ValueError)
+            plan.positions(rot, tr, source=bad)
+    with pytest.raises(MotionError, match="fk_arrays"):
+        plan.positions(rot.tolist(), tr)
