@@ -47,6 +47,8 @@ __all__ = [
     "file_kind",
     "file_lock",
     "lock_path",
+    "remove_stale_temporary",
+    "publish_hooks",
     "MAX_READ_BYTES",
 ]
 
@@ -401,6 +403,12 @@ def file_lock(path):
         os.close(fd)
 
 
+#: Called as ``hook(tmp, path)`` just before :func:`atomic_path` moves a finished temporary into place;
+#: a hook may refuse by raising (the temporary is then removed).  The worker processes of ``repro run
+#: --jobs`` install one that publishes nothing once their parent is gone (issue 23, section 1).
+publish_hooks: list = []
+
+
 @contextlib.contextmanager
 def atomic_path(path, *, mode: int = 0o644, replace: bool = True):
     """Yield a temporary path beside ``path``; on success it replaces ``path`` atomically.
@@ -409,14 +417,30 @@ def atomic_path(path, *, mode: int = 0o644, replace: bool = True):
     hard-linked into place, which fails atomically with :class:`FileExistsError` if the
     name exists (also when it appeared while the file was being written); on a
     filesystem without hard links it is moved into place after an existence check.
+    The temporary is ``.NAME.XXXXXXXX.tmp``, locked (``flock``) while it is written, so that
+    one left by a killed writer can be told from one being written (:func:`remove_stale_temporary`).
     """
+    import fcntl
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
+    while True:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+            # still ours? (a cleaner may have taken it for stale between its creation and the lock)
+            if os.path.samestat(os.fstat(fd), os.stat(tmp)):
+                break
+        except FileNotFoundError:
+            pass
+        except OSError:  # no flock here (some network filesystems): unlocked, as before
+            break
+        os.close(fd)
     try:
         yield Path(tmp)
         os.chmod(tmp, mode)
+        for hook in list(publish_hooks):
+            hook(Path(tmp), path)
         if replace:
             os.replace(tmp, path)
         else:
@@ -431,6 +455,36 @@ def atomic_path(path, *, mode: int = 0o644, replace: bool = True):
     finally:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+        os.close(fd)  # (after the unlink: the lock is held until the name is gone)
+
+
+def remove_stale_temporary(tmp) -> bool:
+    """Remove ``tmp``, a temporary of :func:`atomic_path`, when no process is writing it; whether it was.
+
+    Its writer holds an ``flock`` on it until it is moved into place: a free lock means the
+    writer died (killed in the middle).  A temporary being written, a symlink or anything
+    but a regular file is left alone.
+    """
+    import fcntl
+
+    try:
+        fd = os.open(tmp, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW)
+    except OSError:
+        return False
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return False
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:  # being written (or no flock here: then it cannot be told, so kept)
+            return False
+        # (mkstemp's names are unique, so the name still is this file; a writer that created it but has
+        # not locked it yet waits for this lock, then finds its name gone and makes another)
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        return True
+    finally:
+        os.close(fd)
 
 
 def write_text(path, text: str) -> Path:

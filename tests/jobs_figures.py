@@ -15,7 +15,7 @@ from repro.experiments.lewis import common
 from repro.experiments.registry import Result, experiment
 
 NAMES = ("zz_jobs_a", "zz_jobs_b", "zz_jobs_faces", "zz_jobs_fails", "zz_jobs_dies", "zz_jobs_speed", "zz_jobs_slow_a",
-         "zz_jobs_slow_b")
+         "zz_jobs_slow_b", "zz_jobs_orphan_a", "zz_jobs_orphan_b")
 
 
 def _table(i, quick):
@@ -81,6 +81,42 @@ def zz_jobs_slow_a(quick=False):
 @experiment("zz_jobs_slow_b", "jobs test: slow, to be interrupted", paper="lewis2005", data=())
 def zz_jobs_slow_b(quick=False):
     return _slow("b")
+
+
+def _outlive_parent(tmp=None):
+    """Say so, wait for this worker's parent to die, and outlive it (bounded: 120 s), as a figure still
+    computing when its run is killed; a half-written ``tmp`` is then finished."""
+    import time
+    from pathlib import Path
+
+    parent, deadline = os.getppid(), time.monotonic() + 120
+    if tmp is not None:
+        tmp.write_text("half")
+    Path(os.environ["ZZ_JOBS_ORPHAN_IN"], f"started-{os.getpid()}").write_text("")
+    while os.getppid() == parent and time.monotonic() < deadline:
+        time.sleep(0.02)
+    if tmp is not None:
+        tmp.write_text("i\n0\n")
+
+
+@experiment("zz_jobs_orphan_a", "jobs test: half-writes its CSV, then outlives its run", paper="lewis2005", data=())
+def zz_jobs_orphan_a(quick=False):
+    from pathlib import Path
+
+    from repro.io import atomic_path
+
+    if not os.environ.get("ZZ_JOBS_ORPHAN_IN"):
+        return Result(pd.DataFrame({"i": [0]}))
+    with atomic_path(Path(os.environ["ZZ_JOBS_ORPHAN_OUT"]) / "zz_jobs_orphan_a.csv") as tmp:
+        _outlive_parent(tmp)  # (then published here, by atomic_path, unless stopped)
+    return Result(pd.DataFrame({"i": [0]}))
+
+
+@experiment("zz_jobs_orphan_b", "jobs test: outlives its run, then returns its table", paper="lewis2005", data=())
+def zz_jobs_orphan_b(quick=False):
+    if os.environ.get("ZZ_JOBS_ORPHAN_IN"):
+        _outlive_parent()  # (then written by run, unless stopped)
+    return Result(pd.DataFrame({"i": [1]}))
 
 
 def unregister() -> None:

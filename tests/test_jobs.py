@@ -124,7 +124,11 @@ def test_run_many_refuses_a_bad_jobs_value(tmp_path):
 
 
 _INTERRUPTED = """
+import signal
 import sys
+# Ctrl-C raises KeyboardInterrupt here even when the suite runs from a shell that ignores SIGINT (a
+# background job of a non-interactive shell): an ignored SIGINT would be inherited (issue 23, section 1)
+signal.signal(signal.SIGINT, signal.default_int_handler)
 import tests.jobs_figures
 from repro.cli import main
 sys.exit(main(["run", "zz_jobs_slow_a", "zz_jobs_slow_b", "zz_jobs_a", "--jobs", "2", "--out", sys.argv[1]]))
@@ -136,6 +140,7 @@ def test_ctrl_c_stops_the_workers_and_leaves_no_partial_file(tmp_path, to):
     """Ctrl-C (SIGINT to the whole foreground process group, as a terminal sends it; or to the parent
     alone, as ``kill -INT`` does) while two workers are half-way through writing: every process ends,
     and no temporary or half-written file stays."""
+    import contextlib
     import signal
     import subprocess
     import sys
@@ -147,25 +152,30 @@ def test_ctrl_c_stops_the_workers_and_leaves_no_partial_file(tmp_path, to):
     env = dict(os.environ, ZZ_JOBS_SLOW_IN=str(out))
     p = subprocess.Popen([sys.executable, "-c", _INTERRUPTED, str(out)], cwd=Path(__file__).resolve().parents[1],
                          env=env, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 180
-    while len(list(tmp_path.glob("started-*"))) < 2:
-        assert time.monotonic() < deadline and p.poll() is None, p.communicate()
-        time.sleep(0.05)
-    assert len(list(out.glob(".zz_jobs_slow_*.tmp"))) == 2  # both half-written
-    if to == "group":
-        os.killpg(p.pid, signal.SIGINT)
-    else:
-        os.kill(p.pid, signal.SIGINT)
-    _, err = p.communicate(timeout=120)
-    assert p.returncode != 0 and "KeyboardInterrupt" in err
-    for marker in tmp_path.glob("started-*"):
-        pid = int(marker.name.split("-")[1])
-        for _ in range(100):  # (reaped by the parent before it exited; a moment for the kernel)
-            try:
-                os.kill(pid, 0)
-            except ProcessLookupError:
-                break
+    try:
+        deadline = time.monotonic() + 180
+        while len(list(tmp_path.glob("started-*"))) < 2:
+            assert time.monotonic() < deadline and p.poll() is None, p.communicate()
             time.sleep(0.05)
+        assert len(list(out.glob(".zz_jobs_slow_*.tmp"))) == 2  # both half-written
+        if to == "group":
+            os.killpg(p.pid, signal.SIGINT)
         else:
-            pytest.fail(f"worker {pid} still running")
-    assert sorted(x.name for x in out.iterdir()) == [], "partial files left"
+            os.kill(p.pid, signal.SIGINT)
+        _, err = p.communicate(timeout=120)
+        assert p.returncode != 0 and "KeyboardInterrupt" in err
+        for marker in tmp_path.glob("started-*"):
+            pid = int(marker.name.split("-")[1])
+            for _ in range(100):  # (reaped by the parent before it exited; a moment for the kernel)
+                try:
+                    os.kill(pid, 0)
+                except ProcessLookupError:
+                    break
+                time.sleep(0.05)
+            else:
+                pytest.fail(f"worker {pid} still running")
+        assert sorted(x.name for x in out.iterdir()) == [], "partial files left"
+    finally:  # whatever failed above (after it was checked): nothing of the run outlives the test
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(p.pid, signal.SIGKILL)
+        p.wait()

@@ -362,7 +362,9 @@ def run_many(names, outdir="figures", *, quick: bool = False, force: bool = Fals
     this process alone checks, hashes and merges them into the manifest.  The timing figures
     then run here, one by one, after the workers have stopped, so nothing else runs while
     they measure.  A worker that dies (killed, out of memory) fails its figure, and the
-    temporary files it left in ``outdir`` are removed.
+    temporary files it left in ``outdir`` are removed.  The workers die with this process,
+    whatever ends it (SIGKILL included), and publish nothing once it is gone; the temporary
+    files a killed run left of these figures are removed before they run (issue 23, section 1).
     """
     from repro.experiments import shared
     from repro.experiments.lewis import common
@@ -378,6 +380,13 @@ def _run_many(names, out, *, quick, force, on_result, progress, faces=(), jobs=1
 
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ReproError(f"jobs must be a whole number >= 1, got {jobs!r}")
+    for name in names:
+        get(name)  # (unknown names refused before anything is touched)
+    from repro.io import file_lock
+
+    with file_lock(_manifest_lock(out)):  # what a killed run left of these figures (and of the manifest)
+        for name in [*names, MANIFEST]:
+            _remove_temporaries(out, name)
     manifest = _load_manifest(out)
     code = _code_fingerprint()
     status = {}
@@ -425,20 +434,82 @@ def _run_many(names, out, *, quick, force, on_result, progress, faces=(), jobs=1
 _WORKER: list = []
 
 
-def _worker_start(faces, modules) -> None:
-    """A worker's set-up: the user's faces and the on-disk database cache, for its whole life."""
+def _worker_start(faces, modules, parent: int | None = None) -> None:
+    """A worker's set-up: the user's faces and the on-disk database cache, for its whole life;
+    it dies with ``parent`` (the process running the pool) and publishes nothing after it."""
     import contextlib
     import importlib
 
     from repro.experiments import shared
     from repro.experiments.lewis import common
 
+    if parent is not None:
+        _die_with_parent(parent)
     for module in modules:  # figures registered outside this package (e.g. by tests)
         importlib.import_module(module)
     stack = contextlib.ExitStack()
     stack.enter_context(common.use_faces(faces))
     stack.enter_context(shared.kept_on_disk())
     _WORKER.append(stack)  # kept open until the process ends
+
+
+def _die_with_parent(parent: int) -> None:
+    """End this process when ``parent`` ends, however it ends (SIGKILL included), and never publish
+    a file (:data:`repro.io.publish_hooks`) once it has: a killed ``repro run`` leaves nothing behind.
+
+    On Linux the kernel sends SIGKILL when the parent dies (``prctl(PR_SET_PDEATHSIG)``; it fires
+    when the parent's *thread* that started this process ends: :func:`_pool` starts its workers from
+    the thread that waits for them).  Elsewhere, or should prctl fail, a thread polls the parent.
+    """
+    import threading
+
+    from repro import io
+
+    _pdeathsig()
+    if os.getppid() != parent:  # the parent died before the signal was asked for
+        os._exit(1)
+    io.publish_hooks.append(lambda tmp, path: _publish_guard(parent, tmp))
+    threading.Thread(target=_watch_parent, args=(parent,), name="repro-watch-parent", daemon=True).start()
+
+
+def _pdeathsig() -> bool:
+    """Ask Linux for SIGKILL when this process's parent dies; whether that was granted."""
+    import ctypes
+    import signal
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return False
+    PR_SET_PDEATHSIG = 1
+    return prctl(PR_SET_PDEATHSIG, ctypes.c_ulong(signal.SIGKILL), ctypes.c_ulong(0), ctypes.c_ulong(0),
+                 ctypes.c_ulong(0)) == 0
+
+
+def _orphaned(parent: int) -> bool:
+    return os.getppid() != parent  # (an orphan is adopted by init or a subreaper)
+
+
+def _watch_parent(parent: int, every: float = 0.25) -> None:
+    """The portable fallback of the parent-death signal: end this process once ``parent`` is gone."""
+    import time
+
+    while not _orphaned(parent):
+        time.sleep(every)
+    os._exit(1)
+
+
+def _publish_guard(parent: int, tmp) -> None:
+    """Before a file is moved into place: if the run's process is gone, remove it and end here."""
+    if _orphaned(parent):
+        import contextlib
+
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        os._exit(1)
 
 
 def _worker_run(name: str, outdir: str, quick: bool, progress: bool):
@@ -472,16 +543,18 @@ def _pool(names, out: Path, *, quick, progress, faces, jobs, done) -> list:
     package = __name__.rpartition(".")[0] + "."
     modules = sorted({get(n).module for n in names if not get(n).module.startswith(package)})
     pool = ProcessPoolExecutor(max_workers=min(jobs, len(names)), mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_worker_start, initargs=(tuple(str(f) for f in faces), tuple(modules)))
+                               initializer=_worker_start,
+                               initargs=(tuple(str(f) for f in faces), tuple(modules), os.getpid()))
     pending, broken = {}, []
     try:
+        # (submit starts the workers, from this thread, which outlives them: their parent-death signal
+        # is tied to it; see _die_with_parent)
         pending = {pool.submit(_worker_run, n, str(out), quick, progress): n for n in names}
         for fut in as_completed(list(pending)):
             name = pending.pop(fut)
             try:
                 result = fut.result()
             except BrokenProcessPool:
-                _remove_temporaries(out, name)
                 broken.append(name)
                 continue
             done(name, result if isinstance(result, str) else [Path(p) for p in result])
@@ -492,18 +565,23 @@ def _pool(names, out: Path, *, quick, progress, faces, jobs, done) -> list:
         raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
-        for name in pending.values():  # unfinished: what their workers were writing when stopped
+        # unfinished or broken: what their workers were writing when stopped (only now that the workers
+        # have ended: a broken pool fails its futures before it terminates the other workers)
+        for name in [*broken, *pending.values()]:
             _remove_temporaries(out, name)
     return [n for n in names if n in broken]
 
 
 def _remove_temporaries(out: Path, name: str) -> None:
-    """The temporary files (:func:`repro.io.atomic_path`) a dead worker left for figure ``name``."""
-    import contextlib
+    """The temporary files (:func:`repro.io.atomic_path`) of figure ``name`` whose writer is gone (a dead
+    worker, a killed run); those another run is writing now are kept."""
+    import glob
 
-    for tmp in list(out.glob(f".{name}.*.tmp")) + list(out.glob(f".{name}-*.tmp")):
-        with contextlib.suppress(OSError):
-            tmp.unlink()
+    from repro.io import remove_stale_temporary
+
+    stem = glob.escape(name)
+    for tmp in sorted({*out.glob(f".{stem}.*.tmp"), *out.glob(f".{stem}-*.tmp")}):
+        remove_stale_temporary(tmp)
 
 
 def _record(out: Path, exp: Experiment, key: dict, paths) -> dict:
