@@ -611,13 +611,13 @@ class KungFuFighter:
         self.position = self.position + (o[1] - o[0])[[0, 2]]
         self.strikes.append(s)
 
-    def kick(self, target, **kw) -> Strike:
-        """``order("kick", target)``."""
-        return self.order("kick", target, **kw)
+    def kick(self, target, *, commit: bool | str = True) -> Strike:
+        """``order("kick", target, commit=commit)``."""
+        return self.order("kick", target, commit=commit)
 
-    def punch(self, target, **kw) -> Strike:
-        """``order("punch", target)``."""
-        return self.order("punch", target, **kw)
+    def punch(self, target, *, commit: bool | str = True) -> Strike:
+        """``order("punch", target, commit=commit)``."""
+        return self.order("punch", target, commit=commit)
 
     def __repr__(self) -> str:
         return (f"KungFuFighter({self.character.size:.2f} m, database of {self.db.n_clips} clips, "
