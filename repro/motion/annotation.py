@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from repro.checks import as_choice, as_real, as_real_array, as_str, describe
 from repro.errors import MotionError
 from repro.motion.clustering import heading_from_hips
 from repro.motion.motion import Motion
@@ -173,9 +174,16 @@ def detect_hits(motion: Motion, skeleton: Skeleton | None = None, *, semantics: 
     list of Hit
         Sorted by frame.
     """
-    kin = _Kinematics(motion, skeleton)
+    _check_motion(motion, skeleton)
     sems = SEMANTICS if semantics is None else (check_semantics(semantics),)
-    sides = ("left", "right") if side is None else (side,)
+    sides = ("left", "right") if side is None else (as_choice(side, "side", ("left", "right"), error=MotionError),)
+    arm_extension, arm_front, kick_height, leg_extension = (
+        as_real(v, n, error=MotionError) for v, n in ((arm_extension, "arm_extension"), (arm_front, "arm_front"),
+                                                      (kick_height, "kick_height"), (leg_extension, "leg_extension")))
+    merge_gap, min_duration, peak_tolerance = (
+        as_real(v, f"{n} (s)" if n != "peak_tolerance" else n, lo=0.0, error=MotionError)
+        for v, n in ((merge_gap, "merge_gap"), (min_duration, "min_duration"), (peak_tolerance, "peak_tolerance")))
+    kin = _Kinematics(motion, skeleton)
     hits = []
     for sem in sems:
         for sd in sides:
@@ -212,7 +220,8 @@ def hit_frame_for(motion: Motion, role: str, skeleton: Skeleton | None = None, *
     the criteria are never met (a low kick, a short hook), the frame of peak extension of
     the limb over the clip, refined like the detector.
     """
-    m = re.fullmatch(r"(left|right)_(fist|foot)", role)
+    _check_motion(motion, skeleton)
+    m = re.fullmatch(r"(left|right)_(fist|foot)", as_str(role, "role (hit segment)", error=MotionError))
     if not m:
         raise MotionError(f"hit role must be left_fist, right_fist, left_foot or right_foot, got {role!r}")
     side, seg = m.groups()
@@ -227,9 +236,15 @@ def hit_frame_for(motion: Motion, role: str, skeleton: Skeleton | None = None, *
 
 def check_semantics(s) -> str:
     """``s`` if it is one of :data:`SEMANTICS`, else :class:`~repro.errors.MotionError`."""
-    if s not in SEMANTICS:
-        raise MotionError(f"semantics must be one of {list(SEMANTICS)}, got {s!r}")
-    return s
+    return as_choice(s, "semantics", SEMANTICS, error=MotionError)
+
+
+def _check_motion(motion, skeleton=None) -> None:
+    """A :class:`Motion` (and a :class:`Skeleton` or ``None``), else :class:`MotionError`."""
+    if not isinstance(motion, Motion):
+        raise MotionError(f"motion must be a repro.motion.Motion, got {describe(motion)}")
+    if skeleton is not None and not isinstance(skeleton, Skeleton):
+        raise MotionError(f"skeleton must be a repro.motion.Skeleton or None, got {describe(skeleton)}")
 
 
 def hit_point_trajectory(motion: Motion, joint: str, where: str = "joint", *,
@@ -248,7 +263,12 @@ def hit_point_trajectory(motion: Motion, joint: str, where: str = "joint", *,
         The motion's :meth:`~repro.motion.motion.Motion.global_positions` when already
         computed (used for ``where="joint"``).
     """
-    j = motion.joint_index(joint)
+    _check_motion(motion)
+    j = motion.joint_index(as_str(joint, "joint", error=MotionError))
+    as_choice(where, "where", ("joint", "end_site"), error=MotionError)
+    if positions is not None:
+        positions = as_real_array(positions, "positions", error=MotionError,
+                                  shape=(motion.n_frames, len(motion.joint_names), 3))
     if where == "joint":
         return (motion.global_positions() if positions is None else positions)[:, j]
     if where == "end_site":

@@ -55,7 +55,7 @@ from pathlib import Path
 
 import numpy as np
 
-from repro.checks import as_int, as_real_array, describe
+from repro.checks import as_choice, as_int, as_real_array, describe
 from repro.errors import DataError, MotionError, ReproError
 from repro.io import MAX_READ_BYTES, atomic_path, read_npz
 from repro.motion.annotation import (
@@ -160,6 +160,9 @@ class Clip:
 def annotate(motion: Motion, hit_frame: int, hit_role: str, semantics: str, *, name: str,
              hit_joint: str | None = None, hit_where: str = "joint", **kw) -> Clip:
     """A :class:`Clip` from a motion in metres; ``hit_joint`` defaults to the role's joint."""
+    if not isinstance(motion, Motion):
+        raise MotionError(f"motion must be a repro.motion.Motion, got {describe(motion)}")
+    as_choice(hit_role, "hit_role (hit segment)", HIT_ROLES, error=MotionError)
     if hit_joint is None:
         hit_joint = Skeleton.from_motion(motion).roles[hit_role]
     return Clip(name=name, motion=motion, semantics=semantics, hit_role=hit_role, hit_joint=hit_joint,
