@@ -221,3 +221,44 @@ def test_a_worker_whose_parent_died_before_it_was_set_up_ends_at_once(tmp_path):
     code = "import importlib; importlib.import_module('repro.experiments.registry')._die_with_parent(-1); print('ran on')"
     p = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert p.returncode == 1 and "ran on" not in p.stdout
+
+
+_PROBING = """
+from repro.ui import render
+render.render_unavailable_reason()
+"""
+
+
+def _children(pid: int) -> set:
+    try:
+        return {int(c) for t in Path(f"/proc/{pid}/task").iterdir() for c in (t / "children").read_text().split()}
+    except OSError:
+        return set()
+
+
+def test_the_render_probe_of_a_killed_worker_ends_with_it(tmp_path):
+    """A worker's grandchild, the VTK render probe (repro.ui.render), ends with the process that probes:
+    otherwise it would outlive a killed run, unbounded when it hangs (its timeout is the prober's).
+    Here it hangs: a ``pyvista`` that never finishes importing."""
+    fake = tmp_path / "hang"
+    fake.mkdir()
+    (fake / "pyvista.py").write_text("import time\ntime.sleep(300)\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(fake), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
+    prober = subprocess.Popen([sys.executable, "-c", _PROBING], cwd=ROOT, env=env, start_new_session=True,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        while not (probe := _children(prober.pid)):
+            assert time.monotonic() < deadline and prober.poll() is None, "no probe started"
+            time.sleep(0.01)
+        prober.kill()
+        prober.wait()
+        for _ in range(100):  # 5 s
+            if not probe & set(_session(prober.pid)):
+                break
+            time.sleep(0.05)
+        assert not probe & set(_session(prober.pid)), "the render probe outlived its parent"
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(prober.pid, signal.SIGKILL)
+        prober.wait()

@@ -22,6 +22,12 @@ from repro.errors import RenderUnavailableError
 __all__ = ["render_unavailable_reason", "require_render", "configure_headless"]
 
 _PROBE = (
+    # dies with the process that probes, however it ends (as repro run's workers do with theirs, issue 23)
+    "import ctypes, os, signal, sys\n"
+    "if sys.platform.startswith('linux'):\n"
+    "    ctypes.CDLL(None).prctl(1, ctypes.c_ulong(signal.SIGKILL), *[ctypes.c_ulong(0)] * 3)\n"
+    "if os.getppid() != int(sys.argv[1]):\n"
+    "    sys.exit('the probing process is gone')\n"
     "import pyvista as pv\n"
     "pl = pv.Plotter(off_screen=True, window_size=(64, 64))\n"
     "pl.add_mesh(pv.Sphere())\n"
@@ -44,7 +50,8 @@ def render_unavailable_reason() -> str | None:
     configure_headless()
     try:
         p = subprocess.run(
-            [sys.executable, "-c", _PROBE], capture_output=True, text=True, timeout=120, env=os.environ
+            [sys.executable, "-c", _PROBE, str(os.getpid())], capture_output=True, text=True, timeout=120,
+            env=os.environ,
         )
     except subprocess.TimeoutExpired:
         return f"VTK render probe timed out; {_CURE}"
