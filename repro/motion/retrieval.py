@@ -101,7 +101,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from repro.checks import as_int
+from repro.checks import as_choice, as_int, as_real, describe
 from repro.errors import MotionError, RetrievalError
 from repro.motion.annotation import SEMANTICS
 from repro.motion.clustering import (
@@ -404,6 +404,10 @@ def retarget_to_tree(motion: Motion, character, *, roles=None, target=None, fix_
     repro.errors.MotionError
         Missing roles on either side (named), a rest pose whose facing cannot be told.
     """
+    if not isinstance(motion, Motion):
+        raise MotionError(f"motion must be a repro.motion.Motion, got {describe(motion)}")
+    if target is not None and not isinstance(target, Motion):
+        raise MotionError(f"target must be a repro.motion.Motion (a rest pose) or None, got {describe(target)}")
     ch = skeleton_of(character)
     src = motion if motion.up is not None else dataclasses.replace(motion, up="y")
     tgt = rest_motion_y_up(ch) if target is None else target
@@ -1206,6 +1210,14 @@ def _check_noise(noise) -> float:
     return float(noise)
 
 
+#: Most queries :func:`make_queries` / :func:`time_search` make: each holds a pose and a skeleton, and
+#: ``n = 10**12`` ran until killed (issue 23); the figures use 200, the benchmark up to a few thousand.
+MAX_QUERIES: int = 100_000
+
+#: Largest grid side of :func:`scoring_frame_miss` (the figure's is 9 x 9: a search per point).
+MAX_GRID: int = 100
+
+
 def make_queries(db: MotionDatabase, n: int, seed: int = 0, *, noise: float = 0.05):
     """Random queries for :func:`time_search`: (target, current pose, character, semantics).
 
@@ -1218,11 +1230,12 @@ def make_queries(db: MotionDatabase, n: int, seed: int = 0, *, noise: float = 0.
     Raises
     ------
     repro.errors.RetrievalError
-        Not a database, ``n`` or ``seed`` not an int >= 0, ``noise`` not finite >= 0.
+        Not a database, ``n`` not an int in 0..:data:`MAX_QUERIES`, ``seed`` not an int >= 0,
+        ``noise`` not finite >= 0.
     """
     if not isinstance(db, MotionDatabase):
         raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
-    n = as_int(n, "n (number of queries)", 0, None, error=RetrievalError)
+    n = as_int(n, "n (number of queries)", 0, MAX_QUERIES, error=RetrievalError)
     seed = as_int(seed, "seed", 0, None, error=RetrievalError)
     noise = _check_noise(noise)
     rng = np.random.default_rng(seed)
@@ -1269,12 +1282,12 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
     Raises
     ------
     repro.errors.RetrievalError
-        ``n_queries`` or ``repeats`` not an int >= 1, an unknown or no method, a
+        ``n_queries`` not an int in 1..:data:`MAX_QUERIES`, ``repeats`` not an int >= 1, an unknown or no method, a
         ``retriever`` of another database, and the errors of :func:`make_queries`.
     """
     if not isinstance(db, MotionDatabase):
         raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
-    n_queries = as_int(n_queries, "n_queries", 1, None, error=RetrievalError)
+    n_queries = as_int(n_queries, "n_queries", 1, MAX_QUERIES, error=RetrievalError)
     repeats = as_int(repeats, "repeats", 1, None, error=RetrievalError)
     if isinstance(methods, str):
         methods = (methods,)
@@ -1357,6 +1370,23 @@ def _hit_points(motion: Motion, joint: str, where: str) -> np.ndarray:
     return motion.end_site_positions()[:, site]
 
 
+#: Tallest fighter :func:`scoring_frame_miss` accepts (metres).
+MAX_HEIGHT_M: float = 100.0
+
+
+def _semantics_list(semantics) -> list[str]:
+    """``semantics`` as a non-empty list of :data:`SEMANTICS` (a single name accepted)."""
+    if isinstance(semantics, str):
+        semantics = (semantics,)
+    try:
+        out = [str(as_choice(s, "semantics", SEMANTICS, error=RetrievalError)) for s in semantics]
+    except TypeError:
+        raise RetrievalError(f"semantics must be a sequence of {list(SEMANTICS)}, got {describe(semantics)}") from None
+    if not out:
+        raise RetrievalError(f"semantics must name at least one of {list(SEMANTICS)}")
+    return out
+
+
 def scoring_frame_miss(db: MotionDatabase | None = None, *, semantics: Sequence[str] = ("punch",),
                        grid: tuple[int, int] = (9, 9), height: float = GRID_HEIGHT_M,
                        configs: Sequence[tuple[str, str]] = (("pruned", "first"), ("exact", "first"),
@@ -1382,9 +1412,22 @@ def scoring_frame_miss(db: MotionDatabase | None = None, *, semantics: Sequence[
     from repro.motion.skeleton import scale_skeleton
     from repro.motion.sources import default_database
 
-    db = default_database("synthetic") if db is None else db
-    if not isinstance(db, MotionDatabase):
+    if db is not None and not isinstance(db, MotionDatabase):
         raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
+    semantics = _semantics_list(semantics)
+    try:
+        gx, gy = grid
+    except (TypeError, ValueError):
+        raise RetrievalError(f"grid must be two integers (points along x and y), got {describe(grid)}") from None
+    grid = (as_int(gx, "grid[0]", 1, MAX_GRID, error=RetrievalError), as_int(gy, "grid[1]", 1, MAX_GRID,
+                                                                            error=RetrievalError))
+    height = as_real(height, "height (m)", lo=0.0, lo_open=True, hi=MAX_HEIGHT_M, error=RetrievalError)
+    try:
+        configs = [(str(as_choice(m, "configs method", METHODS, error=RetrievalError)),
+                    str(as_choice(sc, "configs scoring", SCORINGS, error=RetrievalError))) for m, sc in configs]
+    except (TypeError, ValueError):
+        raise RetrievalError(f"configs must be (method, scoring) pairs, got {describe(configs)}") from None
+    db = default_database("synthetic") if db is None else db
     ch = scale_skeleton(db.actors[0], height=height)
     names = [str(x) for x in db.names]
     if GRID_STANCE_CLIP not in names:
