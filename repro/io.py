@@ -468,6 +468,8 @@ def remove_stale_temporary(tmp) -> bool:
     import fcntl
 
     try:
+        if not stat.S_ISREG(os.lstat(tmp).st_mode):  # (a device is not even opened)
+            return False
         fd = os.open(tmp, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW)
     except OSError:
         return False

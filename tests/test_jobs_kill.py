@@ -107,9 +107,10 @@ def test_sigkill_of_the_parent_ends_every_process_of_the_run_and_nothing_is_writ
         "manifest.json", "zz_jobs_a-more.csv", "zz_jobs_a.csv", "zz_jobs_orphan_a.csv", "zz_jobs_orphan_b.csv"]
 
 
-def test_the_next_run_removes_the_stale_temporaries_of_its_figures_only(jobs_figures, tmp_path):
+def test_the_next_run_removes_the_stale_temporaries_of_its_figures_only(jobs_figures, tmp_path, monkeypatch):
     """A killed run's ``.NAME.XXXX.tmp`` files (0 bytes, as a group kill leaves them) are removed by the
     next run of those figures; another figure's, and one another run is writing now, are kept."""
+    monkeypatch.setattr(registry_mod, "_code_fingerprint", lambda: "fixed")  # (cached below, whatever is edited)
     out = tmp_path
     stale = [".zz_jobs_a.csv.abc123.tmp", ".zz_jobs_a.png.k2j4l0.tmp", ".zz_jobs_a-more.csv.x1.tmp",
              ".zz_jobs_b.csv.q9.tmp", ".manifest.json.zz01.tmp"]
@@ -144,6 +145,9 @@ def test_atomic_path_holds_its_temporary_against_the_stale_remover(tmp_path):
     (tmp_path / ".x.csv.link00.tmp").symlink_to(tmp_path / "elsewhere")
     assert not io.remove_stale_temporary(tmp_path / ".x.csv.link00.tmp")  # not a file of atomic_path's
     assert (tmp_path / "elsewhere").read_text() == "keep"
+    os.mkfifo(tmp_path / ".x.csv.fifo00.tmp")
+    assert not io.remove_stale_temporary(tmp_path / ".x.csv.fifo00.tmp")  # nor a FIFO (and no hang)
+    assert (tmp_path / ".x.csv.fifo00.tmp").exists()
 
 
 _GUARDED = """
