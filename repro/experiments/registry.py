@@ -460,6 +460,8 @@ def _die_with_parent(parent: int) -> None:
     On Linux the kernel sends SIGKILL when the parent dies (``prctl(PR_SET_PDEATHSIG)``; it fires
     when the parent's *thread* that started this process ends: :func:`_pool` starts its workers from
     the thread that waits for them).  Elsewhere, or should prctl fail, a thread polls the parent.
+    (The resource tracker ``spawn`` starts beside the workers ends by itself once every process
+    holding its pipe, the parent and these workers, has ended.)
     """
     import threading
 
