@@ -46,8 +46,9 @@ level and one test calling :func:`check`::
   "array", "index_array", "str", "choice", "bool", "path", "callable", "mapping", "any").  Every
   kind gets the :data:`COMMON` values plus its own extras; a parameter absent from the valid kwargs
   is added (an optional argument).  ``extra`` (``{param: {label: factory}}``) adds values of your own.
-* ``time_limit`` (s) per call, default :data:`TIME_LIMIT`; ``nonfinite_ok=True`` when a NaN/inf
-  in the result is the documented answer.
+* ``time_limit`` (s) per call, default :data:`TIME_LIMIT`; ``nonfinite_ok``: ``True`` when a NaN/inf
+  in the result is the documented answer, or a set of the dict keys / attribute names where it is
+  (``{"alpha"}``: a table's "not applicable" column); elsewhere in the result it is still a failure.
 * Values are named by a label (``"nan"``, ``"10**12"``...) and built in the child by a factory
   (fresh arrays each call).
 
@@ -213,7 +214,7 @@ class Case:
     params: dict[str, str]
     extra: dict[str, dict[str, Callable]] = dataclasses.field(default_factory=dict)
     time_limit: float = TIME_LIMIT
-    nonfinite_ok: bool = False
+    nonfinite_ok: bool | frozenset | set = False
 
     def values(self, param: str) -> dict[str, Callable]:
         kind = self.params[param]
@@ -248,8 +249,9 @@ class NonFinite(Exception):
     pass
 
 
-def check_finite(obj, where: str = "result", depth: int = 0, seen=None) -> None:
-    """Raise :class:`NonFinite` naming the first NaN/inf float in ``obj`` (DataFrames too)."""
+def check_finite(obj, where: str = "result", depth: int = 0, seen=None, skip=frozenset()) -> None:
+    """Raise :class:`NonFinite` naming the first NaN/inf float in ``obj`` (DataFrames too); not under the
+    dict keys / attribute / column names in ``skip``."""
     import numpy as np
 
     seen = set() if seen is None else seen
@@ -260,10 +262,12 @@ def check_finite(obj, where: str = "result", depth: int = 0, seen=None) -> None:
     if mod.startswith("pandas"):
         if hasattr(obj, "select_dtypes"):  # DataFrame
             for col in obj.columns:
-                check_finite(obj[col].to_numpy(), f"{where}[{col!r}]", depth + 1, seen)
+                if col in skip:
+                    continue
+                check_finite(obj[col].to_numpy(), f"{where}[{col!r}]", depth + 1, seen, skip)
             return
         if hasattr(obj, "to_numpy"):
-            check_finite(obj.to_numpy(), where, depth + 1, seen)
+            check_finite(obj.to_numpy(), where, depth + 1, seen, skip)
             return
     if isinstance(obj, np.ndarray):
         if obj.dtype.kind in "fc":
@@ -273,7 +277,7 @@ def check_finite(obj, where: str = "result", depth: int = 0, seen=None) -> None:
                 raise NonFinite(f"{where}{list(map(int, idx))} = {obj[idx]!r} (shape {obj.shape})")
         elif obj.dtype.kind == "O":
             for i, x in enumerate(obj.reshape(-1)[:1000]):
-                check_finite(x, f"{where}[{i}]", depth + 1, seen)
+                check_finite(x, f"{where}[{i}]", depth + 1, seen, skip)
         return
     if isinstance(obj, (float, complex, np.floating, np.complexfloating)):
         if not np.isfinite(obj):
@@ -283,19 +287,21 @@ def check_finite(obj, where: str = "result", depth: int = 0, seen=None) -> None:
         return
     if isinstance(obj, dict):
         for k, v in list(obj.items())[:10000]:
-            check_finite(v, f"{where}[{k!r}]", depth + 1, seen)
+            if k in skip:
+                continue
+            check_finite(v, f"{where}[{k!r}]", depth + 1, seen, skip)
         return
     if isinstance(obj, (list, tuple, set, frozenset)):
         for i, v in enumerate(list(obj)[:10000]):
-            check_finite(v, f"{where}[{i}]", depth + 1, seen)
+            check_finite(v, f"{where}[{i}]", depth + 1, seen, skip)
         return
     if mod.startswith("repro"):
         fields = dict(getattr(obj, "__dict__", {}))
         if dataclasses.is_dataclass(obj):
             fields.update((f.name, getattr(obj, f.name, None)) for f in dataclasses.fields(obj))
         for k, v in fields.items():
-            if not k.startswith("_") and k != "limits":  # ASF joint limits (-inf, inf) are legitimate
-                check_finite(v, f"{where}.{k}", depth + 1, seen)
+            if not k.startswith("_") and k != "limits" and k not in skip:  # ASF joint limits (-inf, inf) are legitimate
+                check_finite(v, f"{where}.{k}", depth + 1, seen, skip)
 
 
 def _call(cases: dict[str, Case], case_name: str, subs: list) -> dict:
@@ -311,8 +317,8 @@ def _call(cases: dict[str, Case], case_name: str, subs: list) -> dict:
         stage = "call"
         result = fn(**kwargs)
         stage = "result"
-        if not case.nonfinite_ok:
-            check_finite(result)
+        if case.nonfinite_ok is not True:
+            check_finite(result, skip=frozenset(case.nonfinite_ok or ()))
     except ReproError as exc:
         if stage == "setup":
             return dict(outcome="error", type=type(exc).__name__, message=f"setup failed: {exc}"[:2000],
@@ -429,15 +435,22 @@ def _last_line(tb: str) -> str:
     return ""
 
 
-def run(module: str, log_dir: str | None = None) -> tuple[list[str], int]:
-    """Run every call of ``module``'s cases; return (failure lines, number of calls)."""
+def run(module: str, log_dir: str | None = None, times: dict | None = None) -> tuple[list[str], int]:
+    """Run every call of ``module``'s cases; return (failure lines, number of calls).
+
+    ``times``, when given, receives the seconds spent per case (to keep the default run modest)."""
+    import time
+
     cases = {c.name: c for c in importlib.import_module(module).CASES}
     child = _Child(module, log_dir)
     failures = []
     calls = plan(list(cases.values()))
     try:
         for name, subs in calls:
+            t0 = time.monotonic()
             rep = child.call(name, [list(s) for s in subs], cases[name].time_limit)
+            if times is not None:
+                times[name] = times.get(name, 0.0) + time.monotonic() - t0
             # the valid call must return (else only error paths are fuzzed); a hostile one may raise
             if rep["outcome"] == "ok" or (subs and rep["outcome"] == "repro_error"):
                 continue
@@ -462,8 +475,11 @@ def main(argv: list[str]) -> None:
     if argv[:1] == ["--child"]:
         child_main(argv[1])
     elif argv[:1] == ["--run"]:
-        failures, n = run(argv[1])
+        times: dict = {}
+        failures, n = run(argv[1], times=times)
         print("\n".join(failures) or "no failure", f"\n({len(failures)} failures of {n} calls)")
+        slow = sorted(times.items(), key=lambda kv: -kv[1])[:10]
+        print("slowest cases:", ", ".join(f"{k} {v:.1f} s" for k, v in slow))
     else:
         print(__doc__)
 
