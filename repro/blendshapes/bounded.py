@@ -42,7 +42,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from repro.blendshapes.attenuation import Attenuator, check_w_max
-from repro.checks import as_int, as_real_array, describe
+from repro.checks import abs_max, as_bool, as_choice, as_int, as_real_array, check_alloc, describe
 from repro.errors import AttenuationError
 
 __all__ = [
@@ -51,6 +51,7 @@ __all__ = [
     "bounded_attenuate",
     "bounded_edit",
     "check_bounds",
+    "check_psd",
     "clamped_edit",
     "solve_box_qp",
 ]
@@ -67,6 +68,8 @@ class BoxQPResult(NamedTuple):
 
 def check_bounds(lo, hi, m: int) -> tuple[np.ndarray, np.ndarray]:
     """``lo`` and ``hi`` as float arrays of length ``m`` with ``lo <= hi``, or an AttenuationError."""
+    m = as_int(m, "m (number of shapes)", lo=0, error=AttenuationError)
+    check_alloc(16 * m, "the bounds lo and hi", error=AttenuationError)
     out = []
     for name, b in (("lo", lo), ("hi", hi)):
         a = as_real_array(b, name, error=AttenuationError, finite=False)
@@ -203,11 +206,44 @@ def solve_box_qp(A, g, lo, hi, x0=None, *, max_iter: int | None = None, method: 
     lo, hi = check_bounds(lo, hi, m)
     if x0 is not None:
         x0 = as_real_array(x0, "x0", error=AttenuationError, shape=(m,))
-    if method not in ("auto", "lsq_linear"):
-        raise AttenuationError(f"method must be 'auto' or 'lsq_linear', got {describe(method)}")
+    as_choice(method, "method", ("auto", "lsq_linear"), error=AttenuationError)
     if max_iter is not None:
-        max_iter = as_int(max_iter, "max_iter", error=AttenuationError, lo=1)
+        max_iter = as_int(max_iter, "max_iter", error=AttenuationError, lo=1, hi=MAX_ITER)
+    if m == 0:  # nothing to solve (LAPACK refuses an empty matrix)
+        return BoxQPResult(np.zeros(0), 0, "unconstrained", 0)
+    check_psd(A)
     return _box_qp(A, g, lo, hi, x0, max_iter=max_iter, method=method)
+
+
+#: Largest ``max_iter`` :func:`solve_box_qp` accepts (each step is an m x m solve).
+MAX_ITER = 1_000_000
+
+
+def check_psd(A: np.ndarray, name: str = "A") -> None:
+    """Refuse a matrix that is not symmetric positive semi-definite (within rounding).
+
+    The active sets and ``lsq_linear`` on a factor of ``A`` minimise a convex
+    quadratic; for an indefinite ``A`` they return a stationary point, not the
+    minimum (``-I`` on [0, 1]^3 gave x = 0, objective 0, where x = 1 gives -4.5).
+    ``A`` is scaled by its largest entry first, so that the eigenvalues of a
+    matrix near the float64 limit do not overflow.
+    """
+    s = abs_max(A)
+    if s == 0.0:
+        return
+    As = A / s
+    asym = abs_max(As - As.T)
+    if asym > 1e-10:
+        raise AttenuationError(f"{name} must be symmetric (a Gram matrix); max |{name} - {name}^T| is "
+                               f"{asym:.3g} of its largest entry")
+    try:
+        lam = np.linalg.eigvalsh(As)
+    except np.linalg.LinAlgError as e:  # pragma: no cover - eigvalsh of a finite symmetric matrix converges
+        raise AttenuationError(f"the eigenvalues of {name} could not be computed ({e})") from None
+    tol = 1e-10 * max(float(np.abs(lam).max()), 1.0) * A.shape[0]
+    if lam[0] < -tol:
+        raise AttenuationError(f"{name} must be positive semi-definite (the box QP is convex only then); its "
+                               f"smallest eigenvalue is {lam[0] * s:.6g} (largest {lam[-1] * s:.6g})")
 
 
 def _box_qp(A, g, lo, hi, x0=None, *, max_iter=None, method="auto") -> BoxQPResult:
@@ -274,6 +310,7 @@ def bounded_attenuate(att: Attenuator, w1, selected, alpha=None, lo=0.0, hi=1.0,
     range.  ``info=True`` returns the :class:`BoxQPResult` (iterations, method).
     """
     att = _checked(att)
+    info = as_bool(info, "info", error=AttenuationError)
     r = _solve(att, w1, selected, alpha, *check_bounds(lo, hi, att.m))
     return r if info else r.x
 
@@ -286,6 +323,7 @@ def bounded_edit(att: Attenuator, w_base, w_target, selected, alpha=None, lo=0.0
     :class:`BoxQPResult` of ``u`` with ``info=True``).
     """
     att = _checked(att)
+    info = as_bool(info, "info", error=AttenuationError)
     w_base, _ = check_w_max(w_base, att.m, "w_base")
     w_target, _ = check_w_max(w_target, att.m, "w_target")
     with np.errstate(over="ignore", invalid="ignore"):
@@ -305,6 +343,10 @@ def clamped_edit(att: Attenuator, w_base, w_target, selected, alpha=None, lo=0.0
     return np.clip(att.edit(w_base, w_target, selected, alpha), lo, hi)
 
 
+#: Largest ``repeats`` of :func:`benchmark` (a few seconds on the ICT face).
+MAX_REPEATS = 100_000
+
+
 def benchmark(model=None, *, repeats: int = 200) -> dict:
     """Per-slider-move cost of the bounded solve against Eq. (3)'s mat-vec (same process, ratios).
 
@@ -313,13 +355,18 @@ def benchmark(model=None, *, repeats: int = 200) -> dict:
     [0, 1]: median microseconds per call of ``Attenuator.edit`` (baseline),
     :func:`bounded_edit`, and ``scipy.optimize.lsq_linear`` on the same Gram
     form.  Prints nothing; returns the numbers (for a benchmark table, not a test).
+    ``repeats``: 1..:data:`MAX_REPEATS` calls timed per method.
     """
     import time
 
     from repro import data
     from repro.blendshapes import load_model
     from repro.blendshapes import scenarios as S
+    from repro.blendshapes.model import BlendshapeModel
 
+    repeats = as_int(repeats, "repeats", lo=1, hi=MAX_REPEATS, error=AttenuationError)
+    if model is not None and not isinstance(model, BlendshapeModel):
+        raise AttenuationError(f"model must be a BlendshapeModel or None, got {describe(model)}")
     if model is None:
         model = load_model("ict" if data.missing_reason("ict") is None else "procedural")
     att = Attenuator(model)

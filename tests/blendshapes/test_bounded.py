@@ -171,3 +171,58 @@ def test_box_qp_bad_input():
         solve_box_qp(*ok, max_iter=0)
     with pytest.raises(AttenuationError, match="lo > hi"):
         solve_box_qp(ok[0], ok[1], np.ones(2), np.zeros(2))
+
+
+def test_box_qp_refuses_an_indefinite_matrix():
+    """Issue 23 section 5: -I on [0, 1]^3 gave x = 0 (objective 0) where x = 1 gives -4.5, and
+    diag(1, -1, 2) on [-1, 1] gave -0.25 where -2.25 is available: the solver is for PSD matrices only."""
+    with pytest.raises(AttenuationError, match="positive semi-definite.*smallest eigenvalue is -1"):
+        solve_box_qp(-np.eye(3), np.ones(3), 0, 1)
+    with pytest.raises(AttenuationError, match="positive semi-definite"):
+        solve_box_qp(np.diag([1.0, -1.0, 2.0]), np.ones(3), -1, 1)
+    with pytest.raises(AttenuationError, match="symmetric"):
+        solve_box_qp(np.array([[1.0, 2.0], [0.0, 1.0]]), np.ones(2), 0, 1)
+    with pytest.raises(AttenuationError, match="positive semi-definite"):  # scaled first: no overflow
+        solve_box_qp(np.diag([1e300, -1e300]), np.ones(2), 0, 1)
+    # PSD matrices are still solved: singular, zero, near the float64 limit, with rounding noise
+    assert solve_box_qp(np.zeros((3, 3)), np.zeros(3), 0, 1).x.tolist() == [0.0, 0.0, 0.0]
+    assert solve_box_qp(np.diag([1e300, 0.0]), np.array([2e300, 0.0]), 0, 1).x[0] == 1.0
+    X = np.random.default_rng(0).normal(size=(4, 6))
+    A = X.T @ X  # rank 4 of 6: eigenvalues of order -1e-15
+    assert np.linalg.eigvalsh(A)[0] < 1.0
+    assert solve_box_qp(A, X.T @ np.ones(4), -1, 1).x.shape == (6,)
+
+
+def test_box_qp_empty_problem_and_checked_arguments():
+    r = solve_box_qp(np.zeros((0, 0)), np.zeros(0), 0, 1)  # a LAPACK error before
+    assert r.x.shape == (0,) and r.method == "unconstrained"
+    ok = (np.eye(2), np.ones(2), 0.0, 1.0)
+    for method in (np.zeros(2), None, ["auto"]):  # an array used to fail in `not in` with a bare ValueError
+        with pytest.raises(AttenuationError, match="method must be one of"):
+            solve_box_qp(*ok, method=method)
+    with pytest.raises(AttenuationError, match="max_iter"):
+        solve_box_qp(*ok, max_iter=10**30)
+    for m in ("x", None, -1, 1.5, np.nan):  # numpy's TypeError/ValueError before
+        with pytest.raises(AttenuationError, match="m \\(number of shapes\\)"):
+            check_bounds(0, 1, m)
+    with pytest.raises(AttenuationError, match="MEMORY_BUDGET|budget"):  # 7 TiB asked of numpy before
+        check_bounds(0, 1, 10**12)
+
+
+def test_bounded_flags_and_benchmark_arguments_are_checked(face):
+    from repro.blendshapes.bounded import benchmark
+
+    m, att = face
+    sel = select_vertices(m.regions["brow_middle"], n_vertices=m.n_vertices)
+    w = m.weights(JawOpen=0.3)
+    for info in (np.zeros(2), "yes", 1, None):  # an array was used as a truth value (bare ValueError)
+        with pytest.raises(AttenuationError, match="info must be True or False"):
+            bounded_attenuate(att, w, sel, info=info)
+        with pytest.raises(AttenuationError, match="info must be True or False"):
+            bounded_edit(att, w, w, sel, info=info)
+    for repeats in (0, -1, 10**12, "x", None, 1.5):  # 0 gave NaN timings, 10**12 ran forever
+        with pytest.raises(AttenuationError, match="repeats"):
+            benchmark(m, repeats=repeats)
+    with pytest.raises(AttenuationError, match="model must be a BlendshapeModel"):
+        benchmark("procedural", repeats=1)
+    assert benchmark(m, repeats=1)["n_shapes"] == m.n_shapes
