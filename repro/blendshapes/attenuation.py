@@ -100,7 +100,7 @@ def _axis_index(axis) -> int:
 def _axes(axes) -> list[int]:
     if isinstance(axes, str):
         axes = list(axes)
-    elif not isinstance(axes, (list, tuple, np.ndarray, range)):
+    elif not isinstance(axes, (list, tuple, np.ndarray, range)) or (isinstance(axes, np.ndarray) and axes.ndim != 1):
         raise SelectionError(f"axes must be a string like 'xy' or a list of axes, got {describe(axes)}")
     idx = [_axis_index(a) for a in axes]
     if not idx:
@@ -153,7 +153,9 @@ def select_vertices(vertices, axes="xyz", n_vertices: int | None = None) -> np.n
 def select_pairs(pairs: Iterable[tuple[int, int | str]], n_vertices: int | None = None) -> np.ndarray:
     """Rows of ``D`` from ``(vertex, axis)`` pairs, e.g. ``[(12, "y"), (40, "x")]``."""
     n_vertices = _n_vertices(n_vertices)
-    if isinstance(pairs, (str, bytes)) or not isinstance(pairs, Iterable):
+    if isinstance(pairs, (str, bytes)) or not isinstance(pairs, Iterable) or (
+        isinstance(pairs, np.ndarray) and pairs.ndim == 0  # iterable by type, not by value
+    ):
         raise SelectionError(f"expected an iterable of (vertex, axis) pairs, got {describe(pairs)}")
     rows = []
     for p in pairs:
@@ -382,8 +384,13 @@ def attenuate(D, w1, selected, alpha=None) -> np.ndarray:
     return _matvec(M, float(np.abs(M).max()), w1, float(np.abs(w1).max()), "w2 = M w1")
 
 
-#: Largest ``cache_size`` an :class:`Attenuator` accepts (each entry holds an m x m matrix).
+#: Largest ``cache_size`` an :class:`Attenuator` (or a DirectManipulator) accepts (each entry holds an m x m matrix).
 MAX_CACHE_SIZE = 100_000
+
+
+def check_cache_size(cache_size) -> int:
+    """``cache_size`` of the caches here: an integer in ``0..MAX_CACHE_SIZE`` (0 keeps nothing)."""
+    return as_int(cache_size, "cache_size", error=AttenuationError, lo=0, hi=MAX_CACHE_SIZE)
 
 
 class Attenuator:
@@ -411,7 +418,7 @@ class Attenuator:
     """
 
     def __init__(self, model_or_D, *, cache_size: int = 64):
-        self._cache_size = as_int(cache_size, "cache_size", error=AttenuationError, lo=0, hi=MAX_CACHE_SIZE)
+        self._cache_size = check_cache_size(cache_size)
         if isinstance(model_or_D, BlendshapeModel):
             self.model: BlendshapeModel | None = model_or_D
             D = model_or_D.D

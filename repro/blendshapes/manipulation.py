@@ -44,13 +44,14 @@ import scipy.linalg
 
 from repro.blendshapes.attenuation import (
     Attenuator,
+    check_cache_size,
     check_selection,
     check_w,
     scaled,
     select_vertices,
 )
 from repro.blendshapes.bounded import check_bounds, solve_box_qp
-from repro.checks import as_real, as_real_array, describe
+from repro.checks import as_bool, as_real, as_real_array, describe
 from repro.blendshapes.model import BlendshapeModel
 from repro.errors import AttenuationError, SelectionError
 
@@ -101,7 +102,7 @@ class DirectManipulator:
     model_or_attenuator : BlendshapeModel or Attenuator built from one
         An Attenuator is shared (its Gram matrix and selection caches).
     cache_size : int
-        How many prepared drags to keep.
+        How many prepared drags to keep, ``0..MAX_CACHE_SIZE`` (as the Attenuator's).
 
     Examples
     --------
@@ -125,7 +126,7 @@ class DirectManipulator:
         self.attenuator = att
         self.model: BlendshapeModel = att.model
         self.m = att.m
-        self._cache_size = int(cache_size)
+        self._cache_size = check_cache_size(cache_size)  # before anything is built: -1 broke the cache
         self._drags: OrderedDict = OrderedDict()
 
     def __repr__(self) -> str:
@@ -180,6 +181,7 @@ class DirectManipulator:
         shape).  ``dragged`` may be a prepared :class:`Drag` (then ``pinned``,
         ``mu``, ``alpha`` are its own).  ``info=True`` returns a :class:`DragResult`.
         """
+        info = as_bool(info, "info", error=AttenuationError)
         drag = dragged if isinstance(dragged, Drag) else self.prepare(dragged, pinned, mu=mu, alpha=alpha)
         w = check_w(w_current, self.m, "w_current")
         k = drag.vertices.size
@@ -203,22 +205,30 @@ class DirectManipulator:
             raise AttenuationError("give both lo and hi (the slider range), or neither")
         if lo is not None:
             lo_, hi_ = check_bounds(lo, hi, self.m)
-            res = solve_box_qp(drag.A, g, lo_ - w, hi_ - w, u)
+            with np.errstate(over="ignore", invalid="ignore"):
+                lo_u, hi_u = lo_ - w, hi_ - w
+            res = solve_box_qp(drag.A, g, lo_u, hi_u, u)
             u, method = res.x, res.method
             w_new = np.clip(w + u, lo_, hi_)
         else:
             w_new = w + u
+        if not np.isfinite(w_new).all():
+            raise AttenuationError("the drag overflows float64 (targets or weights too large)")
         if not info:
             return w_new
-        reached = self.model.f0[drag.vertices] + (D_rows @ w_new).reshape(-1, 3)
-        pinned_motion = 0.0
-        if drag.pinned is not None:
-            du = (self.model.D[drag.pinned] @ (w_new - w))
-            pv = drag.pinned // 3
-            per_vertex = np.zeros(self.model.n_vertices)
-            np.add.at(per_vertex, pv, du**2)
-            pinned_motion = float(np.sqrt(per_vertex.max()))
-        return DragResult(w_new, float(np.linalg.norm(reached - t, axis=1).max()), pinned_motion,
+        with np.errstate(over="ignore", invalid="ignore"):
+            reached = self.model.f0[drag.vertices] + (D_rows @ w_new).reshape(-1, 3)
+            dragged_error = float(np.hypot.reduce(reached - t, axis=1).max())
+            pinned_motion = 0.0
+            if drag.pinned is not None:
+                du = (self.model.D[drag.pinned] @ (w_new - w))
+                pv = drag.pinned // 3
+                per_vertex = np.zeros(self.model.n_vertices)
+                np.add.at(per_vertex, pv, du**2)
+                pinned_motion = float(np.sqrt(per_vertex.max()))
+        if not (np.isfinite(dragged_error) and np.isfinite(pinned_motion)):
+            raise AttenuationError("the drag's distances overflow float64 (targets too far from the face)")
+        return DragResult(w_new, dragged_error, pinned_motion,
                           int(np.count_nonzero(np.abs(w_new - w) > 1e-3)), method)
 
     def positions(self, w, vertices) -> np.ndarray:

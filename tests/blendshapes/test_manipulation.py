@@ -147,3 +147,33 @@ def test_bad_input(face):
     D[:3] = 0.0  # vertex 0 moves in no shape
     with pytest.raises(SelectionError, match="cannot be dragged"):
         DirectManipulator(BlendshapeModel(m.f0, D, m.names, m.faces)).solve(w0, [0], np.zeros((1, 3)))
+
+
+def test_cache_size_is_validated_as_the_attenuators(face):
+    """Issue 23 section 6: cache_size=-1 raised KeyError in solve(), "x" / None ValueError / TypeError."""
+    m, _ = face
+    v = m.regions["mouth_corners"][:1]
+    target = m.pose(m.weights(SmirkLeft=0.7))[v]
+    for bad in (-1, "x", None, 1.5, np.nan, True, 10**12):
+        with pytest.raises(AttenuationError, match="cache_size must be an integer"):
+            DirectManipulator(m, cache_size=bad)
+        with pytest.raises(AttenuationError, match="cache_size must be an integer"):
+            Attenuator(m, cache_size=bad)  # one validator for both
+    dm = DirectManipulator(m, cache_size=0)  # keeps nothing, still solves
+    w = dm.solve(m.weights(), v, target)
+    assert np.isfinite(w).all() and len(dm._drags) == 0
+    assert DirectManipulator(m, cache_size=np.int64(2))._cache_size == 2
+
+
+def test_solve_flags_and_overflowing_targets_are_refused(face):
+    m, dm = face
+    v = m.regions["mouth_corners"][:1]
+    for info in (np.zeros(2), "yes", None):
+        with pytest.raises(AttenuationError, match="info must be True or False"):
+            dm.solve(m.weights(), v, m.f0[v], info=info)
+    # a target at 1e300 gave dragged_error = inf (np.linalg.norm squares 1e300): the distances are finite
+    r = dm.solve(m.weights(), v, np.full((1, 3), 1e300), lo=0.0, hi=1.0, info=True)
+    assert r.dragged_error == pytest.approx(np.sqrt(3) * 1e300, rel=1e-9)
+    assert np.isfinite(dm.solve(m.weights(), v, np.full((1, 3), 1e300), info=True).dragged_error)
+    with pytest.raises(AttenuationError, match="overflow"):  # the first weight that cannot be represented
+        dm.solve(m.weights(), v, np.full((1, 3), 1.7e308), lo=-np.inf, hi=np.inf)
