@@ -72,6 +72,12 @@ def as_real_array(
     what = "integer indices" if integer else "real numbers"
     if isinstance(x, (str, bytes)):
         raise error(f"{name} must be an array of {what}, got the string {describe(x)}")
+    if isinstance(x, range):  # a few bytes that np.asarray expands to len(x) int64s
+        try:
+            n = len(x)
+        except OverflowError:  # longer than sys.maxsize
+            n = 1 << 63
+        check_alloc(8 * n, name, error=error)
     try:
         a = np.asarray(x)
     except (ValueError, TypeError, OverflowError) as e:

@@ -78,8 +78,10 @@ def _diff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def _pair(d, d_ref, name="reference"):
+def _pair(d, d_ref, name="reference", *, required: bool = False):
     d = _flat(d)
+    if d_ref is None and required:
+        raise ModelError(f"the {name} is required (a displacement like d), got None")
     if d_ref is None:
         return d, np.zeros_like(d)
     r = _flat(d_ref, name)
@@ -109,7 +111,7 @@ def _unselected(n: int, selected) -> np.ndarray:
 
 def unselected_error(d, d_intended, selected) -> float:
     """``||Sbar (d - d_intended)||``: how far the unselected coordinates are from where the sliders meant them."""
-    d, t = _pair(d, d_intended, "intended displacement")
+    d, t = _pair(d, d_intended, "intended displacement", required=True)
     m = _unselected(d.size, selected)
     return _norm(_diff(d[m], t[m]))
 
@@ -120,7 +122,7 @@ def unselected_fidelity(d, d_intended, selected, d_ref=None) -> float:
     ``d_ref`` is the displacement before the moves (default: neutral).  NaN
     when the sliders intend no motion of the unselected coordinates.
     """
-    d, t = _pair(d, d_intended, "intended displacement")
+    d, t = _pair(d, d_intended, "intended displacement", required=True)
     _, r = _pair(d, d_ref)
     m = _unselected(d.size, selected)
     intended = _norm(_diff(t[m], r[m]))

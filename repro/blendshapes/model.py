@@ -102,7 +102,9 @@ class BlendshapeModel:
                 f"D must have shape (3n, m) = ({3 * n}, m) for n = {n} vertices "
                 f"(xyz packing, row 3*v + axis), got {D.shape}"
             )
-        if isinstance(self.names, (str, bytes)) or not isinstance(self.names, Iterable):
+        if isinstance(self.names, (str, bytes)) or not isinstance(self.names, Iterable) or (
+            isinstance(self.names, np.ndarray) and self.names.ndim == 0  # iterable by type, not by value
+        ):
             raise ModelError(f"names must be a sequence of strings, got {describe(self.names)}")
         names = tuple(self.names)
         bad = [s for s in names if not isinstance(s, str)]

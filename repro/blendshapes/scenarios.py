@@ -33,7 +33,7 @@ import numpy as np
 from repro.blendshapes import metrics
 from repro.blendshapes.alternatives import edit_orthogonal, edit_zeroed
 from repro.blendshapes.attenuation import Attenuator, check_alpha, select_vertices
-from repro.checks import as_int, as_str, describe
+from repro.checks import as_int, as_real, as_real_array, as_str, describe
 from repro.blendshapes.model import AXES, BlendshapeModel
 from repro.errors import ModelError
 
@@ -70,10 +70,14 @@ class Scenario:
         for f in ("moves", "base"):
             if not isinstance(getattr(self, f), Mapping):
                 raise ModelError(f"Scenario.{f} must be a mapping of slider name to value, got {describe(getattr(self, f))}")
+            for k, v in getattr(self, f).items():  # a NaN here became NaN weights later
+                as_str(k, f"a slider name of Scenario.{f}", error=ModelError)
+                as_real(v, f"Scenario.{f}[{k!r}]", error=ModelError)
         as_int(self.top_moved, "Scenario.top_moved", lo=0, error=ModelError)
 
     def vertices(self, model: BlendshapeModel) -> np.ndarray:
         """Vertex ids this scenario selects on ``model``."""
+        _check_model(model)
         if self.region not in model.regions:
             raise ModelError(
                 f"scenario {self.key!r} needs region {self.region!r}, which model {model.name!r} "
@@ -92,11 +96,13 @@ class Scenario:
 
     def weights(self, model: BlendshapeModel) -> tuple[np.ndarray, np.ndarray]:
         """``(w_base, w_target)``: the pose kept, and the sliders after the further moves."""
+        _check_model(model)
         w_base = model.weights(self.base)
         return w_base, w_base + model.weights(self.moves)
 
     def lockable_shapes(self, model: BlendshapeModel) -> np.ndarray:
         """Shapes an animator would lock for orthogonal locking: those that made the base pose."""
+        _check_model(model)
         return np.flatnonzero(model.weights(self.base))
 
 
@@ -266,13 +272,19 @@ def alpha_sweep(model: BlendshapeModel, sc: Scenario | str, alphas: Iterable[flo
     """
     sc = _scenario(sc)
     att = _attenuator(model, attenuator)
+    if isinstance(alphas, (str, bytes)) or not isinstance(alphas, Iterable) or (
+        isinstance(alphas, np.ndarray) and alphas.ndim == 0  # iterable by type, not by value
+    ):
+        raise ModelError(f"alphas must be an iterable of numbers > 0, got {describe(alphas)}")
+    if not isinstance(alphas, np.ndarray):
+        alphas = list(alphas)  # a generator, once
+    # numbers, all of them before the first solve (each is then checked as Eq. 2's alpha)
+    alphas = as_real_array(alphas, "alphas", ndim=1, finite=False, error=ModelError)
     sel = sc.selection(model)
     w_base, w_target = sc.weights(model)
     w1 = w_target - w_base
     d_base, d_target = att.displacement(w_base), att.displacement(w_target)
     none = metrics.selected_motion(d_target, sel, d_base)
-    if isinstance(alphas, (str, bytes)) or not isinstance(alphas, Iterable):
-        raise ModelError(f"alphas must be an iterable of numbers > 0, got {describe(alphas)}")
     w1_norm = float(np.linalg.norm(w1))
     rows = []
     for a in alphas:

@@ -121,3 +121,12 @@ def test_roughness_near_looks_only_at_the_selection_and_its_ring(model):
     assert far < 0.5 * near
     with pytest.raises(ModelError, match="ids"):
         metrics.roughness_near(model, zeroed, [10_000])
+
+
+def test_intended_displacement_is_required(model):
+    """``d_intended=None`` was taken as zero motion: a NaN fidelity instead of an error (issue 23)."""
+    d = np.ones(3 * model.n_vertices)
+    with pytest.raises(ModelError, match="intended displacement is required"):
+        metrics.unselected_fidelity(d, None, [0, 1])
+    with pytest.raises(ModelError, match="intended displacement is required"):
+        metrics.unselected_error(d, None, [0, 1])

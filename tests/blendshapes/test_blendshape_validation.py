@@ -451,3 +451,19 @@ def test_widely_scaled_gram_is_accumulated_in_blocks(monkeypatch):
     monkeypatch.setattr(attenuation_module, "_GRAM_BLOCK", 7)
     Ds = D * 1e200
     np.testing.assert_allclose(Attenuator(Ds).attenuate(W, SEL), ATT.attenuate(W, SEL), rtol=1e-9)
+
+
+def test_zero_d_arrays_and_huge_ranges_are_refused():
+    """Found by tests/fuzz/test_fuzz_arguments_blendshapes.py: a 0-d array is an ``Iterable`` by type
+    that raises TypeError when iterated; ``range(10**12)`` made numpy allocate 8 TB (MemoryError)."""
+    with pytest.raises(ModelError, match="names must be a sequence of strings"):
+        BlendshapeModel(f0=MODEL.f0, D=MODEL.D, names=np.array(1.0), faces=MODEL.faces)
+    with pytest.raises(SelectionError, match="axes must be"):
+        select_vertices([1, 2], axes=np.array(1.0))
+    with pytest.raises(SelectionError, match="pairs"):
+        select_pairs(np.array(1.0))
+    for call in (lambda: select_vertices(range(10**12)), lambda: attenuate(D, W, range(10**12)),
+                 lambda: MODEL.restrict(range(10**30))):
+        with pytest.raises(ReproError, match="MEMORY_BUDGET|budget"):
+            call()
+    assert select_vertices(range(2), n_vertices=N).tolist() == [0, 1, 2, 3, 4, 5]  # a small range is fine

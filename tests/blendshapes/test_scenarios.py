@@ -91,3 +91,21 @@ def test_real_model_numbers_are_computed_and_attenuation_helps():
         r = S.evaluate(ict, key)
         assert r["reduction"] < 1.0
         assert np.isfinite(r["attenuated_unselected_fidelity"])
+
+
+def test_scenario_arguments_are_checked(face):
+    """Found by tests/fuzz/test_fuzz_arguments_blendshapes.py (issue 23 section 6)."""
+    for moves in ({1: 0.5}, {"JawOpen": np.nan}, {"JawOpen": "x"}):  # NaN came back as NaN weights
+        with pytest.raises(ModelError, match="Scenario.moves|slider name"):
+            S.Scenario("k", "f", "d", region="brow_middle", moves=moves)
+    with pytest.raises(ModelError, match="Scenario.base"):
+        S.Scenario("k", "f", "d", region="brow_middle", moves={}, base={"Furrow": np.inf})
+    sc = S.scenario("eyelid_then_brow")
+    for method in (sc.vertices, sc.selection, sc.weights, sc.lockable_shapes):  # AttributeError before
+        with pytest.raises(ModelError, match="expected a BlendshapeModel"):
+            method("procedural")
+    for alphas in (np.array(1.0), [None, 1.0], [[1.0], [1.0, 2.0]], np.ones((2, 2))):  # TypeError before
+        with pytest.raises(ModelError, match="alphas"):
+            S.alpha_sweep(face, "furrow_then_mouth", alphas)
+    rows = S.alpha_sweep(face, "furrow_then_mouth", (a for a in (1.0, 10.0)))  # a generator still works
+    assert [r["alpha"] for r in rows] == [1.0, 10.0]
