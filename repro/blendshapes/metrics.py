@@ -184,4 +184,8 @@ def edge_strain(model: BlendshapeModel, d) -> np.ndarray:
         rest = model.f0[e[:, 1]] - model.f0[e[:, 0]]
         moved = rest + d[e[:, 1]] - d[e[:, 0]]
     L0 = _row_norms(rest)
-    return np.abs(_row_norms(moved) - L0) / np.where(L0 > 0, L0, 1.0)
+    with np.errstate(over="ignore"):  # a displacement near the float64 limit over an edge of length ~1
+        strain = np.abs(_row_norms(moved) - L0) / np.where(L0 > 0, L0, 1.0)
+    if not np.isfinite(strain).all():
+        raise ModelError("the edge strain overflows float64 (the displacement is too large)")
+    return strain

@@ -130,3 +130,15 @@ def test_intended_displacement_is_required(model):
         metrics.unselected_fidelity(d, None, [0, 1])
     with pytest.raises(ModelError, match="intended displacement is required"):
         metrics.unselected_error(d, None, [0, 1])
+
+
+def test_edge_strain_overflow_is_an_error():
+    """A displacement with one 1e308 coordinate: strain = ~1e308 / edge length (< 1) overflowed (RuntimeWarning, inf)."""
+    from repro.blendshapes.procedural import procedural_model
+
+    model = procedural_model()
+    d = np.zeros(3 * model.n_vertices)
+    d[3 * model.n_vertices // 2] = 1e308
+    with pytest.raises(ModelError, match="edge strain overflows"):
+        metrics.edge_strain(model, d)
+    assert np.isfinite(metrics.edge_strain(model, d * 1e-300)).all()

@@ -45,7 +45,10 @@ level and one test calling :func:`check`::
 * ``params`` maps each parameter to fuzz to its kind, a key of :data:`KINDS` ("int", "real",
   "array", "index_array", "str", "choice", "bool", "path", "callable", "mapping", "any").  Every
   kind gets the :data:`COMMON` values plus its own extras; a parameter absent from the valid kwargs
-  is added (an optional argument).  ``extra`` (``{param: {label: factory}}``) adds values of your own.
+  is added (an optional argument).  Kinds "array", "index_array" and "real" also get
+  :data:`MUTATIONS` of the VALID value (right shape, hostile content: a NaN, 1e300 times it, one
+  element short, as complex ...): give a realistic valid value, they reach past the shape checks.
+  ``extra`` (``{param: {label: factory}}``) adds values of your own.
 * ``time_limit`` (s) per call, default :data:`TIME_LIMIT`; ``nonfinite_ok``: ``True`` when a NaN/inf
   in the result is the documented answer, or a set of the dict keys / attribute names where it is
   (``{"alpha"}``: a table's "not applicable" column); elsewhere in the result it is still a failure.
@@ -201,6 +204,49 @@ KINDS: dict[str, dict[str, Callable]] = {
 KINDS["index"] = dict(KINDS["int"])
 
 
+def _like(valid, fill):
+    a = _np().array(valid, dtype=float, copy=True)
+    if a.size:
+        a.reshape(-1)[a.size // 2] = fill
+    return a
+
+
+#: kind -> label -> function of the VALID value (applied when the case's valid kwargs hold the
+#: parameter): right-shaped hostile arrays, which reach the numerics past the shape checks.
+MUTATIONS: dict[str, dict[str, Callable]] = {
+    "array": {
+        "valid with a nan": lambda v: _like(v, math.nan),
+        "valid with an inf": lambda v: _like(v, math.inf),
+        "valid with 1e308": lambda v: _like(v, 1e308),
+        "valid * 1e300": lambda v: _np().asarray(v, dtype=float) * 1e300,
+        "valid * -1e300": lambda v: _np().asarray(v, dtype=float) * -1e300,
+        "valid * 1e-300": lambda v: _np().asarray(v, dtype=float) * 1e-300,
+        "valid all zero": lambda v: _np().zeros_like(_np().asarray(v, dtype=float)),
+        "valid + 1j": lambda v: _np().asarray(v, dtype=float) + 1j,
+        "valid as float32": lambda v: _np().asarray(v, dtype=_np().float32),
+        "valid as longdouble * 1e4000": lambda v: _np().asarray(v, dtype=_np().longdouble) * _np().longdouble("1e4000"),
+        "valid one short": lambda v: _np().asarray(v, dtype=float).reshape(-1)[:-1],
+        "valid transposed": lambda v: _np().asarray(v, dtype=float).T.copy(),
+        "valid as a list": lambda v: _np().asarray(v).tolist(),
+        "valid with an extra axis": lambda v: _np().asarray(v, dtype=float)[None],
+    },
+    "index_array": {
+        "valid negated - 1": lambda v: -_np().asarray(v, dtype=_np().int64) - 1,
+        "valid + 10**9": lambda v: _np().asarray(v, dtype=_np().int64) + 10**9,
+        "valid as float": lambda v: _np().asarray(v, dtype=float),
+        "valid as uint64 max": lambda v: _np().full(_np().shape(v), _np().iinfo(_np().uint64).max, dtype=_np().uint64),
+        "valid repeated": lambda v: _np().concatenate([_np().ravel(v), _np().ravel(v)]),
+        "valid as a 2-D column": lambda v: _np().asarray(v).reshape(-1, 1),
+        "valid reversed": lambda v: _np().asarray(v)[::-1].copy(),
+    },
+    "real": {
+        "valid * 1e300": lambda v: v * 1e300 if isinstance(v, (int, float)) and not isinstance(v, bool) else 1e300,
+        "valid as float32": lambda v: _np().float32(v) if isinstance(v, (int, float)) else _np().float32(1),
+        "5e-324": lambda v: 5e-324,
+    },
+}
+
+
 def _raiser(*args, **kw):
     raise RuntimeError("a user callback failed")
 
@@ -217,10 +263,11 @@ class Case:
     nonfinite_ok: bool | frozenset | set = False
 
     def values(self, param: str) -> dict[str, Callable]:
+        """label -> factory (no argument) or, for the labels of :data:`MUTATIONS`, a function of the valid value."""
         kind = self.params[param]
         if kind not in KINDS:
             raise KeyError(f"case {self.name}: unknown kind {kind!r} for {param} (known: {sorted(KINDS)})")
-        return {**COMMON, **KINDS[kind], **self.extra.get(param, {})}
+        return {**COMMON, **KINDS[kind], **MUTATIONS.get(kind, {}), **self.extra.get(param, {})}
 
 
 def plan(cases: list[Case], pairs: int | None = None) -> list[tuple[str, list[tuple[str, str]]]]:
@@ -313,7 +360,14 @@ def _call(cases: dict[str, Case], case_name: str, subs: list) -> dict:
         fn, kwargs = case.setup()
         kwargs = dict(kwargs)
         for param, label in subs:
-            kwargs[param] = case.values(param)[label]()
+            make = case.values(param)[label]
+            if label in MUTATIONS.get(case.params[param], {}) and label not in case.extra.get(param, {}):
+                try:
+                    kwargs[param] = make(kwargs[param])
+                except Exception:  # noqa: BLE001 - the valid value is not an array (a model, None): not applicable
+                    return dict(outcome="ok", skipped=True)
+            else:
+                kwargs[param] = make()
         stage = "call"
         result = fn(**kwargs)
         stage = "result"

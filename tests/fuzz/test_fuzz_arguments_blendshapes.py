@@ -147,6 +147,8 @@ def _attenuator():
 ATTENUATION = [
     Case("attenuate", _attenuate, {"D": "array", "w1": "array", "selected": "index_array", "alpha": "real"}),
     Case("Attenuator", _attenuator, {"model_or_D": "array", "cache_size": "int"}),
+    Case("Attenuator(D)", lambda: (__import__("repro.blendshapes").blendshapes.Attenuator,
+                                   dict(model_or_D=_model().D)), {"model_or_D": "array"}),
     Case("Attenuator.attenuate", lambda: (_att().attenuate, dict(w1=_W1(), selected=_sel(), alpha=None)),
          {"w1": "array", "selected": "index_array", "alpha": "real"}),
     Case("Attenuator.edit", lambda: (_att().edit, dict(w_base=_w(Furrow=0.4), w_target=_W1(), selected=_sel(),
@@ -299,8 +301,9 @@ ALTERNATIVES_METRICS = [
          {"d": "array", "selected": "index_array", "d_ref": "array"}),
     Case("unselected_error", _metric("unselected_error", d=_d, d_intended=_d_base, selected=_sel),
          {"d": "array", "d_intended": "array", "selected": "index_array"}),
+    # NaN is its documented answer when the sliders intend no motion of the unselected coordinates
     Case("unselected_fidelity", _metric("unselected_fidelity", d=_d, d_intended=_d_base, selected=_sel, d_ref=None),
-         {"d": "array", "d_intended": "array", "selected": "index_array", "d_ref": "array"}),
+         {"d": "array", "d_intended": "array", "selected": "index_array", "d_ref": "array"}, nonfinite_ok=True),
     Case("laplacian_magnitude", _metric("laplacian_magnitude", model=_model, d=_d), {"model": "any", "d": "array"}),
     Case("roughness", _metric("roughness", model=_model, d=_d), {"model": "any", "d": "array"}),
     Case("roughness_near", _metric("roughness_near", model=_model, d=_d, vertices=[3, 4]),
