@@ -144,7 +144,7 @@ MAX_MESHES = 1024
 MAX_PRIMITIVES = 4096
 #: morph targets of one primitive
 MAX_TARGETS = 1024
-#: items of every top-level array (nodes, accessors, bufferViews, materials ...) plus primitives
+#: items of every top-level array (nodes, accessors, bufferViews, materials ...), primitives and morph targets
 MAX_OBJECTS = 12_000
 
 
@@ -252,15 +252,17 @@ class _Reader:
                                    ("mesh primitives", len(prims), MAX_PRIMITIVES)):
             if count > limit:
                 raise self.err(f"has {count} {what}, more than the {limit} this reader accepts (gltf.MAX_{what.split()[-1].upper()}); refusing")
+        targets = 0
         for j, p in enumerate(prims):
             t = n(p.get("targets")) if isinstance(p, dict) else 0
             if t > MAX_TARGETS:
                 raise self.err(f"a mesh primitive (number {j} over all meshes) has {t} targets (morph targets), more than "
                                f"the {MAX_TARGETS} this reader accepts (gltf.MAX_TARGETS); refusing")
-        total = sum(n(v) for v in obj.values()) + len(prims)
+            targets += t
+        total = sum(n(v) for v in obj.values()) + len(prims) + targets
         if total > MAX_OBJECTS:
-            raise self.err(f"has {total} glTF objects (items of its top-level arrays and mesh primitives), more than "
-                           f"the {MAX_OBJECTS} this reader accepts (gltf.MAX_OBJECTS); refusing")
+            raise self.err(f"has {total} glTF objects (items of its top-level arrays, mesh primitives and morph targets), "
+                           f"more than the {MAX_OBJECTS} this reader accepts (gltf.MAX_OBJECTS); refusing")
 
     # -------------------------------------------------------------- helpers
     def item(self, kind: str, index):
