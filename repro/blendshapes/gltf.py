@@ -70,7 +70,7 @@ import numpy as np
 
 from repro.blendshapes.gltf_write import CHUNK_JSON, GLB_MAGIC
 from repro.blendshapes.model import BlendshapeModel
-from repro.checks import MEMORY_BUDGET, as_int, describe
+from repro.checks import MEMORY_BUDGET, as_int, as_real_array, describe
 from repro.errors import ModelError
 from repro.io import MAX_READ_BYTES, inside, open_regular, read_bytes
 
@@ -125,7 +125,7 @@ _COMPONENTS = {
 }
 _NCOMP = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 _MODES = {0: "POINTS", 1: "LINES", 2: "LINE_LOOP", 3: "LINE_STRIP", 4: "TRIANGLES", 5: "TRIANGLE_STRIP", 6: "TRIANGLE_FAN"}
-#: meshopt-decoded buffer views may be at most this many times the file's size.
+#: meshopt-decoded buffer views may take, together, at most this many times the file's size.
 _MESHOPT_MAX_RATIO = 256
 #: What one file may make the loader allocate (summed over every primitive, morph target and
 #: accessor it materialises, as float64, before anything is allocated): at most this many times
@@ -157,6 +157,7 @@ class _Reader:
         self.budget = max(len(raw), 1 << 16)  # bound on decoded sizes, from the file's size
         self.max_bytes = max_bytes
         self.read_total = len(raw)  # bytes of the file and its buffers read: at most max_bytes
+        self.decoded = 0  # bytes decoded from meshopt-compressed views, for the whole file
         self.glb_bin: bytes | None = None
         glb = raw[:4] == GLB_MAGIC or path.suffix.lower() == ".glb"
         text = self._split_glb(raw) if glb else self._text(raw)
@@ -381,8 +382,11 @@ class _Reader:
             raise self.err(f"{what}: compressed bytes {off}..{off + clen} are out of bounds of buffers[{ext.get('buffer')}] ({len(src)} bytes)")
         if count * stride > length:
             raise self.err(f"{what}: {count} x {stride} decoded bytes exceed the view's byteLength {length}")
-        if count * stride > _MESHOPT_MAX_RATIO * self.budget:
-            raise self.err(f"{what}: {count * stride} decoded bytes from {clen} compressed; refusing (bounded by the file size)")
+        # bounded per file, not per view: many views may each decode up to the ratio
+        if self.decoded + count * stride > _MESHOPT_MAX_RATIO * self.budget:
+            raise self.err(f"{what}: {count * stride} decoded bytes from {clen} compressed, {self.decoded + count * stride} "
+                           f"for the file's meshopt views so far; refusing (at most {_MESHOPT_MAX_RATIO}x the file's size)")
+        self.decoded += count * stride
         try:
             out = meshopt.decode_gltf_buffer(bytes(src[off : off + clen]), count, stride, mode, filt)
         except Exception as exc:  # the decoder reports corrupt data as ValueError/RuntimeError
@@ -824,9 +828,15 @@ def arkit_rig(f0, D, names: Sequence[str]) -> tuple[dict, dict]:
 
     Regions whose shapes the face lacks are left out (scenarios needing them say so).
     """
-    f0 = np.asarray(f0, dtype=np.float64)
+    f0 = as_real_array(f0, "f0", shape=(None, 3), error=ModelError)
     n = len(f0)
-    D = np.asarray(D, dtype=np.float64).reshape(n, 3, -1)
+    D = as_real_array(D, "D", error=ModelError)
+    if not ((D.ndim == 2 and D.shape[0] == 3 * n) or (D.ndim == 3 and D.shape[:2] == (n, 3))):
+        raise ModelError(f"D must have shape (3n, m) or (n, 3, m) for the n = {n} vertices of f0, got {D.shape}")
+    D = D.reshape(n, 3, -1)
+    if isinstance(names, (str, bytes)) or not isinstance(names, Sequence) or len(names) != D.shape[2] \
+            or not all(isinstance(s, str) for s in names):
+        raise ModelError(f"names must be {D.shape[2]} strings, one per shape, got {describe(names)}")
     by_canon: dict[str, int] = {}
     for k, s in enumerate(names):
         by_canon.setdefault(_canonical(s), k)

@@ -131,6 +131,19 @@ def write_gltf(
     Names go to ``mesh.extras.targetNames``; the model's sliders and regions to
     ``mesh.extras.repro``, so :func:`~repro.blendshapes.gltf.read_gltf` gives the same model back.
     """
+    import os
+
+    from repro.blendshapes.model import BlendshapeModel
+    from repro.checks import as_bool, as_real, as_real_array, describe
+
+    # every argument checked at the entry (issue 23, section 6), before anything is built
+    if not isinstance(model, BlendshapeModel):
+        raise ModelError(f"write_gltf writes a BlendshapeModel, got {describe(model)}")
+    if not isinstance(path, (str, os.PathLike)):
+        raise ModelError(f"path must be a .glb or .gltf path, got {describe(path)}")
+    quantize = as_bool(quantize, "quantize", error=ModelError)
+    sparse = as_bool(sparse, "sparse", error=ModelError)
+    meshopt = as_bool(meshopt, "meshopt", error=ModelError)
     g = _Builder()
     pg = g.g
     path = Path(path)
@@ -141,12 +154,22 @@ def write_gltf(
         if model.units not in UNIT_SCALE:
             raise ModelError(f"model units {model.units!r} unknown; pass scale= (metres per unit); known: {sorted(UNIT_SCALE)}")
         scale = UNIT_SCALE[model.units]
-    scale = float(scale)
-    if not (np.isfinite(scale) and scale > 0):
-        raise ModelError(f"scale must be a positive number of metres per unit, got {scale}")
-    T = np.eye(4) if node_matrix is None else np.asarray(node_matrix, dtype=np.float64)
-    if T.shape != (4, 4) or not np.isfinite(T).all() or abs(np.linalg.det(T[:3, :3])) < 1e-12:
+    scale = as_real(scale, "scale (metres per model unit)", lo=0, lo_open=True, error=ModelError)
+    T = np.eye(4) if node_matrix is None else as_real_array(node_matrix, "node_matrix", shape=(4, 4), error=ModelError)
+    if abs(np.linalg.det(T[:3, :3])) < 1e-12:
         raise ModelError("node_matrix must be a finite invertible 4x4 transform")
+    if isinstance(extra_meshes, (str, bytes)) or not isinstance(extra_meshes, Sequence):
+        raise ModelError(f"extra_meshes must be a sequence of (name, vertices, triangles), got {describe(extra_meshes)}")
+    extras_checked = []
+    for j, item in enumerate(extra_meshes):
+        if not isinstance(item, (tuple, list)) or len(item) != 3 or not isinstance(item[0], str):
+            raise ModelError(f"extra_meshes[{j}] must be (name, vertices (k, 3), triangles (t, 3)), got {describe(item)}")
+        verts = as_real_array(item[1], f"extra_meshes[{j}] vertices", shape=(None, 3), error=ModelError)
+        tris = as_real_array(item[2], f"extra_meshes[{j}] triangles", integer=True, shape=(None, 3), error=ModelError)
+        if len(verts) == 0 or len(tris) == 0 or tris.min() < 0 or tris.max() >= len(verts):
+            raise ModelError(f"extra_meshes[{j}] needs vertices and triangles indexing them (0..{len(verts) - 1})")
+        extras_checked.append((item[0], verts, tris))
+    extra_meshes = extras_checked
     Tinv = np.linalg.inv(T)
     n, m = model.n_vertices, model.n_shapes
     world = model.f0 * scale

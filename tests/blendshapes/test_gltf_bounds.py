@@ -270,3 +270,46 @@ def test_repro_run_with_a_bad_face_prints_one_line_and_fails(tmp_path, capsys, k
     lines = [line for line in err.splitlines() if line.startswith("repro:")]
     assert len(lines) == 1 and "Traceback" not in err, err
     assert ("vertex data" if kind == "bomb" else "FIFO") in lines[0]
+
+
+def test_meshopt_decoding_is_bounded_per_file_not_per_view(monkeypatch):
+    # face_meshopt.glb decodes views of 832, 4160 and 2016 bytes; its size bound is 64 KiB x the ratio
+    monkeypatch.setattr(gltf, "_MESHOPT_MAX_RATIO", 0.1)  # 6.5 KB: each view fits, the three together do not
+    with pytest.raises(ModelError, match=r"7008 for the file's meshopt views so far; refusing"):
+        read_gltf(DATA / "face_meshopt.glb")
+
+
+# ------------------------------------------------------------------ the other public entries of these modules
+@pytest.mark.parametrize("args, match", [
+    (("x", np.zeros((3, 1)), ["a"]), r"f0 must be an array of real numbers"),
+    ((np.zeros((1, 3)), np.zeros((4, 1)), ["a"]), r"D must have shape \(3n, m\) or \(n, 3, m\)"),
+    ((np.zeros((1, 3)), np.zeros((3, 2)), ["a"]), r"names must be 2 strings"),
+    ((np.zeros((1, 3)), np.zeros((3, 1)), "a"), r"names must be 1 strings"),
+    ((np.zeros((1, 3)), np.full((3, 1), np.nan), ["a"]), r"D has 3 NaN/inf"),
+])
+def test_arkit_rig_refuses_bad_arguments(args, match):
+    with pytest.raises(ModelError, match=match):
+        gltf.arkit_rig(*args)
+
+
+@pytest.mark.parametrize("kw, match", [
+    ({"path": None}, r"path must be a \.glb or \.gltf path"),
+    ({"scale": "x"}, r"scale \(metres per model unit\) must be a real number"),
+    ({"scale": -1.0}, r"scale .* must be in \(0, inf\)"),
+    ({"node_matrix": "eye"}, r"node_matrix must be an array of real numbers"),
+    ({"node_matrix": np.eye(3)}, r"node_matrix must have shape \(4, 4\)"),
+    ({"quantize": "yes"}, r"quantize must be True or False"),
+    ({"sparse": 1}, r"sparse must be True or False"),
+    ({"extra_meshes": [("eye", "v", [[0, 1, 2]])]}, r"extra_meshes\[0\] vertices must be an array"),
+    ({"extra_meshes": [("eye", np.zeros((3, 3)), [[0, 1, 5]])]}, r"extra_meshes\[0\] needs vertices and triangles"),
+    ({"extra_meshes": 5}, r"extra_meshes must be a sequence"),
+])
+def test_write_gltf_refuses_bad_arguments_before_writing(tmp_path, reference, kw, match):
+    from repro.blendshapes.gltf_write import write_gltf
+
+    path = kw.pop("path", tmp_path / "out.glb")
+    with pytest.raises(ModelError, match=match):
+        write_gltf(reference, path, **kw)
+    assert not (tmp_path / "out.glb").exists()
+    with pytest.raises(ModelError, match="writes a BlendshapeModel"):
+        write_gltf("model", tmp_path / "out.glb")
