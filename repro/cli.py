@@ -12,11 +12,13 @@
     repro claims                    the claims ledger (figures/claims.md, figures/claims.csv)
     repro data list                 each dataset: present? verified?
     repro data fetch NAME           download (and verify) a dataset into the data folder
-    repro app face|fighter          a paper's panel as a web page without code (Voila; --port, --host)
+    repro app face|fighter          a paper's panel as a web page without code (Voila; --port, --host;
+                                    served with a token printed inside the URL, --no-token on loopback only)
 
 Exit status: 0 on success, 2 for an unknown name or bad usage (e.g. ``--out``
-naming a file), 1 when a run fails with one of repro's own errors (the message
-says why).  Progress bars (plain tqdm, shown after a second) go to stderr; the
+naming a file or empty, ``--queries 0``, ``--factors 1,-1``, ``--port 70000``: the
+usage line and one ``repro: ...`` line), 1 when a run fails with one of repro's own
+errors (the message says why, on one line).  Progress bars (plain tqdm, shown after a second) go to stderr; the
 library itself never shows one unless asked (``progress=True``).
 """
 
@@ -36,9 +38,10 @@ BENCHES = ("attenuation", "retrieval", "adaptation", "index", "prepare")
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="repro", description="Regenerate the figures and measurements of the two papers.")
     sub = p.add_subparsers(dest="command", required=True)
-    sub.add_parser("list", help="list every registered figure or measurement")
+    sub.add_parser("list", help="list every registered figure or measurement").set_defaults(usage=None)
     for name, helptext in [("run", "run the named figures"), ("all", "run every figure")]:
         sp = sub.add_parser(name, help=helptext)
+        sp.set_defaults(usage=sp.format_usage)
         if name == "run":
             sp.add_argument("names", nargs="+", metavar="NAME")
         sp.add_argument("--out", default=DEFAULT_OUT, help="output folder (default: figures)")
@@ -50,29 +53,37 @@ def _parser() -> argparse.ArgumentParser:
                         help="compute the figures without timings in N processes (0: one per CPU); the timing "
                              "figures then run alone (default: 1, all in this process)")
     b = sub.add_parser("bench", help="benchmarks printing ratios against an in-process baseline")
+    b.set_defaults(usage=b.format_usage)
     b.add_argument("which", choices=BENCHES)
     b.add_argument("--quick", action="store_true")
     b.add_argument("--out", default=DEFAULT_OUT)
-    b.add_argument("--queries", type=int, default=None, metavar="N",
+    b.add_argument("--queries", default=None, metavar="N",
                    help="retrieval: queries per database and size (default 200; 100 with --quick or from 1,000x)")
     b.add_argument("--factors", default=None, metavar="F,F,...",
                    help="retrieval: database sizes, comma-separated (default 1,10,100,1000; 1,10 with --quick)")
     b.add_argument("--database", action="append", default=None, metavar="NAME",
                    help="retrieval: a base database (synthetic, cmu); repeatable (default: synthetic, and cmu when present)")
     c = sub.add_parser("claims", help="the claims ledger: each claim, its measured value, a verdict")
+    c.set_defaults(usage=c.format_usage)
     c.add_argument("--full", action="store_true", help="measure with the full sweeps (default: the quick ones CI uses)")
     c.add_argument("--out", default=DEFAULT_OUT)
     d = sub.add_parser("data", help="the datasets: list, fetch")
     dsub = d.add_subparsers(dest="data_command", required=True)
-    dsub.add_parser("list", help="each dataset, whether present and verified")
+    dsub.add_parser("list", help="each dataset, whether present and verified").set_defaults(usage=None)
     f = dsub.add_parser("fetch", help="download and verify datasets")
+    f.set_defaults(usage=f.format_usage)
     f.add_argument("datasets", nargs="+", metavar="NAME")
     a = sub.add_parser("app", help="a paper's panel as a web page without code (Voila)")
+    a.set_defaults(usage=a.format_usage)
     a.add_argument("which", choices=("face", "fighter"), help="face: Lewis et al. 2005; fighter: Pronost et al.")
-    a.add_argument("--port", type=int, default=8866, help="port to serve on (default: 8866)")
-    a.add_argument("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1, this machine only)")
+    a.add_argument("--port", type=int, default=8866, help="port to serve on, 1..65535 (default: 8866)")
+    a.add_argument("--host", default="127.0.0.1",
+                   help="address to listen on (default: 127.0.0.1, this machine only; another address is warned about)")
     a.add_argument("--no-browser", action="store_true",
                    help="do not open a browser (never opened without a display; the address is printed)")
+    a.add_argument("--no-token", action="store_true",
+                   help="serve without the access token (loopback addresses only: anyone on this machine can then "
+                        "use the app's kernel)")
     return p
 
 
@@ -191,11 +202,71 @@ def main(argv=None) -> int:
         return _main(args)
 
 
+def _usage_error(args, why: str) -> int:
+    """Bad usage: the command's usage line (as argparse prints it) and one ``repro: ...`` line; exit status 2."""
+    usage = getattr(args, "usage", None)
+    if usage is not None:
+        sys.stderr.write(usage())
+    print(f"repro: {why}", file=sys.stderr)
+    return 2
+
+
+def _factors(text: str) -> list:
+    """``--factors 1,10,100``: the ints, or ValueError (``1,,2``, ``1,x``, ``1.5``)."""
+    return [int(f) for f in text.split(",")]
+
+
+def _usage_problem(args) -> str | None:
+    """Why the arguments are bad usage (checked before any work, --out before it is created), or None.
+
+    Everything argparse's types cannot say alone: the values the library would refuse
+    (``--queries 0``, ``--factors 1,-1``, ``--database nope``, a factor asking more memory than
+    :data:`repro.checks.MEMORY_BUDGET`, ``--port 70000``, ``--no-token`` off loopback) exit 2, not 1.
+    """
+    strings = [v for v in vars(args).values() if isinstance(v, str)]
+    strings += [x for v in vars(args).values() if isinstance(v, list) for x in v if isinstance(x, str)]
+    if any("\0" in v for v in strings):  # only reachable through main(argv): exec's argv has no NUL
+        return "an argument contains a NUL character"
+    out = getattr(args, "out", None)
+    if out is not None and not out.strip():
+        return f"--out must name a folder, got {out!r} (the figures would land in the current folder)"
+    if args.command == "bench" and (args.queries is not None or args.factors is not None or args.database is not None):
+        from repro.bench import retrieval
+
+        if args.which != "retrieval":
+            return "--queries, --factors and --database are options of 'repro bench retrieval'"
+        try:
+            factors = None if args.factors is None else _factors(args.factors)
+        except ValueError:
+            return f"--factors must be comma-separated ints >= 1, got {args.factors!r}"
+        try:
+            queries = None if args.queries is None else int(args.queries)
+        except ValueError:
+            return f"--queries must be a whole number >= 1, got {args.queries!r}"
+        try:  # the library's own check (ranges, known databases, the memory the factors ask), before any work
+            retrieval.check_bench_arguments(args.database, factors, queries)
+        except ReproError as exc:
+            return f"{exc}"
+        args.factors, args.queries = factors, queries
+    if args.command == "app":
+        from repro.ui.app import is_loopback
+
+        if not 1 <= args.port <= 65535:
+            return f"--port must be a number in 1..65535, got {args.port}"
+        if not args.host.strip():
+            return "--host must name an address (an empty one would listen on every interface)"
+        if args.no_token and not is_loopback(args.host):
+            return (f"--no-token is only allowed on a loopback address (127.0.0.1, ::1, localhost), not --host "
+                    f"{args.host!r}: anyone who can reach it could run code in the app's kernel")
+    return None
+
+
 def _main(args) -> int:
+    if (why := _usage_problem(args)) is not None:
+        return _usage_error(args, why)
     # every command that writes (run, all, bench, claims) takes --out: refuse a bad one before computing
     if getattr(args, "out", None) is not None and (why := _bad_out(args.out)):
-        print(f"repro: {why}", file=sys.stderr)
-        return 2
+        return _usage_error(args, why)
     try:
         if args.command == "list":
             from repro.experiments import registry
@@ -222,17 +293,8 @@ def _main(args) -> int:
             }[args.which]
             extra = {}
             if args.queries is not None or args.factors is not None or args.database is not None:
-                if args.which != "retrieval":
-                    print("repro: --queries, --factors and --database are options of 'repro bench retrieval'",
-                          file=sys.stderr)
-                    return 2
-                try:
-                    factors = None if args.factors is None else [int(f) for f in args.factors.split(",")]
-                except ValueError:
-                    print(f"repro: --factors must be comma-separated ints >= 1, got {args.factors!r}", file=sys.stderr)
-                    return 2
-                extra = dict(n_queries=args.queries, factors=factors, databases=args.database)
-                retrieval.check_bench_arguments(extra["databases"], factors, args.queries)  # before any work
+                # checked by _usage_problem (exit 2 before any work), --factors parsed there
+                extra = dict(n_queries=args.queries, factors=args.factors, databases=args.database)
             table = run_(quick=args.quick, progress=True, **extra)
             print(fmt(table))
             print(f"wrote {write_csv(Path(args.out) / csv_name, table)}")
@@ -244,7 +306,7 @@ def _main(args) -> int:
         if args.command == "app":
             from repro.ui.app import run_app
 
-            return run_app(args.which, args.host, args.port, no_browser=args.no_browser)
+            return run_app(args.which, args.host, args.port, no_browser=args.no_browser, token=not args.no_token)
     except UnknownFigureError as exc:
         print(f"repro: {exc}", file=sys.stderr)
         return 2

@@ -108,3 +108,66 @@ def test_two_runs_give_identical_csvs_except_timing_columns(quick_figures, besid
             b = second[name][suffix]
             assert a["columns"] == b["columns"], (name, suffix)
             assert a["csv"] == b["csv"], (name, suffix)
+
+
+# ---------------------------------------------------------------- bad usage exits 2 (issue 23, section 7)
+
+@pytest.mark.parametrize("argv", [
+    ["bench", "retrieval", "--queries", "0"], ["bench", "retrieval", "--queries", "-5"],
+    ["bench", "retrieval", "--queries", "x"], ["bench", "retrieval", "--queries", "1000000000000"],
+    ["bench", "retrieval", "--factors", "0"], ["bench", "retrieval", "--factors", "1,-1"],
+    ["bench", "retrieval", "--factors", "1,,2"], ["bench", "retrieval", "--factors", ""],
+    ["bench", "retrieval", "--database", "nope"], ["bench", "prepare", "--factors", "2"],
+    ["run", "attenuation_speed", "--out", ""], ["all", "--out", ""], ["bench", "attenuation", "--out", ""],
+    ["claims", "--out", ""], ["run", "attenuation_speed", "--out", " "],
+    ["run", "attenuation_speed", "--out", "a\0b"],
+    ["app", "face", "--port", "0"], ["app", "face", "--port", "70000"], ["app", "face", "--host", ""],
+    ["app", "face", "--host", "0.0.0.0", "--no-token"],
+])
+def test_bad_usage_exits_2_with_the_usage_line_before_any_work(argv, tmp_path, monkeypatch, capsys):
+    """Every bad value of an argument is usage (exit 2, argparse's usage line, one ``repro:`` line),
+    checked before anything is computed or written; ``--out ""`` would write into the current folder."""
+    from repro.bench import retrieval
+    from repro.ui import app
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(retrieval, "bench_retrieval", lambda **kw: pytest.fail("must not run"))
+    monkeypatch.setattr(app.subprocess, "Popen", lambda *a, **k: pytest.fail("must not start"))
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"usage: repro {argv[0]}") and err.splitlines()[-1].startswith("repro: ")
+    assert "Traceback" not in err
+    assert not any(tmp_path.iterdir())
+
+
+def test_out_naming_an_existing_file_is_bad_usage(tmp_path, capsys):
+    f = tmp_path / "file"
+    f.write_text("keep")
+    for argv in (["run", "attenuation_speed"], ["bench", "attenuation"], ["claims"]):
+        assert cli.main(argv + ["--out", str(f)]) == 2
+        err = capsys.readouterr().err
+        assert "exists and is a file, not a folder" in err and "Traceback" not in err
+    assert f.read_text() == "keep"
+
+
+@pytest.mark.parametrize("factor", ["100000", "1000000000"])
+def test_bench_factors_asking_more_than_the_memory_budget_exit_2_naming_the_factor(factor):
+    """``--factors 1000000000`` printed numpy's _ArrayMemoryError traceback asking 67-99 GiB: now the
+    estimate from the base database is checked against the budget before anything is built."""
+    p = subprocess.run([sys.executable, "-m", "repro", "bench", "retrieval", "--factors", f"1,{factor}",
+                        "--database", "synthetic", "--out", "unused-never-created"],
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 2, p.stderr
+    assert f"repro: factor {factor} (the synthetic database" in p.stderr and "GiB" in p.stderr
+    assert "budget" in p.stderr and "Traceback" not in p.stderr and "MemoryError" not in p.stderr
+    assert p.stdout == ""
+
+
+def test_library_errors_exit_1_on_one_line(tmp_path, capsys):
+    """A ReproError during a run is exit 1 and one ``repro:`` line, never a traceback."""
+    bad = tmp_path / "bad.glb"
+    bad.write_bytes(b"not a glb")
+    out = tmp_path / "out"
+    assert cli.main(["run", "fig4_axis_selection", "--quick", "--face", str(bad), "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "repro:" in err

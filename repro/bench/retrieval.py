@@ -49,23 +49,37 @@ FACTORS: tuple[int, ...] = (1, 10, 100, 1000)
 DATABASES: tuple[str, ...] = ("synthetic", "cmu")
 
 
-def check_bench_arguments(databases, factors, n_queries):
+def check_bench_arguments(databases, factors, n_queries, *, bases=None):
     """``(databases, factors, n_queries)`` of :func:`bench_retrieval` checked (None kept: the defaults).
+
+    Before anything is built, what each given factor will allocate (the base database's
+    arrays ``factor`` times, :func:`repro.experiments.shared.estimated_bytes`) is checked
+    against :data:`repro.checks.MEMORY_BUDGET` (``--factors 1000000000`` asked numpy for
+    67-99 GiB, issue 23 section 3).  ``bases``: a dict filled with the base databases loaded
+    for that estimate (``name -> database``), for the caller to reuse.
 
     Raises
     ------
     repro.errors.RetrievalError
-        An unknown database, a factor that is not an int >= 1, ``n_queries`` not an int >= 1.
+        An unknown database, a factor that is not an int >= 1 or asks for more memory than the
+        budget, ``n_queries`` not an int in 1..:data:`repro.motion.retrieval.MAX_QUERIES`.
     """
+    from repro.checks import as_int, check_alloc
     from repro.errors import RetrievalError
-    from repro.checks import as_int
+    from repro.motion.retrieval import MAX_QUERIES
 
     if databases is not None:
-        databases = [databases] if isinstance(databases, str) else list(databases)
+        databases = [databases] if isinstance(databases, str) else databases
+        try:
+            databases = list(databases)
+        except TypeError:
+            raise RetrievalError(f"databases must be a non-empty list of {list(DATABASES)}, got {databases!r}") from None
         bad = [d for d in databases if not isinstance(d, str) or d not in DATABASES]
         if bad or not databases:
             raise RetrievalError(f"databases must be a non-empty list of {list(DATABASES)}, got {databases!r}")
     if factors is not None:
+        if isinstance(factors, (str, bytes)):
+            raise RetrievalError(f"factors must be a sequence of ints >= 1, got {factors!r}")
         try:
             factors = tuple(factors)
         except TypeError:
@@ -74,8 +88,27 @@ def check_bench_arguments(databases, factors, n_queries):
             raise RetrievalError("factors must name at least one size (an int >= 1)")
         factors = tuple(as_int(f, "factor", 1, None, error=RetrievalError) for f in factors)
     if n_queries is not None:
-        n_queries = as_int(n_queries, "n_queries", 1, None, error=RetrievalError)
+        n_queries = as_int(n_queries, "n_queries", 1, MAX_QUERIES, error=RetrievalError)
+    if factors is not None and max(factors) > 1:
+        from repro.experiments.shared import estimated_bytes
+        from repro.motion.sources import default_database
+
+        bases = {} if bases is None else bases
+        for name in databases if databases is not None else _default_databases():
+            base = bases.get(name)
+            if base is None:
+                base = bases[name] = default_database(name)
+            f = max(factors)  # the largest asks the most
+            check_alloc(estimated_bytes(base, f), f"factor {f} (the {name} database of {base.n_clips} clips, "
+                        f"{f} times)", error=RetrievalError)
     return databases, factors, n_queries
+
+
+def _default_databases() -> list:
+    """The base databases benched when none is named: synthetic, and cmu when its data is present."""
+    from repro import data
+
+    return ["synthetic"] + (["cmu"] if data.missing_reason("cmu-bvh") is None else [])
 
 
 def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_queries: int | None = None,
@@ -104,14 +137,23 @@ def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_quer
     import pandas as pd
     from tqdm import tqdm  # plain bar on stderr, never a notebook widget
 
-    from repro import data
     from repro.motion.augment import augment
     from repro.motion.sources import default_database
     from repro.motion.retrieval import time_search
 
-    databases, factors, asked = check_bench_arguments(databases, factors, n_queries)
+    from repro.checks import as_bool, as_int, describe
+    from repro.errors import RetrievalError
+
+    quick = as_bool(quick, "quick", error=RetrievalError)
+    progress = as_bool(progress, "progress", error=RetrievalError)
+    seed = as_int(seed, "seed", 0, None, error=RetrievalError)
+    if database is not None and not callable(database):
+        raise RetrievalError(f"database must be a function (name, factor, seed) -> database or None, got "
+                             f"{describe(database)}")
+    bases = {}  # the base databases the memory check loaded, reused below
+    databases, factors, asked = check_bench_arguments(databases, factors, n_queries, bases=bases)
     if databases is None:
-        databases = ["synthetic"] + (["cmu"] if data.missing_reason("cmu-bvh") is None else [])
+        databases = _default_databases()
     if factors is None:
         factors = FACTORS[:2] if quick else FACTORS
     rows = []
@@ -120,7 +162,8 @@ def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_quer
         if database is not None and factor < FLOAT32_FROM:  # 1,000x: float32, built here (too big to cache as npz)
             db = database(name, factor, seed)
         else:
-            base = default_database(name)
+            base = bases.pop(name, None)  # a base the memory check loaded is used once, as before
+            base = default_database(name) if base is None else base
             db = base if factor == 1 else augment(base, factor, seed=seed,
                                                   pose_dtype=np.float32 if factor >= FLOAT32_FROM else None)
         large = factor >= FLOAT32_FROM

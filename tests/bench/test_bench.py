@@ -106,3 +106,26 @@ def test_bench_retrieval_refuses_bad_arguments(kw):
 
     with pytest.raises(RetrievalError):
         retrieval.bench_retrieval(progress=False, **kw)
+
+
+@pytest.mark.parametrize("kw", [dict(factors="12"), dict(factors=(1, 10**9)), dict(factors=(True,)),
+                                dict(n_queries=10**12), dict(databases=5), dict(quick="yes"), dict(seed=-1),
+                                dict(seed="x"), dict(progress=None), dict(database="synthetic")])
+def test_bench_retrieval_refuses_more_bad_arguments(kw):
+    """Every argument checked at the entry (issue 23 sections 3 and 6): a RetrievalError, never a bare one."""
+    from repro.errors import RetrievalError
+
+    with pytest.raises(RetrievalError):
+        retrieval.bench_retrieval(**kw)
+
+
+def test_check_bench_arguments_checks_the_memory_the_factors_ask_before_building():
+    """``factors=(10**9,)`` asked numpy for 67-99 GiB (issue 23 section 3): refused from the base's size."""
+    from repro.errors import RetrievalError
+
+    bases = {}
+    with pytest.raises(RetrievalError, match=r"factor 100000 \(the synthetic database of \d+ clips.*GiB.*budget"):
+        retrieval.check_bench_arguments(["synthetic"], (1, 100000), 10, bases=bases)
+    assert set(bases) == {"synthetic"}  # the base the estimate came from, for the caller to reuse
+    assert retrieval.check_bench_arguments(["synthetic"], (1, 10), 10, bases=bases) == (["synthetic"], (1, 10), 10)
+    assert retrieval.check_bench_arguments(None, None, None) == (None, None, None)  # the defaults, nothing loaded
