@@ -7,7 +7,13 @@ notebooks ship inside the package, so the command works from an installed ``repr
 well as from a clone.
 
 - ``--host`` defaults to the loopback address (``127.0.0.1``): the app is not reachable
-  from other machines unless asked (``--host 0.0.0.0``).
+  from other machines unless asked (``--host 0.0.0.0``, which is warned about on stderr).
+- The page and its kernel (which runs code) answer only with an access token, generated
+  with :func:`secrets.token_urlsafe` and printed once inside the URL, as JupyterLab does
+  (``http://127.0.0.1:8866/?token=...``).  It reaches Voilà through ``JUPYTER_TOKEN`` in
+  its environment (read by jupyter_server's identity provider with ``--Voila.auto_token``),
+  not its command line, which other users of the machine can read.  ``token=False``
+  (``--no-token``) only on a loopback address.
 - The port is checked before Voilà starts: a taken port is one clear error (Voilà would
   otherwise silently move to another one).
 - A browser is opened only when there is a display to open it on (and not with
@@ -17,7 +23,9 @@ well as from a clone.
 from __future__ import annotations
 
 import errno
+import ipaddress
 import os
+import secrets
 import socket
 import subprocess
 import sys
@@ -33,6 +41,7 @@ __all__ = [
     "app_environment",
     "app_notebook",
     "has_display",
+    "is_loopback",
     "port_problem",
     "run_app",
     "voila_command",
@@ -81,6 +90,32 @@ def port_problem(host: str, port: int) -> str | None:
     return None
 
 
+def is_loopback(host: str) -> bool:
+    """Whether every address ``host`` names is a loopback one (``127.0.0.1``, ``::1``, ``localhost``).
+
+    An unknown name, or one that also resolves to another address, is not.
+    """
+    if not isinstance(host, str) or not host.strip():
+        return False  # "" makes a server listen on every interface
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        pass
+    try:
+        infos = socket.getaddrinfo(host, None, type=socket.SOCK_STREAM)
+    except (socket.gaierror, UnicodeError):
+        return False
+    try:
+        return bool(infos) and all(ipaddress.ip_address(i[4][0].split("%")[0]).is_loopback for i in infos)
+    except ValueError:
+        return False
+
+
+def new_token() -> str:
+    """A fresh access token for one app (:func:`secrets.token_urlsafe`, 32 random bytes)."""
+    return secrets.token_urlsafe(32)
+
+
 def has_display() -> bool:
     """Whether a browser window could be opened here (a desktop, or X/Wayland on Linux)."""
     if sys.platform in ("darwin", "win32"):
@@ -89,19 +124,25 @@ def has_display() -> bool:
 
 
 def voila_command(which: str, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, *,
-                  open_browser: bool = False) -> list[str]:
-    """The command line that serves app ``which`` (Voilà, this Python)."""
+                  open_browser: bool = False, token: bool = True) -> list[str]:
+    """The command line that serves app ``which`` (Voilà, this Python).
+
+    ``token``: Voilà asks for the token that :func:`app_environment` puts in ``JUPYTER_TOKEN``
+    (``--Voila.auto_token=True``: without it Voilà serves everyone).
+    """
     nb = app_notebook(which)
     return [
         sys.executable, "-m", "voila", str(nb),
         f"--Voila.ip={host}", f"--port={port}", "--Voila.port_retries=0",
         f"--Voila.open_browser={bool(open_browser)}",
+        f"--Voila.auto_token={bool(token)}",
         "--show_tracebacks=True",
     ]
 
 
-def app_environment(base=None) -> dict:
-    """The environment of Voilà and its kernel: this one, with one BLAS thread unless the user chose.
+def app_environment(base=None, *, token: str | None = None) -> dict:
+    """The environment of Voilà and its kernel: this one, with one BLAS thread unless the user chose,
+    and ``JUPYTER_TOKEN`` = ``token`` (removed when None: an inherited one is not the app's).
 
     The panels' products are small (the ICT face's ``D @ w``: 28,227 x 57), and a
     multi-threaded OpenBLAS spends longer waking its threads than multiplying: on a busy
@@ -109,24 +150,92 @@ def app_environment(base=None) -> dict:
     """
     env = dict(os.environ if base is None else base)
     env.setdefault("OPENBLAS_NUM_THREADS", "1")
+    env.pop("JUPYTER_TOKEN_FILE", None)
+    if token is None:
+        env.pop("JUPYTER_TOKEN", None)
+    else:
+        env["JUPYTER_TOKEN"] = token
     return env
 
 
-def run_app(which: str, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, *, no_browser: bool = False) -> int:
-    """Serve app ``which`` until interrupted (Ctrl-C); the exit status of Voilà (0 after Ctrl-C)."""
+def run_app(which: str, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, *, no_browser: bool = False,
+            token: bool = True) -> int:
+    """Serve app ``which`` until interrupted (Ctrl-C); the exit status of Voilà (0 after Ctrl-C).
+
+    ``token`` (default): a fresh access token, printed once inside the URL; ``False`` only on a
+    loopback ``host`` (:class:`AppError` otherwise).  A ``host`` that is not loopback is warned
+    about on stderr: the app's kernel runs code for whoever holds the URL.
+    """
     import importlib.util
 
     nb = app_notebook(which)
+    if not isinstance(host, str) or not host.strip():
+        raise AppError(f"host must name an address, got {host!r} (an empty one listens on every interface)")
+    if not isinstance(token, bool):
+        raise AppError(f"token must be True or False, got {token!r}")
+    loopback = is_loopback(host)
+    if not token and not loopback:
+        raise AppError(f"serving without a token is only allowed on a loopback address, not {host!r}")
     if (why := port_problem(host, port)) is not None:
         raise AppError(why)
     if importlib.util.find_spec("voila") is None:
         raise AppError("Voilà is not installed: pip install voila (it is a dependency of repro)")
-    open_browser = not no_browser and has_display()
-    url = f"http://{'[' + host + ']' if ':' in host else host}:{port}/"
+    if not loopback:
+        print(f"repro: warning: --host {host} is not a loopback address: the app (whose kernel runs code) is "
+              "reachable from other machines by whoever holds its URL and token", file=sys.stderr, flush=True)
+    secret = new_token() if token else None
+    want_browser = not no_browser and has_display()
+    url = f"http://{'[' + host + ']' if ':' in host else host}:{port}/" + (f"?token={secret}" if secret else "")
     print(f"repro app {which}: {APPS[which]}", flush=True)
     print(f"serving {nb.name} with Voilà at {url}"
-          + ("" if open_browser else " (open it in a browser)") + "; Ctrl-C to stop", flush=True)
-    proc = subprocess.Popen(voila_command(which, host, port, open_browser=open_browser), env=app_environment())
+          + ("" if want_browser else " (open it in a browser)") + "; Ctrl-C to stop", flush=True)
+    # with a token the browser is opened here, on the URL with the token (Voilà's own opener drops it)
+    # Voila ends with this process however it ends: SIGTERM here stops it as Ctrl-C does, and
+    # Linux sends it SIGTERM (it then shuts its kernel down) should this process be killed
+    previous = _terminate_on_sigterm()
+    try:
+        proc = subprocess.Popen(voila_command(which, host, port, open_browser=want_browser and not secret,
+                                              token=bool(secret)), env=app_environment(token=secret),
+                                preexec_fn=_term_with_parent if sys.platform.startswith("linux") else None)
+        if want_browser and secret:
+            _open_when_listening(url, host, port, proc)
+        return _serve(proc)
+    finally:
+        if previous is not None:
+            import signal
+
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _terminate_on_sigterm():
+    """SIGTERM raises KeyboardInterrupt (the Ctrl-C path stops Voila); the previous handler, or None
+    when not on the main thread (signals cannot be handled there)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    return signal.signal(signal.SIGTERM, interrupt)
+
+
+def _term_with_parent() -> None:
+    """In the Voila child, before exec: SIGTERM when its parent (``repro app``) dies (``PR_SET_PDEATHSIG``)."""
+    import ctypes
+    import signal
+
+    try:
+        ctypes.CDLL(None).prctl(1, ctypes.c_ulong(signal.SIGTERM), ctypes.c_ulong(0), ctypes.c_ulong(0),
+                                ctypes.c_ulong(0))  # 1: PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass  # not Linux's libc: Voila then outlives a killed repro app, as before
+
+
+def _serve(proc) -> int:
+    """Wait for Voila; on Ctrl-C (or SIGTERM) stop it, SIGKILL after 15 s; its exit status (0 after Ctrl-C)."""
     try:
         return proc.wait()
     except KeyboardInterrupt:
@@ -137,3 +246,24 @@ def run_app(which: str, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, *, n
             proc.kill()
             proc.wait()
         return 0
+
+
+def _open_when_listening(url: str, host: str, port: int, proc, timeout: float = 120.0) -> None:
+    """Open ``url`` in a browser once Voilà accepts connections on ``host:port`` (a daemon thread)."""
+    import threading
+    import time
+    import webbrowser
+
+    def wait_then_open():
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline and proc.poll() is None:
+            try:
+                with socket.create_connection((host, port), timeout=1.0):
+                    break
+            except OSError:
+                time.sleep(0.25)
+        else:
+            return
+        webbrowser.open(url)
+
+    threading.Thread(target=wait_then_open, name="repro-app-browser", daemon=True).start()

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import base64
 import os
+import re
 import signal
 import socket
 import statistics
@@ -89,6 +90,12 @@ class App:
                     pytest.fail(f"repro app {which} did not answer in {STEP_TIMEOUT:.0f} s:\n{self.tail()}",
                                 pytrace=False)
                 time.sleep(0.3)
+        # the app answers only with its token, printed once inside the URL (issue 23, section 7)
+        found = re.search(rf"http://127\.0\.0\.1:{self.port}/\?token=[A-Za-z0-9_-]+", self.log.read_text())
+        if found is None:
+            self.stop()
+            pytest.fail(f"repro app {which} printed no URL with its token:\n{self.tail()}", pytrace=False)
+        self.url = found.group(0)
 
     @staticmethod
     def _env() -> dict:
