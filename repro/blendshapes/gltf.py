@@ -84,6 +84,7 @@ __all__ = [
     "MAX_PRIMITIVES",
     "MAX_TARGETS",
     "MAX_OBJECTS",
+    "MAX_VALUES",
     "MODEL_BYTES_RATIO",
     "MODEL_BYTES_FLOOR",
 ]
@@ -146,6 +147,8 @@ MAX_PRIMITIVES = 4096
 MAX_TARGETS = 1024
 #: items of every top-level array (nodes, accessors, bufferViews, materials ...), primitives and morph targets
 MAX_OBJECTS = 12_000
+#: JSON values (numbers, strings, list items, fields) of the glTF schema's fields, extras and extensions not counted
+MAX_VALUES = 100_000
 
 
 # ====================================================================== reading
@@ -264,6 +267,21 @@ class _Reader:
         if total > MAX_OBJECTS:
             raise self.err(f"has {total} glTF objects (items of its top-level arrays, mesh primitives and morph targets), "
                            f"more than the {MAX_OBJECTS} this reader accepts (gltf.MAX_OBJECTS); refusing")
+        # pygltflib converts every value of the schema's fields one by one (~20 us each: an accessor
+        # "max" of 200,000 numbers took 4 s); extras and extensions pass through untouched
+        values, stack = 0, [obj]
+        while stack:
+            node = stack.pop()
+            items = node.items() if isinstance(node, dict) else enumerate(node)
+            for key, v in items:
+                if key in ("extras", "extensions"):
+                    continue
+                values += 1
+                if isinstance(v, (dict, list)):
+                    stack.append(v)
+            if values > MAX_VALUES:
+                raise self.err(f"has more than {MAX_VALUES} JSON values in its glTF fields (outside extras and "
+                               f"extensions), more than this reader accepts (gltf.MAX_VALUES); refusing")
 
     # -------------------------------------------------------------- helpers
     def item(self, kind: str, index):

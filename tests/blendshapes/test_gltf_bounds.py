@@ -204,6 +204,24 @@ def test_counts_are_bounded_before_the_document_is_built(tmp_path, edit, match):
         read_gltf(path)
 
 
+@pytest.mark.parametrize("edit", [
+    lambda d: d["accessors"][0].update(max=[0.0] * 150_000),
+    lambda d: d["nodes"][0].update(children=[0] * 150_000),
+    lambda d: d.update(scenes=[{"nodes": [0] * 150_000}]),
+    lambda d: d["meshes"][0].update(weights=[0.0] * 150_000),
+    lambda d: d["meshes"][0]["primitives"][0]["attributes"].update({f"A{i}": 0 for i in range(150_000)}),
+], ids=["accessor_max", "children", "scene_nodes", "weights", "attributes"])
+def test_long_lists_inside_objects_are_bounded_before_the_document_is_built(tmp_path, edit):
+    # pygltflib converts each value (~20 us): 200,000 numbers in one accessor's "max" took 4 s
+    with pytest.raises(ModelError, match=r"more than 100000 JSON values .*MAX_VALUES"):
+        read_gltf(_face(tmp_path, edit=edit))
+
+
+def test_extras_and_extensions_are_not_counted(tmp_path, reference):
+    path = _face(tmp_path, edit=lambda d: d.update(extras={"big": [0] * 150_000}))
+    np.testing.assert_array_equal(read_gltf(path).D, reference.D)
+
+
 def test_the_count_limits_are_generous_for_real_avatars(tmp_path, reference):
     def avatar(d):  # a rig of 600 bones above the face, 40 more meshes (no targets), 300 materials
         d["nodes"] = [{"name": f"bone{i}", "children": [i + 1]} for i in range(600)] + [dict(d["nodes"][0])]
