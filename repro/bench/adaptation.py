@@ -34,6 +34,12 @@ def bench_adaptation(*, quick: bool = False, progress: bool = False):
     from repro.motion.morphology import encode, time_retarget
     from repro.motion.skeleton import scale_skeleton, skeleton_of
 
+    from repro.checks import as_bool, as_int
+    from repro.errors import ArgumentError
+
+    quick = as_bool(quick, "quick", error=ArgumentError)
+    progress = as_bool(progress, "progress", error=ArgumentError)
+
     rows = []
     clips = []
     if data.missing_reason("cmu-bvh") is None:
@@ -95,6 +101,10 @@ def format_adaptation(table) -> str:
     return "\n".join(lines)
 
 
+#: most orders (or repeats) :func:`bench_order_latency` times: each is a strike solved twice
+MAX_ORDERS: int = 10_000
+
+
 def bench_order_latency(*, n_orders: int = 12, repeats: int = 3, database: str = "synthetic", seed: int = 0,
                         progress: bool = True) -> dict:
     """Order -> first adapted frame of the fighter (claim K4), the slow path against the fast one, in one process.
@@ -112,8 +122,17 @@ def bench_order_latency(*, n_orders: int = 12, repeats: int = 3, database: str =
     """
     import numpy as np
 
+    from repro.bench.retrieval import DATABASES
+    from repro.checks import as_bool, as_choice, as_int
+    from repro.errors import ArgumentError
     from repro.motion.fighter import KungFuFighter, check_target, simulated_user
     from repro.motion.strike import BLEND_S, strike
+
+    n_orders = as_int(n_orders, "n_orders", 1, MAX_ORDERS, error=ArgumentError)
+    repeats = as_int(repeats, "repeats", 1, MAX_ORDERS, error=ArgumentError)
+    database = as_choice(database, "database", DATABASES, error=ArgumentError)
+    seed = as_int(seed, "seed", 0, None, error=ArgumentError)
+    progress = as_bool(progress, "progress", error=ArgumentError)
 
     f = KungFuFighter(database, seed=seed)
     user = simulated_user(seed=seed, duration=20.0, fps=30.0)

@@ -51,6 +51,12 @@ def bench_attenuation(*, quick: bool = False, seed: int = 0, progress: bool = Fa
 
     from repro.blendshapes import Attenuator, attenuate, select_vertices
 
+    from repro.checks import as_bool, as_int
+    from repro.errors import ArgumentError
+
+    quick = as_bool(quick, "quick", error=ArgumentError)
+    progress = as_bool(progress, "progress", error=ArgumentError)
+    seed = as_int(seed, "seed", 0, None, error=ArgumentError)
     rng = np.random.default_rng(seed)
     reps_direct = 3 if quick else 7
     reps_fast = 50 if quick else 300
@@ -149,6 +155,13 @@ def bench_attenuation_scaling(*, quick: bool = False, seed: int = 0, progress: b
     """
     import pandas as pd
     from tqdm import tqdm  # plain bar on stderr, never a notebook widget
+
+    from repro.checks import as_bool, as_int
+    from repro.errors import ArgumentError
+
+    quick = as_bool(quick, "quick", error=ArgumentError)
+    progress = as_bool(progress, "progress", error=ArgumentError)
+    seed = as_int(seed, "seed", 0, None, error=ArgumentError)
 
     from repro import data
     from repro.blendshapes import load_model

@@ -62,11 +62,23 @@ def bench_index_build(*, quick: bool = False, factors=None, database: str = "syn
 
     from repro.motion.augment import augment
     from repro.motion.retrieval import MotionRetriever
+    from repro.bench.retrieval import check_bench_arguments
+    from repro.checks import as_bool, as_int
+    from repro.errors import RetrievalError
     from repro.motion.sources import default_database
 
+    quick = as_bool(quick, "quick", error=RetrievalError)
+    progress = as_bool(progress, "progress", error=RetrievalError)
+    seed = as_int(seed, "seed", 0, None, error=RetrievalError)
+    baseline_variants = as_int(baseline_variants, "baseline_variants", 1, 100_000, error=RetrievalError)
+    if not isinstance(database, str):
+        raise RetrievalError(f"database must be one of the base databases' names, got {database!r}")
+    bases = {}  # the database name, the factors (ints >= 1) and what they allocate, checked before building
+    _, factors, _ = check_bench_arguments([database], factors, None, bases=bases)
     if factors is None:
         factors = (10, 100) if quick else (100, 1000)
-    base = default_database(database)
+    base = bases.get(database)
+    base = default_database(database) if base is None else base
     rows = []
     for factor in tqdm(list(factors), desc="bench index", delay=1.0, disable=not progress, file=sys.stderr):
         dtype = np.float32 if factor >= FLOAT32_FROM else None

@@ -61,7 +61,15 @@ def bench_prepare(*, quick: bool = False, n_queries: int = 200, seed: int = 0, p
     """
     import pandas as pd
 
+    from repro.checks import as_bool, as_int
+    from repro.errors import ArgumentError
     from repro.motion.morphology import retarget
+    from repro.motion.retrieval import MAX_QUERIES
+
+    quick = as_bool(quick, "quick", error=ArgumentError)
+    progress = as_bool(progress, "progress", error=ArgumentError)
+    n_queries = as_int(n_queries, "n_queries", 1, MAX_QUERIES, error=ArgumentError)
+    seed = as_int(seed, "seed", 0, None, error=ArgumentError)
     from repro.motion.retrieval import MotionRetriever, rest_motion_y_up, retarget_to_tree
     from repro.motion.skeleton import Skeleton, scale_skeleton
     from repro.motion.sources import default_database

@@ -129,3 +129,25 @@ def test_check_bench_arguments_checks_the_memory_the_factors_ask_before_building
     assert set(bases) == {"synthetic"}  # the base the estimate came from, for the caller to reuse
     assert retrieval.check_bench_arguments(["synthetic"], (1, 10), 10, bases=bases) == (["synthetic"], (1, 10), 10)
     assert retrieval.check_bench_arguments(None, None, None) == (None, None, None)  # the defaults, nothing loaded
+
+
+@pytest.mark.parametrize("entry, kw", [
+    ("attenuation.bench_attenuation", dict(seed=-1)), ("attenuation.bench_attenuation", dict(quick="yes")),
+    ("attenuation.bench_attenuation_scaling", dict(progress=None)), ("adaptation.bench_adaptation", dict(quick=1)),
+    ("adaptation.bench_order_latency", dict(n_orders=0)), ("adaptation.bench_order_latency", dict(repeats="3")),
+    ("adaptation.bench_order_latency", dict(database="nope")), ("adaptation.bench_order_latency", dict(seed=-1)),
+    ("prepare.bench_prepare", dict(n_queries=10**12)), ("prepare.bench_prepare", dict(n_queries=0)),
+    ("prepare.bench_prepare", dict(seed="x")), ("index_build.bench_index_build", dict(factors=(10**9,))),
+    ("index_build.bench_index_build", dict(factors=(0,))), ("index_build.bench_index_build", dict(database="nope")),
+    ("index_build.bench_index_build", dict(database=None)), ("index_build.bench_index_build", dict(baseline_variants=0)),
+])
+def test_every_bench_entry_checks_its_arguments_first(entry, kw):
+    """The other benchmarks' arguments: a ReproError naming the bad one before any work (issue 23 section 6)."""
+    import importlib
+
+    from repro.errors import ReproError
+
+    module, name = entry.split(".")
+    func = getattr(importlib.import_module(f"repro.bench.{module}"), name)
+    with pytest.raises(ReproError, match=next(iter(kw)).replace("factors", "factor")):
+        func(**kw)
