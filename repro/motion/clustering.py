@@ -85,7 +85,7 @@ import numpy as np
 from scipy.cluster.vq import kmeans2
 from scipy.sparse import csr_matrix
 
-from repro.checks import as_int
+from repro.checks import as_int, as_real_array, check_alloc, describe
 from repro.errors import MotionError, ReproWarning
 
 __all__ = [
@@ -107,6 +107,7 @@ __all__ = [
     "float_poses",
     "CHUNK",
     "MAX_ITERATIONS",
+    "MAX_WINDOW",
 ]
 
 #: Vertical axis of the world (BVH is Y-up; the floor is y = 0).
@@ -121,6 +122,10 @@ POSE_ROLES: tuple[str, ...] = (
     "right_hip", "right_knee", "right_ankle", "right_foot",
 )  # fmt: skip
 
+
+#: Most frames in a pose cloud's window, and largest spacing between them (:func:`pose_points`):
+#: Kovar et al. use a few frames; 1,000 is 33 s at 30 Hz.
+MAX_WINDOW: int = 1000
 
 #: Most k-means iterations :func:`cluster_poses` accepts (each is one pass over the poses).
 MAX_ITERATIONS: int = 10_000
@@ -177,16 +182,32 @@ def float_poses(value, name: str, error=MotionError, *, allow_empty: bool = Fals
 
 
 # ------------------------------------------------------------------ root frames
+def _points3(x, name: str) -> np.ndarray:
+    """``x`` as a finite float64 (..., 3) array (at least 1-D), else :class:`MotionError` naming ``name``."""
+    a = as_real_array(x, name, error=MotionError)
+    if a.ndim == 0 or a.shape[-1] != 3:
+        raise MotionError(f"{name} must be an array of 3-D points (..., 3), got shape {a.shape}")
+    return a
+
+
+def _broadcast(what: str, *shapes) -> tuple:
+    try:
+        return np.broadcast_shapes(*shapes)
+    except ValueError:
+        raise MotionError(f"{what}: shapes {', '.join(map(str, shapes))} do not broadcast together") from None
+
+
 def rotate_y(points: np.ndarray, theta) -> np.ndarray:
     """Rotate ``points`` (..., 3) about +y by ``theta`` (radians; broadcast over leading axes).
 
     ``(x, y, z) -> (c x + s z, y, -s x + c z)``: +z turns towards +x for ``theta > 0``
-    (a heading ``theta`` is the direction ``(sin theta, 0, cos theta)``).
+    (a heading ``theta`` is the direction ``(sin theta, 0, cos theta)``).  Points and
+    angles must be finite real numbers whose shapes broadcast (:class:`MotionError`).
     """
-    p = np.asarray(points, dtype=float)
-    th = np.asarray(theta, dtype=float)[..., None]
+    p = _points3(points, "points")
+    th = as_real_array(theta, "theta (radians)", error=MotionError)[..., None]
     c, s = np.cos(th)[..., 0], np.sin(th)[..., 0]
-    out = np.empty(np.broadcast_shapes(p.shape, th.shape[:-1] + (3,)))
+    out = np.empty(_broadcast("rotate_y points and theta", p.shape, th.shape[:-1] + (3,)))
     out[..., 0] = c * p[..., 0] + s * p[..., 2]
     out[..., 1] = p[..., 1]
     out[..., 2] = -s * p[..., 0] + c * p[..., 2]
@@ -200,7 +221,9 @@ def heading_from_hips(left_hip: np.ndarray, right_hip: np.ndarray) -> np.ndarray
     +x faces +z): the heading ``theta`` is such that forward = ``(sin theta, 0, cos
     theta)``.  A degenerate hip vector (vertical or zero) gives heading 0.
     """
-    lat = np.asarray(left_hip, dtype=float) - np.asarray(right_hip, dtype=float)
+    left, right = _points3(left_hip, "left_hip"), _points3(right_hip, "right_hip")
+    _broadcast("heading_from_hips left_hip and right_hip", left.shape, right.shape)
+    lat = left - right
     fx, fz = -lat[..., 2], lat[..., 0]
     bad = np.hypot(fx, fz) <= 1e-12
     fz = np.where(bad, 1.0, fz)
@@ -229,7 +252,12 @@ def root_frames(global_positions: np.ndarray, pelvis: int, left_hip: int, right_
     origin : (F, 3) array
         ``(pelvis_x, 0, pelvis_z)``.
     """
-    g = np.asarray(global_positions, dtype=float)
+    g = _points3(global_positions, "global_positions")
+    if g.ndim != 3 or g.shape[0] == 0:
+        raise MotionError(f"global_positions must be a non-empty (F, J, 3) array, got shape {g.shape}")
+    J = g.shape[1]
+    pelvis, left_hip, right_hip = (as_int(j, name, 0, J - 1, error=MotionError) for j, name in
+                                   ((pelvis, "pelvis"), (left_hip, "left_hip"), (right_hip, "right_hip")))
     theta = heading_from_hips(g[:, left_hip], g[:, right_hip])
     origin = g[:, pelvis].copy()
     origin[:, UP_AXIS] = 0.0
@@ -238,12 +266,16 @@ def root_frames(global_positions: np.ndarray, pelvis: int, left_hip: int, right_
 
 def to_root_frame(points: np.ndarray, theta, origin) -> np.ndarray:
     """World points -> coordinates in a root frame ``(theta, origin)``: ``R_y(-theta)(p - o)``."""
-    return rotate_y(np.asarray(points, dtype=float) - np.asarray(origin, dtype=float), -np.asarray(theta))
+    p, o = _points3(points, "points"), _points3(origin, "origin")
+    _broadcast("to_root_frame points and origin", p.shape, o.shape)
+    return rotate_y(p - o, -as_real_array(theta, "theta (radians)", error=MotionError))
 
 
 def from_root_frame(points: np.ndarray, theta, origin) -> np.ndarray:
     """Inverse of :func:`to_root_frame`: ``R_y(theta) p + o``."""
-    return rotate_y(points, theta) + np.asarray(origin, dtype=float)
+    r, o = rotate_y(points, theta), _points3(origin, "origin")
+    _broadcast("from_root_frame points and origin", r.shape, o.shape)
+    return r + o
 
 
 def pose_points(global_positions: np.ndarray, joints: Sequence[int], pelvis: int, left_hip: int,
@@ -277,16 +309,29 @@ def pose_points(global_positions: np.ndarray, joints: Sequence[int], pelvis: int
     g = real_array(global_positions, "global_positions")
     if g.ndim != 3 or g.shape[-1] != 3 or g.shape[0] == 0:
         raise MotionError(f"global_positions must be a non-empty (F, J, 3) array, got {g.shape}")
-    window = as_int(window, "window", 1, error=MotionError)
-    step = as_int(step, "step", 1, error=MotionError)
+    window = as_int(window, "window (frames per pose cloud)", 1, MAX_WINDOW, error=MotionError)
+    step = as_int(step, "step (frames between the cloud's frames)", 1, MAX_WINDOW, error=MotionError)
     J = g.shape[1]
     for name, j in (("pelvis", pelvis), ("left_hip", left_hip), ("right_hip", right_hip)):
         as_int(j, name, 0, J - 1, error=MotionError)
-    idx = np.array([as_int(j, "pose joint", 0, J - 1, error=MotionError) for j in joints], dtype=np.intp)
-    theta, origin = root_frames(g, pelvis, left_hip, right_hip)
+    if isinstance(joints, range):
+        joints = list(joints)
+    idx = as_real_array(joints, "joints (pose joint indices)", error=MotionError, integer=True, ndim=1)
+    if idx.size == 0 or idx.min() < 0 or idx.max() >= J:
+        raise MotionError(f"joints (pose joint indices) must be 1 or more indices in 0..{J - 1}, got {describe(joints)}")
+    idx = idx.astype(np.intp)
     F = g.shape[0]
+    if first is not None:
+        first = as_real_array(first, "first (first frame of each frame's clip)", error=MotionError, integer=True,
+                              shape=(F,))
+        if first.size and (first.min() < 0 or np.any(first > np.arange(F))):
+            raise MotionError("first (first frame of each frame's clip) must be in 0..f for every frame f")
+    # what the windows will allocate: (F, window, P, 3) floats, a few copies
+    check_alloc(4 * 8 * 3 * F * window * idx.size, f"pose_points window={window} ({F} frames, {idx.size} joints)",
+                error=MotionError)
+    theta, origin = root_frames(g, pelvis, left_hip, right_hip)
     offs = np.arange(-(window - 1) * step, 1, step)
-    lo = 0 if first is None else np.asarray(first, dtype=np.intp).reshape(F, 1)
+    lo = 0 if first is None else first.astype(np.intp).reshape(F, 1)
     frames = np.clip(np.arange(F)[:, None] + offs[None, :], lo, F - 1)  # (F, window)
     pts = g[frames][:, :, idx]  # (F, window, P, 3)
     pts = to_root_frame(pts, theta[:, None, None], origin[:, None, None])
@@ -295,6 +340,8 @@ def pose_points(global_positions: np.ndarray, joints: Sequence[int], pelvis: int
 
 def pose_weights(n_points: int, weights: Sequence[float] | Mapping | None = None) -> np.ndarray:
     """Per-point weights normalised to sum to 1 (uniform by default)."""
+    n_points = as_int(n_points, "n_points", 1, None, error=MotionError)
+    check_alloc(8 * n_points, f"n_points={n_points} (pose weights)", error=MotionError)
     if weights is None:
         w = np.ones(n_points)
     else:
@@ -659,7 +706,8 @@ def default_k(n_poses: int) -> int:
     About 16 clusters for the ~2,000 poses of the CMU database at 30 Hz (a cluster
     holds ~125 poses, so the pruned search scores ~1/16 of the poses).
     """
-    return int(np.clip(round(np.sqrt(max(n_poses, 1) / 8.0)), 1, 256))
+    n_poses = as_int(n_poses, "n_poses", 0, None, error=MotionError)
+    return int(np.clip(round(math.sqrt(max(n_poses, 1) / 8.0)), 1, 256))
 
 
 def _nearest_centroid(X: np.ndarray, C: np.ndarray, chunk: int = CHUNK) -> np.ndarray:

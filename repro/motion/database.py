@@ -55,7 +55,7 @@ from pathlib import Path
 
 import numpy as np
 
-from repro.checks import as_choice, as_int, as_real_array, describe
+from repro.checks import as_choice, as_int, as_real, as_real_array, as_str, describe
 from repro.errors import DataError, MotionError, ReproError
 from repro.io import MAX_READ_BYTES, atomic_path, read_npz
 from repro.motion.annotation import (
@@ -64,7 +64,7 @@ from repro.motion.annotation import (
     check_semantics,
     hit_point_trajectory,
 )
-from repro.motion.clustering import POSE_ROLES, pose_points, root_frames, to_root_frame
+from repro.motion.clustering import MAX_WINDOW, POSE_ROLES, pose_points, root_frames, to_root_frame
 from repro.motion.motion import Motion
 from repro.motion.ops import variant_motion
 from repro.motion.skeleton import Skeleton
@@ -124,11 +124,13 @@ class Clip:
         if not isinstance(self.motion, Motion):
             raise MotionError(f"{self.name}: motion must be a repro.motion.Motion, got {type(self.motion).__name__}")
         check_semantics(self.semantics)
-        if self.hit_role not in HIT_ROLES:
-            raise MotionError(f"{self.name}: hit segment (hit_role) must be one of {list(HIT_ROLES)}, "
-                              f"got {self.hit_role!r}")
-        if self.side not in ("", "left", "right"):
-            raise MotionError(f"{self.name}: side must be 'left' or 'right', got {self.side!r}")
+        as_choice(self.hit_role, f"{self.name}: hit segment (hit_role)", HIT_ROLES, error=MotionError)
+        as_choice(self.side, f"{self.name}: side", ("", "left", "right"), error=MotionError)
+        as_choice(self.hit_where, f"{self.name}: hit_where", ("joint", "end_site"), error=MotionError)
+        for k in ("kind", "source", "level"):
+            as_str(getattr(self, k), f"{self.name}: {k}", error=MotionError)
+        object.__setattr__(self, "source_time", as_real(self.source_time, f"{self.name}: source_time (s)",
+                                                        error=MotionError))
         if not isinstance(self.hit_joint, str):
             raise MotionError(f"{self.name}: hit_joint must be a joint name, got {self.hit_joint!r}")
         if isinstance(self.hit_frame, (bool, np.bool_)):
@@ -372,6 +374,12 @@ class MotionDatabase:
         C = self.n_clips
         what = f"mask (a boolean mask of length {C} or clip indices in 0..{C - 1})"
         try:
+            # a selection has at most C entries: longer ones (range(10**12)) are refused before numpy copies them
+            if hasattr(mask, "__len__") and len(mask) > C:
+                raise MotionError(f"{what} has {len(mask)} entries, more than the {C} clips")
+        except (TypeError, OverflowError):
+            raise MotionError(f"{what} has more entries than the {C} clips") from None
+        try:
             a = None if isinstance(mask, (str, bytes)) or mask is None else np.asarray(mask)
         except (ValueError, TypeError):  # ragged nesting
             a = None
@@ -409,8 +417,25 @@ class MotionDatabase:
         meta : mapping, optional
             JSON-serialisable provenance stored with the database.
         """
+        if isinstance(clips, (str, bytes, Clip)) or not isinstance(clips, Sequence) and not isinstance(clips, np.ndarray):
+            raise MotionError(f"clips must be a sequence of Clip, got {describe(clips)}")
         if len(clips) == 0:
             raise MotionError("a motion database needs at least one clip")
+        bad = [i for i, c in enumerate(clips) if not isinstance(c, Clip)]
+        if bad:
+            raise MotionError(f"clips must be a sequence of Clip; item {bad[0]} is {describe(clips[bad[0]])}")
+        if isinstance(pose_roles, str):
+            raise MotionError(f"pose_roles must be a sequence of role names, got the string {pose_roles!r}")
+        try:
+            pose_roles = tuple(as_str(r, "pose_roles entry", error=MotionError) for r in pose_roles)
+        except TypeError:
+            raise MotionError(f"pose_roles must be a sequence of role names, got {describe(pose_roles)}") from None
+        if not pose_roles:
+            raise MotionError("pose_roles must name at least one role")
+        window = as_int(window, "window (frames per pose cloud)", 1, MAX_WINDOW, error=MotionError)
+        step = as_int(step, "step (frames between the cloud's frames)", 1, MAX_WINDOW, error=MotionError)
+        if meta is not None and not isinstance(meta, Mapping):
+            raise MotionError(f"meta must be a mapping (JSON object) or None, got {describe(meta)}")
         fps = clips[0].motion.fps
         for c in clips:
             if abs(c.motion.fps - fps) > 1e-6 * fps:

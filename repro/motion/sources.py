@@ -21,6 +21,7 @@ import copy
 import csv
 import dataclasses
 import math
+import os
 import re
 import tempfile
 from collections.abc import Iterable, Mapping, Sequence
@@ -29,6 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from repro import data
+from repro.checks import as_choice, as_int, as_real, as_real_array, as_str, describe
+from repro.io import inside
 from repro.errors import DataError, MotionError, RetrievalError
 from repro.motion.annotation import (
     HIT_ROLE_OF,
@@ -39,7 +42,7 @@ from repro.motion.annotation import (
     hit_frame_for,
 )
 from repro.motion.bvh import read_bvh
-from repro.motion.clustering import POSE_ROLES
+from repro.motion.clustering import MAX_WINDOW, POSE_ROLES
 from repro.motion.database import DATABASE_FPS, Clip, MotionDatabase
 from repro.motion.motion import BANDAI_UNIT_M, CMU_UNIT_M, Motion
 from repro.motion.ops import resample
@@ -214,17 +217,30 @@ def build_database(source, *, fps: float = DATABASE_FPS, window: tuple[float, fl
     repro.errors.MotionError
         No clip found, a manifest naming a missing file or bad annotation.
     """
+    if isinstance(source, (bytes, bytearray)) or not isinstance(source, (str, os.PathLike)):
+        raise MotionError(f"source must be a folder path (str or os.PathLike), got {describe(source)}")
+    if manifest is not None:
+        manifest = as_str(manifest, "manifest (a file name in the folder, or None)", error=MotionError)
+    if window is not None:
+        window = _window(window)
+    fps, _, pose_roles, pose_window, detect_kw = _build_arguments(fps, None, pose_roles, pose_window, detect_kw)
+    if unit_m is not None:
+        unit_m = as_real(unit_m, "unit_m (metres per file unit)", lo=0.0, lo_open=True, error=MotionError)
     src = Path(source)
-    folder = src.parent if src.is_file() else src
-    mpath = src if src.is_file() else (folder / manifest if manifest else None)
-    detect_kw = dict(detect_kw or {})
+    try:
+        is_file = src.is_file()
+    except (OSError, ValueError) as exc:  # a NUL byte, a name too long
+        raise MotionError(f"source {describe(source)} is not a usable path: {exc}") from None
+    folder = src.parent if is_file else src
+    mpath = src if is_file else (inside(folder, manifest, error=MotionError, what="manifest") if manifest else None)
     clips: list[Clip] = []
     if mpath is not None and mpath.is_file():
         for r in _read_manifest_rows(mpath):
             sem = (r.get("semantics") or "").strip()
             if sem not in SEMANTICS:
                 continue
-            f = folder / r["file"]
+            # a manifest names files of its own folder only (issue 23, section 2)
+            f = inside(folder, r["file"], error=MotionError, what=f"{mpath.name}: file")
             if not f.is_file():
                 raise MotionError(f"{mpath}: {r['file']} is missing")
             u = unit_m if unit_m is not None else (float(r["unit_m"]) if r.get("unit_m") else None)
@@ -256,6 +272,48 @@ def build_database(source, *, fps: float = DATABASE_FPS, window: tuple[float, fl
     return MotionDatabase.from_clips(clips, pose_roles=pose_roles, window=pose_window,
                                      meta={"built_from": str(src), "annotations": how, "fps": fps,
                                            "window": None if window is None else list(window)})
+
+
+#: Highest database frame rate the builders accept (Hz); the takes are captured at 120 Hz or less.
+MAX_FPS: float = 1000.0
+#: Longest cut around a hit (s) the builders accept, before or after it.
+MAX_WINDOW_S: float = 3600.0
+
+
+def _window(window) -> tuple[float, float]:
+    before, after = as_real_array(window, "window (seconds before and after the hit)", error=MotionError,
+                                  shape=(2,)).tolist()
+    if not (0 <= before <= MAX_WINDOW_S and 0 <= after <= MAX_WINDOW_S):
+        raise MotionError(f"window (seconds before and after the hit) must be in [0, {MAX_WINDOW_S:g}], "
+                          f"got ({before}, {after})")
+    return before, after
+
+
+def _build_arguments(fps, window, pose_roles, pose_window, detect_kw) -> tuple:
+    """The builders' shared arguments checked (:class:`MotionError` naming the bad one)."""
+    fps = as_real(fps, "fps", lo=0.0, lo_open=True, hi=MAX_FPS, error=MotionError)
+    if window is not None:
+        window = _window(window)
+    if isinstance(pose_roles, str):
+        raise MotionError(f"pose_roles must be a sequence of role names, got the string {pose_roles!r}")
+    try:
+        pose_roles = tuple(as_str(r, "pose_roles entry", error=MotionError) for r in pose_roles)
+    except TypeError:
+        raise MotionError(f"pose_roles must be a sequence of role names, got {describe(pose_roles)}") from None
+    if not pose_roles:
+        raise MotionError("pose_roles must name at least one role")
+    pose_window = as_int(pose_window, "pose_window (frames per pose cloud)", 1, MAX_WINDOW, error=MotionError)
+    if detect_kw is not None and not isinstance(detect_kw, Mapping):
+        raise MotionError(f"detect_kw must be a mapping of detect_hits thresholds, got {describe(detect_kw)}")
+    detect_kw = dict(detect_kw or {})
+    bad = [k for k in detect_kw if k not in _DETECT_THRESHOLDS]
+    if bad:
+        raise MotionError(f"detect_kw: unknown threshold(s) {bad}; known: {list(_DETECT_THRESHOLDS)}")
+    return fps, window, pose_roles, pose_window, detect_kw
+
+
+_DETECT_THRESHOLDS = ("arm_extension", "arm_front", "kick_height", "leg_extension", "merge_gap", "min_duration",
+                      "peak_tolerance")
 
 
 # ================================================================ the real takes
@@ -324,6 +382,7 @@ def build_cmu_database(takes: Mapping[str, str] | Sequence[str] | None = None, *
     repro.errors.DataError
         If the staged CMU files are missing (:func:`repro.data.fetch`).
     """
+    fps, window, pose_roles, pose_window, detect_kw = _build_arguments(fps, window, pose_roles, pose_window, detect_kw)
     clips, takes = _cmu135_clips(takes, fps=fps, window=window, detect_kw=detect_kw)
     return MotionDatabase.from_clips(clips, pose_roles=pose_roles, window=pose_window,
                                      meta={"built_from": "mocap/cmu", "takes": dict(takes), "annotations": "detect_hits",
@@ -357,6 +416,7 @@ def build_bandai_database(takes: Mapping[str, str] | Sequence[str] | None = None
     repro.errors.DataError
         If the staged Bandai files are missing (:func:`repro.data.fetch`).
     """
+    fps, window, pose_roles, pose_window, detect_kw = _build_arguments(fps, window, pose_roles, pose_window, detect_kw)
     clips, takes = _bandai_clips(takes, fps=fps, window=window, detect_kw=detect_kw)
     if not clips:
         raise MotionError("no strike found in the Bandai takes")
@@ -404,7 +464,12 @@ def build_real_database(include: Sequence[str] = REAL_SOURCES, *, cmu_takes=None
         A needed staged file is missing and cannot be downloaded
         (:func:`repro.data.fetch`).
     """
-    include = tuple(include)
+    fps, window, pose_roles, pose_window, detect_kw = _build_arguments(fps, window, pose_roles, pose_window, detect_kw)
+    include = (include,) if isinstance(include, str) else include
+    try:
+        include = tuple(include)
+    except TypeError:
+        raise MotionError(f"include must be a sequence of {list(REAL_SOURCES)}, got {describe(include)}") from None
     bad = [s for s in include if s not in REAL_SOURCES]
     if bad:
         hint = (" (non-fighting takes are not database clips: use non_fighting_poses())"
@@ -457,8 +522,10 @@ def default_database(name: str = "synthetic", seed: int = 0) -> MotionDatabase:
     ``"cmu"``: :func:`build_cmu_database` from the staged CMU takes (needs dataset
     ``cmu-bvh``; raises :class:`~repro.errors.DataError` saying how to get it).
     """
+    name = as_choice(name, "name (database)", ("synthetic", "cmu"), error=RetrievalError)
+    seed = as_int(seed, "seed", 0, None, error=RetrievalError)
     if name == "synthetic":
-        key = ("synthetic", int(seed))
+        key = ("synthetic", seed)
     elif name == "cmu":
         reason = data.missing_reason("cmu-bvh")
         if reason:
@@ -486,6 +553,8 @@ _DEFAULT_DATABASES: dict = {}
 
 def clip_source_dataset(db: MotionDatabase) -> np.ndarray:
     """(C,) ``"cmu135"`` / ``"bandai"`` / ``""`` for every clip, from its source file."""
+    if not isinstance(db, MotionDatabase):
+        raise MotionError(f"db must be a MotionDatabase, got {describe(db)}")
     out = np.full(db.n_clips, "", dtype=object)
     for i, s in enumerate(db.sources.tolist()):
         if "mocap/bandai/" in s:
