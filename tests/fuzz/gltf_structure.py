@@ -11,7 +11,8 @@ buffer in a ``.bin`` file beside it) the way a hostile file would:
 * buffer ``uri``s with ``..``, percent-encoding, absolute paths, ``file:``, paths climbing to
   ``/etc/passwd``, ``/proc/self/environ`` or ``/dev/zero``, symlinks out of (and inside) the
   folder, FIFOs and folders;
-* node counts, cycles and references; mesh, primitive and target counts; many objects.
+* node counts, cycles and references; mesh, primitive and target counts; many objects; long
+  lists inside objects (an accessor's ``max``, a node's children, a mesh's weights).
 
 :func:`structure_mutant` is deterministic: mutant ``n`` is a function of ``n`` only.  It
 returns the document, the files to lay out beside it (bytes, or the special files
@@ -281,7 +282,27 @@ def _targets(r, doc, files, ctx):
     return f"targets: {k} targets"
 
 
-MUTATIONS = (_alias, _zero_fill, _count, _sparse, _view, _byte_length, _uri, _uri, _nodes, _meshes, _targets)
+def _long_list(r, doc, files, ctx):
+    """A long list inside an object (pygltflib converts each value): an accessor's max, children, weights ..."""
+    k = r.choice([50, 5000, 100_001, 300_000])
+    where = r.choice(["accessor_max", "children", "scene_nodes", "weights", "attributes"])
+    if where == "accessor_max":
+        doc["accessors"][0]["max"] = [1.0] * k
+    elif where == "children":
+        doc.setdefault("nodes", [{}])[0]["children"] = [0] * k
+    elif where == "scene_nodes":
+        doc["scenes"] = [{"nodes": [0] * k}]
+    elif where == "weights":  # (on a copy: the mesh may be repeated by reference)
+        doc["meshes"][0] = dict(doc["meshes"][0], weights=[0.0] * k)
+    else:
+        mesh = doc["meshes"][0] = dict(doc["meshes"][0])
+        prim = dict(mesh["primitives"][0])
+        prim["attributes"] = dict(prim["attributes"], **{f"_A{i}": 0 for i in range(k)})
+        mesh["primitives"] = [prim] + mesh["primitives"][1:]
+    return f"long_list: {where} of {k}"
+
+
+MUTATIONS = (_alias, _zero_fill, _count, _sparse, _view, _byte_length, _uri, _uri, _nodes, _meshes, _targets, _long_list)
 
 
 def structure_mutant(n: int, depth: int, sentinel: Path):

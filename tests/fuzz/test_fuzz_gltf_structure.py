@@ -65,7 +65,7 @@ def test_structure_mutants_are_deterministic_and_cover_the_mutations(tmp_path):
     b = [gs.structure_mutant(n, 3, tmp_path / gs.SENTINEL_NAME) for n in range(60)]
     assert [(s, d, e) for s, _, _, d, e in a] == [(s, d, e) for s, _, _, d, e in b]
     kinds = {part.split(":")[0] for *_, d, _ in a for part in d.split("; ")}
-    assert {"alias", "zero_fill", "count", "sparse", "view", "uri", "nodes", "meshes", "targets"} <= kinds
+    assert {"alias", "zero_fill", "count", "sparse", "view", "uri", "nodes", "meshes", "targets", "long_list"} <= kinds
     assert any(e for *_, e in a) and not all(e for *_, e in a)
 
 
