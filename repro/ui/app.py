@@ -78,6 +78,8 @@ def port_problem(host: str, port: int) -> str | None:
         infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
     except socket.gaierror as exc:
         return f"--host {host!r} is not a known address ({exc.strerror})"
+    except UnicodeError:  # a name idna cannot encode (a label over 63 characters, ...)
+        return f"--host {host[:80]!r}{'...' if len(host) > 80 else ''} is not a valid host name"
     family, _, _, _, addr = infos[0]
     with socket.socket(family, socket.SOCK_STREAM) as s:
         try:
@@ -98,7 +100,7 @@ def is_loopback(host: str) -> bool:
     if not isinstance(host, str) or not host.strip():
         return False  # "" makes a server listen on every interface
     try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
+        return ipaddress.ip_address(host).is_loopback
     except ValueError:
         pass
     try:
