@@ -85,7 +85,7 @@ import numpy as np
 from scipy.cluster.vq import kmeans2
 from scipy.sparse import csr_matrix
 
-from repro.checks import as_int, as_real_array, check_alloc, describe
+from repro.checks import as_bool, as_int, as_real_array, check_alloc, describe
 from repro.errors import MotionError, ReproWarning
 
 __all__ = [
@@ -382,8 +382,13 @@ def aligned_distance(a, b, weights=None, *, return_transform: bool = False):
     theta, x0, z0 : (...) arrays, only with ``return_transform``
         ``T(p) = rotate_y(p, theta) + (x0, 0, z0)`` maps ``b`` onto ``a``.
     """
+    return_transform = as_bool(return_transform, "return_transform", error=MotionError)
     a = real_array(a, "pose cloud a")
     b = real_array(b, "pose cloud b")
+    try:
+        np.broadcast_shapes(a.shape[:-2], b.shape[:-2])
+    except ValueError:
+        raise MotionError(f"pose clouds a {a.shape} and b {b.shape} do not broadcast together") from None
     if a.ndim < 2 or b.ndim < 2 or a.shape[-1] != 3 or b.shape[-1] != 3 or a.shape[-2] != b.shape[-2]:
         raise MotionError(f"pose clouds must be (..., P, 3) with equal P, got {a.shape} and {b.shape}")
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
@@ -447,6 +452,8 @@ class AlignedPoseIndex:
             self._pos = None
             stored = None
         else:
+            if hasattr(self.order, "__len__") and not isinstance(self.order, np.ndarray) and len(self.order) > N:
+                raise MotionError(f"order must be distinct pose indices in [0, {N}), got {len(self.order)} of them")
             stored = np.asarray(self.order)
             if stored.ndim != 1 or stored.dtype.kind not in "iu" or (stored.size and (
                     stored.min() < 0 or stored.max() >= N)) or np.unique(stored).size != stored.size:
@@ -511,9 +518,35 @@ class AlignedPoseIndex:
     def centroids_xz(self, rows=None) -> tuple[np.ndarray, np.ndarray]:
         """``X, Z``: the weighted horizontal centroid of the candidates ``rows`` (default all), in the
         clouds' units (the translation part of the closed form, see the module docstring)."""
-        rows = np.arange(self.n) if rows is None else np.asarray(rows, dtype=np.intp)
+        rows = self._check_rows(rows)
         X, Z, _, _ = self._rows_t(rows)
         return X, Z
+
+    def _check_rows(self, rows, name: str = "rows") -> np.ndarray:
+        """Candidate rows: ``None`` (all), a boolean mask of length n or indices in ``0..n-1`` (intp), else
+        :class:`MotionError` (a float, a string or an index out of range raised numpy's errors)."""
+        n = self.n
+        if rows is None:
+            return np.arange(n)
+        if isinstance(rows, np.ndarray) and rows.dtype.kind in "iu" and rows.ndim == 1:
+            r = rows  # the retrieval's own gathers: no copy, only the range
+        else:
+            if isinstance(rows, range) and len(rows) > n:  # range(10**12) is not copied to be refused
+                raise MotionError(f"{name} must be candidate indices in 0..{n - 1}, got {describe(rows)}")
+            try:
+                a = np.asarray(rows) if not isinstance(rows, (str, bytes)) else None
+            except (TypeError, ValueError):
+                a = None
+            if a is None or a.ndim != 1:
+                raise MotionError(f"{name} must be a 1-D array of candidate indices or a mask, got {describe(rows)}")
+            if a.dtype.kind == "b":
+                if a.size != n:
+                    raise MotionError(f"{name}: a boolean mask of length {a.size}, not {n}")
+                return np.flatnonzero(a)
+            r = as_real_array(a, name, error=MotionError, integer=True, ndim=1)
+        if r.size and (r.min() < 0 or r.max() >= n):
+            raise MotionError(f"{name} must be candidate indices in 0..{n - 1}, got {int(r.min())}..{int(r.max())}")
+        return r.astype(np.intp, copy=False)
 
     def _rows_m(self, rows: np.ndarray) -> np.ndarray:
         """The matrix terms of poses ``rows`` (a copy), from the stored ones or recomputed."""
@@ -535,7 +568,9 @@ class AlignedPoseIndex:
         (see the class), in any order (the subset then keeps the permutation to its rows:
         its distances are in the order of ``rows``); else contiguous copies.
         """
-        rows = np.asarray(rows, dtype=np.intp)
+        if rows is None:
+            raise MotionError("rows must be candidate indices or a mask, got None")
+        rows = self._check_rows(rows)
         out = object.__new__(AlignedPoseIndex)
         out.points = None
         out.order = None
@@ -574,12 +609,8 @@ class AlignedPoseIndex:
 
     def query_matrix(self, q: np.ndarray) -> tuple[np.ndarray, float, float, float, float]:
         """The query-dependent parts: ``(3P, 3)`` matrix and ``X, Z, H, sum w y^2`` of the query."""
-        q = real_array(q, "query pose")
+        q = self._query(q)
         P = self._P
-        if q.shape != (P, 3):
-            raise MotionError(f"query pose must be ({P}, 3), got {q.shape}")
-        if not np.all(np.isfinite(q)):
-            raise MotionError("query pose contains NaN or inf")
         w = self.weights
         xa, ya, za = q[:, 0], q[:, 1], q[:, 2]
         Q = np.zeros((3 * P, 3))
@@ -589,6 +620,15 @@ class AlignedPoseIndex:
         Xa, Za = float(xa @ w), float(za @ w)
         Ha = float((xa * xa + za * za) @ w) - (Xa * Xa + Za * Za)
         return Q, Xa, Za, Ha, float((ya * ya) @ w)
+
+    def _query(self, q) -> np.ndarray:
+        """A query pose: a finite float (P, 3) array, else :class:`MotionError`."""
+        q = real_array(q, "query pose")
+        if q.shape != (self._P, 3):
+            raise MotionError(f"query pose must be ({self._P}, 3), got {q.shape}")
+        if not np.all(np.isfinite(q)):
+            raise MotionError("query pose contains NaN or inf")
+        return q
 
     def distances(self, q: np.ndarray, rows: np.ndarray | None = None, *, return_transform: bool = False,
                   prepared=None):
@@ -606,6 +646,7 @@ class AlignedPoseIndex:
             :meth:`query_matrix` of ``q`` when already computed.
         """
         Q, Xa, Za, Ha, Ya2 = self.query_matrix(q) if prepared is None else prepared
+        return_transform = as_bool(return_transform, "return_transform", error=MotionError)
         perm = None
         if rows is None and self._pos is None:
             # every candidate, in stored order (a permuted subset's results are permuted at the end:
@@ -614,8 +655,7 @@ class AlignedPoseIndex:
             R = self._M @ Q
             perm = self._perm
         else:
-            rows = np.arange(self.n) if rows is None else np.asarray(rows)
-            rows = np.flatnonzero(rows) if rows.dtype == bool else rows.astype(np.intp, copy=False)
+            rows = self._check_rows(rows)
             M = self._rows_m(rows)
             X, Z, H, Y2 = self._rows_t(rows)
             R = M @ Q
@@ -644,8 +684,9 @@ class AlignedPoseIndex:
         # one pair, in plain dot products: :meth:`distances` on one row costs ~5x more (its matrix
         # product and per-array steps, measured ~115 us against ~25 us); the same terms, rounded in
         # another order (a few ulps of theta)
-        p = self.points[int(row)].astype(float)
-        q = np.asarray(q, dtype=float)
+        row = as_int(row, "row (candidate index)", 0, self.n - 1, error=MotionError)
+        q = self._query(q)
+        p = self.points[row].astype(float)
         w = self.weights
         pw = p * w[:, None]
         S = q.T @ pw  # S[a, b] = sum w q_a p_b
