@@ -202,12 +202,17 @@ def main(argv=None) -> int:
         return _main(args)
 
 
+def _one_line(exc) -> str:
+    """An error's message on one line (a message of several lines joined with '; ')."""
+    return "; ".join(part.strip() for part in str(exc).splitlines() if part.strip()) or type(exc).__name__
+
+
 def _usage_error(args, why: str) -> int:
     """Bad usage: the command's usage line (as argparse prints it) and one ``repro: ...`` line; exit status 2."""
     usage = getattr(args, "usage", None)
     if usage is not None:
         sys.stderr.write(usage())
-    print(f"repro: {why}", file=sys.stderr)
+    print(f"repro: {_one_line(why)}", file=sys.stderr)
     return 2
 
 
@@ -308,13 +313,13 @@ def _main(args) -> int:
 
             return run_app(args.which, args.host, args.port, no_browser=args.no_browser, token=not args.no_token)
     except UnknownFigureError as exc:
-        print(f"repro: {exc}", file=sys.stderr)
+        print(f"repro: {_one_line(exc)}", file=sys.stderr)
         return 2
     except ReproError as exc:
-        print(f"repro: {exc}", file=sys.stderr)
+        print(f"repro: {_one_line(exc)}", file=sys.stderr)
         return 1
     except OSError as exc:  # e.g. no permission to write into --out: say so, no traceback
-        print(f"repro: {exc}", file=sys.stderr)
+        print(f"repro: {_one_line(exc)}", file=sys.stderr)
         return 1
     return 2  # pragma: no cover - argparse enforces the commands
 

@@ -171,3 +171,14 @@ def test_library_errors_exit_1_on_one_line(tmp_path, capsys):
     assert cli.main(["run", "fig4_axis_selection", "--quick", "--face", str(bad), "--out", str(out)]) == 1
     err = capsys.readouterr().err
     assert "Traceback" not in err and "repro:" in err
+
+
+def test_a_library_error_of_several_lines_is_printed_on_one(monkeypatch, capsys):
+    from repro.errors import DataError
+
+    def broken(*a, **k):
+        raise DataError("first line\n  second line\n")
+
+    monkeypatch.setattr(cli, "_data", broken)
+    assert cli.main(["data", "list"]) == 1
+    assert capsys.readouterr().err == "repro: first line; second line\n"
