@@ -133,11 +133,11 @@ def write_gltf(
     """
     import os
 
-    from repro.blendshapes.model import BlendshapeModel
     from repro.checks import as_bool, as_real, as_real_array, describe
 
-    # every argument checked at the entry (issue 23, section 6), before anything is built
-    if not isinstance(model, BlendshapeModel):
+    # every argument checked at the entry (issue 23, section 6), before anything is built; the model
+    # by what it offers (model.py imports this module: importing it back here would be a cycle)
+    if not all(hasattr(model, a) for a in ("f0", "D", "faces", "names", "units", "sliders", "regions", "check_weights")):
         raise ModelError(f"write_gltf writes a BlendshapeModel, got {describe(model)}")
     if not isinstance(path, (str, os.PathLike)):
         raise ModelError(f"path must be a .glb or .gltf path, got {describe(path)}")
