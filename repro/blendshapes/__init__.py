@@ -60,6 +60,7 @@ def load_model(name="procedural", **kw) -> BlendshapeModel:
     (keyword ``n_vertices`` for a scaled-up one).  ``"ict"``: the ICT Face Model
     from the data folder (keywords of :func:`repro.blendshapes.ict.load_ict`);
     raises :class:`~repro.errors.DataError` saying how to get it when absent.
+    A keyword the chosen loader does not take is a :class:`~repro.errors.ModelError`.
     """
     if isinstance(name, os.PathLike) or (isinstance(name, str) and name.lower().endswith((".gltf", ".glb"))):
         from repro.blendshapes.gltf import read_gltf
