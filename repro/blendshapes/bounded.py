@@ -199,6 +199,10 @@ def solve_box_qp(A, g, lo, hi, x0=None, *, max_iter: int | None = None, method: 
     near-singular ``A`` (a rank-deficient ``D``) gets a ridge of ``1e-12 max
     diag(A)``: among the minimisers (all giving the same face) it picks one of
     small norm.  ``method="lsq_linear"`` skips the active sets (the reference).
+    An empty problem (m = 0) returns an empty ``x``.  Raises
+    :class:`~repro.errors.AttenuationError` when ``A`` is not symmetric positive
+    semi-definite (:func:`check_psd`): the methods here find the minimum of a
+    convex quadratic only, and return a mere stationary point otherwise.
     """
     g = as_real_array(g, "g", error=AttenuationError, ndim=1)
     m = g.shape[0]
