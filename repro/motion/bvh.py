@@ -60,6 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
+from repro.checks import as_bool, as_int, describe
 from repro.errors import BVHError, BVHWarning
 from repro.io import atomic_path, read_bytes
 from repro.motion.channels import POSITION_CHANNELS, ROTATION_CHANNELS, joint_columns
@@ -715,10 +716,17 @@ def write_bvh(motion: Motion, path, *, overwrite: bool = False, precision: int =
         express).
     """
     precision = int(precision)
-    if not 6 <= precision <= 17:
-        raise BVHError(f"precision must be in 6..17 significant digits, got {precision}")
+    if not isinstance(motion, Motion):
+        raise BVHError(f"motion must be a repro.motion.Motion, got {describe(motion)}")
+    precision = as_int(precision, "precision (significant digits)", 6, 17, error=BVHError)
+    overwrite = as_bool(overwrite, "overwrite", error=BVHError)
+    if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)) or not os.fspath(path) \
+            or "\x00" in os.fspath(path):
+        raise BVHError(f"path must be a file path (a non-empty str or os.PathLike), got {describe(path)}")
     path = Path(path)
     text = _format_bvh(motion, precision)  # errors surface before the disk is touched
+    if path.exists() and not path.is_file():  # a folder, a device, a FIFO: never a BVH target
+        raise BVHError(f"{path} exists and is not a regular file; refusing to write a BVH there")
     if not overwrite and path.exists():
         raise FileExistsError(
             errno.EEXIST,
@@ -739,6 +747,8 @@ def write_bvh(motion: Motion, path, *, overwrite: bool = False, precision: int =
         raise FileExistsError(
             errno.EEXIST, "target appeared while writing; pass overwrite=True to replace it", str(path)
         ) from None
+    except OSError as exc:  # an unwritable folder, a parent that is a file, a full disk
+        raise BVHError(f"cannot write {path}: {exc.strerror or exc}") from None
     return path
 
 

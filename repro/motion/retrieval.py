@@ -101,7 +101,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from repro.checks import as_choice, as_int, as_real, describe
+from repro.checks import as_choice, as_int, as_real, as_str, describe
 from repro.errors import MotionError, RetrievalError
 from repro.motion.annotation import SEMANTICS
 from repro.motion.clustering import (
@@ -261,7 +261,7 @@ class RetrievalResult:
 
     def align(self, points) -> np.ndarray:
         """Clip-world points (actor metres) -> root frame of ``q_r`` (actor metres)."""
-        return rotate_y(points, self.rotation_y) + self.translation
+        return rotate_y(points, self.rotation_y) + self.translation  # (rotate_y checks the points)
 
     def place(self, points, scale: float | None = None) -> np.ndarray:
         """Clip-world points -> the character's world.
@@ -272,7 +272,8 @@ class RetrievalResult:
         start pose lands on the current pose up to ``d_qr``) and put in the current
         pose's root frame.
         """
-        k = self.size_c / self.size_a if scale is None else float(scale)
+        k = self.size_c / self.size_a if scale is None else as_real(scale, "scale", lo=0.0, lo_open=True,
+                                                                      error=RetrievalError)
         return rotate_y(k * self.align(points), self.heading) + self.origin
 
     @property
@@ -347,6 +348,12 @@ def character_skeleton(character, purposes: Sequence[str] = ()) -> Skeleton:
     ------
     repro.errors.MotionError
     """
+    if isinstance(purposes, str):
+        purposes = (purposes,)
+    try:
+        purposes = tuple(as_str(p, "purposes entry", error=MotionError) for p in purposes)
+    except TypeError:
+        raise MotionError(f"purposes must be a sequence of purposes such as 'a punch', got {describe(purposes)}") from None
     try:
         ch = skeleton_of(character)
     except MotionError as e:
@@ -1204,15 +1211,14 @@ def _pose_motion(m: Motion, f: int) -> Motion:
 
 
 def _check_noise(noise) -> float:
-    if isinstance(noise, (bool, np.bool_)) or not isinstance(noise, (int, float, np.integer, np.floating)) \
-            or not (np.isfinite(noise) and 0 <= noise <= MAX_TARGET_M):
-        raise RetrievalError(f"noise must be a finite number of metres in [0, {MAX_TARGET_M:g}], got {noise!r}")
-    return float(noise)
+    return as_real(noise, "noise (metres)", lo=0.0, hi=MAX_TARGET_M, error=RetrievalError)
 
 
 #: Most queries :func:`make_queries` / :func:`time_search` make: each holds a pose and a skeleton, and
 #: ``n = 10**12`` ran until killed (issue 23); the figures use 200, the benchmark up to a few thousand.
 MAX_QUERIES: int = 100_000
+#: Most repeats of each timed search in :func:`time_search` (the figures use 3).
+MAX_REPEATS: int = 1000
 
 #: Largest grid side of :func:`scoring_frame_miss` (the figure's is 9 x 9: a search per point).
 MAX_GRID: int = 100
@@ -1288,7 +1294,7 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
     if not isinstance(db, MotionDatabase):
         raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
     n_queries = as_int(n_queries, "n_queries", 1, MAX_QUERIES, error=RetrievalError)
-    repeats = as_int(repeats, "repeats", 1, None, error=RetrievalError)
+    repeats = as_int(repeats, "repeats", 1, MAX_REPEATS, error=RetrievalError)
     if isinstance(methods, str):
         methods = (methods,)
     try:

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.spatial import cKDTree
 
+from repro.checks import as_int, as_real_array, check_alloc
 from repro.errors import RetrievalError
 from repro.motion.annotation import SEMANTICS
 from repro.motion.clustering import aligned_distance
@@ -534,7 +535,10 @@ def sample_grid(pts: np.ndarray, per_cell: int = 8, max_cells: int = 1 << 21) ->
     a sorted copy of the points: 4 bytes a point, not 32, which counts at 1,000x),
     about ``per_cell`` points per cell of the bounding box and at most ``max_cells`` cells (a point beyond
     the last cell of an axis goes to it: edge cells extend to infinity, which the search allows for)."""
-    pts = np.asarray(pts, dtype=float)
+    pts = as_real_array(pts, "pts (trajectory samples)", error=RetrievalError, shape=(None, 3))
+    per_cell = as_int(per_cell, "per_cell", 1, None, error=RetrievalError)
+    max_cells = as_int(max_cells, "max_cells", 1, None, error=RetrievalError)
+    check_alloc(8 * min(max_cells, 1 << 30), f"max_cells={max_cells} (the sample grid's cells)", error=RetrievalError)
     lo = pts.min(axis=0) if pts.size else np.zeros(3)
     ext = np.maximum((pts.max(axis=0) if pts.size else np.zeros(3)) - lo, 1e-9)
     h = float((np.prod(ext) * per_cell / max(pts.shape[0], 1)) ** (1.0 / 3.0))
@@ -583,7 +587,12 @@ def invariant_features(points: np.ndarray, weights: np.ndarray) -> np.ndarray:
     the features of two clouds is a lower bound of Kovar et al.'s aligned distance
     (issue 13, item 5).
     """
-    p = np.asarray(points, dtype=float)
+    p = as_real_array(points, "points (pose clouds)", error=RetrievalError)
+    if p.ndim < 2 or p.shape[-1] != 3:
+        raise RetrievalError(f"points (pose clouds) must be (..., P, 3), got shape {p.shape}")
+    weights = as_real_array(weights, "weights", error=RetrievalError, shape=(p.shape[-2],))
+    if np.any(weights < 0):
+        raise RetrievalError("weights must be >= 0")
     sw = np.sqrt(weights)
     X = p[..., 0] @ weights
     Z = p[..., 2] @ weights

@@ -17,6 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from repro.checks import as_choice, as_int, as_real, as_real_array, describe
 from repro.errors import MotionError
 from repro.motion.annotation import hit_point_trajectory
 from repro.motion.motion import Motion
@@ -676,9 +677,17 @@ def _replace(m: Motion, **kw) -> Motion:
 
 # ---------------------------------------------------------------- public API: one clip
 def _check_choice(name: str, value, allowed) -> str:
-    if value not in allowed:
-        raise MotionError(f"{name} must be one of {list(allowed)}, got {value!r}")
-    return value
+    return as_choice(value, name, allowed, error=MotionError)
+
+
+def _seed(seed):
+    """A seed for numpy: an int >= 0 or a non-empty sequence of them, else :class:`MotionError`."""
+    if isinstance(seed, (list, tuple, np.ndarray)):
+        s = as_real_array(seed, "seed", error=MotionError, integer=True, ndim=1)
+        if s.size == 0 or s.min() < 0:
+            raise MotionError(f"seed must be an int >= 0 or a non-empty sequence of them, got {describe(seed)}")
+        return [int(x) for x in s]
+    return as_int(seed, "seed", 0, None, error=MotionError)
 
 
 def synthetic_clip(
@@ -743,11 +752,9 @@ def synthetic_clip(
     _check_choice("side", side, SIDES)
     if kind != "stance":
         _check_choice("level", level, LEVELS)
-    fps = float(fps)
-    if not np.isfinite(fps) or not 24.0 <= fps <= 240.0:
-        raise MotionError(f"fps must be in [24, 240], got {fps!r}")
+    fps = as_real(fps, "fps", lo=24.0, hi=240.0, error=MotionError)
     scale_of(actor_height)
-    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(_seed(seed))
     b = _Builder(kind, side, level if kind != "stance" else "none", actor_height, rng, fps)
     if kind == "punch":
         b.design_punch()

@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from repro.checks import as_choice
+from repro.errors import MotionError
 from repro.motion.motion import Motion
 from repro.motion.synthetic.skeleton import synthetic_skeleton
 
@@ -137,6 +139,7 @@ def a_pose(rig: Rig, left_arm: str, right_arm: str, deg: float = 45.0) -> Rig:
 
 def build(convention: str, height: float = 1.75) -> tuple[Rig, dict[str, str]]:
     """(rig in metres, expected roles) of a naming convention; roles map the synthetic ones."""
+    as_choice(convention, "convention", CONVENTIONS, error=MotionError)
     r = Rig.synthetic(height)
     t: dict[str, str]
     if convention == "mixamo":

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from repro.checks import as_real
 from repro.errors import MotionError
 from repro.motion.motion import Motion
 
@@ -151,7 +152,6 @@ def synthetic_skeleton(actor_height: float = REFERENCE_HEIGHT_M) -> Motion:
 
 
 def scale_of(actor_height: float) -> float:
-    h = float(actor_height)
-    if not np.isfinite(h) or not 0.5 < h <= 3.0:
-        raise MotionError(f"actor_height must be a height in metres in (0.5, 3], got {actor_height!r}")
+    """``actor_height`` (metres, in (0.5, 3]) over :data:`REFERENCE_HEIGHT_M`, else :class:`MotionError`."""
+    h = as_real(actor_height, "actor_height (metres)", lo=0.5, lo_open=True, hi=3.0, error=MotionError)
     return h / REFERENCE_HEIGHT_M

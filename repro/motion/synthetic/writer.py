@@ -14,6 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from repro.checks import as_int
 from repro.errors import MotionError
 from repro.io import atomic_path
 from repro.motion.bvh import write_bvh
@@ -72,10 +73,12 @@ def database_actor_heights(n_actors: int) -> list[float]:
     return [round(float(h), 4) for h in np.linspace(1.60, 1.90, n)]
 
 
+#: Most actors :func:`synthetic_database` writes (each adds 25 clips).
+MAX_ACTORS: int = 1000
+
+
 def _positive_int(name: str, value, minimum: int = 1) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise MotionError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    return int(value)
+    return as_int(value, name, minimum, MAX_ACTORS if name == "n_actors" else None, error=MotionError)
 
 
 def _plan(n_actors: int, seed: int) -> list[dict]:
