@@ -62,8 +62,7 @@ def bench_index_build(*, quick: bool = False, factors=None, database: str = "syn
 
     from repro.motion.augment import augment
     from repro.motion.retrieval import MotionRetriever
-    from repro.bench.retrieval import check_bench_arguments
-    from repro.checks import as_bool, as_int
+    from repro.checks import as_bool, as_choice, as_int
     from repro.errors import RetrievalError
     from repro.motion.sources import default_database
 
@@ -71,14 +70,22 @@ def bench_index_build(*, quick: bool = False, factors=None, database: str = "syn
     progress = as_bool(progress, "progress", error=RetrievalError)
     seed = as_int(seed, "seed", 0, None, error=RetrievalError)
     baseline_variants = as_int(baseline_variants, "baseline_variants", 1, 100_000, error=RetrievalError)
-    if not isinstance(database, str):
-        raise RetrievalError(f"database must be one of the base databases' names, got {database!r}")
-    bases = {}  # the database name, the factors (ints >= 1) and what they allocate, checked before building
-    _, factors, _ = check_bench_arguments([database], factors, None, bases=bases)
+    database = as_choice(database, "database", ("synthetic", "cmu"), error=RetrievalError)
+    if factors is not None:  # each an int >= 1
+        if isinstance(factors, (str, bytes)) or not hasattr(factors, "__iter__"):
+            raise RetrievalError(f"factors must be a sequence of ints >= 1, got {factors!r}")
+        factors = tuple(as_int(f, "factor", 1, None, error=RetrievalError) for f in factors)
+        if not factors:
+            raise RetrievalError("factors must name at least one size (an int >= 1)")
     if factors is None:
         factors = (10, 100) if quick else (100, 1000)
-    base = bases.get(database)
-    base = default_database(database) if base is None else base
+    base = default_database(database)
+    from repro.checks import check_alloc
+    from repro.experiments.shared import estimated_bytes
+
+    f = max(factors)  # the largest asks the most: refused before any factor is built
+    check_alloc(estimated_bytes(base, f), f"factor {f} (the {database} database of {base.n_clips} clips, {f} times)",
+                error=RetrievalError)
     rows = []
     for factor in tqdm(list(factors), desc="bench index", delay=1.0, disable=not progress, file=sys.stderr):
         dtype = np.float32 if factor >= FLOAT32_FROM else None
