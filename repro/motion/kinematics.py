@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from repro.checks import as_real_array, describe
+from repro.checks import abs_max, as_real_array, describe
 from repro.errors import MotionError
 from repro.motion.quaternion import cross, quat_multiply, quat_rotate, vector_norm
 
@@ -24,6 +24,8 @@ __all__ = [
     "chain_positions",
     "depth_levels",
     "world_of",
+    "check_pose_arrays",
+    "MAX_COORDINATE",
     "matvec",
     "matvec_t",
 ]
@@ -91,6 +93,33 @@ def fk_arrays(levels, rotations: np.ndarray, translations: np.ndarray, *,
     for idx, par in levels:
         gq[:, idx] = quat_multiply(gq[:, par], rotations[:, idx])
     return gq, chain_positions(levels, gq, gp)
+
+
+#: Largest coordinate of a point or vector the motion library takes (targets, offsets, floors,
+#: translations): its squares (distances, norms) stay far inside float64.
+MAX_COORDINATE: float = 1e100
+#: Largest ``| |q| - 1 |`` of a rotation given as a unit quaternion (as :class:`~repro.motion.Motion`'s).
+UNIT_TOLERANCE: float = 1e-6
+
+
+def check_pose_arrays(rotations, translations, n_joints: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(rotations (F, J, 4), translations (F, J, 3))`` as float64 arrays, or MotionError naming what is wrong.
+
+    The rotations must be unit quaternions (within :data:`UNIT_TOLERANCE`), the translations
+    finite and within :data:`MAX_COORDINATE`: what a plan's ``positions`` takes from a Motion,
+    checked at its entry (the arithmetic after it would overflow or divide by zero silently).
+    """
+    rot = as_real_array(rotations, "rotations", error=MotionError)
+    tr = as_real_array(translations, "translations", error=MotionError)
+    if rot.ndim != 3 or rot.shape[1:] != (n_joints, 4) or tr.shape != rot.shape[:2] + (3,):
+        raise MotionError(f"rotations must be (F, {n_joints}, 4) and translations (F, {n_joints}, 3), got "
+                          f"{rot.shape} and {tr.shape}")
+    if abs_max(tr) > MAX_COORDINATE:
+        raise MotionError(f"translations beyond {MAX_COORDINATE:g}: their squares overflow float64")
+    if rot.size and (abs_max(rot) > 1.0 + UNIT_TOLERANCE or
+                     not np.all(np.abs(vector_norm(rot) - 1.0) <= UNIT_TOLERANCE)):
+        raise MotionError(f"rotations must be unit quaternions (| |q| - 1 | <= {UNIT_TOLERANCE:g})")
+    return rot, tr
 
 
 def world_of(levels, rotations, translations, source=None) -> tuple[np.ndarray, np.ndarray]:

@@ -98,7 +98,15 @@ from repro.checks import as_bool, as_int, as_real, describe
 from repro.errors import MotionError
 from repro.motion.channels import POSITION_CHANNELS
 from repro.motion.feet import UP_AXIS, foot_contacts, foot_goals, foot_scale
-from repro.motion.kinematics import chain_positions, depth_levels, fk_arrays, normalize, transport, world_of
+from repro.motion.kinematics import (
+    chain_positions,
+    check_pose_arrays,
+    depth_levels,
+    fk_arrays,
+    normalize,
+    transport,
+    world_of,
+)
 from repro.motion.motion import Motion
 from repro.motion.quaternion import cross, min_rotation, quat_multiply, vector_norm
 from repro.motion.quaternion import quat_conjugate as qinv
@@ -745,6 +753,7 @@ class RetargetPlan:
         prox, mid, par = self.prox, self.mid, self.par
         a0, r0 = self.a0[None, :, None], self.r0[None, :, None]
         # encode (the per-frame part)
+        rotations, translations = check_pose_arrays(rotations, translations, self.n_joints)
         gq, gp = world_of(self.levels, rotations, translations, source)
         rp_inv = qinv(gq[:, par])
         S = gp[:, prox]

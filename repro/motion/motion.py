@@ -47,7 +47,7 @@ import numpy as np
 from repro.checks import as_real, as_real_array, describe
 from repro.errors import BVHError, MotionError
 from repro.motion.channels import channel_layout, channel_table
-from repro.motion.kinematics import depth_levels, fk_arrays
+from repro.motion.kinematics import MAX_COORDINATE, depth_levels, fk_arrays
 from repro.motion.quaternion import quat_multiply, quat_rotate
 
 __all__ = [
@@ -55,6 +55,7 @@ __all__ = [
     "CMU_UNIT_M",
     "BANDAI_UNIT_M",
     "finite_vector3",
+    "MAX_COORDINATE",
     "UnknownJointError",
 ]
 
@@ -91,6 +92,9 @@ def finite_vector3(value, name: str, error=None) -> np.ndarray:
         raise error(f"{name} must be a 3-vector, got shape {a.shape}")
     if not np.all(np.isfinite(a)):
         raise error(f"{name} contains NaN or inf: {a.tolist()}")
+    if np.abs(a).max() > MAX_COORDINATE:
+        raise error(f"{name} has coordinates beyond {MAX_COORDINATE:g} ({a.tolist()}): their squares overflow "
+                    "float64 in every distance")
     return a
 
 

@@ -34,7 +34,7 @@ import numpy as np
 
 from repro.checks import as_bool, as_choice, as_real, describe
 from repro.errors import MotionError
-from repro.motion.kinematics import depth_levels, fk_arrays, normalize, world_of
+from repro.motion.kinematics import check_pose_arrays, depth_levels, fk_arrays, normalize, world_of
 from repro.motion.motion import Motion
 from repro.motion.quaternion import cross, min_rotation, quat_multiply
 from repro.motion.quaternion import quat_conjugate as qinv
@@ -541,6 +541,7 @@ class TreePlan:
         over :func:`~repro.motion.kinematics.depth_levels` (what ``retarget_across`` runs, and
         :meth:`~repro.motion.motion.Motion.global_transforms` on trees up to 64 levels deep).
         """
+        rotations, translations = check_pose_arrays(rotations, translations, 1 + sum(len(i) for i, _ in self.levels_s))
         gq_s, gp_s = world_of(self.levels_s, rotations, translations, source)
         F = gq_s.shape[0]
         J = self.n_joints

@@ -252,11 +252,19 @@ def find_roles(
         parent-child chain.
     """
     # the arguments checked at the entry (a string is no list of joint names, a float no parent index)
-    if isinstance(joint_names, (str, bytes)) or not isinstance(joint_names, Sequence | np.ndarray):
+    if isinstance(joint_names, (str, bytes)) or not isinstance(joint_names, Sequence | np.ndarray) or \
+            getattr(joint_names, "ndim", 1) != 1:
+        raise MotionError(f"joint_names must be a sequence of joint names, got {describe(joint_names)}")
+    if len(joint_names) > MAX_JOINTS:
+        raise MotionError(f"{len(joint_names)} joints: more than the {MAX_JOINTS} of any humanoid skeleton")
+    if any(isinstance(n, (list, tuple, np.ndarray)) for n in joint_names):
         raise MotionError(f"joint_names must be a sequence of joint names, got {describe(joint_names)}")
     names = [str(n) for n in joint_names]
     par = None if parents is None else as_real_array(parents, "parents", error=MotionError, integer=True,
                                                      shape=(len(names),)).astype(np.intp)
+    if par is not None and par.size and (par[0] != -1 or np.any(par[1:] < 0) or
+                                         np.any(par[1:] >= np.arange(1, par.size))):
+        raise MotionError("parents must be -1 for joint 0 and parents[j] < j for the others")
     if overrides is not None and not isinstance(overrides, Mapping):
         raise MotionError(f"overrides must be a mapping role -> joint name, got {describe(overrides)}")
     if isinstance(required, (str, bytes)) or not isinstance(required, Sequence | np.ndarray) or \
@@ -297,6 +305,9 @@ def find_roles(
                 break
     return roles
 
+
+#: Most joints :func:`find_roles` reads (film rigs with faces and fingers have about a thousand).
+MAX_JOINTS: int = 10_000
 
 #: Largest / smallest sum of a skeleton's bone lengths (its units): beyond them squared lengths
 #: (distances, IK) overflow or underflow float64 (1.8e308, 2.2e-308), so such a skeleton is refused.

@@ -468,7 +468,7 @@ class Skeleton:
                 "the length unit of this skeleton is unknown; read the motion with "
                 "read_bvh(..., unit_m=repro.motion.CMU_UNIT_M) (or BANDAI_UNIT_M), or use Motion.to_metres()"
             )
-        return as_real(value, "value (a length in file units)", error=MotionError, finite=False) * self.unit_m
+        return as_real(value, "value (a length in file units)", error=MotionError) * self.unit_m
 
     @property
     def size(self) -> float:
@@ -663,4 +663,9 @@ def rescale_constraint(c, size_actor: float, size_character: float) -> np.ndarra
         raise MotionError(f"constraint c must be a (..., 3) array, got shape {c.shape}")
     if not np.all(np.isfinite(c)):
         raise MotionError("constraint contains NaN or inf")
-    return c * (_positive("size_actor", size_actor) / _positive("size_character", size_character))
+    k = _positive("size_actor", size_actor) / _positive("size_character", size_character)
+    out = c * k
+    if not np.all(np.isfinite(out)):  # e.g. a size_character of 1e-320: the ratio overflows
+        raise MotionError(f"c * size_actor / size_character overflows (size_actor={size_actor!r}, "
+                          f"size_character={size_character!r})")
+    return out

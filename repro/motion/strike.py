@@ -75,7 +75,7 @@ from repro.motion.roles import effector_role
 from repro.motion.feet import foot_contacts, max_foot_slide
 from repro.motion.quaternion import slerp
 from repro.motion.morphology import retarget
-from repro.motion.motion import Motion, finite_vector3
+from repro.motion.motion import MAX_COORDINATE, Motion, finite_vector3
 from repro.motion.paper import REACTION_BUDGET_S
 from repro.motion.quaternion import quat_multiply
 from repro.motion.retrieval import MotionRetriever, Query, RetrievalResult, character_skeleton, retarget_to_tree
@@ -479,7 +479,8 @@ def strike(
     blend_s = as_real(blend_s, "blend_s (seconds)", error=MotionError, lo=0.0)
     max_root_shift = as_real(max_root_shift, "max_root_shift (per metre of leg length)", error=MotionError, lo=0.0)
     feet = as_choice(feet, "feet", ("pin", "plant", "track", None), error=MotionError)
-    floor = None if floor is None else as_real(floor, "floor (a height)", error=MotionError)
+    floor = None if floor is None else as_real(floor, "floor (a height)", error=MotionError, lo=-MAX_COORDINATE,
+                                               hi=MAX_COORDINATE)
     kind = as_choice(kind, "kind", EASINGS, error=MotionError)
     release = None if release is None else as_real(release, "release (seconds)", error=MotionError, lo=0.0)
     seed = as_int(seed, "seed", 0, 2**63 - 1, error=MotionError)

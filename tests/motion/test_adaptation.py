@@ -615,3 +615,31 @@ def test_effector_of_any_type_and_huge_offset_curves_are_motion_errors():
         reach_limb(m, 0, "right_wrist", [0.0, 1.0, 0.5], hit_point=["joint"])
     with pytest.raises(MotionError, match="budget"):  # was a MemoryError
         offset_curve(0, 3, [0.0, 0.0, 0.1], 10**12)
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        ({"chain": float("nan")}, "chain"),  # list(nan): TypeError
+        ({"chain": np.array(1.0)}, "chain"),
+        ({"chain": [["RightArm"]]}, "chain"),
+        ({"root_offsets": np.ones((12, 3), dtype=complex)}, "root_offsets"),  # ComplexWarning, imaginary dropped
+        ({"frames": range(10**12)}, "frames"),  # MemoryError
+        ({"floor": 1e300}, "floor"),  # overflow in the norms
+        ({"target": np.full(3, 1e300)}, "target"),
+    ],
+)
+def test_adapt_refuses_what_the_argument_fuzzer_found(kw, match):
+    m = _fixture_motion()
+    args = dict(motion=m, effector="right_wrist", target=[0.0, 1.0, 0.5], t0=0, tc=5)
+    args.update(kw)
+    with pytest.raises(MotionError, match=match):
+        adapt(**args)
+
+
+def test_solvers_refuse_far_targets_and_huge_frame_ranges():
+    m = _fixture_motion()
+    with pytest.raises(MotionError, match="targets"):
+        reach_limb(m, [1, 2], "right_wrist", np.full(3, 1e300))
+    with pytest.raises(MotionError, match="frames"):
+        ccd(m, range(10**12), "right_wrist", [0.0, 1.0, 0.5])

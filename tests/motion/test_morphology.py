@@ -453,3 +453,7 @@ def test_retarget_plan_checks_the_source_transforms():
         plan.positions(m.rotations, m.local_translations(), source="x")
     with pytest.raises(MotionError, match="source"):
         plan.positions(m.rotations, m.local_translations(), source=(m.rotations, m.positions[:, :3]))
+    with pytest.raises(MotionError, match="unit quaternions"):  # found by the argument fuzzer: 0/0
+        plan.positions(np.zeros_like(m.rotations), m.local_translations())
+    with pytest.raises(MotionError, match="NaN"):
+        plan.positions(m.rotations, m.local_translations() * np.nan)

@@ -65,3 +65,9 @@ def test_scaled_and_to_metres_refuse_bad_units(m):
 def test_finite_vector3_refuses_what_is_not_three_real_numbers(value):
     with pytest.raises(MotionError, match="3-vector"):
         finite_vector3(value, "target")
+
+
+def test_finite_vector3_refuses_coordinates_whose_squares_overflow():
+    with pytest.raises(MotionError, match="beyond"):
+        finite_vector3([0.0, 1e300, 0.0], "target")
+    np.testing.assert_array_equal(finite_vector3([0.0, 1e99, 0.0], "target"), [0.0, 1e99, 0.0])

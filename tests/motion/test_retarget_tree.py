@@ -254,5 +254,10 @@ def test_plans_check_the_source_transforms(clip):
     for bad in ("x", (rot,), (np.zeros((2, 3, 4)), np.zeros((2, 3, 3))), [clip.global_transforms()]):
         with pytest.raises(MotionError, match="source"):  # "x" used to fail unpacking (ValueError)
             plan.positions(rot, tr, source=bad)
-    with pytest.raises(MotionError, match="fk_arrays"):
-        plan.positions(rot.tolist(), tr)
+    np.testing.assert_array_equal(plan.positions(rot.tolist(), tr.tolist()), plan.positions(rot, tr))
+    # found by the argument fuzzer: NaN results, overflow and division warnings, dropped imaginary parts
+    for r, t, match in ((rot[:, :3], tr, "rotations"), (rot * 1e-300, tr, "unit quaternions"),
+                        (rot * 1e300, tr, "unit quaternions"), (rot + 1j, tr, "complex"),
+                        (rot, tr * 1e300, "translations beyond"), (rot, np.where(tr == tr.max(), np.nan, tr), "NaN")):
+        with pytest.raises(MotionError, match=match):
+            plan.positions(r, t)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from repro.errors import MotionError
@@ -119,3 +120,18 @@ def test_find_roles_refuses_bad_arguments(kw, match):
 def test_role_helpers_refuse_bad_arguments(call, match):
     with pytest.raises(MotionError, match=match):
         call()
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        (dict(joint_names=np.array(1.0)), "joint_names"),  # iteration over a 0-d array
+        (dict(joint_names=[[1], [1, 2]]), "joint_names"),
+        (dict(joint_names=[f"j{i}" for i in range(10_001)]), "joints"),  # 10**7 names took minutes
+        (dict(joint_names=["Hips", "Spine"], parents=[-1, 10**9]), "parents"),  # IndexError
+        (dict(joint_names=["Hips", "Spine", "Head"], parents=[1, 0, -1]), "parents"),  # reversed: a hang
+    ],
+)
+def test_find_roles_refuses_what_the_argument_fuzzer_found(kw, match):
+    with pytest.raises(MotionError, match=match):
+        find_roles(**kw)

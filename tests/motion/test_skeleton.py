@@ -258,3 +258,8 @@ def test_from_motion_with_offsets_and_rescale_constraint_check_their_arguments()
         rescale_constraint("abc", 1.0, 1.0)
     with pytest.raises(MotionError, match="constraint"):
         rescale_constraint([1.0, 2.0], 1.0, 1.0)
+
+
+def test_rescale_constraint_refuses_a_ratio_that_overflows():
+    with pytest.raises(MotionError, match="overflows"):
+        rescale_constraint([0.1, 1.2, 0.5], 1.7, 1e-320)  # was [inf, inf, inf]

@@ -361,6 +361,7 @@ def test_adapt_streaming_and_step_options_refuse_bad_input(setup):
         ({"blend_s": float("nan")}, MotionError, "blend_s"),
         ({"floor": "x"}, MotionError, "floor"),
         ({"floor": float("nan")}, MotionError, "floor"),
+        ({"floor": 1e300}, MotionError, "floor"),  # found by the argument fuzzer: overflow in the norms
         ({"release": "x"}, MotionError, "release"),
         ({"release": -0.5}, MotionError, "release"),
         ({"seed": -1}, MotionError, "seed"),

@@ -44,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from repro.checks import as_choice, as_int, as_real
+from repro.checks import as_choice, as_int, as_real, as_real_array
 from repro.errors import MotionError
 from repro.motion.adaptation.ccd_solver import (
     DEFAULT_HINGE_RANGE_DEG,
@@ -56,7 +56,7 @@ from repro.motion.adaptation.offset import EASINGS, offset_curve
 from repro.motion.adaptation.rig import Chain, Rig, check_extension, check_frames, default_tol, rig_of, vec3
 from repro.motion.kinematics import fk_arrays
 from repro.motion.quaternion import quat_rotate as qrot
-from repro.motion.motion import Motion
+from repro.motion.motion import MAX_COORDINATE, Motion
 
 __all__ = ["Adaptation", "adapt"]
 
@@ -245,7 +245,8 @@ def adapt(
     if foot_offsets is not None:
         foot_offsets = _check_offsets(foot_offsets, F, (F, 2, 3), "foot_offsets")
     if floor is not None:
-        floor = as_real(floor, "floor (a finite height or None)", error=MotionError)
+        floor = as_real(floor, "floor (a finite height or None)", error=MotionError, lo=-MAX_COORDINATE,
+                        hi=MAX_COORDINATE)
     n_release = _release_frames(release, motion.frame_time)
     foot_blend = as_real(foot_blend, "foot_blend (seconds)", error=MotionError, lo=0.0)
     tol = default_tol(rig, ch) if tol is None else as_real(tol, "tol", error=MotionError, lo=0.0, lo_open=True)
@@ -490,9 +491,9 @@ def _check_contacts(contacts, F: int) -> np.ndarray:
 
 
 def _check_offsets(offsets, F: int, shape: tuple, name: str) -> np.ndarray:
-    try:
-        o = np.array(offsets, dtype=float)
-    except (TypeError, ValueError):
+    try:  # strings, None, complex values refused (never a silently dropped imaginary part)
+        o = np.array(as_real_array(offsets, name, error=MotionError, finite=False))
+    except MotionError:
         o = None
     if o is None or o.shape != shape or not np.all(np.isfinite(o)):
         raise MotionError(f"{name} must be a finite {shape} array, got "

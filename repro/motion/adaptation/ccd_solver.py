@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from repro.checks import as_bool, as_int, as_real, as_real_array
+from repro.checks import as_bool, as_int, as_real, as_real_array, describe
 from repro.errors import MotionError
 from repro.motion.adaptation.limb import limb_dmax, solve_limb
 from repro.motion.adaptation.rig import (
@@ -184,7 +184,10 @@ def ccd_spec(rig: Rig, ch: Chain, chain, limits, hinge_range_deg):
     sk = rig.sk
     if isinstance(chain, str):
         raise MotionError(f"chain must be a sequence of joint names or roles, got the string {chain!r}")
-    names = chain_joints(rig, ch) if chain is None else list(chain)
+    if chain is not None and (not isinstance(chain, (list, tuple, np.ndarray)) or getattr(chain, "ndim", 1) != 1
+                              or not all(isinstance(n, (str, np.str_)) for n in chain)):
+        raise MotionError(f"chain must be a sequence of joint names or roles, got {describe(chain)}")
+    names = chain_joints(rig, ch) if chain is None else [str(n) for n in chain]
     if not names:
         raise MotionError("the CCD chain is empty")
     pl = [int(j) for j in ch.path]

@@ -20,7 +20,7 @@ from repro.motion.feet import foot_contacts
 from repro.motion.kinematics import depth_levels, matvec
 from repro.motion.quaternion import cross
 from repro.motion.quaternion import quat_rotate as qrot
-from repro.motion.motion import Motion, finite_vector3
+from repro.motion.motion import MAX_COORDINATE, Motion, finite_vector3
 from repro.motion.skeleton import Skeleton
 
 __all__ = [
@@ -268,7 +268,12 @@ def rig_of(motion: Motion, roles=None) -> Rig:
 
 def check_frames(frames, F: int) -> tuple[np.ndarray, bool]:
     scalar = isinstance(frames, (int, np.integer)) and not isinstance(frames, (bool, np.bool_))
-    arr = np.atleast_1d(np.asarray(frames))
+    if isinstance(frames, (bool, np.bool_)):
+        raise MotionError(f"frames must be an integer frame index or a non-empty 1-D sequence of them, got {frames!r}")
+    try:  # (a range of 10**12 frames is refused against the memory budget, not expanded)
+        arr = np.atleast_1d(as_real_array(frames, "frames", error=MotionError, integer=True))
+    except MotionError as e:
+        raise MotionError(f"frames must be an integer frame index or a non-empty 1-D sequence of them: {e}") from None
     if arr.ndim != 1 or arr.size == 0 or not (np.issubdtype(arr.dtype, np.integer)):
         raise MotionError(f"frames must be an integer frame index or a non-empty 1-D sequence of them, got {frames!r}")
     if np.any((arr < 0) | (arr >= F)):
@@ -285,6 +290,8 @@ def check_targets(targets, n: int) -> np.ndarray:
         raise MotionError(f"targets must be (3,) or ({n}, 3), got shape {t.shape}")
     if not np.all(np.isfinite(t)):
         raise MotionError("targets contain NaN or inf")
+    if t.size and np.abs(t).max() > MAX_COORDINATE:
+        raise MotionError(f"targets have coordinates beyond {MAX_COORDINATE:g}: their squares overflow float64")
     return t
 
 
