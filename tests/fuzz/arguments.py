@@ -57,7 +57,8 @@ level and one test calling :func:`check`::
 
 The runner substitutes every value of every parameter, one at a time, and then a few seeded pairs
 (two parameters at once): ``PAIRS`` per case, ``REPRO_FUZZ_ARGS=full`` for ``FULL_PAIRS``.
-``REPRO_FUZZ_ARGS_CASE=substring`` restricts a run to the cases whose name contains it.
+``REPRO_FUZZ_ARGS_CASE=substring`` restricts a run to the cases whose name contains it.  A case
+stops after :data:`MAX_DEAD` timeouts or crashes (each costs its time limit and a restart).
 A failure lists every failing (case, parameters = values, outcome, exception, last traceback line).
 Run one area from the shell: ``python -m tests.fuzz.arguments --run tests.fuzz.test_fuzz_arguments_blendshapes``.
 """
@@ -86,6 +87,8 @@ RLIMIT_AS = 3 << 30
 BUDGET = 1 << 30
 #: Seconds one call may take (the parent kills the child past it).
 TIME_LIMIT = 10.0
+#: A case stops after this many timeouts/crashes (each costs its time limit and a restart of the child).
+MAX_DEAD = 3
 #: Seeded pairs of hostile values per case (default run, and ``REPRO_FUZZ_ARGS=full``).
 PAIRS = 4
 FULL_PAIRS = 60
@@ -499,8 +502,11 @@ def run(module: str, log_dir: str | None = None, times: dict | None = None) -> t
     child = _Child(module, log_dir)
     failures = []
     calls = plan(list(cases.values()))
+    dead: dict[str, int] = {}  # case -> timeouts and crashes so far (each costs a restart of the child)
     try:
         for name, subs in calls:
+            if dead.get(name, 0) >= MAX_DEAD:
+                continue
             t0 = time.monotonic()
             rep = child.call(name, [list(s) for s in subs], cases[name].time_limit)
             if times is not None:
@@ -508,6 +514,10 @@ def run(module: str, log_dir: str | None = None, times: dict | None = None) -> t
             # the valid call must return (else only error paths are fuzzed); a hostile one may raise
             if rep["outcome"] == "ok" or (subs and rep["outcome"] == "repro_error"):
                 continue
+            if rep["outcome"] in ("timeout", "crash"):
+                dead[name] = dead.get(name, 0) + 1
+                if dead[name] == MAX_DEAD:
+                    failures.append(f"{name}: stopped after {MAX_DEAD} timeouts/crashes (its other calls not run)")
             what = ", ".join(f"{p}={lab}" for p, lab in subs) or "(valid arguments)"
             failures.append(f"{name}({what}): {rep['outcome']} {rep.get('type', '')}: "
                             f"{(rep.get('message') or '').splitlines()[0][:200] if rep.get('message') else ''}"
