@@ -715,7 +715,6 @@ def write_bvh(motion: Motion, path, *, overwrite: bool = False, precision: int =
         breaks, a rotation that a joint with fewer than three rotation channels cannot
         express).
     """
-    precision = int(precision)
     if not isinstance(motion, Motion):
         raise BVHError(f"motion must be a repro.motion.Motion, got {describe(motion)}")
     precision = as_int(precision, "precision (significant digits)", 6, 17, error=BVHError)

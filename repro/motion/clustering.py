@@ -85,7 +85,7 @@ import numpy as np
 from scipy.cluster.vq import kmeans2
 from scipy.sparse import csr_matrix
 
-from repro.checks import as_bool, as_int, as_real_array, check_alloc, describe
+from repro.checks import abs_max, as_bool, as_int, as_real_array, check_alloc, describe
 from repro.errors import MotionError, ReproWarning
 
 __all__ = [
@@ -127,6 +127,9 @@ POSE_ROLES: tuple[str, ...] = (
 #: Kovar et al. use a few frames; 1,000 is 33 s at 30 Hz.
 MAX_WINDOW: int = 1000
 
+#: Most joints in a pose cloud (:func:`pose_points`).
+MAX_JOINTS: int = 10_000
+
 #: Most k-means iterations :func:`cluster_poses` accepts (each is one pass over the poses).
 MAX_ITERATIONS: int = 10_000
 
@@ -150,7 +153,21 @@ def real_array(value, name: str, error=MotionError) -> np.ndarray:
                 raise error(f"{name} must be an array of real numbers, got {_short(value)}") from None
         else:
             raise error(f"{name} must be an array of real numbers, got dtype {a.dtype} ({_short(value)})")
-    return a.astype(float, copy=False)
+    with np.errstate(over="ignore"):  # a longdouble beyond float64 becomes inf, refused by the finiteness checks
+        return a.astype(float, copy=False)
+
+
+#: Largest coordinate magnitude the pose and frame functions accept: squares and weighted sums of
+#: larger ones overflow float64 (1e308 gave inf distances and overflow warnings); pose clouds are
+#: in units of the actor's size (about 1), world points in metres.
+MAX_COORD: float = 1e100
+
+
+def _check_magnitude(a: np.ndarray, name: str, error=MotionError) -> np.ndarray:
+    """``a`` (finite) if no entry exceeds :data:`MAX_COORD` in magnitude, else ``error`` naming ``name``."""
+    if a.size and abs_max(a) > MAX_COORD:
+        raise error(f"{name} has values of magnitude {abs_max(a):.3g}, beyond {MAX_COORD:g} (they would overflow)")
+    return a
 
 
 def _short(value) -> str:
@@ -178,13 +195,14 @@ def float_poses(value, name: str, error=MotionError, *, allow_empty: bool = Fals
     for a in range(0, p.shape[0], CHUNK):
         if not np.isfinite(p[a:a + CHUNK]).all():
             raise error(f"{name} contain NaN or inf")
+        _check_magnitude(p[a:a + CHUNK], name, error)
     return p
 
 
 # ------------------------------------------------------------------ root frames
 def _points3(x, name: str) -> np.ndarray:
     """``x`` as a finite float64 (..., 3) array (at least 1-D), else :class:`MotionError` naming ``name``."""
-    a = as_real_array(x, name, error=MotionError)
+    a = _check_magnitude(as_real_array(x, name, error=MotionError), name)
     if a.ndim == 0 or a.shape[-1] != 3:
         raise MotionError(f"{name} must be an array of 3-D points (..., 3), got shape {a.shape}")
     return a
@@ -306,8 +324,8 @@ def pose_points(global_positions: np.ndarray, joints: Sequence[int], pelvis: int
     (F, window * P, 3) array
         Oldest frame first.
     """
-    g = real_array(global_positions, "global_positions")
-    if g.ndim != 3 or g.shape[-1] != 3 or g.shape[0] == 0:
+    g = _points3(global_positions, "global_positions")
+    if g.ndim != 3 or g.shape[0] == 0:
         raise MotionError(f"global_positions must be a non-empty (F, J, 3) array, got {g.shape}")
     window = as_int(window, "window (frames per pose cloud)", 1, MAX_WINDOW, error=MotionError)
     step = as_int(step, "step (frames between the cloud's frames)", 1, MAX_WINDOW, error=MotionError)
@@ -315,6 +333,8 @@ def pose_points(global_positions: np.ndarray, joints: Sequence[int], pelvis: int
     for name, j in (("pelvis", pelvis), ("left_hip", left_hip), ("right_hip", right_hip)):
         as_int(j, name, 0, J - 1, error=MotionError)
     if isinstance(joints, range):
+        if len(joints) > MAX_JOINTS:  # range(10**12) is not listed to be refused
+            raise MotionError(f"joints (pose joint indices) must be at most {MAX_JOINTS} indices, got {describe(joints)}")
         joints = list(joints)
     idx = as_real_array(joints, "joints (pose joint indices)", error=MotionError, integer=True, ndim=1)
     if idx.size == 0 or idx.min() < 0 or idx.max() >= J:
@@ -352,6 +372,7 @@ def pose_weights(n_points: int, weights: Sequence[float] | Mapping | None = None
             raise MotionError(f"need {n_points} pose weights, got {w.size}")
     if not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
         raise MotionError("pose weights must be finite, >= 0 and not all 0")
+    _check_magnitude(w, "pose weights")
     return w / w.sum()
 
 
@@ -393,6 +414,8 @@ def aligned_distance(a, b, weights=None, *, return_transform: bool = False):
         raise MotionError(f"pose clouds must be (..., P, 3) with equal P, got {a.shape} and {b.shape}")
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
         raise MotionError("pose clouds contain NaN or inf")
+    _check_magnitude(a, "pose cloud a")
+    _check_magnitude(b, "pose cloud b")
     w = pose_weights(a.shape[-2], weights)
     xa, ya, za, Xa, Za, Ha = _moments(a, w)
     xb, yb, zb, Xb, Zb, Hb = _moments(b, w)
@@ -628,7 +651,7 @@ class AlignedPoseIndex:
             raise MotionError(f"query pose must be ({self._P}, 3), got {q.shape}")
         if not np.all(np.isfinite(q)):
             raise MotionError("query pose contains NaN or inf")
-        return q
+        return _check_magnitude(q, "query pose")
 
     def distances(self, q: np.ndarray, rows: np.ndarray | None = None, *, return_transform: bool = False,
                   prepared=None):

@@ -417,7 +417,7 @@ class MotionDatabase:
         meta : mapping, optional
             JSON-serialisable provenance stored with the database.
         """
-        if isinstance(clips, (str, bytes, Clip)) or not isinstance(clips, Sequence) and not isinstance(clips, np.ndarray):
+        if isinstance(clips, (str, bytes, Clip)) or not isinstance(clips, Sequence):
             raise MotionError(f"clips must be a sequence of Clip, got {describe(clips)}")
         if len(clips) == 0:
             raise MotionError("a motion database needs at least one clip")
@@ -436,6 +436,12 @@ class MotionDatabase:
         step = as_int(step, "step (frames between the cloud's frames)", 1, MAX_WINDOW, error=MotionError)
         if meta is not None and not isinstance(meta, Mapping):
             raise MotionError(f"meta must be a mapping (JSON object) or None, got {describe(meta)}")
+        try:  # what save() will write: a JSON object with string keys and finite numbers
+            json.loads(json.dumps(dict(meta or {}), allow_nan=False, sort_keys=True))
+        except (TypeError, ValueError) as exc:
+            raise MotionError(f"meta must be JSON (string keys, finite numbers): {exc}") from None
+        if any(not isinstance(k, str) for k in (meta or {})):
+            raise MotionError("meta must be JSON: its keys must be strings")
         fps = clips[0].motion.fps
         for c in clips:
             if abs(c.motion.fps - fps) > 1e-6 * fps:

@@ -33,10 +33,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.spatial import cKDTree
 
-from repro.checks import as_int, as_real_array, check_alloc
+from repro.checks import abs_max, as_int, as_real_array, check_alloc
 from repro.errors import RetrievalError
 from repro.motion.annotation import SEMANTICS
-from repro.motion.clustering import aligned_distance
+from repro.motion.clustering import MAX_COORD, aligned_distance
 
 if TYPE_CHECKING:  # annotations only (retrieval imports this module)
     from repro.motion.retrieval import Query, RetrievalResult
@@ -536,6 +536,8 @@ def sample_grid(pts: np.ndarray, per_cell: int = 8, max_cells: int = 1 << 21) ->
     about ``per_cell`` points per cell of the bounding box and at most ``max_cells`` cells (a point beyond
     the last cell of an axis goes to it: edge cells extend to infinity, which the search allows for)."""
     pts = as_real_array(pts, "pts (trajectory samples)", error=RetrievalError, shape=(None, 3))
+    if pts.size and abs_max(pts) > MAX_COORD:  # the extent would overflow to inf
+        raise RetrievalError(f"pts (trajectory samples) beyond {MAX_COORD:g} in magnitude")
     per_cell = as_int(per_cell, "per_cell", 1, None, error=RetrievalError)
     max_cells = as_int(max_cells, "max_cells", 1, None, error=RetrievalError)
     check_alloc(8 * min(max_cells, 1 << 30), f"max_cells={max_cells} (the sample grid's cells)", error=RetrievalError)
@@ -591,8 +593,8 @@ def invariant_features(points: np.ndarray, weights: np.ndarray) -> np.ndarray:
     if p.ndim < 2 or p.shape[-1] != 3:
         raise RetrievalError(f"points (pose clouds) must be (..., P, 3), got shape {p.shape}")
     weights = as_real_array(weights, "weights", error=RetrievalError, shape=(p.shape[-2],))
-    if np.any(weights < 0):
-        raise RetrievalError("weights must be >= 0")
+    if np.any(weights < 0) or (weights.size and abs_max(weights) > MAX_COORD) or (p.size and abs_max(p) > MAX_COORD):
+        raise RetrievalError(f"weights must be >= 0, and weights and points at most {MAX_COORD:g} in magnitude")
     sw = np.sqrt(weights)
     X = p[..., 0] @ weights
     Z = p[..., 2] @ weights

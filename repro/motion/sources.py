@@ -217,7 +217,8 @@ def build_database(source, *, fps: float = DATABASE_FPS, window: tuple[float, fl
     repro.errors.MotionError
         No clip found, a manifest naming a missing file or bad annotation.
     """
-    if isinstance(source, (bytes, bytearray)) or not isinstance(source, (str, os.PathLike)):
+    if isinstance(source, (bytes, bytearray)) or not isinstance(source, (str, os.PathLike)) \
+            or "\x00" in str(os.fspath(source)):
         raise MotionError(f"source must be a folder path (str or os.PathLike), got {describe(source)}")
     if manifest is not None:
         manifest = as_str(manifest, "manifest (a file name in the folder, or None)", error=MotionError)
