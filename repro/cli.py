@@ -235,6 +235,8 @@ def _usage_problem(args) -> str | None:
     out = getattr(args, "out", None)
     if out is not None and not out.strip():
         return f"--out must name a folder, got {out!r} (the figures would land in the current folder)"
+    if any(not f.strip() for f in getattr(args, "face", None) or ()):
+        return "--face must name a .gltf or .glb file, got ''"
     if args.command == "bench" and (args.queries is not None or args.factors is not None or args.database is not None):
         from repro.bench import retrieval
 

@@ -120,7 +120,7 @@ def test_two_runs_give_identical_csvs_except_timing_columns(quick_figures, besid
     ["bench", "retrieval", "--database", "nope"], ["bench", "prepare", "--factors", "2"],
     ["run", "attenuation_speed", "--out", ""], ["all", "--out", ""], ["bench", "attenuation", "--out", ""],
     ["claims", "--out", ""], ["run", "attenuation_speed", "--out", " "],
-    ["run", "attenuation_speed", "--out", "a\0b"],
+    ["run", "attenuation_speed", "--out", "a\0b"], ["run", "attenuation_speed", "--face", ""], ["all", "--face", " "],
     ["app", "face", "--port", "0"], ["app", "face", "--port", "70000"], ["app", "face", "--host", ""],
     ["app", "face", "--host", "0.0.0.0", "--no-token"],
 ])
