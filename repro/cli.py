@@ -18,8 +18,8 @@
 Exit status: 0 on success, 2 for an unknown name or bad usage (e.g. ``--out``
 naming a file or empty, ``--queries 0``, ``--factors 1,-1``, ``--port 70000``: the
 usage line and one ``repro: ...`` line), 1 when a run fails with one of repro's own
-errors (the message says why, on one line).  Progress bars (plain tqdm, shown after a second) go to stderr; the
-library itself never shows one unless asked (``progress=True``).
+errors (the message says why, on one line).  Progress bars (plain tqdm, shown after a
+second) go to stderr; the library itself never shows one unless asked (``progress=True``).
 """
 
 from __future__ import annotations
@@ -237,6 +237,8 @@ def _usage_problem(args) -> str | None:
         return f"--out must name a folder, got {out!r} (the figures would land in the current folder)"
     if any(not f.strip() for f in getattr(args, "face", None) or ()):
         return "--face must name a .gltf or .glb file, got ''"
+    from repro.errors import RetrievalError
+
     if args.command == "bench" and (args.queries is not None or args.factors is not None or args.database is not None):
         from repro.bench import retrieval
 
@@ -252,7 +254,7 @@ def _usage_problem(args) -> str | None:
             return f"--queries must be a whole number >= 1, got {args.queries!r}"
         try:  # the library's own check (ranges, known databases, the memory the factors ask), before any work
             retrieval.check_bench_arguments(args.database, factors, queries)
-        except ReproError as exc:
+        except RetrievalError as exc:  # (data missing to load a base is not usage: a ReproError, exit 1)
             return f"{exc}"
         args.factors, args.queries = factors, queries
     if args.command == "app":
@@ -269,12 +271,12 @@ def _usage_problem(args) -> str | None:
 
 
 def _main(args) -> int:
-    if (why := _usage_problem(args)) is not None:
-        return _usage_error(args, why)
-    # every command that writes (run, all, bench, claims) takes --out: refuse a bad one before computing
-    if getattr(args, "out", None) is not None and (why := _bad_out(args.out)):
-        return _usage_error(args, why)
     try:
+        if (why := _usage_problem(args)) is not None:
+            return _usage_error(args, why)
+        # every command that writes (run, all, bench, claims) takes --out: refuse a bad one before computing
+        if getattr(args, "out", None) is not None and (why := _bad_out(args.out)):
+            return _usage_error(args, why)
         if args.command == "list":
             from repro.experiments import registry
 

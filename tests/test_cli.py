@@ -182,3 +182,16 @@ def test_a_library_error_of_several_lines_is_printed_on_one(monkeypatch, capsys)
     monkeypatch.setattr(cli, "_data", broken)
     assert cli.main(["data", "list"]) == 1
     assert capsys.readouterr().err == "repro: first line; second line\n"
+
+
+def test_missing_data_while_checking_bench_options_is_exit_1_not_a_traceback(monkeypatch, tmp_path, capsys):
+    """Loading a base database for the memory check can fail for want of data: a repro error (1), not usage."""
+    from repro.bench import retrieval
+    from repro.errors import DataError
+
+    def no_data(*a, **k):
+        raise DataError("the cmu-bvh data is missing")
+
+    monkeypatch.setattr(retrieval, "check_bench_arguments", no_data)
+    assert cli.main(["bench", "retrieval", "--database", "cmu", "--factors", "1,10", "--out", str(tmp_path)]) == 1
+    assert capsys.readouterr().err == "repro: the cmu-bvh data is missing\n"
