@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from repro.checks import as_real, describe
 from repro.errors import BVHError
 from repro.io import read_bytes
 from repro.motion.motion import Motion
@@ -654,6 +655,11 @@ def read_amc(src, skeleton: AsfSkeleton, *, frame_time: float = CMU_FRAME_TIME, 
         arrays (56 bytes per joint and frame) would exceed 64 times the file's size
         (at least 256 MiB are always allowed) -- checked before allocating them.
     """
+    if not isinstance(skeleton, AsfSkeleton):
+        raise BVHError(f"skeleton must be an AsfSkeleton (read_asf), got {describe(skeleton)}")
+    frame_time = as_real(frame_time, "frame_time (s)", lo=0.0, lo_open=True, error=BVHError)
+    if unit_m is not None:
+        unit_m = as_real(unit_m, "unit_m (metres per file unit)", lo=0.0, lo_open=True, error=BVHError)
     values, degrees, source, nbytes = _amc_values(src, skeleton)
     if degrees is None:
         degrees = skeleton.angle_unit == "deg"

@@ -60,7 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
-from repro.checks import as_bool, as_int, describe
+from repro.checks import as_bool, as_int, as_real, describe
 from repro.errors import BVHError, BVHWarning
 from repro.io import atomic_path, read_bytes
 from repro.motion.channels import POSITION_CHANNELS, ROTATION_CHANNELS, joint_columns
@@ -542,6 +542,9 @@ def read_bvh(src, *, unit_m: float | None = None, strict: bool = False) -> Motio
         rate is infinite) or the joint and frame (offsets and positions so large that
         world positions overflow).
     """
+    strict = as_bool(strict, "strict", error=BVHError)
+    if unit_m is not None:
+        unit_m = as_real(unit_m, "unit_m (metres per file unit)", lo=0.0, lo_open=True, error=BVHError)
     data, name = read_bytes(src, error=BVHError)
     if data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]

@@ -313,6 +313,16 @@ def _write_bvh():
                            overwrite=False, precision=12)
 
 
+def _read_bvh():
+    import os
+
+    from repro.motion.bvh import read_bvh
+
+    d = _synthetic_dir()
+    return read_bvh, dict(src=os.path.join(d, sorted(f for f in os.listdir(d) if f.endswith(".bvh"))[0]),
+                          unit_m=None, strict=False)
+
+
 CASES = [
     # the database
     *[Case(f"MotionDatabase.{m}", _db_method(m, i=1), {"i": "index"}, time_limit=SLOW)
@@ -418,6 +428,7 @@ CASES = [
     Case("conventions.build", _conventions_build, {"convention": "choice", "height": "real"}),
     # the path is a fresh temporary file: a hostile path paired with overwrite=True would write over a
     # file of the machine (the hostile paths include ../../../../etc/passwd)
+    Case("read_bvh", _read_bvh, {"unit_m": "real", "strict": "bool"}, time_limit=SLOW),
     Case("write_bvh", _write_bvh, {"motion": "any", "overwrite": "bool", "precision": "int"}, time_limit=SLOW),
 ]
 
