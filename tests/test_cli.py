@@ -116,7 +116,7 @@ def test_two_runs_give_identical_csvs_except_timing_columns(quick_figures, besid
     ["bench", "retrieval", "--queries", "0"], ["bench", "retrieval", "--queries", "-5"],
     ["bench", "retrieval", "--queries", "x"], ["bench", "retrieval", "--queries", "1000000000000"],
     ["bench", "retrieval", "--factors", "0"], ["bench", "retrieval", "--factors", "1,-1"],
-    ["bench", "retrieval", "--factors", "1,,2"], ["bench", "retrieval", "--factors", ""],
+    ["bench", "retrieval", "--factors", "1,,2"], ["bench", "retrieval", "--factors", "1" + "0" * 400], ["bench", "retrieval", "--factors", ""],
     ["bench", "retrieval", "--database", "nope"], ["bench", "prepare", "--factors", "2"],
     ["run", "attenuation_speed", "--out", ""], ["all", "--out", ""], ["bench", "attenuation", "--out", ""],
     ["claims", "--out", ""], ["run", "attenuation_speed", "--out", " "],

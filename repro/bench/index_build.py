@@ -74,7 +74,7 @@ def bench_index_build(*, quick: bool = False, factors=None, database: str = "syn
     if factors is not None:  # each an int >= 1
         if isinstance(factors, (str, bytes)) or not hasattr(factors, "__iter__"):
             raise RetrievalError(f"factors must be a sequence of ints >= 1, got {factors!r}")
-        factors = tuple(as_int(f, "factor", 1, None, error=RetrievalError) for f in factors)
+        factors = tuple(as_int(f, "factor", 1, 10**9, error=RetrievalError) for f in factors)  # retrieval.MAX_FACTOR
         if not factors:
             raise RetrievalError("factors must name at least one size (an int >= 1)")
     if factors is None:

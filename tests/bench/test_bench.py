@@ -108,7 +108,7 @@ def test_bench_retrieval_refuses_bad_arguments(kw):
         retrieval.bench_retrieval(progress=False, **kw)
 
 
-@pytest.mark.parametrize("kw", [dict(factors="12"), dict(factors=(1, 10**9)), dict(factors=(True,)),
+@pytest.mark.parametrize("kw", [dict(factors="12"), dict(factors=(1, 10**9)), dict(factors=(10**400,)), dict(factors=(True,)),
                                 dict(n_queries=10**12), dict(databases=5), dict(quick="yes"), dict(seed=-1),
                                 dict(seed="x"), dict(progress=None), dict(database="synthetic")])
 def test_bench_retrieval_refuses_more_bad_arguments(kw):
@@ -138,7 +138,7 @@ def test_check_bench_arguments_checks_the_memory_the_factors_ask_before_building
     ("adaptation.bench_order_latency", dict(database="nope")), ("adaptation.bench_order_latency", dict(seed=-1)),
     ("prepare.bench_prepare", dict(n_queries=10**12)), ("prepare.bench_prepare", dict(n_queries=0)),
     ("prepare.bench_prepare", dict(seed="x")), ("index_build.bench_index_build", dict(factors=(2, 10**9))),
-    ("index_build.bench_index_build", dict(factors=(0,))), ("index_build.bench_index_build", dict(database="nope")),
+    ("index_build.bench_index_build", dict(factors=(0,))), ("index_build.bench_index_build", dict(factors=(10**400,))), ("index_build.bench_index_build", dict(database="nope")),
     ("index_build.bench_index_build", dict(database=None)), ("index_build.bench_index_build", dict(baseline_variants=0)),
 ])
 def test_every_bench_entry_checks_its_arguments_first(entry, kw):
