@@ -25,6 +25,9 @@ __all__ = [
     "depth_levels",
     "world_of",
     "check_pose_arrays",
+    "check_joint_names",
+    "check_indices",
+    "MAX_JOINTS",
     "MAX_COORDINATE",
     "matvec",
     "matvec_t",
@@ -100,6 +103,31 @@ def fk_arrays(levels, rotations: np.ndarray, translations: np.ndarray, *,
 MAX_COORDINATE: float = 1e100
 #: Largest ``| |q| - 1 |`` of a rotation given as a unit quaternion (as :class:`~repro.motion.Motion`'s).
 UNIT_TOLERANCE: float = 1e-6
+
+
+#: Most joints a skeleton may have: far beyond any rig (film rigs with faces and fingers have about
+#: a thousand; the BVH reader is tested on a 20,000-deep chain), short of what takes seconds to name.
+MAX_JOINTS: int = 1_000_000
+
+
+def check_joint_names(joint_names, *, error=MotionError) -> list[str]:
+    """``joint_names`` as a list of str: a 1-D sequence of at most :data:`MAX_JOINTS` names (not a string)."""
+    if isinstance(joint_names, (str, bytes)) or not isinstance(joint_names, (list, tuple, np.ndarray)) or \
+            getattr(joint_names, "ndim", 1) != 1:
+        raise error(f"joint_names must be a sequence of joint names, got {describe(joint_names)}")
+    if len(joint_names) > MAX_JOINTS:
+        raise error(f"{len(joint_names)} joints: more than the {MAX_JOINTS} of any skeleton")
+    if any(isinstance(n, (list, tuple, dict, set, np.ndarray)) for n in joint_names):
+        raise error(f"joint_names must be a sequence of joint names, got {describe(joint_names)}")
+    return [str(n) for n in joint_names]
+
+
+def check_indices(x, name: str, n: int, *, error=MotionError) -> np.ndarray:
+    """``x`` as a 1-D intp array of joint indices in ``[0, n)`` (a range is checked against the budget first)."""
+    a = as_real_array(x, name, error=error, integer=True).reshape(-1)
+    if np.any((a < 0) | (a >= n)):
+        raise error(f"{name} must be joint indices in [0, {n})")
+    return a.astype(np.intp)
 
 
 def check_pose_arrays(rotations, translations, n_joints: int) -> tuple[np.ndarray, np.ndarray]:

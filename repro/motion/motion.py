@@ -47,7 +47,7 @@ import numpy as np
 from repro.checks import as_real, as_real_array, describe
 from repro.errors import BVHError, MotionError
 from repro.motion.channels import channel_layout, channel_table
-from repro.motion.kinematics import MAX_COORDINATE, depth_levels, fk_arrays
+from repro.motion.kinematics import MAX_COORDINATE, check_joint_names, depth_levels, fk_arrays
 from repro.motion.quaternion import quat_multiply, quat_rotate
 
 __all__ = [
@@ -215,16 +215,14 @@ class Motion:
         self._validate(renormalise=True)
 
     def _validate(self, renormalise: bool) -> None:
-        if isinstance(self.joint_names, (str, bytes)) or not isinstance(self.joint_names, (list, tuple, np.ndarray)):
-            raise BVHError(f"joint_names must be a list of joint names, got {describe(self.joint_names)}")
-        names = [str(n) for n in self.joint_names]
+        names = check_joint_names(self.joint_names, error=BVHError)
         J = len(names)
         if J == 0:
             raise BVHError("a motion needs at least one joint")
         if len(set(names)) != J:
             dup = sorted({n for n in names if names.count(n) > 1})
             raise BVHError(f"duplicate joint names: {dup}")
-        parents = np.asarray(self.parents)
+        parents = as_real_array(self.parents, "parents", error=BVHError, integer=True)
         if parents.shape != (J,) or not np.issubdtype(parents.dtype, np.integer):
             raise BVHError(f"parents must be a ({J},) int array, got shape {parents.shape} dtype {parents.dtype}")
         parents = parents.astype(np.intp)
@@ -266,7 +264,7 @@ class Motion:
             raise BVHError(f"positions must be ({F}, {J}, 3), got shape {pos.shape}")
         if not np.all(np.isfinite(pos)):
             raise BVHError("positions contain NaN or inf")
-        esp = np.asarray(self.end_site_parents)
+        esp = as_real_array(self.end_site_parents, "end_site_parents", error=BVHError, integer=True)
         eso = as_real_array(self.end_site_offsets, "end_site_offsets", error=BVHError, finite=False)
         if esp.size == 0:
             esp = np.zeros(0, dtype=np.intp)
@@ -276,6 +274,8 @@ class Motion:
             raise BVHError(f"end_site_offsets must be a finite ({esp.size}, 3) array, got {eso.shape}")
         if self.unit_m is not None:
             as_real(self.unit_m, "unit_m (metres per unit)", error=BVHError, lo=0.0, lo_open=True)
+        if self.source is not None and not isinstance(self.source, str):
+            raise BVHError(f"source must be None or a string (where the motion comes from), got {describe(self.source)}")
         if self.up is not None and not isinstance(self.up, str):
             raise BVHError(f"up must be 'y', 'z' or None, got {describe(self.up)}")
         set_ = object.__setattr__

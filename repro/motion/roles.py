@@ -60,6 +60,7 @@ import numpy as np
 
 from repro.checks import as_real_array, describe
 from repro.errors import MotionError
+from repro.motion.kinematics import check_joint_names
 
 __all__ = ["LIMBS", "REQUIRED_ROLES", "ROLES", "ROLES_FOR", "SIDE_ROLES", "bone_lengths_of", "check_roles",
            "effector_role", "find_roles", "is_helper_name"]
@@ -252,14 +253,7 @@ def find_roles(
         parent-child chain.
     """
     # the arguments checked at the entry (a string is no list of joint names, a float no parent index)
-    if isinstance(joint_names, (str, bytes)) or not isinstance(joint_names, Sequence | np.ndarray) or \
-            getattr(joint_names, "ndim", 1) != 1:
-        raise MotionError(f"joint_names must be a sequence of joint names, got {describe(joint_names)}")
-    if len(joint_names) > MAX_JOINTS:
-        raise MotionError(f"{len(joint_names)} joints: more than the {MAX_JOINTS} of any humanoid skeleton")
-    if any(isinstance(n, (list, tuple, np.ndarray)) for n in joint_names):
-        raise MotionError(f"joint_names must be a sequence of joint names, got {describe(joint_names)}")
-    names = [str(n) for n in joint_names]
+    names = check_joint_names(joint_names)
     par = None if parents is None else as_real_array(parents, "parents", error=MotionError, integer=True,
                                                      shape=(len(names),)).astype(np.intp)
     if par is not None and par.size and (par[0] != -1 or np.any(par[1:] < 0) or
@@ -305,9 +299,6 @@ def find_roles(
                 break
     return roles
 
-
-#: Most joints :func:`find_roles` reads (film rigs with faces and fingers have about a thousand).
-MAX_JOINTS: int = 10_000
 
 #: Largest / smallest sum of a skeleton's bone lengths (its units): beyond them squared lengths
 #: (distances, IK) overflow or underflow float64 (1.8e308, 2.2e-308), so such a skeleton is refused.
@@ -596,8 +587,7 @@ def _rest_positions(parents: np.ndarray, offsets: np.ndarray) -> np.ndarray:
 
 def rest_up_axis(names: Sequence[str], parents, offsets) -> np.ndarray | None:
     """Unit up direction of a rest pose (mean of the upper-body tips minus the leg tips), or None."""
-    if isinstance(names, (str, bytes)) or not isinstance(names, Sequence | np.ndarray):
-        raise MotionError(f"names must be a sequence of joint names, got {describe(names)}")
+    names = check_joint_names(names)
     J = len(names)
     par = as_real_array(parents, "parents", error=MotionError, integer=True, shape=(J,)).astype(np.intp)
     if J == 0 or par[0] != -1 or np.any(par[1:] < 0) or np.any(par[1:] >= np.arange(1, J)):
@@ -875,6 +865,7 @@ def check_roles(roles: Mapping[str, str], purpose: str, joint_names: Sequence[st
 
     ``purpose`` is a key of :data:`ROLES_FOR` (``"a punch"``, ``"a kick"``, ``"retargeting"``)."""
     _check_role_map(roles)
+    joint_names = check_joint_names(joint_names)
     if not isinstance(purpose, str) or purpose not in ROLES_FOR:
         raise MotionError(f"unknown purpose {purpose!r}; one of {list(ROLES_FOR)}")
     need = ROLES_FOR[purpose]

@@ -33,6 +33,7 @@ import numpy as np
 
 from repro.checks import as_int, as_real, as_real_array, check_alloc, describe
 from repro.errors import MotionError, UnitWarning
+from repro.motion.kinematics import check_indices, check_joint_names
 from repro.motion.motion import CMU_UNIT_M, Motion
 from repro.motion.roles import LIMBS, REQUIRED_ROLES, bone_lengths_of, find_roles
 
@@ -68,12 +69,8 @@ def infer_unit(stature: float) -> tuple[float, str]:
         If the stature is not finite and positive, or no unit of :data:`UNITS` makes it
         a human stature (:data:`STATURE_RANGE_M`).
     """
-    try:
-        h = float(stature)
-    except (TypeError, ValueError):
-        raise MotionError(f"stature must be a number, got {stature!r}") from None
-    if not np.isfinite(h) or h <= 0:
-        raise MotionError(f"stature must be finite and > 0 to infer the unit, got {stature!r}")
+    h = as_real(stature, "stature (file units, finite and > 0 to infer the unit)", error=MotionError, lo=0.0,
+                lo_open=True)
     lo, hi = STATURE_RANGE_M
     fits = [(abs(np.log(h * u / TYPICAL_STATURE_M)), u, n) for n, u in UNITS if lo <= h * u <= hi]
     if not fits:
@@ -139,12 +136,12 @@ class Skeleton:
     roles: Mapping[str, str] | None = None
 
     def __post_init__(self) -> None:
-        names = [str(n) for n in self.joint_names]
+        names = check_joint_names(self.joint_names)
         J = len(names)
         if J == 0 or len(set(names)) != J:
             raise MotionError("a skeleton needs at least one joint and unique joint names")
-        parents = np.asarray(self.parents)
-        if parents.shape != (J,) or not np.issubdtype(parents.dtype, np.integer):
+        parents = as_real_array(self.parents, "parents", error=MotionError, integer=True)
+        if parents.shape != (J,):
             raise MotionError(f"parents must be a ({J},) int array, got {parents.shape}")
         if parents[0] != -1 or np.any(parents[1:] < 0) or np.any(parents[1:] >= np.arange(1, J)):
             raise MotionError("parents must be -1 for joint 0 and parents[j] < j for the others")
@@ -157,10 +154,13 @@ class Skeleton:
         # with is named as such, not reported as having zero-length bones
         lengths = bone_lengths_of(offsets)
         total = float(lengths.sum())
-        channels = None if self.channels is None else [tuple(str(c) for c in ch) for ch in self.channels]
+        try:
+            channels = None if self.channels is None else [tuple(str(c) for c in ch) for ch in self.channels]
+        except TypeError:
+            raise MotionError(f"channels must list each joint's channel names, got {describe(self.channels)}") from None
         if channels is not None and len(channels) != J:
             raise MotionError(f"channels must list {J} joints, got {len(channels)}")
-        esp = np.asarray(self.end_site_parents).astype(np.intp).reshape(-1)
+        esp = check_indices(self.end_site_parents, "end_site_parents", J)
         eso = as_real_array(self.end_site_offsets, "end_site_offsets", error=MotionError, finite=False)
         if eso.size % 3:
             raise MotionError(f"end_site_offsets must be an (E, 3) array, got shape {eso.shape}")
@@ -664,7 +664,8 @@ def rescale_constraint(c, size_actor: float, size_character: float) -> np.ndarra
     if not np.all(np.isfinite(c)):
         raise MotionError("constraint contains NaN or inf")
     k = _positive("size_actor", size_actor) / _positive("size_character", size_character)
-    out = c * k
+    with np.errstate(over="ignore"):  # an overflow is refused just below, named
+        out = c * k
     if not np.all(np.isfinite(out)):  # e.g. a size_character of 1e-320: the ratio overflows
         raise MotionError(f"c * size_actor / size_character overflows (size_actor={size_actor!r}, "
                           f"size_character={size_character!r})")

@@ -362,6 +362,68 @@ def _depth_levels():
     return depth_levels, dict(parents=_skeleton().parents)
 
 
+def _skeleton_ctor():
+    from repro.motion.skeleton import Skeleton
+
+    sk = _skeleton()
+    return Skeleton, dict(joint_names=list(sk.joint_names), parents=sk.parents, offsets=sk.offsets,
+                          channels=sk.channels, end_site_parents=sk.end_site_parents,
+                          end_site_offsets=sk.end_site_offsets, unit_m=sk.unit_m, roles=dict(sk.roles))
+
+
+def _motion_ctor():
+    from repro.motion.motion import Motion
+
+    m = _clip()
+    return Motion, dict(joint_names=list(m.joint_names), parents=m.parents, offsets=m.offsets, channels=m.channels,
+                        frame_time=m.frame_time, rotations=m.rotations, positions=m.positions,
+                        end_site_parents=m.end_site_parents, end_site_offsets=m.end_site_offsets, unit_m=m.unit_m,
+                        up=m.up)
+
+
+def _infer_unit():
+    from repro.motion.skeleton import infer_unit
+
+    return infer_unit, dict(stature=1.75)
+
+
+def _rest_up_axis():
+    from repro.motion.roles import rest_up_axis
+
+    sk = _skeleton()
+    return rest_up_axis, dict(names=list(sk.joint_names), parents=sk.parents, offsets=sk.offsets)
+
+
+def _is_helper_name():
+    from repro.motion.roles import is_helper_name
+
+    return is_helper_name, dict(name="LeftHandIndex1")
+
+
+def _rest_axes():
+    from repro.motion.retarget_tree import rest_axes
+
+    return rest_axes, dict(sk=_skeleton())
+
+
+def _cone_limits():
+    from repro.motion.adaptation.ccd_solver import cone_limits
+
+    return cone_limits, dict(motion=_clip(), limits={"spine": 20.0}, roles=None)
+
+
+def _time_retarget():
+    from repro.motion.morphology import time_retarget
+
+    return time_retarget, dict(motion=_clip(), target=_character(), repeats=1)
+
+
+def _motion_with():
+    sk, m = _skeleton(), _clip()
+    return sk.motion_with, dict(rotations=m.rotations[:3], positions=m.positions[:3], frame_time=1 / 30,
+                                channels=None, up=None, source=None)
+
+
 CASES = [
     # the order pipeline
     Case("strike", _strike, STRIKE_PARAMS, time_limit=SLOW),
@@ -444,6 +506,22 @@ CASES = [
     Case("Motion.joint_index", _motion_method("joint_index", name="Hips"), {"name": "str"}),
     Case("finite_vector3", _finite_vector3, {"value": "array"}),
     Case("depth_levels", _depth_levels, {"parents": "index_array"}),
+    Case("Skeleton", _skeleton_ctor,
+         {"joint_names": "array", "parents": "index_array", "offsets": "array", "channels": "any",
+          "end_site_parents": "index_array", "end_site_offsets": "array", "unit_m": "real", "roles": "mapping"}),
+    Case("Motion", _motion_ctor,
+         {"joint_names": "array", "parents": "index_array", "offsets": "array", "channels": "any",
+          "frame_time": "real", "rotations": "array", "positions": "array", "end_site_parents": "index_array",
+          "end_site_offsets": "array", "unit_m": "real", "up": "choice"}),
+    Case("Skeleton.motion_with", _motion_with,
+         {"rotations": "array", "positions": "array", "frame_time": "real", "channels": "any", "up": "choice",
+          "source": "str"}),
+    Case("infer_unit", _infer_unit, {"stature": "real"}),
+    Case("rest_up_axis", _rest_up_axis, {"names": "array", "parents": "index_array", "offsets": "array"}),
+    Case("is_helper_name", _is_helper_name, {"name": "str"}),
+    Case("rest_axes", _rest_axes, {"sk": "any"}),
+    Case("cone_limits", _cone_limits, {"motion": "any", "limits": "mapping", "roles": "mapping"}),
+    Case("time_retarget", _time_retarget, {"motion": "any", "target": "any", "repeats": "int"}, time_limit=SLOW),
 ]
 
 

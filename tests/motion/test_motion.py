@@ -71,3 +71,18 @@ def test_finite_vector3_refuses_coordinates_whose_squares_overflow():
     with pytest.raises(MotionError, match="beyond"):
         finite_vector3([0.0, 1e300, 0.0], "target")
     np.testing.assert_array_equal(finite_vector3([0.0, 1e99, 0.0], "target"), [0.0, 1e99, 0.0])
+
+
+@pytest.mark.parametrize(
+    "field, value, match",
+    [
+        ("joint_names", np.array(1.0), "joint_names"),  # found by the argument fuzzer: TypeError
+        ("joint_names", np.zeros(10**6 + 1), "joints"),  # 10**7 names: minutes
+        ("parents", range(10**12), "parents"),  # MemoryError
+        ("end_site_parents", range(10**12), "end_site_parents"),
+        ("source", float("nan"), "source"),  # a NaN source came back in the Motion
+    ],
+)
+def test_motion_fields_found_by_the_argument_fuzzer(m, field, value, match):
+    with pytest.raises(BVHError, match=match):
+        dataclasses.replace(m, **{field: value})

@@ -263,3 +263,21 @@ def test_from_motion_with_offsets_and_rescale_constraint_check_their_arguments()
 def test_rescale_constraint_refuses_a_ratio_that_overflows():
     with pytest.raises(MotionError, match="overflows"):
         rescale_constraint([0.1, 1.2, 0.5], 1.7, 1e-320)  # was [inf, inf, inf]
+    with pytest.raises(MotionError, match="overflows"):  # was a RuntimeWarning (overflow in multiply)
+        rescale_constraint(np.full(3, 1e300), 1e12, 1.0)
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        (dict(joint_names=None), "joint_names"),  # found by the argument fuzzer: TypeError
+        (dict(joint_names=np.array(1.0)), "joint_names"),
+        (dict(parents=range(10**12)), "parents"),  # MemoryError
+        (dict(channels=float("nan")), "channels"),  # TypeError
+        (dict(end_site_parents="x"), "end_site_parents"),  # ValueError from astype
+        (dict(end_site_parents=None), "end_site_parents"),
+    ],
+)
+def test_skeleton_fields_of_the_wrong_type_are_motion_errors(kw, match):
+    with pytest.raises(MotionError, match=match):
+        mixamo_skeleton(**kw)
