@@ -95,7 +95,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -637,12 +637,19 @@ class MotionRetriever(ExactSearch, StartScoring):
         self._prep_cache[key] = (ch, out, "")
         return out
 
+    def _plan_arguments(self, m, a) -> int:
+        """A plan's motion (a :class:`Motion`) and actor index (in ``0..len(actors)-1``), checked."""
+        if not isinstance(m, Motion):
+            raise MotionError(f"m must be a repro.motion.Motion, got {describe(m)}")
+        return as_int(a, "a (actor index)", 0, len(self.db.actors) - 1, error=RetrievalError)
+
     def retarget_plan(self, m: Motion, a: int) -> RetargetPlan:
         """The :class:`~repro.motion.morphology.RetargetPlan` from the skeleton of ``m`` to actor ``a``.
 
         Cached by actor and what :meth:`Skeleton.from_motion` reads of ``m`` (joints, parents,
         offsets, channels, End Sites, unit), so a pose on another skeleton never reuses a plan.
         """
+        a = self._plan_arguments(m, a)
         key = (a, tuple(m.joint_names), m.parents.tobytes(), m.offsets.tobytes(), tuple(m.channels),
                m.end_site_parents.tobytes(), m.end_site_offsets.tobytes(), m.unit_m)
         plan = self._plans.get(key)
@@ -662,6 +669,9 @@ class MotionRetriever(ExactSearch, StartScoring):
         offsets, channels, End Sites, unit), its ``up`` and the role table, so a pose on
         another skeleton (or with other roles) never reuses a plan; at most 64 are kept.
         """
+        a = self._plan_arguments(m, a)
+        if not isinstance(roles, Mapping):
+            raise MotionError(f"roles must be a role table (a mapping role -> joint name), got {describe(roles)}")
         key = (a, tuple(m.joint_names), m.parents.tobytes(), m.offsets.tobytes(), tuple(m.channels),
                m.end_site_parents.tobytes(), m.end_site_offsets.tobytes(), m.unit_m, m.up,
                tuple(sorted(dict(roles).items())))

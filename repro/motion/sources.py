@@ -20,6 +20,7 @@ from __future__ import annotations
 import copy
 import csv
 import dataclasses
+import io
 import math
 import os
 import re
@@ -31,8 +32,8 @@ import numpy as np
 
 from repro import data
 from repro.checks import as_choice, as_int, as_real, as_real_array, as_str, describe
-from repro.io import inside
-from repro.errors import DataError, MotionError, RetrievalError
+from repro.io import inside, read_bytes
+from repro.errors import DataError, MotionError, ReproError, RetrievalError
 from repro.motion.annotation import (
     HIT_ROLE_OF,
     SEMANTICS,
@@ -173,8 +174,13 @@ def _clips_from_take(motion: Motion, name: str, *, fps: float, window, hits: Ite
 
 
 def _read_manifest_rows(path: Path) -> list[dict]:
-    with open(path, newline="", encoding="utf-8") as fh:
-        return [dict(r) for r in csv.DictReader(fh)]
+    # a regular file, bounded: a FIFO named manifest.csv would hang open() (issue 23, section 4)
+    raw, _ = read_bytes(path, error=MotionError)
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise MotionError(f"{path}: a manifest is UTF-8 text ({exc})") from None
+    return [dict(r) for r in csv.DictReader(io.StringIO(text, newline=""))]
 
 
 def build_database(source, *, fps: float = DATABASE_FPS, window: tuple[float, float] | None = None,
@@ -235,6 +241,8 @@ def build_database(source, *, fps: float = DATABASE_FPS, window: tuple[float, fl
     folder = src.parent if is_file else src
     mpath = src if is_file else (inside(folder, manifest, error=MotionError, what="manifest") if manifest else None)
     clips: list[Clip] = []
+    if mpath is not None and mpath.exists() and not mpath.is_file():  # a FIFO, a folder: not silently skipped
+        raise MotionError(f"{mpath}: the manifest is not a regular file")
     if mpath is not None and mpath.is_file():
         for r in _read_manifest_rows(mpath):
             sem = (r.get("semantics") or "").strip()
@@ -506,10 +514,21 @@ def load_or_build(path, build=build_cmu_database, **kw) -> MotionDatabase:
     atomically; later runs load.  Delete the file to rebuild (nothing checks that the
     saved database was built with the same ``kw``).
     """
+    if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
+        raise MotionError(f"path must be a file path (str or os.PathLike), got {describe(path)}")
+    if not callable(build):
+        raise MotionError(f"build must be a function returning a MotionDatabase, got {describe(build)}")
     path = Path(path)
     if path.exists():
         return MotionDatabase.load(path)
-    db = build(**kw)
+    try:
+        db = build(**kw)
+    except ReproError:
+        raise
+    except Exception as exc:  # a caller's build function failing: said as ours, its traceback chained
+        raise MotionError(f"build {describe(build)} failed: {type(exc).__name__}: {exc}") from exc
+    if not isinstance(db, MotionDatabase):
+        raise MotionError(f"build returned {describe(db)}, not a MotionDatabase")
     db.save(path)
     return db
 

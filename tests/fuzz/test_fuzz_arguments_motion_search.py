@@ -313,6 +313,48 @@ def _write_bvh():
                            overwrite=False, precision=12)
 
 
+def _retarget_plan():
+    return _retriever().retarget_plan, dict(m=_pose(), a=0)
+
+
+def _tree_plan():
+    from repro.motion.roles import find_roles
+
+    m = _pose()
+    return _retriever().tree_plan, dict(m=m, a=0, roles=find_roles(list(m.joint_names), m.parents, offsets=m.offsets))
+
+
+def _load_or_build():
+    import tempfile
+
+    from repro.motion.sources import load_or_build
+
+    return load_or_build, dict(path=tempfile.mkdtemp(prefix="fuzz-db-") + "/db.npz", build=_db)
+
+
+def _synthetic_database():
+    import tempfile
+
+    from repro.motion.synthetic import synthetic_database
+
+    return synthetic_database, dict(out_dir=tempfile.mkdtemp(prefix="fuzz-syn-"), n_actors=1, seed=0, fps=30.0,
+                                    overwrite=False)
+
+
+def _read_manifest():
+    import os
+
+    from repro.motion.synthetic import read_manifest
+
+    return read_manifest, dict(path=os.path.join(_synthetic_dir(), "manifest.csv"), verify=False)
+
+
+def _expected_roles():
+    from repro.motion.synthetic.conventions import expected_roles
+
+    return expected_roles, dict(convention="smpl")
+
+
 def _read_bvh():
     import os
 
@@ -428,6 +470,13 @@ CASES = [
     Case("conventions.build", _conventions_build, {"convention": "choice", "height": "real"}),
     # the path is a fresh temporary file: a hostile path paired with overwrite=True would write over a
     # file of the machine (the hostile paths include ../../../../etc/passwd)
+    Case("MotionRetriever.retarget_plan", _retarget_plan, {"m": "any", "a": "index"}, time_limit=SLOW),
+    Case("MotionRetriever.tree_plan", _tree_plan, {"m": "any", "a": "index", "roles": "mapping"}, time_limit=SLOW),
+    Case("load_or_build", _load_or_build, {"build": "callable"}, time_limit=SLOW),
+    Case("synthetic_database", _synthetic_database,
+         {"n_actors": "int", "seed": "int", "fps": "real", "overwrite": "bool"}, time_limit=SLOW),
+    Case("read_manifest", _read_manifest, {"verify": "bool"}, time_limit=SLOW),
+    Case("expected_roles", _expected_roles, {"convention": "choice"}),
     Case("read_bvh", _read_bvh, {"unit_m": "real", "strict": "bool"}, time_limit=SLOW),
     Case("write_bvh", _write_bvh, {"motion": "any", "overwrite": "bool", "precision": "int"}, time_limit=SLOW),
 ]

@@ -81,3 +81,38 @@ def test_good_select(small):
     kicks = small.select(small.semantics == "kick")
     assert set(kicks.semantics) == {"kick"} and kicks.n_clips == int(np.sum(small.semantics == "kick"))
     assert small.select(np.arange(small.n_clips)).equals(small.select(np.ones(small.n_clips, dtype=bool)))
+
+
+def test_manifest_fifo_does_not_hang(synthetic_dir, tmp_path):
+    """A FIFO in place of the manifest is refused, not opened (open() waited for a writer forever)."""
+    import os
+    import shutil
+
+    from repro.motion.sources import build_database
+    from repro.motion.synthetic import read_manifest
+
+    d = tmp_path / "db"
+    shutil.copytree(synthetic_dir, d)
+    (d / "manifest.csv").unlink()
+    os.mkfifo(d / "manifest.csv")
+    with pytest.raises(MotionError, match="manifest.csv"):
+        build_database(d)
+    with pytest.raises(MotionError, match="manifest.csv"):
+        read_manifest(d / "manifest.csv")
+
+
+def test_manifest_files_stay_in_their_folder(synthetic_dir, tmp_path):
+    """A manifest row naming ../outside.bvh is refused (repro.io.inside), not read."""
+    import shutil
+
+    from repro.motion.sources import build_database
+
+    d = tmp_path / "db"
+    shutil.copytree(synthetic_dir, d)
+    text = (d / "manifest.csv").read_text().splitlines()
+    first = text[1].split(",")[0]
+    shutil.copy(d / first, tmp_path / "outside.bvh")
+    text[1] = text[1].replace(first, "../outside.bvh", 1)
+    (d / "manifest.csv").write_text("\n".join(text) + "\n")
+    with pytest.raises(MotionError, match="leads outside"):
+        build_database(d)

@@ -14,9 +14,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from repro.checks import as_int
+from repro.checks import as_bool, as_int
 from repro.errors import MotionError
-from repro.io import atomic_path
+from repro.io import atomic_path, inside, open_regular, read_bytes
 from repro.motion.bvh import write_bvh
 from repro.motion.synthetic.choreography import LEVELS, SIDES, STRIKE_KINDS, synthetic_clip
 from repro.motion.synthetic.skeleton import DEFAULT_FPS, REFERENCE_HEIGHT_M
@@ -105,7 +105,10 @@ def _manifest_text(rows: list[dict]) -> str:
 
 
 def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+    # a regular file only, its size known before reading (a FIFO or /dev/zero in its place never hangs)
+    fh, size = open_regular(path, error=MotionError)
+    with fh:
+        return hashlib.sha256(fh.read(size)).hexdigest()
 
 
 def synthetic_database(
@@ -247,8 +250,16 @@ def read_manifest(path, *, verify: bool = False) -> list[dict]:
         If a column is missing or a value does not parse, or (``verify``) a file is
         missing or its sha256 differs.
     """
+    verify = as_bool(verify, "verify", error=MotionError)
+    if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
+        raise MotionError(f"path must be a manifest file path (str or os.PathLike), got {path!r}")
     path = Path(path)
-    with open(path, newline="", encoding="utf-8") as fh:
+    raw, _ = read_bytes(path, error=MotionError)  # a regular file, bounded (a FIFO would hang open())
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise MotionError(f"{path}: a manifest is UTF-8 text ({exc})") from None
+    with io.StringIO(text, newline="") as fh:
         reader = csv.DictReader(fh)
         missing = [c for c in MANIFEST_COLUMNS if c not in (reader.fieldnames or [])]
         if missing:
@@ -266,7 +277,7 @@ def read_manifest(path, *, verify: bool = False) -> list[dict]:
             rows.append(row)
     if verify:
         for row in rows:
-            f = path.parent / row["file"]
+            f = inside(path.parent, row["file"], error=MotionError, what=f"{path.name}: file")
             if not f.is_file():
                 raise MotionError(f"{path}: listed file {row['file']!r} is missing")
             if _sha256(f) != row["sha256"]:
