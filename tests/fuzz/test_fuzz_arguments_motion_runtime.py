@@ -424,6 +424,29 @@ def _motion_with():
                                 channels=None, up=None, source=None)
 
 
+def _time_adaptation():
+    from repro.motion.adaptation import time_adaptation
+
+    return time_adaptation, dict(motion=_clip(), effector="right_fist", frames=[1, 2], offset=(0.0, 0.0, 0.05),
+                                 repeats=1)
+
+
+def _decode_with_report():
+    from repro.motion.morphology import decode_with_report, encode
+
+    return decode_with_report, dict(mi=encode(_clip()), target=_character(), fix_feet=True, blend_time=0.1,
+                                    max_rest_angle_deg=5.0)
+
+
+@functools.cache
+def _a_strike():
+    return _strike()[0](**_strike()[1])
+
+
+def _strike_summary():
+    return _a_strike().summary, dict(timings=False)
+
+
 CASES = [
     # the order pipeline
     Case("strike", _strike, STRIKE_PARAMS, time_limit=SLOW),
@@ -522,6 +545,12 @@ CASES = [
     Case("rest_axes", _rest_axes, {"sk": "any"}),
     Case("cone_limits", _cone_limits, {"motion": "any", "limits": "mapping", "roles": "mapping"}),
     Case("time_retarget", _time_retarget, {"motion": "any", "target": "any", "repeats": "int"}, time_limit=SLOW),
+    Case("time_adaptation", _time_adaptation, {"motion": "any", "effector": "choice", "frames": "index_array",
+                                               "offset": "array", "repeats": "int"}),
+    Case("decode_with_report", _decode_with_report, {"mi": "any", "target": "any", "fix_feet": "bool",
+                                                     "blend_time": "real", "max_rest_angle_deg": "real"},
+         time_limit=SLOW),
+    Case("Strike.summary", _strike_summary, {"timings": "bool"}, time_limit=SLOW),
 ]
 
 
