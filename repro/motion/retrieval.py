@@ -1012,6 +1012,8 @@ class MotionRetriever(ExactSearch, StartScoring):
         c, q, sem, _, scoring, scale_target, _ = self.arguments(
             target, current_pose, character, semantics, method="exact", scoring=scoring, scale_target=scale_target,
             frame=frame)
+        if stats is not None and not isinstance(stats, dict):  # filled in after the search: checked before it
+            raise RetrievalError(f"stats must be a dict to fill or None, got {describe(stats)}")
         return self._search_exact(c, q, sem, scoring, scale_target, stats=stats)
 
     def _search_pruned(self, c, q: Query, sem: str, *, prune: bool = True, scale_target: bool = True):

@@ -84,3 +84,13 @@ def test_scoring_frame_miss_arguments(synthetic_db, kw):
     want = "expected a MotionDatabase" if name == "db" else rf"^{name}"
     with pytest.raises(RetrievalError, match=want):  # the full database: it has the stance clip
         scoring_frame_miss(**{"db": synthetic_db, **kw})
+
+
+@pytest.mark.parametrize("stats", ["x", 1, [], (), np.zeros(2)], ids=repr)
+def test_search_exact_stats(small, stats):
+    """``stats`` is filled after the search: anything but a dict (or None) was an AttributeError then."""
+    from repro.motion.strike import one_frame
+
+    r = MotionRetriever(small, seed=0)
+    with pytest.raises(RetrievalError, match="^stats must be a dict"):
+        r.search_exact([0.3, 1.4, 0.5], one_frame(small.motion(0), 0), small.actor_skeleton(0), "punch", stats=stats)
