@@ -35,6 +35,18 @@ SLOW = 120.0
 
 # ------------------------------------------------------------------ shared fixtures (once per child)
 @functools.cache
+def _tmp() -> str:
+    """One temporary folder per child for what the cases write, removed when the child exits."""
+    import atexit
+    import shutil
+    import tempfile
+
+    d = tempfile.mkdtemp(prefix="fuzz-motion-search-")
+    atexit.register(shutil.rmtree, d, ignore_errors=True)
+    return d
+
+
+@functools.cache
 def _full():
     from repro.motion.sources import default_database
 
@@ -89,7 +101,7 @@ def _synthetic_dir():
 
     from repro.motion.synthetic import synthetic_database
 
-    d = tempfile.mkdtemp(prefix="fuzz-synthetic-")
+    d = tempfile.mkdtemp(dir=_tmp(), prefix="fuzz-synthetic-")
     synthetic_database(d, n_actors=1, seed=0)
     return d
 
@@ -309,7 +321,7 @@ def _write_bvh():
 
     from repro.motion.bvh import write_bvh
 
-    return write_bvh, dict(motion=_clip().motion, path=tempfile.mkdtemp(prefix="fuzz-bvh-") + "/a.bvh",
+    return write_bvh, dict(motion=_clip().motion, path=tempfile.mkdtemp(dir=_tmp(), prefix="fuzz-bvh-") + "/a.bvh",
                            overwrite=False, precision=12)
 
 
@@ -329,7 +341,7 @@ def _load_or_build():
 
     from repro.motion.sources import load_or_build
 
-    return load_or_build, dict(path=tempfile.mkdtemp(prefix="fuzz-db-") + "/db.npz", build=_db)
+    return load_or_build, dict(path=tempfile.mkdtemp(dir=_tmp(), prefix="fuzz-db-") + "/db.npz", build=_db)
 
 
 def _synthetic_database():
@@ -337,7 +349,7 @@ def _synthetic_database():
 
     from repro.motion.synthetic import synthetic_database
 
-    return synthetic_database, dict(out_dir=tempfile.mkdtemp(prefix="fuzz-syn-"), n_actors=1, seed=0, fps=30.0,
+    return synthetic_database, dict(out_dir=tempfile.mkdtemp(dir=_tmp(), prefix="fuzz-syn-"), n_actors=1, seed=0, fps=30.0,
                                     overwrite=False)
 
 
