@@ -275,8 +275,11 @@ def _main(args) -> int:
         if (why := _usage_problem(args)) is not None:
             return _usage_error(args, why)
         # every command that writes (run, all, bench, claims) takes --out: refuse a bad one before computing
+        # (exit 2, one ``repro: --out: ...`` line and no usage line: the arguments are well formed, the
+        # folder they name is not one that can be written)
         if getattr(args, "out", None) is not None and (why := _bad_out(args.out)):
-            return _usage_error(args, why)
+            print(f"repro: {_one_line(why)}", file=sys.stderr)
+            return 2
         if args.command == "list":
             from repro.experiments import registry
 
