@@ -34,6 +34,8 @@ __all__ = [
     "as_str",
     "as_bool",
     "as_choice",
+    "as_names",
+    "as_path",
     "check_alloc",
     "MEMORY_BUDGET",
 ]
@@ -205,6 +207,43 @@ def as_choice(x, name: str, choices, *, error: type[Exception] = ArgumentError):
     if not ok:
         raise error(f"{name} must be one of {', '.join(repr(c) for c in choices)}; got {describe(x)}")
     return x
+
+
+def as_names(
+    x, name: str, *, error: type[Exception] = ArgumentError, nonempty: bool = True, one: bool = False, item: str = "a name"
+) -> tuple[str, ...]:
+    """``x`` as a tuple of strings (role, shape, dataset names ...), or ``error`` naming ``name``.
+
+    A lone string is refused (``"pelvis"`` is not the sequence ``("p", "e", ...)``), unless
+    ``one=True``, which takes it as a sequence of one; so are non-iterables and non-string
+    items; ``nonempty`` refuses an empty sequence; ``item`` names an entry in messages.
+    """
+    if isinstance(x, str):
+        if one:
+            return (x,)
+        raise error(f"{name} must be a sequence of names, got the string {x!r}")
+    try:
+        names = tuple(x)
+    except TypeError:
+        raise error(f"{name} must be a sequence of names, got {describe(x)}") from None
+    for entry in names:
+        as_str(entry, f"{item} in {name}", error=error)
+    if nonempty and not names:
+        raise error(f"{name} must name at least one")
+    return names
+
+
+def as_path(x, name: str, *, error: type[Exception] = ArgumentError):
+    """``x`` (a ``str`` or ``os.PathLike``) as a :class:`pathlib.Path`, or ``error``: other types, NUL characters."""
+    from pathlib import Path
+
+    try:
+        p = Path(x)
+    except TypeError:
+        raise error(f"{name} must be a path, got {describe(x)}") from None
+    if "\x00" in str(p):
+        raise error(f"{name} {str(p)[:60]!r}: a path cannot hold a NUL character")
+    return p
 
 
 def _budget_from_env() -> int:

@@ -31,7 +31,7 @@ from functools import lru_cache
 from importlib import resources
 from pathlib import Path
 
-from repro.checks import as_bool, as_str, describe
+from repro.checks import as_bool, as_names, as_path, as_str, describe
 from repro.errors import DataError
 from repro.io import MAX_READ_BYTES, file_kind, inside, open_regular
 
@@ -186,12 +186,7 @@ def locate(path: str, root: Path | None = None) -> Path | None:
     if root is None:
         root = data_dir()
     else:
-        try:
-            root = Path(root)
-        except TypeError:
-            raise DataError(f"root must be a folder path, got {describe(root)}") from None
-        if "\x00" in str(root):
-            raise DataError(f"root {str(root)[:60]!r}: a path cannot hold a NUL character")
+        root = as_path(root, "root (the data folder)", error=DataError)
     for name in (path, path + ".gz"):
         candidate = inside(root, name, error=DataError, what="data file")
         try:
@@ -499,14 +494,8 @@ def choose(choice: str = "auto", needs=("ict", "cmu-bvh")) -> DataChoice:
         raise DataError(f"DATA = {choice!r} is not a known choice; expected one of "
                         f"{', '.join(repr(c) for c in DATA_CHOICES)}")
     choice = choice.strip().lower()
-    if isinstance(needs, str):
-        raise DataError(f"needs must be a sequence of dataset names, got the string {needs!r}")
-    try:
-        needs = tuple(needs)
-    except TypeError:
-        raise DataError(f"needs must be a sequence of dataset names, got {describe(needs)}") from None
+    needs = as_names(needs, "needs", error=DataError, nonempty=False, item="a dataset name")
     for name in needs:
-        as_str(name, "a dataset name in needs", error=DataError)
         if name not in DATASETS:
             raise DataError(f"unknown dataset {name!r}; known: {sorted(DATASETS)}")
     _switched_off.clear()

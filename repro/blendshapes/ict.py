@@ -57,7 +57,7 @@ import numpy as np
 
 from repro import data
 from repro.blendshapes.model import BlendshapeModel
-from repro.checks import as_bool, as_str, describe
+from repro.checks import as_bool, as_names, describe
 from repro.errors import CacheWarning, DataError, ModelError
 from repro.io import atomic_path, read_bytes, read_npz
 
@@ -693,16 +693,7 @@ def _arrays(shapes: tuple[str, ...], use_cache: bool) -> dict[str, np.ndarray]:
 def _normalise_shapes(shapes) -> tuple[str, ...]:
     if shapes is None:
         return ICT_SHAPES
-    if isinstance(shapes, str):
-        shapes = (shapes,)
-    try:
-        shapes = tuple(shapes)
-    except TypeError:
-        raise ModelError(f"shapes must be a sequence of shape names, got {describe(shapes)}") from None
-    for s in shapes:
-        as_str(s, "a shape name in shapes", error=ModelError)
-    if not shapes:
-        raise ModelError("load_ict(shapes=...) needs at least one shape")
+    shapes = as_names(shapes, "shapes", error=ModelError, one=True, item="a shape name")
     unknown = [s for s in shapes if s not in ICT_SHAPES]
     if unknown:
         raise ModelError(f"unknown ICT shapes {unknown}; the 57 shapes are {list(ICT_SHAPES)}")

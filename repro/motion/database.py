@@ -55,7 +55,7 @@ from pathlib import Path
 
 import numpy as np
 
-from repro.checks import as_choice, as_int, as_real, as_real_array, as_str, describe
+from repro.checks import as_choice, as_int, as_names, as_real, as_real_array, as_str, describe
 from repro.errors import DataError, MotionError, ReproError
 from repro.io import MAX_READ_BYTES, atomic_path, read_npz
 from repro.motion.annotation import (
@@ -424,14 +424,7 @@ class MotionDatabase:
         bad = [i for i, c in enumerate(clips) if not isinstance(c, Clip)]
         if bad:
             raise MotionError(f"clips must be a sequence of Clip; item {bad[0]} is {describe(clips[bad[0]])}")
-        if isinstance(pose_roles, str):
-            raise MotionError(f"pose_roles must be a sequence of role names, got the string {pose_roles!r}")
-        try:
-            pose_roles = tuple(as_str(r, "pose_roles entry", error=MotionError) for r in pose_roles)
-        except TypeError:
-            raise MotionError(f"pose_roles must be a sequence of role names, got {describe(pose_roles)}") from None
-        if not pose_roles:
-            raise MotionError("pose_roles must name at least one role")
+        pose_roles = as_names(pose_roles, "pose_roles", error=MotionError, item="a role name")
         window = as_int(window, "window (frames per pose cloud)", 1, MAX_WINDOW, error=MotionError)
         step = as_int(step, "step (frames between the cloud's frames)", 1, MAX_WINDOW, error=MotionError)
         if meta is not None and not isinstance(meta, Mapping):
