@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from repro.checks import as_int, as_real, as_real_array, describe
 from repro.errors import MotionError
 from repro.motion.motion import Motion
 from repro.motion.skeleton import Skeleton
@@ -36,8 +37,17 @@ def foot_contacts(
     height in the clip and its horizontal speed is below ``speed_tol * leg_length`` per
     second (defaults: about 3.5 cm and 0.4 m/s for a 0.85 m leg).  Thresholds are relative
     to the leg length, so the same call works in any unit.  ``global_positions`` (F, J, 3)
-    and ``skeleton`` may be passed when the caller already has them.
+    and ``skeleton`` may be passed when the caller already has them.  Every argument is
+    checked at entry (:class:`~repro.errors.MotionError` naming it).
     """
+    up_axis = _check_motion_axis(motion, up_axis)
+    height_tol = as_real(height_tol, "height_tol (fraction of the leg length)", lo=0.0, error=MotionError)
+    speed_tol = as_real(speed_tol, "speed_tol (leg lengths per second)", lo=0.0, error=MotionError)
+    if skeleton is not None and not isinstance(skeleton, Skeleton):
+        raise MotionError(f"skeleton must be a Skeleton of the motion or None, got {describe(skeleton)}")
+    if global_positions is not None:
+        global_positions = as_real_array(global_positions, "global_positions", error=MotionError,
+                                         shape=(motion.n_frames, len(motion.joint_names), 3))
     sk = Skeleton.from_motion(motion, roles=roles) if skeleton is None else skeleton
     ank = [sk.index("left_ankle"), sk.index("right_ankle")]
     g = (motion.global_positions() if global_positions is None else global_positions)[:, ank]
@@ -73,13 +83,18 @@ def foot_metrics(motion: Motion, contacts: np.ndarray, *, up_axis: int = 1, role
         ``planted_height_mean`` / ``planted_height_std``: ankle height above the floor
         plane ``y = 0`` on planted frames (m); ``min_ankle_height``: lowest ankle height
         in the clip (m; negative = below the floor); ``min_toe_height`` likewise for the
-        foot effector (toe).
+        foot effector (toe).  The two planted-height entries are NaN when no frame is
+        planted (there is nothing to average).
     """
+    up_axis = _check_motion_axis(motion, up_axis)
+    c = np.asarray(contacts) if isinstance(contacts, (np.ndarray, list, tuple)) else None
+    if c is None or c.dtype.kind != "b":
+        raise MotionError(f"contacts must be an (F, 2) boolean array (foot_contacts), got {describe(contacts)}")
+    if c.shape != (motion.n_frames, 2):
+        raise MotionError(f"contacts must be ({motion.n_frames}, 2), got {c.shape}")
+    contacts = c
     sk = Skeleton.from_motion(motion, roles=roles)
     u = sk.to_metres(1.0)
-    contacts = np.asarray(contacts, dtype=bool)
-    if contacts.shape != (motion.n_frames, 2):
-        raise MotionError(f"contacts must be ({motion.n_frames}, 2), got {contacts.shape}")
     gp = motion.global_positions() * u
     ank = gp[:, [sk.index("left_ankle"), sk.index("right_ankle")]]
     toe = gp[:, [sk.index("left_foot"), sk.index("right_foot")]]
@@ -104,6 +119,13 @@ def foot_metrics(motion: Motion, contacts: np.ndarray, *, up_axis: int = 1, role
         "min_ankle_height": float(h.min()),
         "min_toe_height": float(toe[..., up_axis].min()),
     }
+
+
+def _check_motion_axis(motion, up_axis) -> int:
+    """The checks :func:`foot_contacts` and :func:`foot_metrics` share: a Motion and an axis 0..2."""
+    if not isinstance(motion, Motion):
+        raise MotionError(f"motion must be a Motion, got {describe(motion)}")
+    return as_int(up_axis, "up_axis (0 = x, 1 = y, 2 = z)", 0, 2, error=MotionError)
 
 
 def foot_scale(sk: Skeleton) -> float:
