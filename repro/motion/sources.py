@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from repro import data
-from repro.checks import as_choice, as_int, as_real, as_real_array, as_str, describe
+from repro.checks import as_choice, as_int, as_names, as_real, as_real_array, as_str, describe
 from repro.io import inside, read_bytes
 from repro.errors import DataError, MotionError, ReproError, RetrievalError
 from repro.motion.annotation import (
@@ -330,8 +330,22 @@ def _dataset_of(path: str) -> str:
     return "bandai" if path.startswith("mocap/bandai/") else "cmu-bvh"
 
 
+def _take_names(takes, name: str):
+    """``takes`` as given (None, or a mapping of take name to kind), or a tuple of take names;
+    anything else (a number, a lone string, non-string names) is a :class:`MotionError` naming ``name``."""
+    if takes is None:
+        return None
+    if isinstance(takes, Mapping):
+        for k, v in takes.items():
+            as_str(k, f"a take name in {name}", error=MotionError)
+            as_str(v, f"the kind of take {k!r} in {name}", error=MotionError)
+        return takes
+    return as_names(takes, name, error=MotionError, item="a take name")
+
+
 def _cmu135_clips(takes, *, fps: float, window, detect_kw) -> tuple[list[Clip], dict]:
     """The clips of :func:`build_cmu_database` (same reading, detection and cutting)."""
+    takes = _take_names(takes, "takes (CMU)")
     if takes is None:
         takes = CMU_TAKES
     if not isinstance(takes, Mapping):
@@ -347,6 +361,7 @@ def _cmu135_clips(takes, *, fps: float, window, detect_kw) -> tuple[list[Clip], 
 
 
 def _bandai_clips(takes, *, fps: float, window, detect_kw) -> tuple[list[Clip], dict]:
+    takes = _take_names(takes, "takes (Bandai)")
     if takes is None:
         takes = BANDAI_TAKES
     if not isinstance(takes, Mapping):
@@ -474,11 +489,8 @@ def build_real_database(include: Sequence[str] = REAL_SOURCES, *, cmu_takes=None
         (:func:`repro.data.fetch`).
     """
     fps, window, pose_roles, pose_window, detect_kw = _build_arguments(fps, window, pose_roles, pose_window, detect_kw)
-    include = (include,) if isinstance(include, str) else include
-    try:
-        include = tuple(include)
-    except TypeError:
-        raise MotionError(f"include must be a sequence of {list(REAL_SOURCES)}, got {describe(include)}") from None
+    include = as_names(include, f"include (of {list(REAL_SOURCES)})", error=MotionError, one=True,
+                       nonempty=False, item="a source")
     bad = [s for s in include if s not in REAL_SOURCES]
     if bad:
         hint = (" (non-fighting takes are not database clips: use non_fighting_poses())"
@@ -625,11 +637,12 @@ def non_fighting_poses(takes: Sequence[str] | None = None, *, fps: float | None 
     repro.errors.DataError
         A needed staged file is missing.
     """
-    if takes is None:
-        takes = list(NON_FIGHTING_TAKES)
-    takes = list(takes)
+    takes = list(NON_FIGHTING_TAKES) if takes is None else list(as_names(takes, "takes", error=MotionError,
+                                                                        item="a take path"))
+    if fps is not None:
+        fps = as_real(fps, "fps", lo=0.0, lo_open=True, hi=MAX_FPS, error=MotionError)
     if kinds is not None:
-        kinds = set(kinds)
+        kinds = set(as_names(kinds, "kinds", error=MotionError, item="a kind"))
         takes = [t for t in takes if NON_FIGHTING_TAKES.get(t, ("", "", ""))[1] in kinds]
     refs: list[Skeleton] = []
     if rest_like is not None:

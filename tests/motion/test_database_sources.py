@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -332,3 +333,33 @@ def test_match_rest_pose_exact_and_least_squares():
 
     with pytest.raises(MotionError, match="joint tree"):
         match_rest_pose(m, synthetic_skeleton())
+
+
+# ---------------------------------------------------------------- arguments checked before any file is read
+@pytest.mark.parametrize("bad", [0, -1, math.nan, 10**12, "135_01", [1], object()])
+def test_take_lists_are_checked_before_reading(bad):
+    """A number, a lone string or non-string names raised TypeError ('int' object is not iterable)."""
+    from repro.motion.sources import build_bandai_database, build_cmu_database, build_real_database, non_fighting_poses
+
+    for call in (lambda: build_cmu_database(takes=bad), lambda: build_bandai_database(takes=bad),
+                 lambda: build_real_database(cmu_takes=bad), lambda: build_real_database(bandai_takes=bad),
+                 lambda: non_fighting_poses(takes=bad), lambda: non_fighting_poses(kinds=bad)):
+        with pytest.raises(MotionError, match="takes|kinds"):
+            call()
+
+
+@pytest.mark.parametrize("bad", ["x", 0, -30.0, math.inf, 10**12, 1e300])
+def test_non_fighting_poses_fps_is_checked(bad):
+    """fps='x' raised TypeError, 10**12 asked numpy for 60 TiB, 1e300 a ValueError."""
+    from repro.motion.sources import non_fighting_poses
+
+    with pytest.raises(MotionError, match="fps"):
+        non_fighting_poses(fps=bad)
+
+
+def test_real_database_include_entries_must_be_source_names():
+    from repro.motion.sources import build_real_database
+
+    for bad in ([1], [np.zeros(2)], 5):
+        with pytest.raises(MotionError, match="include"):
+            build_real_database(include=bad)
