@@ -114,3 +114,26 @@ def test_summaries_say_which_models_are_absent():
     md = fig4_axis_selection.summary(Result(t))
     assert "procedural" in md and "ict" not in md
     assert data.DATA_CHOICES  # the notebooks' parameter values exist
+
+
+def _session(reached):
+    import pandas as pd
+
+    n = len(reached)
+    return pd.DataFrame(dict(order=["kick"] * n, reached=reached, unadapted_cm=[10.0] * n, hit_error_cm=[0.0, 7.5][:n],
+                             head_y=[1.6, 1.9][:n], head_moved_cm=[0.0] * n, touched=[False] * n))
+
+
+@pytest.mark.parametrize("reached", [[True, True], [False, False], [True, False], []])
+def test_fighter_session_never_shows_a_blank_number(reached):
+    """Notebook 05 printed "the kicks not reached miss by  cm, at head heights  m" when every kick was reached."""
+    import re
+
+    from repro.experiments.summaries import fighter_session
+
+    text = fighter_session(_session(reached), actors=[1.7], fighter_size=1.8, contact_s=[0.5] * len(reached))
+    assert not re.search(r"  (cm|m)\b|by  |at  |nan", text), text
+    assert ("kicks not reached miss by" in text) == (False in reached)
+    if reached == [True, False]:
+        assert "miss by 7.5 cm, at head heights 1.90 m" in text
+    assert ("reached kicks' heads were at 1.60" in text) == (reached[:1] == [True])
