@@ -79,6 +79,7 @@ from pathlib import Path
 from typing import Callable
 
 from tests.fuzz import harness
+from tests.fuzz.worker import NonFinite, check_finite  # the one finite-result walker of both fuzzers
 
 REPO = Path(__file__).resolve().parents[2]
 #: Address-space limit of the child; numpy + scipy + pandas + repro imports take ~0.5 GiB.
@@ -295,65 +296,6 @@ def plan(cases: list[Case], pairs: int | None = None) -> list[tuple[str, list[tu
 
 
 # ------------------------------------------------------------------ the outcome rule (child side)
-class NonFinite(Exception):
-    pass
-
-
-def check_finite(obj, where: str = "result", depth: int = 0, seen=None, skip=frozenset()) -> None:
-    """Raise :class:`NonFinite` naming the first NaN/inf float in ``obj`` (DataFrames too); not under the
-    dict keys / attribute / column names in ``skip``."""
-    import numpy as np
-
-    seen = set() if seen is None else seen
-    if id(obj) in seen or depth > 8:
-        return
-    seen.add(id(obj))
-    mod = type(obj).__module__ or ""
-    if mod.startswith("pandas"):
-        if hasattr(obj, "select_dtypes"):  # DataFrame
-            for col in obj.columns:
-                if col in skip:
-                    continue
-                check_finite(obj[col].to_numpy(), f"{where}[{col!r}]", depth + 1, seen, skip)
-            return
-        if hasattr(obj, "to_numpy"):
-            check_finite(obj.to_numpy(), where, depth + 1, seen, skip)
-            return
-    if isinstance(obj, np.ndarray):
-        if obj.dtype.kind in "fc":
-            bad = ~np.isfinite(obj)
-            if bad.any():
-                idx = tuple(np.argwhere(bad)[0]) if obj.ndim else ()
-                raise NonFinite(f"{where}{list(map(int, idx))} = {obj[idx]!r} (shape {obj.shape})")
-        elif obj.dtype.kind == "O":
-            for i, x in enumerate(obj.reshape(-1)[:1000]):
-                check_finite(x, f"{where}[{i}]", depth + 1, seen, skip)
-        return
-    if isinstance(obj, (float, complex, np.floating, np.complexfloating)):
-        if not np.isfinite(obj):
-            raise NonFinite(f"{where} = {obj!r}")
-        return
-    if isinstance(obj, (str, bytes, int, bool, type(None), np.integer, np.bool_)):
-        return
-    if isinstance(obj, dict):
-        for k, v in list(obj.items())[:10000]:
-            if k in skip:
-                continue
-            check_finite(v, f"{where}[{k!r}]", depth + 1, seen, skip)
-        return
-    if isinstance(obj, (list, tuple, set, frozenset)):
-        for i, v in enumerate(list(obj)[:10000]):
-            check_finite(v, f"{where}[{i}]", depth + 1, seen, skip)
-        return
-    if mod.startswith("repro"):
-        fields = dict(getattr(obj, "__dict__", {}))
-        if dataclasses.is_dataclass(obj):
-            fields.update((f.name, getattr(obj, f.name, None)) for f in dataclasses.fields(obj))
-        for k, v in fields.items():
-            if not k.startswith("_") and k != "limits" and k not in skip:  # ASF joint limits (-inf, inf) are legitimate
-                check_finite(v, f"{where}.{k}", depth + 1, seen, skip)
-
-
 def _call(cases: dict[str, Case], case_name: str, subs: list) -> dict:
     from repro.errors import ReproError
 
@@ -375,7 +317,7 @@ def _call(cases: dict[str, Case], case_name: str, subs: list) -> dict:
         result = fn(**kwargs)
         stage = "result"
         if case.nonfinite_ok is not True:
-            check_finite(result, skip=frozenset(case.nonfinite_ok or ()))
+            check_finite(result, skip=frozenset(case.nonfinite_ok or ()), public_only=True)
     except ReproError as exc:
         if stage == "setup":
             return dict(outcome="error", type=type(exc).__name__, message=f"setup failed: {exc}"[:2000],

@@ -36,14 +36,33 @@ class NonFinite(Exception):
     pass
 
 
-def check_finite(obj, where: str = "result", depth: int = 0, seen=None) -> None:
-    """Raise :class:`NonFinite` naming the first NaN/inf float found in ``obj``'s data."""
+def check_finite(obj, where: str = "result", depth: int = 0, seen=None, skip=frozenset(), public_only: bool = False) -> None:
+    """Raise :class:`NonFinite` naming the first NaN/inf float found in ``obj``'s data (pandas tables too).
+
+    Not under the dict keys / attribute / column names in ``skip`` (nor :data:`INFINITE_OK`
+    attributes); ``public_only`` skips ``_private`` attributes of repro objects (the argument
+    fuzzer's rule: a cache may hold what the result does not).  The one walker of both fuzzers.
+    """
     import numpy as np
 
     seen = set() if seen is None else seen
     if id(obj) in seen or depth > 8:
         return
     seen.add(id(obj))
+
+    def walk(x, at):
+        check_finite(x, at, depth + 1, seen, skip, public_only)
+
+    mod = type(obj).__module__ or ""
+    if mod.startswith("pandas"):
+        if hasattr(obj, "select_dtypes"):  # DataFrame
+            for col in obj.columns:
+                if col not in skip:
+                    walk(obj[col].to_numpy(), f"{where}[{col!r}]")
+            return
+        if hasattr(obj, "to_numpy"):
+            walk(obj.to_numpy(), where)
+            return
     if isinstance(obj, np.ndarray):
         if obj.dtype.kind in "fc":
             bad = ~np.isfinite(obj)
@@ -52,7 +71,7 @@ def check_finite(obj, where: str = "result", depth: int = 0, seen=None) -> None:
                 raise NonFinite(f"{where}{list(map(int, idx))} = {obj[tuple(idx)]!r} (shape {obj.shape})")
         elif obj.dtype.kind == "O":
             for i, x in enumerate(obj.reshape(-1)[:1000]):
-                check_finite(x, f"{where}[{i}]", depth + 1, seen)
+                walk(x, f"{where}[{i}]")
         return
     if isinstance(obj, (float, complex, np.floating, np.complexfloating)):
         if not np.isfinite(obj):
@@ -62,19 +81,20 @@ def check_finite(obj, where: str = "result", depth: int = 0, seen=None) -> None:
         return
     if isinstance(obj, dict):
         for k, v in list(obj.items())[:10000]:
-            check_finite(v, f"{where}[{k!r}]", depth + 1, seen)
+            if k not in skip:
+                walk(v, f"{where}[{k!r}]")
         return
     if isinstance(obj, (list, tuple, set, frozenset)):
         for i, v in enumerate(list(obj)[:10000]):
-            check_finite(v, f"{where}[{i}]", depth + 1, seen)
+            walk(v, f"{where}[{i}]")
         return
-    if type(obj).__module__.startswith("repro"):
+    if mod.startswith("repro"):
         fields = dict(getattr(obj, "__dict__", {}))
         if dataclasses.is_dataclass(obj):
             fields.update((f.name, getattr(obj, f.name, None)) for f in dataclasses.fields(obj))
         for k, v in fields.items():
-            if k not in INFINITE_OK:
-                check_finite(v, f"{where}.{k}", depth + 1, seen)
+            if k not in INFINITE_OK and k not in skip and not (public_only and k.startswith("_")):
+                walk(v, f"{where}.{k}")
 
 
 #: Attributes where an infinite value is legitimate: ASF joint limits ``(-inf inf)``.
