@@ -25,3 +25,19 @@ def grid_model(nx: int = 12, ny: int = 10, m: int = 6, seed: int = 0) -> Blendsh
     return BlendshapeModel(f0=f0, D=D, names=names, faces=faces, name="grid",
                            sliders={"pair": {"s0": 1.0, "s1": 0.5}},
                            regions={"corner": np.array([0, 1, nx])})
+
+
+def refusal_failures(calls, error) -> list[str]:
+    """For a table of ``(name, call)`` that must each raise ``error``: the ones that did not
+    (another exception, or accepted), as lines for the assertion message."""
+    failures = []
+    for name, call in calls:
+        try:
+            call()
+        except error:
+            continue
+        except Exception as e:  # noqa: BLE001 - what the table is about
+            failures.append(f"{name}: {type(e).__name__}: {e}")
+        else:
+            failures.append(f"{name}: accepted")
+    return failures
