@@ -276,7 +276,7 @@ def synthetic_dir(tmp_path_factory) -> Path:
 
     Tests must not change the folder (a test that writes takes its own copy).
     """
-    from repro.motion.synthetic import synthetic_database
+    from repro.motion.database.synthetic import synthetic_database
 
     d = tmp_path_factory.mktemp("synthetic")
     synthetic_database(d, seed=0)
@@ -285,7 +285,7 @@ def synthetic_dir(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def _synthetic_db(synthetic_dir):
-    from repro.motion.sources import build_database
+    from repro.motion.database.sources import build_database
 
     return build_database(synthetic_dir)
 

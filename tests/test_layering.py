@@ -204,7 +204,7 @@ def test_no_import_cycle():
     assert comps == [], f"import cycles: {comps}"
 
 
-@pytest.mark.parametrize("bad", ["from repro.motion.bvh import _read_bytes", "from repro.ui.face_panel import X"])
+@pytest.mark.parametrize("bad", ["from repro.motion.io.bvh import _read_bytes", "from repro.ui.face_panel import X"])
 def test_rules_detect_violations(bad, tmp_path):
     """The checks are not vacuous: a planted violation is found."""
     tree = ast.parse(bad)

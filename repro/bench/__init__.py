@@ -12,7 +12,7 @@ their ratio.  One module per benchmark, each the home of one ``repro bench`` com
 - :mod:`repro.bench.prepare` -- Pronost et al., Section 3.3, preparing a query (``repro bench prepare``).
 
 This module holds only what they share (the machine line and the median timer).  The
-paper's published numbers are in :mod:`repro.motion.paper`, never here.  The
+paper's published numbers are in :mod:`repro.motion.runtime.paper`, never here.  The
 benchmark functions are also reachable as ``repro.bench.<name>`` (loaded on first use)
 so that ``from repro.bench import bench_retrieval`` keeps working.
 """

@@ -1,7 +1,7 @@
 """``repro bench adaptation``: Pronost et al., Sections 3.4 and 4 -- retargeting and adaptation
 per frame, and BVH load + convert, against one forward-kinematics pass in the same process.
 
-The paper's 40 ms and 88 us (:mod:`repro.motion.paper`) are printed beside ours, with the
+The paper's 40 ms and 88 us (:mod:`repro.motion.runtime.paper`) are printed beside ours, with the
 machine named, never as pass/fail.
 """
 
@@ -10,7 +10,7 @@ from __future__ import annotations
 import time
 
 from repro.bench import machine, median_time
-from repro.motion.paper import PAPER_ADAPT_PER_FRAME_S, PAPER_LOAD_CONVERT_S
+from repro.motion.runtime.paper import PAPER_ADAPT_PER_FRAME_S, PAPER_LOAD_CONVERT_S
 
 __all__ = ["GOAL_BATCH_PER_FRAME_US", "bench_adaptation", "bench_order_latency", "format_adaptation"]
 
@@ -31,8 +31,8 @@ def bench_adaptation(*, quick: bool = False, progress: bool = False):
     from repro import data
     from repro.motion import read_bvh
     from repro.motion.adaptation import time_adaptation
-    from repro.motion.morphology import encode, time_retarget
-    from repro.motion.skeleton import scale_skeleton, skeleton_of
+    from repro.motion.retargeting.morphology import encode, time_retarget
+    from repro.motion.body.skeleton import scale_skeleton, skeleton_of
 
     from repro.checks import as_bool, as_int
     from repro.errors import ArgumentError
@@ -49,8 +49,8 @@ def bench_adaptation(*, quick: bool = False, progress: bool = False):
         clips.append(("cmu 135_04 (front kick)", data.fetch("mocap/cmu/135_04.bvh"), "right_foot", CMU_UNIT_M))
     import tempfile
 
-    from repro.motion.bvh import write_bvh
-    from repro.motion.synthetic import synthetic_clip
+    from repro.motion.io.bvh import write_bvh
+    from repro.motion.database.synthetic import synthetic_clip
 
     reps = 3 if quick else 7
     with tempfile.TemporaryDirectory() as tmp:
@@ -110,7 +110,7 @@ def bench_order_latency(*, n_orders: int = 12, repeats: int = 3, database: str =
     """Order -> first adapted frame of the fighter (claim K4), the slow path against the fast one, in one process.
 
     The fighter's orders (alternating kick / punch at the simulated user's head, nothing
-    committed) run through :func:`repro.motion.strike.strike` the slow way
+    committed) run through :func:`repro.motion.runtime.strike.strike` the slow way
     (``early_stop=False, stream=False``: every level and root-shift trial solved on the
     whole clip before the first frame) and the default way (trials stopped early, the
     level decided on the contact frame and the first frame solved before the rest),
@@ -125,8 +125,8 @@ def bench_order_latency(*, n_orders: int = 12, repeats: int = 3, database: str =
     from repro.bench.retrieval import DATABASES
     from repro.checks import as_bool, as_choice, as_int
     from repro.errors import ArgumentError
-    from repro.motion.fighter import KungFuFighter, check_target, simulated_user
-    from repro.motion.strike import BLEND_S, strike
+    from repro.motion.runtime.fighter import KungFuFighter, check_target, simulated_user
+    from repro.motion.runtime.strike import BLEND_S, strike
 
     n_orders = as_int(n_orders, "n_orders", 1, MAX_ORDERS, error=ArgumentError)
     repeats = as_int(repeats, "repeats", 1, MAX_ORDERS, error=ArgumentError)

@@ -1,14 +1,14 @@
 """``repro bench index``: building the scaled databases and the retrieval's index (Pronost et al., Section
 3.2.2, "a precomputation process"), time and peak memory, 10x to 1,000x.
 
-For each factor, :func:`repro.motion.augment.augment` makes the database (float32 pose clouds from
-1,000x, :data:`FLOAT32_FROM`) and :class:`repro.motion.retrieval.MotionRetriever` builds its
+For each factor, :func:`repro.motion.database.augment.augment` makes the database (float32 pose clouds from
+1,000x, :data:`FLOAT32_FROM`) and :class:`repro.motion.search.retrieval.MotionRetriever` builds its
 clusters and indices.  Peak memory is traced (:mod:`tracemalloc`, which numpy reports its arrays
 to) per stage and for both; the process's ``ru_maxrss`` is printed beside it.  The baseline
 measured in the same process is the per-variant path that :func:`augment` replaced: a sample of
 variants rebuilt one by one (:meth:`MotionDatabase.clip` then
-:meth:`MotionDatabase.from_clips`, i.e. :func:`~repro.motion.ops.variant_motion` and
-:func:`~repro.motion.database.clip_record` per variant), its time per variant times the number
+:meth:`MotionDatabase.from_clips`, i.e. :func:`~repro.motion.core.ops.variant_motion` and
+:func:`~repro.motion.database.clips.clip_record` per variant), its time per variant times the number
 of variants.  The goals are this reproduction's (issue 13): 100x in under 10 s, 1,000x in under
 2 min within 4 GB.
 """
@@ -37,7 +37,7 @@ GOAL_1000X_GB: float = 4.0
 
 def _per_variant_s(db, n: int, seed: int) -> float:
     """Seconds per variant of the per-variant path, on ``n`` variants drawn with ``seed``."""
-    from repro.motion.database import MotionDatabase
+    from repro.motion.database.clips import MotionDatabase
 
     variants = np.flatnonzero(db.source_clip != np.arange(db.n_clips))
     pick = np.random.default_rng(seed).choice(variants, min(n, variants.size), replace=False)
@@ -60,11 +60,11 @@ def bench_index_build(*, quick: bool = False, factors=None, database: str = "syn
     import pandas as pd
     from tqdm import tqdm
 
-    from repro.motion.augment import augment
-    from repro.motion.retrieval import MotionRetriever
+    from repro.motion.database.augment import augment
+    from repro.motion.search.retrieval import MotionRetriever
     from repro.checks import as_bool, as_choice, as_int
     from repro.errors import RetrievalError
-    from repro.motion.sources import default_database
+    from repro.motion.database.sources import default_database
 
     quick = as_bool(quick, "quick", error=RetrievalError)
     progress = as_bool(progress, "progress", error=RetrievalError)

@@ -3,8 +3,8 @@ actor (``q_r``) and ``c_r`` (Eq. 1), for one pose, by kind of character.
 
 Three characters on the synthetic database: a uniform scaling of the actor (``q_r`` is the pose
 scaled, no retargeting), one of other proportions (same joint tree: the pose is retargeted with
-the actor's cached :class:`~repro.motion.morphology.RetargetPlan`), and a Mixamo rig (another
-joint tree: the cached :class:`~repro.motion.retarget_tree.TreePlan`).  The baseline measured in
+the actor's cached :class:`~repro.motion.retargeting.morphology.RetargetPlan`), and a Mixamo rig (another
+joint tree: the cached :class:`~repro.motion.retargeting.trees.TreePlan`).  The baseline measured in
 the same process, interleaved with the new path, query by query, is the step the plan replaced:
 ``retarget(pose, actor).global_positions()`` (encode then decode into Motion objects), or across
 trees ``retarget_to_tree(pose, actor, ...).global_positions()``, against ``plan.positions`` (both
@@ -35,13 +35,13 @@ class _Unplanned:
         self.m, self.actor, self.roles, self.rest = m, actor, dict(roles), rest
 
     def positions(self, rotations, translations, *, source=None):
-        from repro.motion.retrieval import retarget_to_tree
+        from repro.motion.search.retrieval import retarget_to_tree
 
         return retarget_to_tree(self.m, self.actor, roles=self.roles, target=self.rest).global_positions()
 
 
 def _cloud(db, actor, g):
-    from repro.motion.clustering import pose_points
+    from repro.motion.search.clustering import pose_points
 
     idx = [actor.index(r) for r in db.pose_roles]
     return pose_points(g, idx, actor.index("pelvis"), actor.index("left_hip"), actor.index("right_hip"),
@@ -63,17 +63,17 @@ def bench_prepare(*, quick: bool = False, n_queries: int = 200, seed: int = 0, p
 
     from repro.checks import as_bool, as_int
     from repro.errors import ArgumentError
-    from repro.motion.morphology import retarget
-    from repro.motion.retrieval import MAX_QUERIES
+    from repro.motion.retargeting.morphology import retarget
+    from repro.motion.search.retrieval import MAX_QUERIES
 
     quick = as_bool(quick, "quick", error=ArgumentError)
     progress = as_bool(progress, "progress", error=ArgumentError)
     n_queries = as_int(n_queries, "n_queries", 1, MAX_QUERIES, error=ArgumentError)
     seed = as_int(seed, "seed", 0, None, error=ArgumentError)
-    from repro.motion.retrieval import MotionRetriever, rest_motion_y_up, retarget_to_tree
-    from repro.motion.skeleton import Skeleton, scale_skeleton
-    from repro.motion.sources import default_database
-    from repro.motion.synthetic.conventions import build
+    from repro.motion.search.retrieval import MotionRetriever, rest_motion_y_up, retarget_to_tree
+    from repro.motion.body.skeleton import Skeleton, scale_skeleton
+    from repro.motion.database.sources import default_database
+    from repro.motion.database.synthetic.conventions import build
 
     n = min(n_queries, 50) if quick else n_queries
     db = default_database("synthetic")

@@ -2,7 +2,7 @@
 database size, for the paper's pruned search, the exact search (branch and bound over the same
 clusters and boxes), the exhaustive scan and a kd-tree.
 
-The paper's search took 0.28 s (:data:`repro.motion.paper.PAPER_SEARCH_S`): a reference
+The paper's search took 0.28 s (:data:`repro.motion.runtime.paper.PAPER_SEARCH_S`): a reference
 printed as a ratio to ours, never pass/fail.  The goals below are this reproduction's.
 """
 
@@ -14,7 +14,7 @@ import numpy as np
 
 from repro.bench import machine
 from repro.bench.index_build import FLOAT32_FROM
-from repro.motion.paper import PAPER_SEARCH_S
+from repro.motion.runtime.paper import PAPER_SEARCH_S
 
 __all__ = [
     "GOAL_BASE_P50_MS",
@@ -71,11 +71,11 @@ def check_bench_arguments(databases, factors, n_queries, *, bases=None):
     ------
     repro.errors.RetrievalError
         An unknown database, a factor that is not an int in 1..:data:`MAX_FACTOR` or asks for more
-        memory than the budget, ``n_queries`` not an int in 1..:data:`repro.motion.retrieval.MAX_QUERIES`.
+        memory than the budget, ``n_queries`` not an int in 1..:data:`repro.motion.search.retrieval.MAX_QUERIES`.
     """
     from repro.checks import as_int, check_alloc
     from repro.errors import RetrievalError
-    from repro.motion.retrieval import MAX_QUERIES
+    from repro.motion.search.retrieval import MAX_QUERIES
 
     if databases is not None:
         databases = [databases] if isinstance(databases, str) else databases
@@ -100,7 +100,7 @@ def check_bench_arguments(databases, factors, n_queries, *, bases=None):
         n_queries = as_int(n_queries, "n_queries", 1, MAX_QUERIES, error=RetrievalError)
     if factors is not None and max(factors) > 1:
         from repro.experiments.shared import estimated_bytes
-        from repro.motion.sources import default_database
+        from repro.motion.database.sources import default_database
 
         bases = {} if bases is None else bases
         for name in databases if databases is not None else _default_databases():
@@ -129,7 +129,7 @@ def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_quer
     from :data:`~repro.bench.index_build.FLOAT32_FROM` = 1,000x the pose clouds are float32, whose
     rounding, 6e-8 relative, is far below the noise of the variants, and, unless ``n_queries``
     is given, at most :data:`LARGE_N_QUERIES` queries are timed once each),
-    :func:`repro.motion.retrieval.time_search` times all four methods on the same
+    :func:`repro.motion.search.retrieval.time_search` times all four methods on the same
     ``n_queries`` random queries (default :data:`DEFAULT_N_QUERIES`, 100 with ``quick``; a
     given number is honoured at every size), in one process.  One row per (database, factor,
     method) with the columns ``n_clips, n_poses, method, p50_ms, p99_ms`` (the
@@ -146,9 +146,9 @@ def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_quer
     import pandas as pd
     from tqdm import tqdm  # plain bar on stderr, never a notebook widget
 
-    from repro.motion.augment import augment
-    from repro.motion.sources import default_database
-    from repro.motion.retrieval import time_search
+    from repro.motion.database.augment import augment
+    from repro.motion.database.sources import default_database
+    from repro.motion.search.retrieval import time_search
 
     from repro.checks import as_bool, as_int, describe
     from repro.errors import RetrievalError

@@ -1,6 +1,6 @@
 """The claims of Pronost et al. ~2008 (kung-fu motion retrieval and adaptation), one function each.
 
-The paper's published numbers come from :mod:`repro.motion.paper`; this ledger's thresholds
+The paper's published numbers come from :mod:`repro.motion.runtime.paper`; this ledger's thresholds
 are named once, here.  Each claim reads the tables of the figure it names
 (:mod:`repro.experiments.pronost`).
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from repro.claims.ledger import Claim, not_applicable, per_database, registrar
-from repro.motion.paper import (
+from repro.motion.runtime.paper import (
     PAPER_ADAPT_PER_FRAME_S,
     PAPER_LOAD_CONVERT_S,
     PAPER_ORDER_TO_SEARCH_S,

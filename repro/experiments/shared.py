@@ -1,6 +1,6 @@
 """Work shared between figures, built once and kept on disk by content hash (issue 15, item 6).
 
-The augmented databases (10x, 100x: :func:`repro.motion.augment.augment` of a base database)
+The augmented databases (10x, 100x: :func:`repro.motion.database.augment.augment` of a base database)
 are pure functions of their inputs, and the retrieval figure, ``repro bench retrieval`` and
 the notebooks build the same ones.  :func:`augmented_database` builds each once and keeps it
 in :func:`repro.data.cache_dir` ``/motion`` as ``.npz`` (:meth:`MotionDatabase.save`: no
@@ -92,7 +92,7 @@ def database_key(name: str, factor: int, seed: int) -> str:
     return hashlib.sha256(json.dumps(database_identity(name, factor, seed), sort_keys=True).encode()).hexdigest()
 
 
-#: The bases :func:`augmented_database` knows (:func:`repro.motion.sources.default_database`).
+#: The bases :func:`augmented_database` knows (:func:`repro.motion.database.sources.default_database`).
 BASES = ("synthetic", "cmu")
 #: Largest seed accepted (numpy's generators take any int >= 0; the seed is part of a file name).
 MAX_SEED = 2**63 - 1
@@ -136,7 +136,7 @@ def _load(npz: Path, side: Path, identity: dict, key: str):
     from repro import checks
     from repro.errors import DataError
     from repro.io import read_bytes
-    from repro.motion.database import MotionDatabase
+    from repro.motion.database.clips import MotionDatabase
 
     if not npz.exists() or not side.exists():
         return None
@@ -195,8 +195,8 @@ def augmented_database(name: str = "synthetic", factor: int = 1, seed: int = 0, 
     from repro.checks import as_bool, check_alloc
     from repro.errors import DataError, RetrievalError
     from repro.io import file_lock, write_text
-    from repro.motion.augment import augment
-    from repro.motion.sources import default_database
+    from repro.motion.database.augment import augment
+    from repro.motion.database.sources import default_database
 
     name, factor, seed = _checked(name, factor, seed)
     use_cache = as_bool(use_cache, "use_cache", error=RetrievalError)

@@ -4,12 +4,12 @@ Application to Virtual Kung-fu Fighting" (about 2008).
 The paper's motion database (Section 3.2) holds motion-capture clips "stored in the BVH
 standard format"; this package reads and writes them.
 
-- :mod:`~repro.motion.motion`: the :class:`Motion` type (skeleton, local rotations as
+- :mod:`~repro.motion.core.motion`: the :class:`Motion` type (skeleton, local rotations as
   quaternions, position channels) and vectorised forward kinematics; units
   (:data:`CMU_UNIT_M`, :data:`BANDAI_UNIT_M`).
-- :mod:`~repro.motion.bvh`: :func:`read_bvh`, :func:`write_bvh` (atomic, never
+- :mod:`~repro.motion.io.bvh`: :func:`read_bvh`, :func:`write_bvh` (atomic, never
   overwrites an existing file unless ``overwrite=True``).
-- :mod:`~repro.motion.asfamc`: the Acclaim ASF/AMC originals of the CMU database,
+- :mod:`~repro.motion.io.asfamc`: the Acclaim ASF/AMC originals of the CMU database,
   :func:`read_asf`, :func:`read_amc`, :func:`read_asf_amc`, converted with the same
   convention as the staged CMU BVH files.
 
@@ -18,9 +18,9 @@ Every malformed file raises :class:`BVHError` (a :class:`repro.errors.ReproError
 """
 
 from repro.errors import BVHError
-from repro.motion.asfamc import AsfBone, AsfSkeleton, read_amc, read_asf, read_asf_amc
-from repro.motion.bvh import read_bvh, write_bvh
-from repro.motion.motion import BANDAI_UNIT_M, CMU_UNIT_M, Motion
+from repro.motion.io.asfamc import AsfBone, AsfSkeleton, read_amc, read_asf, read_asf_amc
+from repro.motion.io.bvh import read_bvh, write_bvh
+from repro.motion.core.motion import BANDAI_UNIT_M, CMU_UNIT_M, Motion
 
 __all__ = [
     "Motion",
@@ -38,21 +38,21 @@ __all__ = [
 
 # Roles, skeletons, sizes (Eq. 1), the morphology-independent representation of
 # Kulpa et al. 2005 used for retargeting (Section 3.4.1) and the feet.
-from repro.motion.roles import ROLES, find_roles  # noqa: E402
-from repro.motion.skeleton import (  # noqa: E402
+from repro.motion.body.roles import ROLES, find_roles  # noqa: E402
+from repro.motion.body.skeleton import (  # noqa: E402
     Skeleton,
     rescale_constraint,
     scale_skeleton,
     skeleton_of,
 )
-from repro.motion.morphology import (  # noqa: E402
+from repro.motion.retargeting.morphology import (  # noqa: E402
     MorphologyIndependentMotion,
     decode,
     encode,
     naive_retarget,
     retarget,
 )
-from repro.motion.feet import foot_contacts, foot_metrics  # noqa: E402
+from repro.motion.body.feet import foot_contacts, foot_metrics  # noqa: E402
 
 __all__ += [
     "ROLES",
@@ -70,8 +70,8 @@ __all__ += [
     "foot_metrics",
 ]
 
-# Synthetic kung-fu database (no downloaded data needed): repro.motion.synthetic
-from repro.motion.synthetic import (  # noqa: E402
+# Synthetic kung-fu database (no downloaded data needed): repro.motion.database.synthetic
+from repro.motion.database.synthetic import (  # noqa: E402
     SyntheticDatabase,
     read_manifest,
     synthetic_clip,
@@ -89,19 +89,19 @@ __all__ += [
 ]
 
 # The annotated motion database (Section 3.2), pose clustering (Section 3.2.2) and the
-# motion retrieval (Section 3.3): repro.motion.annotation, .database, .sources, .augment,
+# motion retrieval (Section 3.3): repro.motion.database.annotation, .database, .sources, .augment,
 # .clustering, .retrieval
-from repro.motion.clustering import (  # noqa: E402
+from repro.motion.search.clustering import (  # noqa: E402
     AlignedPoseIndex,
     PoseClusters,
     aligned_distance,
     cluster_poses,
 )
-from repro.motion.annotation import Hit, detect_hits, hit_point_trajectory  # noqa: E402
-from repro.motion.augment import augment  # noqa: E402
-from repro.motion.database import Clip, MotionDatabase  # noqa: E402
-from repro.motion.sources import build_cmu_database, build_database  # noqa: E402
-from repro.motion.retrieval import (  # noqa: E402
+from repro.motion.database.annotation import Hit, detect_hits, hit_point_trajectory  # noqa: E402
+from repro.motion.database.augment import augment  # noqa: E402
+from repro.motion.database.clips import Clip, MotionDatabase  # noqa: E402
+from repro.motion.database.sources import build_cmu_database, build_database  # noqa: E402
+from repro.motion.search.retrieval import (  # noqa: E402
     MotionRetriever,
     RetrievalResult,
     time_search,
@@ -147,13 +147,13 @@ __all__ += [
     "time_adaptation",
 ]
 
-# One order carried out (Sections 3.3-3.4): the Strike of repro.motion.strike.strike (the
+# One order carried out (Sections 3.3-3.4): the Strike of repro.motion.runtime.strike.strike (the
 # function itself stays on its module: a package attribute named like the submodule would shadow it).
-from repro.motion.strike import Strike  # noqa: E402
+from repro.motion.runtime.strike import Strike  # noqa: E402
 
 __all__ += ["Strike"]
 
 # The other real sources of the database (Bandai Namco strikes, non-fighting takes).
-from repro.motion.sources import build_bandai_database, build_real_database, non_fighting_poses  # noqa: E402
+from repro.motion.database.sources import build_bandai_database, build_real_database, non_fighting_poses  # noqa: E402
 
 __all__ += ["build_bandai_database", "build_real_database", "non_fighting_poses"]

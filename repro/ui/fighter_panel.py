@@ -7,10 +7,10 @@ paper's experiment (Section 4, figure 1):
 - the fighter's morphology, which "the supervisor can change [...] and immediately
   visualizes the result" (Section 3.1): height (1.2-2.2 m), arm and leg proportions
   (±25 %);
-- "kick" and "punch" buttons: the order (:meth:`repro.motion.fighter.KungFuFighter.order`:
+- "kick" and "punch" buttons: the order (:meth:`repro.motion.runtime.fighter.KungFuFighter.order`:
   retrieval, conversion, adaptation, each stage timed);
 - a "simulated user" toggle: the target then comes from
-  :func:`repro.motion.fighter.simulated_user` (a ``Play`` widget, or the "step" button,
+  :func:`repro.motion.runtime.fighter.simulated_user` (a ``Play`` widget, or the "step" button,
   walks through it; the fighter follows the head as in the paper);
 - a filmstrip of the strike (:func:`filmstrip_figure`: a few key frames of the stick
   figure reaching the target sphere; the unadapted motion in grey, as the paper's Fig.
@@ -40,7 +40,7 @@ import numpy as np
 
 from repro.ui.panel import PanelCallbacks
 from repro.ui.strike_view import FilmstripView, animation_html, animation_png, key_frames
-from repro.motion.fighter import AREA, KungFuFighter, Strike, character_from, simulated_user
+from repro.motion.runtime.fighter import AREA, KungFuFighter, Strike, character_from, simulated_user
 
 __all__ = [
     "FighterPanel",

@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from repro.motion.roles import find_roles
+from repro.motion.body.roles import find_roles
 
 __all__ = [
     "FilmstripView", "StrikeCamera", "animation_html", "animation_png", "key_frames", "scene_geometry",

@@ -10,8 +10,8 @@ import pytest
 from repro.experiments.pronost.cross_skeleton import cross_skeleton, measure
 from repro.experiments.registry import registry
 from repro.motion import retarget
-from repro.motion.synthetic import synthetic_clip
-from repro.motion.synthetic.conventions import build
+from repro.motion.database.synthetic import synthetic_clip
+from repro.motion.database.synthetic.conventions import build
 
 
 @pytest.fixture(scope="module")

@@ -22,7 +22,7 @@ import pandas as pd
 import pytest
 
 import repro.experiments as E
-from repro.motion.sources import default_database
+from repro.motion.database.sources import default_database
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ import pytest
 from repro.errors import CacheWarning
 from repro.experiments import shared
 
-augment_module = importlib.import_module("repro.motion.augment")  # (the package attribute is the function)
+augment_module = importlib.import_module("repro.motion.database.augment")  # (the package attribute is the function)
 
 
 @pytest.fixture
@@ -83,7 +83,7 @@ import importlib, sys, time, warnings
 from pathlib import Path
 warnings.simplefilter("error")  # a half-replaced file seen as damaged would warn
 from repro.experiments import shared
-augment_module = importlib.import_module("repro.motion.augment")
+augment_module = importlib.import_module("repro.motion.database.augment")
 real = augment_module.augment
 def counted(*a, **k):
     Path(sys.argv[1], f"built-{sys.argv[2]}").write_text("")

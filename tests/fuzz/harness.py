@@ -45,14 +45,14 @@ TARGETS = {
 }
 #: The code each target exercises (named in a failing test's message).
 READERS = {
-    "bvh": "repro/motion/bvh.py read_bvh / write_bvh, repro/motion/motion.py",
-    "asf": "repro/motion/asfamc.py read_asf, then read_amc",
-    "amc": "repro/motion/asfamc.py read_amc / read_asf_amc",
+    "bvh": "repro/motion/io/bvh.py read_bvh / write_bvh, repro/motion/core/motion.py",
+    "asf": "repro/motion/io/asfamc.py read_asf, then read_amc",
+    "amc": "repro/motion/io/asfamc.py read_amc / read_asf_amc",
     "obj": "repro/blendshapes/ict.py read_obj",
     "gltf": "repro/blendshapes/gltf.py read_gltf",
     "glb": "repro/blendshapes load_model -> gltf.py read_gltf",
     "ict_cache": "repro/blendshapes/ict.py read_cache -> repro/io.py read_npz",
-    "db": "repro/motion/database.py MotionDatabase.load",
+    "db": "repro/motion/database/clips.py MotionDatabase.load",
     "manifest": "repro/experiments/registry.py run_many (figures/manifest.json)",
 }
 #: The glTF fixtures (made by scripts/make_gltf_fixtures.py); a .gltf's buffer file is its partner.
@@ -390,8 +390,8 @@ def obj_excerpt(data: bytes, n_lines: int = 2000) -> bytes:
 def synthetic_bvh() -> bytes:
     """A short clip of the library's synthetic database, written by write_bvh."""
     from repro.motion import write_bvh
-    from repro.motion.ops import cut
-    from repro.motion.synthetic import synthetic_clip
+    from repro.motion.core.ops import cut
+    from repro.motion.database.synthetic import synthetic_clip
 
     m, _ = synthetic_clip("kick_front", seed=0)
     with tempfile.TemporaryDirectory() as tmp:
@@ -401,10 +401,10 @@ def synthetic_bvh() -> bytes:
 
 def tiny_database_npz() -> bytes:
     """``MotionDatabase.save`` of a two-clip database (a synthetic punch and its augmented copy)."""
-    from repro.motion.augment import augment
-    from repro.motion.database import MotionDatabase, annotate
-    from repro.motion.ops import resample
-    from repro.motion.synthetic import synthetic_clip
+    from repro.motion.database.augment import augment
+    from repro.motion.database.clips import MotionDatabase, annotate
+    from repro.motion.core.ops import resample
+    from repro.motion.database.synthetic import synthetic_clip
 
     m, ann = synthetic_clip("punch", seed=0)
     m = resample(m, 30.0)

@@ -1,9 +1,9 @@
 """Argument fuzzer cases of the motion runtime (issue 23, sections 3, 5, 6, 8).
 
-The order pipeline (:func:`repro.motion.strike.strike` and its helpers), the fighter
-(:class:`repro.motion.fighter.KungFuFighter`, :func:`~repro.motion.fighter.simulated_user`),
-the constraint solver (:mod:`repro.motion.adaptation`), retargeting (:mod:`repro.motion.morphology`,
-:mod:`repro.motion.retarget_tree`), skeletons, roles, motions and forward kinematics: every
+The order pipeline (:func:`repro.motion.runtime.strike.strike` and its helpers), the fighter
+(:class:`repro.motion.runtime.fighter.KungFuFighter`, :func:`~repro.motion.runtime.fighter.simulated_user`),
+the constraint solver (:mod:`repro.motion.adaptation`), retargeting (:mod:`repro.motion.retargeting.morphology`,
+:mod:`repro.motion.retargeting.trees`), skeletons, roles, motions and forward kinematics: every
 parameter gets the hostile values of :mod:`tests.fuzz.arguments` (a ReproError or a finite
 result, never another exception, a hang or an allocation past the budget).
 
@@ -11,7 +11,7 @@ The database, its retriever and the characters are built once per child
 (:func:`functools.cache`); the fighter cases share the retriever and search with
 ``method="pruned"`` (no numba compile in the child).  The strike's valid target is one the
 spine cannot reach, so the root level runs on the valid call and on every hostile value
-the entry lets through.  The raw-array helpers of :mod:`repro.motion.kinematics` (``dot``,
+the entry lets through.  The raw-array helpers of :mod:`repro.motion.core.kinematics` (``dot``,
 ``normalize``, ``matvec``...) are the solvers' inner arithmetic on arrays the checked entries
 made, and are not fuzzed here.
 """
@@ -34,29 +34,29 @@ SLOW = 120.0
 # ------------------------------------------------------------------ shared fixtures (once per child)
 @functools.cache
 def _db():
-    from repro.motion.sources import default_database
+    from repro.motion.database.sources import default_database
 
     return default_database("synthetic")
 
 
 @functools.cache
 def _retriever():
-    from repro.motion.retrieval import MotionRetriever
+    from repro.motion.search.retrieval import MotionRetriever
 
     return MotionRetriever(_db(), seed=0)
 
 
 @functools.cache
 def _character():
-    from repro.motion.skeleton import scale_skeleton
+    from repro.motion.body.skeleton import scale_skeleton
 
     return scale_skeleton(_db().actors[0], height=1.8)
 
 
 @functools.cache
 def _stance():
-    from repro.motion.morphology import retarget
-    from repro.motion.strike import one_frame
+    from repro.motion.retargeting.morphology import retarget
+    from repro.motion.runtime.strike import one_frame
 
     db = _db()
     names = [str(n) for n in db.names]
@@ -65,34 +65,34 @@ def _stance():
 
 @functools.cache
 def _clip():
-    from repro.motion.synthetic import synthetic_clip
+    from repro.motion.database.synthetic import synthetic_clip
 
     return synthetic_clip("punch", seed=3)[0]
 
 
 @functools.cache
 def _mixamo():
-    from repro.motion.synthetic.conventions import build
+    from repro.motion.database.synthetic.conventions import build
 
     return build("mixamo")[0].motion(unit_m=1.0)
 
 
 @functools.cache
 def _skeleton():
-    from repro.motion.skeleton import skeleton_of
+    from repro.motion.body.skeleton import skeleton_of
 
     return skeleton_of(_clip())
 
 
 def _fighter():
-    from repro.motion.fighter import KungFuFighter
+    from repro.motion.runtime.fighter import KungFuFighter
 
     return KungFuFighter(_db(), retriever=_retriever(), method="pruned")  # a fresh one: methods change it
 
 
 # ------------------------------------------------------------------ the order pipeline
 def _strike():
-    from repro.motion.strike import strike
+    from repro.motion.runtime.strike import strike
 
     return strike, dict(source=_retriever(), character=_character(), current_motion=_stance(),
                         target=[0.0, 0.9, 1.2], semantics="punch", frame="root", query=None, method="pruned",
@@ -110,31 +110,31 @@ STRIKE_PARAMS = {
 
 
 def _one_frame():
-    from repro.motion.strike import one_frame
+    from repro.motion.runtime.strike import one_frame
 
     return one_frame, dict(motion=_clip(), f=0)
 
 
 def _turn_and_move():
-    from repro.motion.strike import turn_and_move
+    from repro.motion.runtime.strike import turn_and_move
 
     return turn_and_move, dict(motion=_clip(), theta=0.3, translation=[0.1, 0.0, 0.2])
 
 
 def _blend_into():
-    from repro.motion.strike import blend_into
+    from repro.motion.runtime.strike import blend_into
 
     return blend_into, dict(pose=_clip(), placed=_clip(), n_blend=3)
 
 
 def _clip_effector():
-    from repro.motion.strike import clip_effector
+    from repro.motion.runtime.strike import clip_effector
 
     return clip_effector, dict(db=_db(), clip=0, character=_character())
 
 
 def _reach_by_distance():
-    from repro.motion.strike import reach_by_distance
+    from repro.motion.runtime.strike import reach_by_distance
 
     return reach_by_distance, dict(distances=[0.5, 1.0, 1.5], reached=[True, True, False],
                                    levels=["limb", "root", "root"], bins=2)
@@ -149,7 +149,7 @@ def _method(attr, /, **kw):
 
 
 def _fighter_ctor():
-    from repro.motion.fighter import KungFuFighter
+    from repro.motion.runtime.fighter import KungFuFighter
 
     return (lambda **kw: KungFuFighter(_db(), retriever=_retriever(), method="pruned", **kw),
             dict(character=None, height=1.75, arm_scale=1.0, leg_scale=1.0, seed=0, position=(0.0, -0.8),
@@ -157,20 +157,20 @@ def _fighter_ctor():
 
 
 def _simulated_user():
-    from repro.motion.fighter import simulated_user
+    from repro.motion.runtime.fighter import simulated_user
 
     return simulated_user, dict(seed=0, duration=2.0, fps=30.0, heights=(1.5, 1.8), crouch_every=4.0,
                                 crouch_depth=(0.25, 0.45), margin=0.2)
 
 
 def _character_from():
-    from repro.motion.fighter import character_from
+    from repro.motion.runtime.fighter import character_from
 
     return character_from, dict(height=1.75, arm_scale=1.0, leg_scale=1.0, base=None)
 
 
 def _check_target():
-    from repro.motion.fighter import check_target
+    from repro.motion.runtime.fighter import check_target
 
     return check_target, dict(target=[0.0, 1.6, 0.5])
 
@@ -230,20 +230,20 @@ def _adaptation_cost():
 
 # ------------------------------------------------------------------ retargeting
 def _retarget_across():
-    from repro.motion.retarget_tree import retarget_across
+    from repro.motion.retargeting.trees import retarget_across
 
     return retarget_across, dict(motion=_clip(), character=_mixamo(), roles=None, character_roles=None,
                                  fix_feet=True, blend_time=0.1)
 
 
 def _tree_plan():
-    from repro.motion.retarget_tree import TreePlan
+    from repro.motion.retargeting.trees import TreePlan
 
     return TreePlan, dict(motion=_clip(), character=_mixamo(), roles=None, character_roles=None)
 
 
 def _tree_positions():
-    from repro.motion.retarget_tree import TreePlan
+    from repro.motion.retargeting.trees import TreePlan
 
     m = _clip()
     return TreePlan(m, _mixamo()).positions, dict(rotations=m.rotations, translations=m.local_translations(),
@@ -251,38 +251,38 @@ def _tree_positions():
 
 
 def _body_frame():
-    from repro.motion.retarget_tree import body_frame
+    from repro.motion.retargeting.trees import body_frame
 
     return body_frame, dict(sk=_skeleton(), up="y")
 
 
 def _retarget():
-    from repro.motion.morphology import retarget
+    from repro.motion.retargeting.morphology import retarget
 
     return retarget, dict(motion=_clip(), target=_character(), roles=None, fix_feet=True)
 
 
 def _encode():
-    from repro.motion.morphology import encode
+    from repro.motion.retargeting.morphology import encode
 
     return encode, dict(motion=_clip(), roles=None)
 
 
 def _decode():
-    from repro.motion.morphology import decode, encode
+    from repro.motion.retargeting.morphology import decode, encode
 
     return decode, dict(mi=encode(_clip()), target=_character(), fix_feet=True, blend_time=0.1,
                         max_rest_angle_deg=5.0)
 
 
 def _naive_retarget():
-    from repro.motion.morphology import naive_retarget
+    from repro.motion.retargeting.morphology import naive_retarget
 
     return naive_retarget, dict(motion=_clip(), target=_character(), scale_root=True)
 
 
 def _retarget_plan_positions():
-    from repro.motion.morphology import RetargetPlan
+    from repro.motion.retargeting.morphology import RetargetPlan
 
     m = _clip()
     return RetargetPlan(m, _character()).positions, dict(rotations=m.rotations, translations=m.local_translations(),
@@ -291,20 +291,20 @@ def _retarget_plan_positions():
 
 # ------------------------------------------------------------------ skeletons, roles, motions
 def _scale_skeleton():
-    from repro.motion.skeleton import scale_skeleton
+    from repro.motion.body.skeleton import scale_skeleton
 
     return scale_skeleton, dict(skeleton=_skeleton(), height=1.8, scale=None, arm_scale=1.1, leg_scale=0.9,
                                 trunk_scale=1.0, bone_scales=None)
 
 
 def _skeleton_of():
-    from repro.motion.skeleton import skeleton_of
+    from repro.motion.body.skeleton import skeleton_of
 
     return skeleton_of, dict(x=_clip(), roles=None)
 
 
 def _rescale_constraint():
-    from repro.motion.skeleton import rescale_constraint
+    from repro.motion.body.skeleton import rescale_constraint
 
     return rescale_constraint, dict(c=[0.1, 1.2, 0.5], size_actor=1.7, size_character=1.8)
 
@@ -322,7 +322,7 @@ def _with_offsets():
 
 
 def _find_roles():
-    from repro.motion.roles import find_roles
+    from repro.motion.body.roles import find_roles
 
     sk = _skeleton()
     return find_roles, dict(joint_names=list(sk.joint_names), parents=sk.parents, overrides=None,
@@ -330,14 +330,14 @@ def _find_roles():
 
 
 def _effector_role():
-    from repro.motion.roles import effector_role
+    from repro.motion.body.roles import effector_role
 
     sk = _skeleton()
     return effector_role, dict(roles=sk.roles, hit_role="right_fist", hit_joint=sk.roles["right_fist"])
 
 
 def _check_roles():
-    from repro.motion.roles import check_roles
+    from repro.motion.body.roles import check_roles
 
     sk = _skeleton()
     return check_roles, dict(roles=sk.roles, purpose="a punch", joint_names=sk.joint_names)
@@ -351,19 +351,19 @@ def _motion_method(attr, /, **kw):
 
 
 def _finite_vector3():
-    from repro.motion.motion import finite_vector3
+    from repro.motion.core.motion import finite_vector3
 
     return finite_vector3, dict(value=[0.0, 1.0, 2.0], name="target")
 
 
 def _depth_levels():
-    from repro.motion.kinematics import depth_levels
+    from repro.motion.core.kinematics import depth_levels
 
     return depth_levels, dict(parents=_skeleton().parents)
 
 
 def _skeleton_ctor():
-    from repro.motion.skeleton import Skeleton
+    from repro.motion.body.skeleton import Skeleton
 
     sk = _skeleton()
     return Skeleton, dict(joint_names=list(sk.joint_names), parents=sk.parents, offsets=sk.offsets,
@@ -372,7 +372,7 @@ def _skeleton_ctor():
 
 
 def _motion_ctor():
-    from repro.motion.motion import Motion
+    from repro.motion.core.motion import Motion
 
     m = _clip()
     return Motion, dict(joint_names=list(m.joint_names), parents=m.parents, offsets=m.offsets, channels=m.channels,
@@ -382,26 +382,26 @@ def _motion_ctor():
 
 
 def _infer_unit():
-    from repro.motion.skeleton import infer_unit
+    from repro.motion.body.skeleton import infer_unit
 
     return infer_unit, dict(stature=1.75)
 
 
 def _rest_up_axis():
-    from repro.motion.roles import rest_up_axis
+    from repro.motion.body.roles import rest_up_axis
 
     sk = _skeleton()
     return rest_up_axis, dict(names=list(sk.joint_names), parents=sk.parents, offsets=sk.offsets)
 
 
 def _is_helper_name():
-    from repro.motion.roles import is_helper_name
+    from repro.motion.body.roles import is_helper_name
 
     return is_helper_name, dict(name="LeftHandIndex1")
 
 
 def _rest_axes():
-    from repro.motion.retarget_tree import rest_axes
+    from repro.motion.retargeting.trees import rest_axes
 
     return rest_axes, dict(sk=_skeleton())
 
@@ -413,7 +413,7 @@ def _cone_limits():
 
 
 def _time_retarget():
-    from repro.motion.morphology import time_retarget
+    from repro.motion.retargeting.morphology import time_retarget
 
     return time_retarget, dict(motion=_clip(), target=_character(), repeats=1)
 
@@ -432,7 +432,7 @@ def _time_adaptation():
 
 
 def _decode_with_report():
-    from repro.motion.morphology import decode_with_report, encode
+    from repro.motion.retargeting.morphology import decode_with_report, encode
 
     return decode_with_report, dict(mi=encode(_clip()), target=_character(), fix_feet=True, blend_time=0.1,
                                     max_rest_angle_deg=5.0)

@@ -1,20 +1,20 @@
 """Argument fuzzer cases of the motion database and its search (issue 23, sections 3, 5, 6, 8).
 
-The database (:class:`repro.motion.database.MotionDatabase`'s accessors, ``select``,
-``from_clips``, :class:`~repro.motion.database.Clip`, ``annotate``), its builders and
-variants (:mod:`repro.motion.sources`, :func:`repro.motion.augment.augment`), the
-annotation (:mod:`repro.motion.annotation`), the retrieval (:class:`MotionRetriever` and its
+The database (:class:`repro.motion.database.clips.MotionDatabase`'s accessors, ``select``,
+``from_clips``, :class:`~repro.motion.database.clips.Clip`, ``annotate``), its builders and
+variants (:mod:`repro.motion.database.sources`, :func:`repro.motion.database.augment.augment`), the
+annotation (:mod:`repro.motion.database.annotation`), the retrieval (:class:`MotionRetriever` and its
 searches, :func:`make_queries`, :func:`time_search`, the retargeting helpers), the pose
-clouds and their clustering (:mod:`repro.motion.clustering`), the exact search's public
-helpers (:mod:`repro.motion.retrieval_exact`), the synthetic generator and the BVH writer:
+clouds and their clustering (:mod:`repro.motion.search.clustering`), the exact search's public
+helpers (:mod:`repro.motion.search.exact`), the synthetic generator and the BVH writer:
 every parameter gets the hostile values of :mod:`tests.fuzz.arguments` (a ReproError or a
 finite result, never another exception, a hang or an allocation past the budget).
 
 The database (6 clips of the synthetic one) and its retriever are built once per child
 (:func:`functools.cache`); searches use ``method="pruned"`` or the exhaustive search (no numba
-compile in the child).  Not fuzzed: the compiled kernel (:mod:`repro.motion.retrieval_kernel`,
+compile in the child).  Not fuzzed: the compiled kernel (:mod:`repro.motion.search.kernel`,
 called with arrays the checked entries made) and the quaternion helpers
-(:mod:`repro.motion.quaternion`, the solvers' inner arithmetic on checked arrays, as the
+(:mod:`repro.motion.core.quaternion`, the solvers' inner arithmetic on checked arrays, as the
 kinematics helpers in the runtime cases); the file readers have their own fuzzer.
 """
 
@@ -48,7 +48,7 @@ def _tmp() -> str:
 
 @functools.cache
 def _full():
-    from repro.motion.sources import default_database
+    from repro.motion.database.sources import default_database
 
     return default_database("synthetic")
 
@@ -63,14 +63,14 @@ def _db():
 
 @functools.cache
 def _retriever():
-    from repro.motion.retrieval import MotionRetriever
+    from repro.motion.search.retrieval import MotionRetriever
 
     return MotionRetriever(_db(), seed=0)
 
 
 @functools.cache
 def _pose():
-    from repro.motion.strike import one_frame
+    from repro.motion.runtime.strike import one_frame
 
     return one_frame(_db().motion(0), 0)
 
@@ -99,7 +99,7 @@ def _global():
 def _synthetic_dir():
     import tempfile
 
-    from repro.motion.synthetic import synthetic_database
+    from repro.motion.database.synthetic import synthetic_database
 
     d = tempfile.mkdtemp(dir=_tmp(), prefix="fuzz-synthetic-")
     synthetic_database(d, n_actors=1, seed=0)
@@ -115,13 +115,13 @@ def _db_method(name, **kw):
 
 
 def _from_clips():
-    from repro.motion.database import MotionDatabase
+    from repro.motion.database.clips import MotionDatabase
 
     return MotionDatabase.from_clips, dict(clips=[_clip()], window=1, step=1, meta={"a": 1})
 
 
 def _clip_ctor():
-    from repro.motion.database import Clip
+    from repro.motion.database.clips import Clip
 
     c = _clip()
     return Clip, dict(name="n", motion=c.motion, semantics=c.semantics, hit_role=c.hit_role, hit_joint=c.hit_joint,
@@ -130,7 +130,7 @@ def _clip_ctor():
 
 
 def _annotate():
-    from repro.motion.database import annotate
+    from repro.motion.database.clips import annotate
 
     c = _clip()
     return annotate, dict(motion=c.motion, hit_frame=c.hit_frame, hit_role=c.hit_role, semantics=c.semantics,
@@ -138,52 +138,52 @@ def _annotate():
 
 
 def _augment():
-    from repro.motion.augment import augment
+    from repro.motion.database.augment import augment
 
     return augment, dict(db=_db(), factor=2, seed=0, scale_range=(0.85, 1.15), warp_range=(0.85, 1.15), noise=0.005,
                          mirror_probability=0.5, pose_dtype=None)
 
 
 def _default_database():
-    from repro.motion.sources import default_database
+    from repro.motion.database.sources import default_database
 
     return default_database, dict(name="synthetic", seed=0)
 
 
 def _build_database():
-    from repro.motion.sources import build_database
+    from repro.motion.database.sources import build_database
 
     return build_database, dict(source=_synthetic_dir(), fps=30.0, window=None, unit_m=None, manifest="manifest.csv",
                                 pose_window=1, detect_kw=None)
 
 
 def _clip_source_dataset():
-    from repro.motion.sources import clip_source_dataset
+    from repro.motion.database.sources import clip_source_dataset
 
     return clip_source_dataset, dict(db=_db())
 
 
 # ------------------------------------------------------------------ annotation
 def _detect_hits():
-    from repro.motion.annotation import detect_hits
+    from repro.motion.database.annotation import detect_hits
 
     return detect_hits, dict(motion=_clip().motion, skeleton=None, semantics=None, side=None)
 
 
 def _hit_frame_for():
-    from repro.motion.annotation import hit_frame_for
+    from repro.motion.database.annotation import hit_frame_for
 
     return hit_frame_for, dict(motion=_clip().motion, role=_clip().hit_role, skeleton=None)
 
 
 def _check_semantics():
-    from repro.motion.annotation import check_semantics
+    from repro.motion.database.annotation import check_semantics
 
     return check_semantics, dict(s="punch")
 
 
 def _hit_point_trajectory():
-    from repro.motion.annotation import hit_point_trajectory
+    from repro.motion.database.annotation import hit_point_trajectory
 
     c = _clip()
     return hit_point_trajectory, dict(motion=c.motion, joint=c.hit_joint, where="joint", positions=None)
@@ -191,7 +191,7 @@ def _hit_point_trajectory():
 
 # ------------------------------------------------------------------ retrieval
 def _retriever_ctor():
-    from repro.motion.retrieval import MotionRetriever
+    from repro.motion.search.retrieval import MotionRetriever
 
     return MotionRetriever, dict(db=_db(), k=None, seed=0, weights=None, w_q=1.0, w_c=1.0, kd_neighbours=32,
                                  across_trees=True)
@@ -230,32 +230,32 @@ def _result_place():
 
 
 def _make_queries():
-    from repro.motion.retrieval import make_queries
+    from repro.motion.search.retrieval import make_queries
 
     return make_queries, dict(db=_db(), n=2, seed=0, noise=0.05)
 
 
 def _time_search():
-    from repro.motion.retrieval import time_search
+    from repro.motion.search.retrieval import time_search
 
     return time_search, dict(db=_db(), n_queries=2, seed=0, retriever=_retriever(), methods=("pruned",), repeats=1,
                              noise=0.05)
 
 
 def _character_skeleton():
-    from repro.motion.retrieval import character_skeleton
+    from repro.motion.search.retrieval import character_skeleton
 
     return character_skeleton, dict(character=_character(), purposes=("a punch",))
 
 
 def _rest_motion_y_up():
-    from repro.motion.retrieval import rest_motion_y_up
+    from repro.motion.search.retrieval import rest_motion_y_up
 
     return rest_motion_y_up, dict(character=_character())
 
 
 def _retarget_to_tree():
-    from repro.motion.retrieval import retarget_to_tree
+    from repro.motion.search.retrieval import retarget_to_tree
 
     return retarget_to_tree, dict(motion=_db().motion(1), character=_character(), roles=None, target=None,
                                   fix_feet=False)
@@ -264,7 +264,7 @@ def _retarget_to_tree():
 # ------------------------------------------------------------------ pose clouds and clustering
 def _clustering(name, **kw):
     def setup():
-        import repro.motion.clustering as cl
+        import repro.motion.search.clustering as cl
 
         return getattr(cl, name), {k: (v() if callable(v) else v) for k, v in kw.items()}
 
@@ -273,7 +273,7 @@ def _clustering(name, **kw):
 
 @functools.cache
 def _index():
-    from repro.motion.clustering import AlignedPoseIndex
+    from repro.motion.search.clustering import AlignedPoseIndex
 
     return AlignedPoseIndex(_points())
 
@@ -284,7 +284,7 @@ def _index_method(name, **kw):
 
 def _exact(name, **kw):
     def setup():
-        import repro.motion.retrieval_exact as ex
+        import repro.motion.search.exact as ex
 
         return getattr(ex, name), {k: (v() if callable(v) else v) for k, v in kw.items()}
 
@@ -293,25 +293,25 @@ def _exact(name, **kw):
 
 # ------------------------------------------------------------------ synthetic data and BVH writing
 def _synthetic_clip():
-    from repro.motion.synthetic import synthetic_clip
+    from repro.motion.database.synthetic import synthetic_clip
 
     return synthetic_clip, dict(kind="punch", side="right", level="middle", actor_height=1.75, seed=0, fps=30.0)
 
 
 def _synthetic_skeleton():
-    from repro.motion.synthetic import synthetic_skeleton
+    from repro.motion.database.synthetic import synthetic_skeleton
 
     return synthetic_skeleton, dict(actor_height=1.75)
 
 
 def _database_actor_heights():
-    from repro.motion.synthetic import database_actor_heights
+    from repro.motion.database.synthetic import database_actor_heights
 
     return database_actor_heights, dict(n_actors=3)
 
 
 def _conventions_build():
-    from repro.motion.synthetic.conventions import build
+    from repro.motion.database.synthetic.conventions import build
 
     return build, dict(convention="mixamo", height=1.75)
 
@@ -319,7 +319,7 @@ def _conventions_build():
 def _write_bvh():
     import tempfile
 
-    from repro.motion.bvh import write_bvh
+    from repro.motion.io.bvh import write_bvh
 
     return write_bvh, dict(motion=_clip().motion, path=tempfile.mkdtemp(dir=_tmp(), prefix="fuzz-bvh-") + "/a.bvh",
                            overwrite=False, precision=12)
@@ -330,7 +330,7 @@ def _retarget_plan():
 
 
 def _tree_plan():
-    from repro.motion.roles import find_roles
+    from repro.motion.body.roles import find_roles
 
     m = _pose()
     return _retriever().tree_plan, dict(m=m, a=0, roles=find_roles(list(m.joint_names), m.parents, offsets=m.offsets))
@@ -339,7 +339,7 @@ def _tree_plan():
 def _load_or_build():
     import tempfile
 
-    from repro.motion.sources import load_or_build
+    from repro.motion.database.sources import load_or_build
 
     return load_or_build, dict(path=tempfile.mkdtemp(dir=_tmp(), prefix="fuzz-db-") + "/db.npz", build=_db)
 
@@ -347,7 +347,7 @@ def _load_or_build():
 def _synthetic_database():
     import tempfile
 
-    from repro.motion.synthetic import synthetic_database
+    from repro.motion.database.synthetic import synthetic_database
 
     return synthetic_database, dict(out_dir=tempfile.mkdtemp(dir=_tmp(), prefix="fuzz-syn-"), n_actors=1, seed=0, fps=30.0,
                                     overwrite=False)
@@ -356,13 +356,13 @@ def _synthetic_database():
 def _read_manifest():
     import os
 
-    from repro.motion.synthetic import read_manifest
+    from repro.motion.database.synthetic import read_manifest
 
     return read_manifest, dict(path=os.path.join(_synthetic_dir(), "manifest.csv"), verify=False)
 
 
 def _expected_roles():
-    from repro.motion.synthetic.conventions import expected_roles
+    from repro.motion.database.synthetic.conventions import expected_roles
 
     return expected_roles, dict(convention="smpl")
 
@@ -370,7 +370,7 @@ def _expected_roles():
 def _read_bvh():
     import os
 
-    from repro.motion.bvh import read_bvh
+    from repro.motion.io.bvh import read_bvh
 
     d = _synthetic_dir()
     return read_bvh, dict(src=os.path.join(d, sorted(f for f in os.listdir(d) if f.endswith(".bvh"))[0]),

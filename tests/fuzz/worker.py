@@ -242,7 +242,7 @@ class Targets:
         _strict_obj_numbers(path)
 
     def db(self, path, req=None):
-        from repro.motion.database import MotionDatabase
+        from repro.motion.database.clips import MotionDatabase
 
         self.stage = "MotionDatabase.load"
         db = MotionDatabase.load(path)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from repro.errors import RetrievalError
-from repro.motion.fighter import KungFuFighter, character_from
+from repro.motion.runtime.fighter import KungFuFighter, character_from
 
 
 @pytest.fixture(scope="module")

@@ -107,13 +107,13 @@ def test_face_panel_3d_nan_pose_does_not_break_the_message(face):
 
 @pytest.fixture(scope="module")
 def fighter():
-    from repro.motion.fighter import KungFuFighter
+    from repro.motion.runtime.fighter import KungFuFighter
 
     return KungFuFighter("synthetic", seed=0)
 
 
 def test_fighter_panel_sends_each_strike_to_the_3d_view(fighter):
-    from repro.motion.fighter import KungFuFighter
+    from repro.motion.runtime.fighter import KungFuFighter
     from repro.ui.fighter_panel import FighterPanel
     from repro.ui.strike_view import StrikeCamera, scene_geometry
     from repro.ui.webview import unpack

@@ -418,7 +418,7 @@ def test_matplotlib_view_draws_what_agg_draws_of_its_figure(face):
 
 @pytest.fixture(scope="module")
 def strike():
-    from repro.motion.fighter import KungFuFighter
+    from repro.motion.runtime.fighter import KungFuFighter
 
     f = KungFuFighter("synthetic", seed=0)
     f.follow((0.3, 1.3, 0.4), 0.0, snap=True)
@@ -482,7 +482,7 @@ def test_fighter_numbers_line_breaks_only_between_fields(strike):
 
 
 def test_fighter_panel_labels_its_icon_buttons_and_animates_on_request(strike):
-    from repro.motion.fighter import KungFuFighter
+    from repro.motion.runtime.fighter import KungFuFighter
     from repro.ui.fighter_panel import PANEL_CSS, FighterPanel
 
     assert 'content: " play / pause"' in PANEL_CSS and 'content: " stop"' in PANEL_CSS

@@ -12,10 +12,10 @@ floor for both fighters (the opponent does not change size), at lateral position
 metres, and at a depth proportional to the fighter's height (it keeps "a reachable
 distance"), in the fighter's root frame (:data:`TARGETS`).  Each order goes through the
 whole pipeline: retrieval from the full synthetic database (Section 3.3, Eq. 1), the
-paper's retargeting to the fighter (:func:`~repro.motion.morphology.retarget` with
+paper's retargeting to the fighter (:func:`~repro.motion.retargeting.morphology.retarget` with
 ``fix_feet=True``, Section 3.4.1), placement on the current pose and the blend with it, and
 the constraints solver from the start frame to the hit frame (Section 3.4.2): the one
-pipeline, :func:`repro.motion.strike.strike`.
+pipeline, :func:`repro.motion.runtime.strike.strike`.
 
 The figure draws, per fighter and order, the pose at the contact frame before adaptation
 (grey) and after (light blue), the hit point's trajectory from the start frame to the
@@ -69,12 +69,12 @@ def _segments(sk) -> list[tuple[int, int]]:
 
 
 def _compute(quick: bool, progress: bool = False):
-    from repro.motion.clustering import to_root_frame
-    from repro.motion.sources import default_database
-    from repro.motion.morphology import retarget
-    from repro.motion.retrieval import MotionRetriever
-    from repro.motion.skeleton import scale_skeleton
-    from repro.motion.strike import one_frame, strike
+    from repro.motion.search.clustering import to_root_frame
+    from repro.motion.database.sources import default_database
+    from repro.motion.retargeting.morphology import retarget
+    from repro.motion.search.retrieval import MotionRetriever
+    from repro.motion.body.skeleton import scale_skeleton
+    from repro.motion.runtime.strike import one_frame, strike
 
     db = default_database("synthetic")
     names = [str(n) for n in db.names]
@@ -114,7 +114,7 @@ def _compute(quick: bool, progress: bool = False):
 def _feet_databases() -> dict:
     """``{"synthetic": db, "cmu": db}`` (CMU only when the dataset is staged)."""
     from repro import data
-    from repro.motion.sources import default_database
+    from repro.motion.database.sources import default_database
 
     out = {"synthetic": default_database("synthetic")}
     if data.missing_reason("cmu-bvh") is None:
@@ -125,11 +125,11 @@ def _feet_databases() -> dict:
 def feet_of_played_strikes(db, name: str, clips=None, *, progress: bool = False) -> pd.DataFrame:
     """One row per clip of ``db`` (or of ``clips``): its feet once played (module docstring, the feet table)."""
     from repro.motion.adaptation import adapt
-    from repro.motion.annotation import hit_point_trajectory
-    from repro.motion.feet import foot_contacts, max_foot_slide, min_toe_height
-    from repro.motion.morphology import retarget
-    from repro.motion.skeleton import scale_skeleton
-    from repro.motion.strike import clip_effector
+    from repro.motion.database.annotation import hit_point_trajectory
+    from repro.motion.body.feet import foot_contacts, max_foot_slide, min_toe_height
+    from repro.motion.retargeting.morphology import retarget
+    from repro.motion.body.skeleton import scale_skeleton
+    from repro.motion.runtime.strike import clip_effector
 
     rows = []
     for i in bar(range(db.n_clips) if clips is None else clips, desc=f"adapted_motions: feet, {name} clips", unit="clip",

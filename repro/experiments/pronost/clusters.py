@@ -6,9 +6,9 @@ carries "the bounding box of [the hit-point] trajectory" (Section 3.2.1, Fig. 4:
 trajectory as red spots, the constraint ``c_r`` as a green spot), which the search uses
 to discard clips (Section 3.3).
 
-The clusters are those :class:`repro.motion.retrieval.MotionRetriever` builds by default:
-:func:`repro.motion.clustering.cluster_poses` of all poses with the default ``k``
-(:func:`~repro.motion.clustering.default_k`) and seed 0.  Poses are clouds of 17 joints in
+The clusters are those :class:`repro.motion.search.retrieval.MotionRetriever` builds by default:
+:func:`repro.motion.search.clustering.cluster_poses` of all poses with the default ``k``
+(:func:`~repro.motion.search.clustering.default_k`) and seed 0.  Poses are clouds of 17 joints in
 their own root frame (origin on the floor below the pelvis, y up, z the heading, x the
 body's left), divided by the actor's size; the centroids are mean clouds in the same
 units, drawn as stick figures seen from the side (z to the right) and from the front
@@ -34,7 +34,7 @@ import pandas as pd
 
 from repro.experiments.registry import Result, experiment
 
-#: Stick-figure bones between pose roles (:data:`repro.motion.clustering.POSE_ROLES`).
+#: Stick-figure bones between pose roles (:data:`repro.motion.search.clustering.POSE_ROLES`).
 BONES: tuple[tuple[str, str], ...] = (
     ("pelvis", "chest"), ("chest", "head"),
     ("chest", "left_shoulder"), ("left_shoulder", "left_elbow"), ("left_elbow", "left_wrist"),
@@ -48,7 +48,7 @@ _AXES = ("x", "y", "z")
 
 def _databases():
     from repro import data
-    from repro.motion.sources import default_database
+    from repro.motion.database.sources import default_database
 
     names = ["synthetic"] + (["cmu"] if data.missing_reason("cmu-bvh") is None else [])
     return [(n, default_database(n)) for n in names]
@@ -126,7 +126,7 @@ def example_target(db, i: int) -> np.ndarray:
 @experiment("clusters", "What the k-means pose clusters and the hit-trajectory boxes look like (Sections 3.2.1-3.2.2, "
             "Fig. 4 analog)", paper="pronost2008")
 def clusters(quick: bool = False) -> Result:
-    from repro.motion.clustering import cluster_poses
+    from repro.motion.search.clustering import cluster_poses
 
     made = [(name, db, cluster_poses(db.pose_points, None, seed=0)) for name, db in _databases()]
     table = pd.concat([cluster_table(n, db, cl) for n, db, cl in made], ignore_index=True)

@@ -2,7 +2,7 @@
 
 The paper's database serves "hundreds of characters" with *different skeletons*.  This
 figure plays the synthetic database on characters in other tools' conventions
-(:mod:`repro.motion.synthetic.conventions`: Mixamo, MotionBuilder, Poser/DAZ, Second
+(:mod:`repro.motion.database.synthetic.conventions`: Mixamo, MotionBuilder, Poser/DAZ, Second
 Life, 3ds Max Biped, SMPL, Unreal, Unity -- extra spine joints, twist bones, fingers, face
 joints, zero-length helpers, A-pose, Z-up) at statures 1.2-2.2 m, and on real data CMU
 clips on the Bandai Namco skeleton and the reverse, through
@@ -12,7 +12,7 @@ clips on the Bandai Namco skeleton and the reverse, through
   joint to the representation's target (proximal joint + normalised limb vector x the
   character's limb length); non-zero only where the limb cannot reach;
 * ``foot_slide_m``: mean horizontal displacement per frame of the character's ankles on
-  the frames where the source's ankle is planted (:func:`repro.motion.feet.foot_contacts`);
+  the frames where the source's ankle is planted (:func:`repro.motion.body.feet.foot_contacts`);
 * ``penetration_m``: deepest point of the ankles / toes below the floor plane;
 * ``bone_length_error``: largest relative difference between a bone of the result and the
   character's bone;
@@ -25,7 +25,7 @@ the pinned feet bend the legs away from the source's directions (``limb_angle_de
 a few degrees), and the foot slide and ground penetration fall to zero.
 
 Real data: besides two whole takes (no hit annotation), annotated clips of the CMU +
-Bandai Namco database (:func:`repro.motion.sources.build_real_database`) give two more
+Bandai Namco database (:func:`repro.motion.database.sources.build_real_database`) give two more
 columns at the hit frame, in the clip's first root frame (where the database keeps hit
 points): ``eq1_gap_m``, the distance from the retargeted hit point (the character's joint
 of the clip's ``hit_role``) to the source's hit point scaled by Eq. 1 (``size_c /
@@ -34,12 +34,12 @@ same scaled by the ratio of hip heights (the representation's root path normalis
 Why a Bandai kick played by a CMU character falls ~0.2 m short of its Eq. 1 target: the
 two rigs' statures are not measured alike -- the Bandai skeleton has a zero-length head
 End Site (no head top) and a rest pose that cannot tell the ankle height
-(:attr:`~repro.motion.skeleton.Skeleton.height`), so its stature is 1.298 m against
+(:attr:`~repro.motion.body.skeleton.Skeleton.height`), so its stature is 1.298 m against
 CMU's 1.636 m (ratio 1.26) while their hip heights differ by 1.156 and their legs
 (thigh + shin) by 1.046.  The retargeted root path follows the hip heights and the limbs
 their lengths, so the hit point lands near the hip-ratio point (``hip_ratio_gap_m`` a
 few cm) and the Eq. 1 point is ~20% farther.  This is most, not all, of a strike's miss
-there: :func:`repro.motion.strike.strike` also aligns the clip's start on the character's
+there: :func:`repro.motion.runtime.strike.strike` also aligns the clip's start on the character's
 pose and adapts it, and its kick misses a hip-ratio target too, by less.  (Before the
 rest offsets carried each segment's twist, the Bandai pelvis also came out turned ~43
 deg about the trunk on a CMU character.)
@@ -69,10 +69,10 @@ LIMBS = {"arm": ("shoulder", "wrist"), "leg": ("hip", "ankle")}
 
 def measure(src, out, *, hit_frame: int | None = None, hit_role: str | None = None) -> dict:
     """The accuracy columns of one retargeted clip (see the module docstring); metres."""
-    from repro.motion.feet import foot_contacts
-    from repro.motion.retarget_tree import body_frame
-    from repro.motion.skeleton import Skeleton, skeleton_of
-    from repro.motion.units import infer_up
+    from repro.motion.body.feet import foot_contacts
+    from repro.motion.retargeting.trees import body_frame
+    from repro.motion.body.skeleton import Skeleton, skeleton_of
+    from repro.motion.body.units import infer_up
 
     ss, ts = Skeleton.from_motion(src), skeleton_of(out)
     ups, upt = src.up or infer_up(src, ss), out.up or infer_up(out, ts)
@@ -125,8 +125,8 @@ def measure(src, out, *, hit_frame: int | None = None, hit_role: str | None = No
 
 def _synthetic_rows(quick: bool, progress: bool = False) -> list[dict]:
     from repro.motion import retarget
-    from repro.motion.synthetic import synthetic_clip
-    from repro.motion.synthetic.conventions import CONVENTIONS, build
+    from repro.motion.database.synthetic import synthetic_clip
+    from repro.motion.database.synthetic.conventions import CONVENTIONS, build
 
     rows = []
     convs = CONVENTIONS_QUICK if quick else tuple(c for c in CONVENTIONS if c != "unsided")
@@ -173,8 +173,8 @@ def _real_rows(quick: bool) -> list[dict]:
 
 def hit_gaps(src, out, hit_frame: int, hit_role: str) -> dict:
     """``eq1_gap_m`` and ``hip_ratio_gap_m`` of one retargeted clip (module docstring); metres."""
-    from repro.motion.clustering import root_frames, to_root_frame
-    from repro.motion.skeleton import Skeleton, skeleton_of
+    from repro.motion.search.clustering import root_frames, to_root_frame
+    from repro.motion.body.skeleton import Skeleton, skeleton_of
 
     out_m = {}
     for key, m, sk in (("s", src, Skeleton.from_motion(src)), ("t", out, skeleton_of(out))):
@@ -189,8 +189,8 @@ def hit_gaps(src, out, hit_frame: int, hit_role: str) -> dict:
 
 def _real_clip_rows(quick: bool) -> list[dict]:
     """Annotated CMU and Bandai Namco clips onto the other skeleton, with the hit columns."""
-    from repro.motion.retrieval import retarget_to_tree
-    from repro.motion.sources import build_real_database, clip_source_dataset
+    from repro.motion.search.retrieval import retarget_to_tree
+    from repro.motion.database.sources import build_real_database, clip_source_dataset
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -12,10 +12,10 @@ fighting stance (frame 0 of ``actor2_punch_left_high`` retargeted to it) and is 
 to punch and to kick targets on a grid in front of it, in its root reference frame:
 lateral ``x`` from -0.3 H to 0.3 H, height ``y`` from 0.2 H to 1.0 H, at depth
 ``z = 0.5 H`` (H = 1.8 m).  For each target the motion is retrieved (Section 3.3,
-:class:`~repro.motion.retrieval.MotionRetriever`, Eq. 1) from the full synthetic database
+:class:`~repro.motion.search.retrieval.MotionRetriever`, Eq. 1) from the full synthetic database
 (72 clips) or from random subsets of it (stratified: a quarter punches, at least one
 punch and one kick; several seeds), retargeted to the fighter
-(:func:`~repro.motion.morphology.retarget` with ``fix_feet=True``), placed where the
+(:func:`~repro.motion.retargeting.morphology.retarget` with ``fix_feet=True``), placed where the
 system plays it (aligned on the current pose, :meth:`RetrievalResult.place`), and adapted
 (Section 3.4.2, :func:`~repro.motion.adaptation.adapt` from the start frame ``t0`` to the
 hit frame ``tc``).
@@ -29,7 +29,7 @@ point's trajectory comes to the target after the start frame (what the retrieval
 reaches after adaptation (the reachable area of this fighter, for that semantics), the
 fraction a smaller database reaches too.
 
-Every strike goes through the one pipeline, :func:`repro.motion.strike.strike` (retrieve,
+Every strike goes through the one pipeline, :func:`repro.motion.runtime.strike.strike` (retrieve,
 retarget, place, blend with the stance, solve at the levels limb / spine / root).  The
 price paid for "after = 0" is measured per strike against the retargeted, placed and
 blended clip (:func:`repro.motion.adaptation.cost.adaptation_cost`) and averaged per
@@ -44,7 +44,7 @@ The main table has one row per semantics x database size x seed;
 ``extra_tables["grid"]`` one row per target as well; ``extra_tables["reach"]`` the
 whole-body reach study: the full database, targets on the centre column at depths
 :data:`REACH_DEPTHS` x H, per semantics and depth the reached fraction and the fraction
-that needed each level (:func:`repro.motion.strike.reach_by_distance`).  ``quick=True``: a 5 x 5 grid,
+that needed each level (:func:`repro.motion.runtime.strike.reach_by_distance`).  ``quick=True``: a 5 x 5 grid,
 sizes 72 / 18 / 4, two seeds (the full run: 9 x 9, sizes 72 / 36 / 18 / 9 / 4 / 2,
 five seeds).
 """
@@ -118,7 +118,7 @@ class _Strikes:
         self.ch, self.stance, self.rows = ch, stance, {}
 
     def __call__(self, retriever, q, c: np.ndarray, sem: str) -> dict:
-        from repro.motion.strike import strike
+        from repro.motion.runtime.strike import strike
 
         res = retriever.search(c, q, semantics=sem)  # the search strike() makes (pruned, first-frame scoring)
         key = (sem, c.tobytes(), float(q.heading), np.asarray(q.origin).tobytes(), res.name, res.start_frame,
@@ -135,11 +135,11 @@ class _Strikes:
 
 
 def _compute(quick: bool, progress: bool = False):
-    from repro.motion.sources import default_database
-    from repro.motion.morphology import retarget
-    from repro.motion.retrieval import MotionRetriever
-    from repro.motion.skeleton import scale_skeleton
-    from repro.motion.strike import one_frame, reach_by_distance
+    from repro.motion.database.sources import default_database
+    from repro.motion.retargeting.morphology import retarget
+    from repro.motion.search.retrieval import MotionRetriever
+    from repro.motion.body.skeleton import scale_skeleton
+    from repro.motion.runtime.strike import one_frame, reach_by_distance
 
     db = default_database("synthetic")
     ch = scale_skeleton(db.actors[0], height=HEIGHT)

@@ -9,12 +9,12 @@ and adaptation is very fast (only spends 88us)", on a Pentium 4 3.6 GHz; and (Se
 3.4.2) "when the supervisor provides an order, the system should react in less than
 1/30s".
 
-Here :class:`repro.motion.fighter.KungFuFighter` carries out orders (kicks and punches,
-drawn at random) at the head of a simulated user (:func:`repro.motion.fighter.simulated_user`,
+Here :class:`repro.motion.runtime.fighter.KungFuFighter` carries out orders (kicks and punches,
+drawn at random) at the head of a simulated user (:func:`repro.motion.runtime.fighter.simulated_user`,
 random instants of a 60 s walk), having first stepped to striking distance of it
-(:meth:`~repro.motion.fighter.KungFuFighter.follow`), on the synthetic database and, when
+(:meth:`~repro.motion.runtime.fighter.KungFuFighter.follow`), on the synthetic database and, when
 the staged CMU takes are present, on the CMU one.  Every stage is measured with
-``time.perf_counter`` inside :func:`repro.motion.strike.strike` (the one pipeline), after
+``time.perf_counter`` inside :func:`repro.motion.runtime.strike.strike` (the one pipeline), after
 two warm-up orders; the table gives the median, 90th and 99th percentile over the orders.
 ``extra_tables["per_level"]``: per reach level (limb only / with CCD / with CCD and a root
 shift) the retarget + adapt time per frame and order -> first adapted frame, p50 and p99,
@@ -35,7 +35,7 @@ Stages (ours -> the paper's):
 * ``order -> first adapted frame``: the stages up to frame ``t0 + 1`` final (the reach
   level decided on the contact frame, that frame solved; for a kick whose foot lifts
   after ``t0 + 1``, that frame is final before the level is decided, since no level moves
-  it; the rest of the clip is solved after it, :func:`repro.motion.strike.strike`) -> the
+  it; the rest of the clip is solved after it, :func:`repro.motion.runtime.strike.strike`) -> the
   paper's stages add up to 323 ms plus the adaptation; the budget is 1/30 s = 33.3 ms;
 * ``order -> reach level decided``: the stricter number, up to the level chosen on the
   contact frame (the paper gives none).
@@ -52,7 +52,7 @@ import pandas as pd
 from repro.bench import machine
 from repro.experiments.progress import bar
 from repro.experiments.registry import Result, experiment
-from repro.motion.paper import (
+from repro.motion.runtime.paper import (
     PAPER_ADAPT_PER_FRAME_S,
     PAPER_LOAD_CONVERT_S,
     PAPER_MACHINE,
@@ -78,7 +78,7 @@ STAGE_NAMES = tuple(s[0] for s in STAGES)
 def run_orders(database="synthetic", n_orders: int = 40, seed: int = 0, warmup: int = 2, *,
                progress: bool = False) -> pd.DataFrame:
     """Orders at a simulated user's head: one row per order (strike numbers and stage timings, ms)."""
-    from repro.motion.fighter import KungFuFighter, simulated_user
+    from repro.motion.runtime.fighter import KungFuFighter, simulated_user
 
     fighter = KungFuFighter(database, seed=seed)
     user = simulated_user(seed, duration=60.0, fps=30.0)
@@ -119,7 +119,7 @@ LEVEL_GROUPS = (("limb only", ("limb",)), ("with CCD (spine)", ("spine",)), ("wi
 
 
 def per_level(orders: pd.DataFrame) -> pd.DataFrame:
-    """Per reach level (:attr:`repro.motion.strike.Strike.level`): retarget + adapt per frame and order -> first frame.
+    """Per reach level (:attr:`repro.motion.runtime.strike.Strike.level`): retarget + adapt per frame and order -> first frame.
 
     p50 and p99 (ms) over the orders of that level, beside the paper's 88 µs per frame
     (which it gives for the limb alone).

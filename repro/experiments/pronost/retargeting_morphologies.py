@@ -12,12 +12,12 @@ that work, and this experiment measures each of them on a sweep of characters (h
 
   - ``naive`` -- (a) "people usually apply joint angles from character#1 to
     character#2": local rotations and the root translation copied
-    (:func:`repro.motion.morphology.naive_retarget`);
+    (:func:`repro.motion.retargeting.morphology.naive_retarget`);
   - ``naive_scaled_root`` -- (a') the same with the root translation scaled by the ratio
     of hip heights (``scale_root=True``);
   - ``mi`` -- (b0) the morphology-independent representation of Kulpa et al. 2005,
-    :func:`~repro.motion.morphology.encode` then
-    :func:`~repro.motion.morphology.decode` (limb = normalised distal vector + swivel
+    :func:`~repro.motion.retargeting.morphology.encode` then
+    :func:`~repro.motion.retargeting.morphology.decode` (limb = normalised distal vector + swivel
     angle, root trajectory / hip height), no foot correction;
   - ``mi_feet`` -- (b) the paper's retargeting: the same "and correcting the feet
     artifacts" (``decode(..., fix_feet=True)``);
@@ -26,20 +26,20 @@ that work, and this experiment measures each of them on a sweep of characters (h
     driving the hit point to the target.
 
   Measured on the result: the **hit error** at the hit frame -- distance from the hit
-  point, in the root reference frame of the clip's first frame (:mod:`repro.motion.database`),
+  point, in the root reference frame of the clip's first frame (:mod:`repro.motion.database.clips`),
   to the actor's hit position scaled to the character by Eq. 1 read backwards
   (``c = c_a * size_c / size_a``: where this character should hit); the **foot slide**
   on the frames where the *actor's* ankle is planted
-  (:func:`~repro.motion.feet.foot_contacts` of the source): the largest horizontal
+  (:func:`~repro.motion.body.feet.foot_contacts` of the source): the largest horizontal
   drift of the ankle from its position at the start of each contact phase, and the mean
-  sliding speed (:func:`~repro.motion.feet.foot_metrics`); the lowest toe height
+  sliding speed (:func:`~repro.motion.body.feet.foot_metrics`); the lowest toe height
   (negative = through the floor); and the **bone-length error** (largest change of a
   joint-to-parent distance from the character's bone length).
 
 * **Eq. 1 in the retrieval** (Section 3.3), ``extra_tables["eq1"]``: small and tall
   characters (uniform proportions) aim at the point where a database clip *j* hits,
   scaled to the character (``c = hit_j * size_c / size_a``, nudged 0.1 % inside the
-  clip's box as in ``tests/motion/test_retrieval.py``), from the stance of that clip
+  clip's box as in ``tests/motion/search/test_retrieval.py``), from the stance of that clip
   (its first frame retargeted to the character).  :meth:`MotionRetriever.search` is run
   with Eq. 1 (``scale_target=True``) and without (``scale_target=False``: ``c_r = c``).
   Reported: the clip chosen, its level (high / middle / low, synthetic database), and its
@@ -67,8 +67,8 @@ import pandas as pd
 
 from repro.experiments.progress import bar
 from repro.experiments.registry import Result, experiment
-from repro.motion.feet import max_foot_slide
-from repro.motion.annotation import hit_point_trajectory
+from repro.motion.body.feet import max_foot_slide
+from repro.motion.database.annotation import hit_point_trajectory
 
 #: Statures (m) of the characters of the sweep.
 HEIGHTS = (1.2, 1.5, 1.75, 2.0, 2.2)
@@ -117,7 +117,7 @@ LEVEL_RANK = {"low": 0, "middle": 1, "high": 2}
 def databases() -> dict:
     """``{"synthetic": db, "cmu": db}`` (CMU only when the dataset is staged)."""
     from repro import data
-    from repro.motion.sources import default_database
+    from repro.motion.database.sources import default_database
 
     out = {"synthetic": default_database("synthetic")}
     if data.missing_reason("cmu-bvh") is None:
@@ -127,7 +127,7 @@ def databases() -> dict:
 
 def first_root_frame(motion, skeleton) -> tuple[float, np.ndarray]:
     """Heading and origin of the root reference frame of a motion's first frame."""
-    from repro.motion.clustering import root_frames
+    from repro.motion.search.clustering import root_frames
 
     g = motion.global_positions()[:1]
     th, o = root_frames(g, skeleton.index("pelvis"), skeleton.index("left_hip"), skeleton.index("right_hip"))
@@ -136,7 +136,7 @@ def first_root_frame(motion, skeleton) -> tuple[float, np.ndarray]:
 
 def character(base, height: float, proportions: str = "uniform"):
     """A character of the sweep: ``base`` with the named proportions, ``height`` metres tall."""
-    from repro.motion.skeleton import scale_skeleton
+    from repro.motion.body.skeleton import scale_skeleton
 
     arm, leg, distal = PROPORTIONS[proportions]
     bones = None
@@ -155,7 +155,7 @@ def bone_length_error(motion, skeleton, *, globals_=None) -> float:
 
 def _measure(mo, ch, db, i: int, c: np.ndarray, contacts: np.ndarray) -> dict:
     """Hit error (vs ``c``, first-frame root frame), feet and bone measures of a motion on ``ch``."""
-    from repro.motion.clustering import root_frames, to_root_frame
+    from repro.motion.search.clustering import root_frames, to_root_frame
 
     g = mo.global_positions()  # forward kinematics once
     th, o = root_frames(g[:1], ch.index("pelvis"), ch.index("left_hip"), ch.index("right_hip"))
@@ -170,7 +170,7 @@ def _measure(mo, ch, db, i: int, c: np.ndarray, contacts: np.ndarray) -> dict:
     return {
         "hit_error_m": float(np.linalg.norm(hp - c)),
         "foot_slide_m": max_foot_slide(mo, contacts, skeleton=ch, global_positions=g),
-        # as repro.motion.feet.foot_metrics: mean horizontal ankle speed over planted frame pairs
+        # as repro.motion.body.feet.foot_metrics: mean horizontal ankle speed over planted frame pairs
         "slide_speed_mps": float(step[both].sum() / max(both.sum(), 1) / mo.frame_time),
         "min_toe_height_m": float(toe.min()),
         "bone_length_error_m": bone_length_error(mo, ch, globals_=g),
@@ -192,9 +192,9 @@ def _clip_indices(name: str, db, quick: bool) -> list[int]:
 def _methods(motion, ch, i, db, c):
     """Yield (method, motion, extra) for one clip on one character."""
     from repro.motion.adaptation import adapt
-    from repro.motion.clustering import from_root_frame
-    from repro.motion.morphology import decode, encode, naive_retarget
-    from repro.motion.strike import clip_effector
+    from repro.motion.search.clustering import from_root_frame
+    from repro.motion.retargeting.morphology import decode, encode, naive_retarget
+    from repro.motion.runtime.strike import clip_effector
 
     yield "naive", naive_retarget(motion, ch), {}
     yield "naive_scaled_root", naive_retarget(motion, ch, scale_root=True), {}
@@ -209,7 +209,7 @@ def _methods(motion, ch, i, db, c):
 
 
 def _sweep_rows(name: str, db, quick: bool, progress: bool = False) -> list[dict]:
-    from repro.motion.feet import foot_contacts
+    from repro.motion.body.feet import foot_contacts
 
     heights = HEIGHTS_QUICK if quick else HEIGHTS
     props = PROPORTIONS_QUICK if quick else tuple(PROPORTIONS)
@@ -238,9 +238,9 @@ def _sweep_rows(name: str, db, quick: bool, progress: bool = False) -> list[dict
 
 
 def _eq1_rows(name: str, db, quick: bool) -> list[dict]:
-    from repro.motion.morphology import retarget
-    from repro.motion.retrieval import MotionRetriever
-    from repro.motion.strike import one_frame
+    from repro.motion.retargeting.morphology import retarget
+    from repro.motion.search.retrieval import MotionRetriever
+    from repro.motion.runtime.strike import one_frame
 
     retriever = MotionRetriever(db, seed=0)
     rows = []

@@ -11,8 +11,8 @@ What the numbers are
 ``figures/retrieval_latency.csv``): for each base database (the synthetic one always,
 the CMU one when dataset ``cmu-bvh`` is present) and each augmentation factor (1x and 10x
 with ``quick``; 1x, 10x, 100x, 1,000x otherwise), the same random queries
-(:func:`repro.motion.retrieval.make_queries`) are answered by three methods of
-:class:`repro.motion.retrieval.MotionRetriever`, in one process:
+(:func:`repro.motion.search.retrieval.make_queries`) are answered by three methods of
+:class:`repro.motion.search.retrieval.MotionRetriever`, in one process:
 
 * ``pruned`` -- the paper's algorithm (:meth:`~MotionRetriever.search`): Eq. 1, nearest
   cluster centroid to ``q_r``, box test on ``c_r``, minimum of ``d = w_q d_qr + w_c d_cr``
@@ -29,7 +29,7 @@ prepared query (each query run 3 times, its fastest time kept).  The query prepa
 reported separately as ``prepare_p50_ms`` (drawn as a grey line): a full query costs
 ``prepare_p50_ms + p50_ms``.  ``precompute_s`` is building the retriever (k-means and
 indices, once per database, Section 3.2.2), not part of a query.  ``k`` is the number of
-clusters (:func:`repro.motion.clustering.default_k`, which grows as the square root of
+clusters (:func:`repro.motion.search.clustering.default_k`, which grows as the square root of
 the number of poses).
 
 Quality: ``differs_from_exhaustive`` is the fraction of queries whose selected (clip,
@@ -39,7 +39,7 @@ here) is the same mean over the queries that differ only (``mean_excess_d /
 differs_from_exhaustive``): "how much worse, when it is worse".  The pruned candidates are
 a subset of the exhaustive ones, so the excess is never negative.
 
-The 10x to 1,000x databases are made by :func:`repro.motion.augment.augment` (mirrored,
+The 10x to 1,000x databases are made by :func:`repro.motion.database.augment.augment` (mirrored,
 rescaled, time-warped, noisy *variants* of the base clips), not new captures: they are
 strongly correlated with their sources, which flatters both the clustering and the
 box pruning compared with as many real motions.  The 1,000x one (about 4.6 M poses for the
@@ -63,7 +63,7 @@ import pandas as pd
 from repro.bench.retrieval import bench_retrieval, retrieval_summary
 from repro.experiments.progress import bar
 from repro.experiments.registry import Result, experiment
-from repro.motion.paper import PAPER_SEARCH_S, REACTION_BUDGET_S
+from repro.motion.runtime.paper import PAPER_SEARCH_S, REACTION_BUDGET_S
 
 #: Cluster counts of the k sweep.
 K_VALUES_QUICK = (4, 8, 16, 32, 64)
@@ -85,14 +85,14 @@ def k_sweep(databases=None, k_values=K_VALUES_QUICK, *, n_queries: int = 100, se
             progress: bool = False) -> pd.DataFrame:
     """The pruned search on each base database for several numbers of clusters ``k``.
 
-    For every ``k`` (and the default one), :func:`repro.motion.retrieval.time_search` times
+    For every ``k`` (and the default one), :func:`repro.motion.search.retrieval.time_search` times
     the pruned and the exhaustive search on the same ``n_queries`` queries; then the
     pruned search is run once more per query (untimed) to count the poses it scored and
     the fallbacks it took.
     """
-    from repro.motion.clustering import default_k
-    from repro.motion.sources import default_database
-    from repro.motion.retrieval import MotionRetriever, make_queries, time_search
+    from repro.motion.search.clustering import default_k
+    from repro.motion.database.sources import default_database
+    from repro.motion.search.retrieval import MotionRetriever, make_queries, time_search
 
     rows = []
     for name in databases or base_databases():

@@ -42,7 +42,7 @@ the best effort with ``reached=False`` and the residual distance.  Bad inputs (N
 targets, unknown effectors, ``t_0 > t_c``, frames out of range, chains that are not on
 the effector's path) raise :class:`repro.errors.MotionError`.
 
-Effectors are roles of :func:`repro.motion.roles.find_roles`: ``{side}_fist``,
+Effectors are roles of :func:`repro.motion.body.roles.find_roles`: ``{side}_fist``,
 ``{side}_hand``, ``{side}_wrist`` (arm) and ``{side}_foot``, ``{side}_toe``,
 ``{side}_ankle`` (leg), for ``side`` in ``left``/``right``.  All lengths are in the
 motion's units (use :meth:`repro.motion.Motion.to_metres` for metres).
@@ -57,7 +57,7 @@ Limitations: CCD solutions are computed per frame independently (no temporal
 filtering); they are continuous in the goal, but joint velocities can still increase
 (measured on 135_09 with the fist moved 10 cm forward: at most ~9 degrees/frame more than
 the original at 120 fps).  :func:`adapt` moves the root only by the ``root_offsets`` it
-is given (the root level of :func:`repro.motion.strike.strike`).  Balance is not
+is given (the root level of :func:`repro.motion.runtime.strike.strike`).  Balance is not
 considered; the swing foot is not checked against the floor; the contact frames of the
 feet come from a threshold detector on the original motion.
 """

@@ -18,10 +18,10 @@ after the edited frames, and the kicking foot up to its lift-off); ``"track"`` k
 other ankles on their original trajectories; None leaves the legs alone.  ``floor``
 lifts a pinned ankle's goal so that its toe joint stays at or above that height.  The
 contacts come from the caller (detected once on the retrieved clip) or from
-:func:`repro.motion.feet.foot_contacts` on ``motion``.
+:func:`repro.motion.body.feet.foot_contacts` on ``motion``.
 
 Whole-body reach: ``root_offsets`` adds a root translation before solving (the root
-level of :func:`repro.motion.strike.strike`); ``p(t)`` and the foot anchors stay the
+level of :func:`repro.motion.runtime.strike.strike`); ``p(t)`` and the foot anchors stay the
 input's, so the support foot does not move with the root.  ``max_foot_error`` bounds
 such a trial: when the feet do not depend on the hit solve (an arm whose chain leaves
 both legs alone) they are solved first and a foot error above the bound returns None
@@ -54,9 +54,9 @@ from repro.motion.adaptation.ccd_solver import (
 from repro.motion.adaptation.limb import limb_dmax, solve_limb
 from repro.motion.adaptation.offset import EASINGS, offset_curve
 from repro.motion.adaptation.rig import Chain, Rig, check_extension, check_frames, default_tol, rig_of, vec3
-from repro.motion.kinematics import fk_arrays
-from repro.motion.quaternion import quat_rotate as qrot
-from repro.motion.motion import MAX_COORDINATE, Motion
+from repro.motion.core.kinematics import fk_arrays
+from repro.motion.core.quaternion import quat_rotate as qrot
+from repro.motion.core.motion import MAX_COORDINATE, Motion
 
 __all__ = ["Adaptation", "adapt"]
 

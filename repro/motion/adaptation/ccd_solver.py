@@ -48,10 +48,10 @@ from repro.motion.adaptation.rig import (
     rig_of,
     start_rotations,
 )
-from repro.motion.kinematics import dot, matvec, matvec_t
-from repro.motion.motion import Motion
-from repro.motion.quaternion import cross, matrix_to_quat, min_rotation, quat_multiply, quat_to_matrix, vector_norm
-from repro.motion.quaternion import quat_conjugate as qinv
+from repro.motion.core.kinematics import dot, matvec, matvec_t
+from repro.motion.core.motion import Motion
+from repro.motion.core.quaternion import cross, matrix_to_quat, min_rotation, quat_multiply, quat_to_matrix, vector_norm
+from repro.motion.core.quaternion import quat_conjugate as qinv
 
 __all__ = [
     "DEFAULT_LIMITS_DEG",

@@ -29,8 +29,8 @@ import numpy as np
 from repro.checks import describe
 from repro.errors import MotionError
 from repro.motion.adaptation.ccd_solver import DEFAULT_HINGE_RANGE_DEG, cone_limits
-from repro.motion.motion import Motion
-from repro.motion.skeleton import Skeleton, skeleton_of
+from repro.motion.core.motion import Motion
+from repro.motion.body.skeleton import Skeleton, skeleton_of
 
 __all__ = ["COST_KEYS", "adaptation_cost"]
 

@@ -27,10 +27,10 @@ from repro.motion.adaptation.rig import (
     rig_of,
     start_rotations,
 )
-from repro.motion.kinematics import dot, matvec, matvec_t, normalize, transport
-from repro.motion.motion import Motion
-from repro.motion.quaternion import matrix_to_quat, min_rotation, quat_multiply, quat_to_matrix, vector_norm
-from repro.motion.quaternion import quat_rotate as qrot
+from repro.motion.core.kinematics import dot, matvec, matvec_t, normalize, transport
+from repro.motion.core.motion import Motion
+from repro.motion.core.quaternion import matrix_to_quat, min_rotation, quat_multiply, quat_to_matrix, vector_norm
+from repro.motion.core.quaternion import quat_rotate as qrot
 
 __all__ = ["LimbSolution", "reach_limb", "solve_limb", "limb_dmax"]
 
@@ -152,7 +152,7 @@ def limb_dmax(ch: Chain, ref: np.ndarray, trans: np.ndarray, max_extension: floa
 # paper's frame-by-frame use, "88 us"): measured in one process with timeit (best of 15 x
 # 2000 calls) on CMU 135_09, frame 303, right fist, on the shared 2-core test machine
 # (load ~12): scalar 169 us, batched numpy (solve_limb on 1 frame) 2511 us; the two agree
-# to 9e-16 m there and to rounding in tests/motion/test_adaptation.py.  For n frames the
+# to 9e-16 m there and to rounding in tests/motion/adaptation/test_adaptation.py.  For n frames the
 # batched path is used (numpy's per-call overhead is paid once per step, not per frame).
 def _s_qmul(a, b):
     ax, ay, az, aw = a
@@ -334,7 +334,7 @@ def reach_limb(
         extension the elbow angle of two-bone IK changes very fast with the distance
         (it is singular at ``L``); :func:`adapt` uses 0.98 and leaves the rest to CCD.
     roles : mapping, optional
-        Role table (default: :func:`~repro.motion.skeleton.find_roles`).
+        Role table (default: :func:`~repro.motion.body.skeleton.find_roles`).
 
     Returns
     -------

@@ -1,6 +1,6 @@
 """The per-motion rig the solvers share: effector chains, cached globals, argument checks.
 
-A :class:`Rig` caches, per :class:`~repro.motion.motion.Motion` (weakly), the skeleton
+A :class:`Rig` caches, per :class:`~repro.motion.core.motion.Motion` (weakly), the skeleton
 roles, local translations, global transforms, foot contacts and one :class:`Chain` per
 effector (the path root -> hit point, the limb's proximal / middle / distal joints and
 the clip-wide bending axis of the middle joint).  :func:`path_fk` is forward kinematics
@@ -16,12 +16,12 @@ import numpy as np
 
 from repro.checks import as_int, as_real, as_real_array
 from repro.errors import MotionError
-from repro.motion.feet import foot_contacts
-from repro.motion.kinematics import depth_levels, matvec
-from repro.motion.quaternion import cross
-from repro.motion.quaternion import quat_rotate as qrot
-from repro.motion.motion import MAX_COORDINATE, Motion, finite_vector3
-from repro.motion.skeleton import Skeleton
+from repro.motion.body.feet import foot_contacts
+from repro.motion.core.kinematics import depth_levels, matvec
+from repro.motion.core.quaternion import cross
+from repro.motion.core.quaternion import quat_rotate as qrot
+from repro.motion.core.motion import MAX_COORDINATE, Motion, finite_vector3
+from repro.motion.body.skeleton import Skeleton
 
 __all__ = [
     "EFFECTOR_STEMS",

@@ -11,8 +11,8 @@ from repro.errors import MotionError
 from repro.motion.adaptation.ccd_solver import ccd
 from repro.motion.adaptation.limb import reach_limb
 from repro.motion.adaptation.rig import check_frames, rig_of, vec3
-from repro.motion.quaternion import quat_rotate as qrot
-from repro.motion.motion import Motion
+from repro.motion.core.quaternion import quat_rotate as qrot
+from repro.motion.core.motion import Motion
 
 __all__ = ["time_adaptation"]
 

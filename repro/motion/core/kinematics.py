@@ -1,0 +1,216 @@
+"""Vector helpers and forward kinematics on raw arrays, shared by the motion library.
+
+Quaternion maths lives in :mod:`repro.motion.core.quaternion`; this module adds the vector
+operations the solvers use (:func:`dot`, :func:`normalize`, :func:`transport`,
+:func:`matvec`) and **the** forward kinematics, :func:`fk_arrays` over the
+:func:`depth_levels` of a joint tree, which :meth:`repro.motion.core.motion.Motion.global_transforms`
+and the retargeting and adaptation solvers all run.  Checked against
+:class:`scipy.spatial.transform.Rotation` in ``tests/motion/core/test_kinematics.py``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from repro.checks import abs_max, as_real_array, describe
+from repro.errors import MotionError
+from repro.motion.core.quaternion import cross, quat_multiply, quat_rotate, vector_norm
+
+__all__ = [
+    "dot",
+    "normalize",
+    "transport",
+    "fk_arrays",
+    "chain_positions",
+    "depth_levels",
+    "world_of",
+    "check_pose_arrays",
+    "check_joint_names",
+    "check_indices",
+    "MAX_JOINTS",
+    "MAX_COORDINATE",
+    "matvec",
+    "matvec_t",
+]
+
+
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Dot product over the last axis, broadcast."""
+    return np.einsum("...i,...i->...", a, b)
+
+
+def normalize(v: np.ndarray, eps: float = 1e-300) -> tuple[np.ndarray, np.ndarray]:
+    """``(v / |v|, |v|)`` over the last axis (``|v|`` floored at ``eps`` in the division)."""
+    n = vector_norm(v, keepdims=True)
+    return v / np.maximum(n, eps), n[..., 0]
+
+
+def transport(a0: np.ndarray, r0: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """Reference direction ``R(a0 -> a) r0`` (unit, perpendicular to unit ``a``), broadcast.
+
+    ``R v = v + w x v + w x (w x v) / (1 + c)`` with ``w = a0 x a``, ``c = a0 . a`` is
+    the smallest rotation taking ``a0`` to ``a``; the last term has norm at most
+    ``1 - c``, so it is stable everywhere but at ``c = -1`` exactly, where ``r0`` itself
+    (perpendicular to ``a0 = -a``) is used.
+    """
+    w = cross(a0, a)
+    c = np.sum(a0 * a, axis=-1, keepdims=True)
+    opp = c[..., 0] <= -1.0 + 1e-12
+    denom = np.where(opp[..., None], 1.0, 1.0 + c)
+    wr = cross(w, r0)
+    r = r0 + wr + cross(w, wr) / denom
+    r = np.where(opp[..., None], r0, r)
+    r = r - np.sum(r * a, axis=-1, keepdims=True) * a  # clean rounding
+    return normalize(r)[0]
+
+
+def fk_arrays(levels, rotations: np.ndarray, translations: np.ndarray, *,
+              copy: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Forward kinematics ``G_j = G_parent(j) T(t_j) R(q_j)`` on raw arrays.
+
+    Parameters
+    ----------
+    levels : list of (joints, parents) index arrays
+        :func:`depth_levels` of the tree (depth 1, 2, ...).
+    rotations : (F, J, 4) array
+        Local rotations (unit quaternions).
+    translations : (F, J, 3) array
+        Local translations.
+    copy : bool, default True
+        False: fill ``translations`` in place with the world positions (a fresh array
+        the caller owns).
+
+    Returns
+    -------
+    (F, J, 4) world rotations, (F, J, 3) world positions
+    """
+    # shapes only (this runs in every solver): what fails here would fail as a bare numpy error below
+    if not (isinstance(rotations, np.ndarray) and isinstance(translations, np.ndarray)) or rotations.ndim != 3 or \
+            rotations.shape[2:] != (4,) or translations.shape != rotations.shape[:2] + (3,):
+        raise MotionError(f"fk_arrays needs (F, J, 4) rotations and (F, J, 3) translations arrays, got "
+                          f"{getattr(rotations, 'shape', describe(rotations))} and "
+                          f"{getattr(translations, 'shape', describe(translations))}")
+    gq = np.empty_like(rotations)
+    gp = translations.copy() if copy else translations
+    gq[:, 0] = rotations[:, 0]
+    for idx, par in levels:
+        gq[:, idx] = quat_multiply(gq[:, par], rotations[:, idx])
+    return gq, chain_positions(levels, gq, gp)
+
+
+#: Largest coordinate of a point or vector the motion library takes (targets, offsets, floors,
+#: translations): its squares (distances, norms) stay far inside float64.
+MAX_COORDINATE: float = 1e100
+#: Largest ``| |q| - 1 |`` of a rotation given as a unit quaternion (as :class:`~repro.motion.Motion`'s).
+UNIT_TOLERANCE: float = 1e-6
+
+
+#: Most joints a skeleton may have: far beyond any rig (film rigs with faces and fingers have about
+#: a thousand; the BVH reader is tested on a 20,000-deep chain), short of what takes seconds to name.
+MAX_JOINTS: int = 1_000_000
+
+
+def check_joint_names(joint_names, *, error=MotionError) -> list[str]:
+    """``joint_names`` as a list of str: a 1-D sequence of at most :data:`MAX_JOINTS` names (not a string)."""
+    if isinstance(joint_names, (str, bytes)) or not isinstance(joint_names, (list, tuple, np.ndarray)) or \
+            getattr(joint_names, "ndim", 1) != 1:
+        raise error(f"joint_names must be a sequence of joint names, got {describe(joint_names)}")
+    if len(joint_names) > MAX_JOINTS:
+        raise error(f"{len(joint_names)} joints: more than the {MAX_JOINTS} of any skeleton")
+    if any(isinstance(n, (list, tuple, dict, set, np.ndarray)) for n in joint_names):
+        raise error(f"joint_names must be a sequence of joint names, got {describe(joint_names)}")
+    return [str(n) for n in joint_names]
+
+
+def check_indices(x, name: str, n: int, *, error=MotionError) -> np.ndarray:
+    """``x`` as a 1-D intp array of joint indices in ``[0, n)`` (a range is checked against the budget first)."""
+    a = as_real_array(x, name, error=error, integer=True).reshape(-1)
+    if np.any((a < 0) | (a >= n)):
+        raise error(f"{name} must be joint indices in [0, {n})")
+    return a.astype(np.intp)
+
+
+def check_pose_arrays(rotations, translations, n_joints: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(rotations (F, J, 4), translations (F, J, 3))`` as float64 arrays, or MotionError naming what is wrong.
+
+    The rotations must be unit quaternions (within :data:`UNIT_TOLERANCE`), the translations
+    finite and within :data:`MAX_COORDINATE`: what a plan's ``positions`` takes from a Motion,
+    checked at its entry (the arithmetic after it would overflow or divide by zero silently).
+    """
+    rot = as_real_array(rotations, "rotations", error=MotionError)
+    tr = as_real_array(translations, "translations", error=MotionError)
+    if rot.ndim != 3 or rot.shape[1:] != (n_joints, 4) or tr.shape != rot.shape[:2] + (3,):
+        raise MotionError(f"rotations must be (F, {n_joints}, 4) and translations (F, {n_joints}, 3), got "
+                          f"{rot.shape} and {tr.shape}")
+    if abs_max(tr) > MAX_COORDINATE:
+        raise MotionError(f"translations beyond {MAX_COORDINATE:g}: their squares overflow float64")
+    if rot.size and (abs_max(rot) > 1.0 + UNIT_TOLERANCE or
+                     not np.all(np.abs(vector_norm(rot) - 1.0) <= UNIT_TOLERANCE)):
+        raise MotionError(f"rotations must be unit quaternions (| |q| - 1 | <= {UNIT_TOLERANCE:g})")
+    return rot, tr
+
+
+def world_of(levels, rotations, translations, source=None) -> tuple[np.ndarray, np.ndarray]:
+    """``source`` = world ``(rotations (F, J, 4), positions (F, J, 3))`` checked against ``levels``' J joints,
+    or :func:`fk_arrays` of ``rotations`` and ``translations`` when it is None (a plan's ``source=`` argument)."""
+    if source is None:
+        return fk_arrays(levels, rotations, translations)
+    J = 1 + sum(len(i) for i, _ in levels)
+    ok = isinstance(source, tuple) and len(source) == 2 and all(isinstance(a, np.ndarray) for a in source)
+    if ok:
+        gq, gp = source
+        ok = gq.ndim == 3 and gq.shape[1:] == (J, 4) and gp.shape == gq.shape[:2] + (3,)
+    if not ok:
+        raise MotionError(f"source must be a pair of world (F, {J}, 4) rotations and (F, {J}, 3) positions "
+                          f"arrays (Motion.global_transforms()), got {describe(source)}")
+    return source
+
+
+def chain_positions(levels, gq: np.ndarray, gp: np.ndarray) -> np.ndarray:
+    """World positions from world rotations: ``gp[j] = gp[parent] + R(gq[parent]) t[j]`` over ``levels``.
+
+    ``gp`` holds the local translations ``t`` of the levels' joints and the world positions
+    of their parents (above the levels), and is filled in place.  The rotations of all the
+    levels run as one call, the sums level by level: the numbers of a level-by-level loop
+    (element for element the same arithmetic), with less per-call overhead on few frames.
+    """
+    if not levels:
+        return gp
+    joints = np.concatenate([i for i, _ in levels])
+    parents = np.concatenate([p for _, p in levels])
+    w = quat_rotate(gq[:, parents], gp[:, joints])
+    k = 0
+    for idx, par in levels:
+        gp[:, idx] = gp[:, par] + w[:, k:k + idx.size]
+        k += idx.size
+    return gp
+
+
+def depth_levels(parents) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``(joints, their parents)`` per depth 1, 2, ... of a tree (``parents[j] < j``), index order within a level.
+
+    Linear in the number of joints (a scan per depth level would be quadratic for chains).
+    """
+    parents = as_real_array(parents, "parents", error=MotionError, integer=True, ndim=1).astype(np.intp)
+    if parents.size == 0 or parents[0] != -1 or np.any(parents[1:] < 0) or \
+            np.any(parents[1:] >= np.arange(1, parents.size)):
+        raise MotionError("parents must be -1 for joint 0 and parents[j] < j for the others")
+    par = parents.tolist()
+    depth = [0] * len(par)
+    for j in range(1, len(par)):
+        depth[j] = depth[par[j]] + 1
+    depth = np.array(depth, dtype=np.intp)
+    order = np.argsort(depth, kind="stable")  # joints by depth, index order within a level
+    bounds = np.cumsum(np.bincount(depth))
+    p = parents[order]
+    return [(order[a:b], p[a:b]) for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def matvec(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Matrix-vector product ``m v`` broadcast over leading axes."""
+    return np.matmul(m, v[..., None])[..., 0]
+
+
+def matvec_t(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Transposed-matrix-vector product ``m^T v`` broadcast over leading axes."""
+    return np.matmul(v[..., None, :], m)[..., 0, :]

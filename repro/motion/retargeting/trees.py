@@ -1,0 +1,706 @@
+"""Retargeting onto a character whose joint tree differs from the motion's (Section 3.4.1).
+
+Kulpa et al. (2005), on which Pronost et al. build, store a motion so that characters with
+*different skeletons* can play it.  :mod:`repro.motion.retargeting.morphology` keeps the joint tree
+(it copies local rotations); this module goes through the body-part roles
+(:func:`repro.motion.body.roles.find_roles`) instead, so the character may have more or fewer
+spine joints, clavicles or none, hand/toe joints or none, fingers, face joints, twist
+bones and props, another rest pose (A- vs T-pose, other bone axes) and another up axis.
+The name: the one thing it adds to ``morphology`` is the change of joint tree.
+
+What is carried per frame, in the motion's world mapped onto the character's world by the
+rotation ``C`` between the two rest *body frames* (left, up, forward; up = the inferred up
+axis, left from the hips, forward = left x up... see :func:`body_frame`):
+
+* the **root path**: the pelvis position divided by the source's hip height, multiplied
+  by the character's (so a planted foot stays on the floor plane through the origin);
+* the **trunk**: the pelvis, chest and head orientations; the character's extra spine
+  (neck) joints share the pelvis-to-chest (chest-to-head) bend equally;
+* each **limb** (Kulpa's representation): the distal point relative to the proximal one
+  divided by the limb length, and the bend plane of the middle joint (the swivel); the
+  character's middle joint is placed by two-bone IK (law of cosines) in that plane;
+* the **end segments** (clavicles, hands, feet, toes) as directions.
+
+Every orientation is decoded as a *global direction*: a character joint ``j`` takes the
+source's world rotation of the same role composed with the smallest rotation taking the
+character's rest bone direction to the (mapped) source rest bone direction, so rest poses
+with different bone axes give the same pose.  Joints without a role (fingers, face,
+twist bones, props) keep their rest rotation relative to their parent.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from repro.checks import as_bool, as_choice, as_real, describe
+from repro.errors import MotionError
+from repro.motion.core.kinematics import check_pose_arrays, depth_levels, fk_arrays, normalize, world_of
+from repro.motion.core.motion import Motion
+from repro.motion.core.quaternion import cross, min_rotation, quat_multiply
+from repro.motion.core.quaternion import quat_conjugate as qinv
+from repro.motion.core.quaternion import quat_rotate as qrot
+from repro.motion.body.roles import check_roles
+from repro.motion.body.skeleton import Skeleton, check_role_table, skeleton_of
+from repro.motion.body.units import infer_up
+
+__all__ = ["TreePlan", "body_frame", "rest_axes", "retarget_across"]
+
+_ROT = ("Zrotation", "Xrotation", "Yrotation")
+_POS = ("Xposition", "Yposition", "Zposition")
+_AXIS = {"y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
+
+
+def _check_skeleton(sk) -> None:
+    if not isinstance(sk, Skeleton):
+        raise MotionError(f"expected a Skeleton (repro.motion.body.skeleton.skeleton_of), got {describe(sk)}")
+
+
+def body_frame(sk: Skeleton, up: str) -> np.ndarray:
+    """(3, 3) columns left, up, forward of a skeleton's rest pose (``up`` = world axis).
+
+    Left comes from the rest hips and shoulders (across the up axis).  A rest pose whose
+    trunk does not stand along the world up axis (Bandai Namco's lies along +X, every
+    bone on its local X) cannot tell where the body faces in the world: then left is the
+    world X axis (forward = left x up: +Z when Y is up, -Y when Z is up)."""
+    _check_skeleton(sk)
+    u = _AXIS[as_choice(up, "up", tuple(_AXIS), error=MotionError)]
+    p = sk.rest_positions()
+    trunk = _unit(p[sk.index("head")] - p[sk.index("pelvis")])
+    if abs(float(trunk @ u)) < np.cos(np.radians(45.0)):
+        left = np.array([1.0, 0.0, 0.0])
+        return np.stack([left, u, np.cross(left, u)], axis=1)
+    lat = p[sk.index("left_hip")] - p[sk.index("right_hip")]
+    lat = lat + p[sk.index("left_shoulder")] - p[sk.index("right_shoulder")]
+    lat = lat - (lat @ u) * u
+    n = np.linalg.norm(lat)
+    if n <= 1e-9 * max(float(np.ptp(p, axis=0).max()), 1e-300):
+        raise MotionError(
+            f"left and right hips/shoulders coincide across the up axis {up.upper()} in the rest pose of "
+            f"{sk.roles['pelvis']!r}'s skeleton; cannot tell its facing direction"
+        )
+    left = lat / n
+    fwd = np.cross(left, u)
+    return np.stack([left, u, fwd], axis=1)
+
+
+def rest_axes(sk: Skeleton) -> dict[str, np.ndarray]:
+    """Rest body axes of each part, rig coordinates: ``{"leg": (3, 3), "arm": (3, 3)}``, rows
+    left, up, forward.
+
+    Up is the rest pelvis -> head direction; left is the line between the joints rigidly
+    carried by the part's root (the hips for the pelvis and the legs; the clavicles, else
+    the shoulders, for the chest, the neck, the head and the arms), made orthogonal to up.
+    They fix the twist of a segment about its bone when rest poses differ by more than
+    their bone directions (Bandai Namco: the pelvis' left is -Y at rest, the chest's +Z)."""
+    _check_skeleton(sk)
+    p = sk.rest_positions()
+    r = sk.roles
+    up = _unit(p[sk.index("head")] - p[sk.index("pelvis")])
+    tol = 1e-6 * max(sk.height, 1e-300)
+    out = {}
+    for part, pairs in (("leg", ("hip",)), ("arm", ("clavicle", "shoulder", "hip"))):
+        for stem in pairs:  # CMU's clavicles both start at the thorax: then the shoulders
+            if f"left_{stem}" not in r or f"right_{stem}" not in r:
+                continue
+            lat = p[sk.index(f"left_{stem}")] - p[sk.index(f"right_{stem}")]
+            lat = lat - (lat @ up) * up
+            if np.linalg.norm(lat) > tol:
+                break
+        else:
+            raise MotionError(f"the rest pose of {r['pelvis']!r}'s skeleton has no left-right extent across "
+                              "its trunk (hips, clavicles and shoulders on the pelvis -> head line)")
+        lat = _unit(lat)
+        out[part] = np.stack([lat, up, np.cross(lat, up)])
+    return out
+
+
+def _frame(d: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """(3, 3) orthonormal columns: ``d``, ``ref`` made orthogonal to it, their cross product."""
+    e1 = _unit(d)
+    e2 = _unit(ref - (ref @ e1) * e1)
+    out = np.empty((3, 3))
+    out[:, 0], out[:, 1], out[:, 2] = e1, e2, cross(e1, e2)
+    return out
+
+
+def _mat_to_quat(m: np.ndarray) -> np.ndarray:
+    """(x, y, z, w) of a rotation matrix (Shepperd's method: the largest of w, x, y, z first;
+    written out because scipy's Rotation.from_matrix costs ~1 ms per call here)."""
+    t = np.trace(m)
+    i = int(np.argmax([t, m[0, 0], m[1, 1], m[2, 2]]))
+    if i == 0:
+        w = 0.5 * np.sqrt(1.0 + t)
+        q = np.array([(m[2, 1] - m[1, 2]) / (4 * w), (m[0, 2] - m[2, 0]) / (4 * w), (m[1, 0] - m[0, 1]) / (4 * w), w])
+    else:
+        a = i - 1
+        b, c = (a + 1) % 3, (a + 2) % 3
+        s = 2.0 * np.sqrt(1.0 + m[a, a] - m[b, b] - m[c, c])
+        q = np.empty(4)
+        q[a] = 0.25 * s
+        q[b] = (m[b, a] + m[a, b]) / s
+        q[c] = (m[c, a] + m[a, c]) / s
+        q[3] = (m[c, b] - m[b, c]) / s
+    return q / np.linalg.norm(q)
+
+
+def _up_of(x, sk: Skeleton) -> str:
+    up = getattr(x, "up", None)
+    if up is not None:
+        return up
+    return infer_up(x if isinstance(x, Motion) else None, sk)
+
+
+def _arc(P: np.ndarray, chain: list[int]) -> np.ndarray:
+    """Normalised rest arc length at each joint of a chain (0 at its start, 1 at its end)."""
+    seg = np.linalg.norm(np.diff(P[chain], axis=0), axis=1)
+    u = np.concatenate([[0.0], np.cumsum(seg)])
+    return u / u[-1] if u[-1] > 0 else np.linspace(0.0, 1.0, len(chain))
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v)
+    return v / n if n > 0 else v
+
+
+#: retarget_across's constants per pair of skeletons (body frames, rest axes, bone-frame rotations)
+_PAIRS: dict = {}
+
+
+def _skeleton_key(sk: Skeleton) -> tuple:
+    """Everything of a skeleton the constants of :func:`retarget_across` read (its cache key)."""
+    return (tuple(sk.joint_names), np.asarray(sk.parents).tobytes(), np.asarray(sk.offsets, dtype=float).tobytes(),
+            np.asarray(sk.end_site_parents).tobytes(), np.asarray(sk.end_site_offsets, dtype=float).tobytes(),
+            tuple(sorted(sk.roles.items())), None if sk.channels is None else tuple(map(tuple, sk.channels)),
+            sk.unit_m)
+
+
+def _checked_pair(motion, character, roles, character_roles):
+    """``(src, tgt, up_t, pair)`` of :func:`retarget_across` and :class:`TreePlan`: both skeletons with their
+    roles checked for retargeting, the character's up axis, and :func:`_pair` of the two."""
+    if not isinstance(motion, Motion):
+        raise MotionError(f"motion must be a Motion, got {type(motion).__name__}")
+    roles = check_role_table(roles, "roles")
+    character_roles = check_role_table(character_roles, "character_roles")
+    src = Skeleton.from_motion(motion, roles=roles)
+    tgt = skeleton_of(character, roles=character_roles)
+    check_roles(src.roles, "retargeting", src.joint_names)
+    check_roles(tgt.roles, "retargeting", tgt.joint_names)
+    up_t = _up_of(character, tgt)
+    return src, tgt, up_t, _pair(src, tgt, _up_of(motion, src), up_t)
+
+
+def _pair(src: Skeleton, tgt: Skeleton, up_s: str, up_t: str) -> dict:
+    """What :func:`retarget_across` reads of two skeletons only (body frames, rest axes), cached."""
+    key = (_skeleton_key(src), _skeleton_key(tgt), up_s, up_t)
+    pair = _PAIRS.get(key)
+    if pair is None:  # what depends only on the two skeletons (the same numbers every call)
+        Bs = body_frame(src, up_s)
+        Bt = body_frame(tgt, up_t)
+        C = Bt @ Bs.T
+        c = _mat_to_quat(C)
+        pair = dict(C=C, c=c, ci=qinv(c), Ps=src.rest_positions(), Pt=tgt.rest_positions(), ax_s=rest_axes(src),
+                    ax_t=rest_axes(tgt), delta={})
+        if len(_PAIRS) >= 32:
+            _PAIRS.clear()
+        _PAIRS[key] = pair
+    return pair
+
+
+def retarget_across(motion: Motion, character, *, roles=None, character_roles=None, fix_feet: bool = False,
+                    blend_time: float = 0.1) -> Motion:
+    """``motion`` played by ``character``, whose joint tree may differ (see the module docstring).
+
+    Parameters
+    ----------
+    motion : Motion
+    character : Skeleton or Motion
+        Any humanoid skeleton (its own roles are found, or given as ``character_roles``).
+    roles, character_roles : mapping role -> joint, optional
+    fix_feet : bool, default False
+        Correct the feet artifacts (Section 3.4) as :func:`repro.motion.retargeting.morphology.decode`
+        does on one tree: where the source's ankle is planted
+        (:func:`~repro.motion.body.feet.foot_contacts`) the character's ankle is pinned to its
+        mean position over the contact phase (blended over ``blend_time`` seconds on each
+        side), the root lowered where a pinned ankle is out of the leg's reach, and on
+        every frame an ankle whose ankle or toe joint would be below the floor (the plane
+        through the origin across the up axis) is raised until neither is.
+
+    Returns
+    -------
+    Motion
+        On the character's skeleton (its joints, offsets, End Sites, channels when it has
+        them, else 6 channels on the root and ZXY rotations elsewhere; ``unit_m``), writable
+        with :func:`~repro.motion.write_bvh`.
+
+    Raises
+    ------
+    repro.errors.MotionError
+        Missing roles on either side (named), a character root without position channels,
+        a rest pose whose facing cannot be told.
+    """
+    fix_feet = as_bool(fix_feet, "fix_feet", error=MotionError)
+    blend_time = as_real(blend_time, "blend_time (seconds)", error=MotionError, lo=0.0)
+    src, tgt, up_t, pair = _checked_pair(motion, character, roles, character_roles)
+    C, c, ci = pair["C"], pair["c"], pair["ci"]
+    F = motion.n_frames
+    gq_s, gp_s = fk_arrays(depth_levels(src.parents), motion.rotations, motion.local_translations())
+    Ps, Pt = pair["Ps"], pair["Pt"]
+    rs, rt = src.roles, tgt.roles
+
+    def si(role):
+        return src.joint_names.index(rs[role])
+
+    def ti(role):
+        return tgt.joint_names.index(rt[role])
+
+    def mapped(role):
+        """C G_s C^-1 of a role: (F, 4)."""
+        return quat_multiply(quat_multiply(c[None], gq_s[:, si(role)]), ci[None])
+
+    ax_s, ax_t = pair["ax_s"], pair["ax_t"]
+    deltas = pair["delta"]
+
+    def delta(a, b):
+        if (a, b) not in deltas:
+            deltas[(a, b)] = _delta(a, b)
+        return deltas[(a, b)]
+
+    def _delta(a, b):
+        return _bone_delta(src, tgt, Ps, Pt, ax_s, ax_t, C, a, b)
+
+    def oriented(role, a, b):
+        return quat_multiply(mapped(role), delta(a, b)[None])
+
+    J = tgt.n_joints
+    fixed: dict[int, np.ndarray] = {}  # joint -> global rotation (F, 4)
+    fixed[ti("pelvis")] = oriented("pelvis", "pelvis", "chest")
+    fixed[ti("chest")] = oriented("chest", "chest", "head")
+    fixed[ti("head")] = oriented("head", "chest", "head")
+    for side in ("left", "right"):
+        for a, b in (("clavicle", "shoulder"), ("wrist", "hand"), ("ankle", "toe"), ("toe", "toe")):
+            ra, rb = f"{side}_{a}", f"{side}_{b}"
+            if ra in rt and ra in rs:
+                if a == "toe":
+                    fixed[ti(ra)] = oriented(ra, f"{side}_ankle", ra)
+                elif rb in rt and rb in rs:
+                    fixed[ti(ra)] = oriented(ra, ra, rb)
+                elif a == "wrist":
+                    fixed[ti(ra)] = oriented(ra, f"{side}_elbow", ra)
+                elif a == "ankle":
+                    fixed[ti(ra)] = oriented(ra, f"{side}_knee", ra)
+    # chains whose joints share a bend (pelvis -> chest, chest -> head): each character bone
+    # takes the source's world rotation at the same fraction of the chain's length
+    for a, b in (("pelvis", "chest"), ("chest", "head")):
+        T = [ti(a)] + tgt.path(rt[a], rt[b])
+        Sj = [si(a)] + src.path(rs[a], rs[b])
+        ut, us = _arc(Pt, T), _arc(Ps, Sj)
+        for i in range(1, len(T) - 1):
+            mid = 0.5 * (ut[i] + ut[i + 1])
+            k = int(np.clip(np.searchsorted(us, mid, side="right") - 1, 0, len(Sj) - 2))
+            dt = Pt[T[i + 1]] - Pt[T[i]]
+            ds = C @ (Ps[Sj[k + 1]] - Ps[Sj[k]])
+            d = min_rotation(dt, ds) if np.linalg.norm(dt) > 0 and np.linalg.norm(ds) > 0 else np.array([0, 0, 0, 1.0])
+            G_role = quat_multiply(quat_multiply(c[None], gq_s[:, Sj[k]]), ci[None])
+            fixed[T[i]] = quat_multiply(G_role, d[None])
+    limbs = {}
+    for side in ("left", "right"):
+        for kind, (p_, m_, d_) in (("arm", ("shoulder", "elbow", "wrist")), ("leg", ("hip", "knee", "ankle"))):
+            roles3 = tuple(f"{side}_{r}" for r in (p_, m_, d_))
+            limbs[ti(roles3[0])] = (kind, roles3)
+    # root path: pelvis position scaled by hip heights, mapped into the character's world
+    k = tgt.hip_height / src.hip_height
+    pel_goal = qrot(np.broadcast_to(c, (F, 4)), gp_s[:, si("pelvis")] * k)
+    root_path = [0] + tgt.path(tgt.joint_names[0], rt["pelvis"])
+    if tgt.channels is not None and not all(ch in tgt.channels[0] for ch in _POS):
+        raise MotionError(
+            f"character root {tgt.joint_names[0]!r} has no position channels (channels "
+            f"{list(tgt.channels[0])}); the retargeted motion needs to move it"
+        )
+    root_t = pel_goal - sum(tgt.offsets[j] for j in root_path[1:]) if len(root_path) > 1 else pel_goal
+    def solve(root_t, goals):
+        """Global rotations and positions of every character joint; ``goals``: ankle joint ->
+        (F, 3) world position overriding the representation's (``fix_feet``)."""
+        G = np.zeros((F, J, 4))
+        G[..., 3] = 1.0
+        P = np.zeros((F, J, 3))
+        pending: dict[int, np.ndarray] = {}  # middle / distal joint -> world target position
+        for j in range(J):
+            p = tgt.parents[j]
+            if p < 0:
+                P[:, j] = root_t
+                Gp = np.zeros((F, 4))
+                Gp[:, 3] = 1.0
+            else:
+                Gp = G[:, p]
+                P[:, j] = P[:, p] + qrot(Gp, np.broadcast_to(tgt.offsets[j], (F, 3)))
+            if j in fixed:
+                G[:, j] = fixed[j]
+            elif j in limbs:
+                _, (rp, rm, rd) = limbs[j]
+                G[:, j], pending[ti(rm)], pending[ti(rd)] = _solve_limb(
+                    src, tgt, gp_s, gq_s, C, mapped, delta, P[:, j], (rp, rm, rd), si, ti, goal=goals.get(ti(rd))
+                )
+            elif j in pending and tgt.parents[j] >= 0 and any(j == ti(lm[1][1]) for lm in limbs.values()):
+                # middle joint: its forearm/shin to the distal goal
+                _, (rp, rm, rd) = next(v for v in limbs.values() if ti(v[1][1]) == j)
+                G0 = quat_multiply(mapped(rm), delta(rm, rd)[None])
+                cur = qrot(G0, np.broadcast_to(Pt[ti(rd)] - Pt[j], (F, 3)))
+                G[:, j] = quat_multiply(min_rotation(cur, pending[ti(rd)] - P[:, j]), G0)
+            else:
+                G[:, j] = Gp  # no role: rest rotation relative to the parent
+        return G, P
+
+    G, P = solve(root_t, {})
+    if fix_feet:
+        root_t, G, P = _fix_feet(motion, src, tgt, gp_s, up_t, _up_of(motion, src), root_t, G, P, solve, blend_time)
+    # local rotations
+    loc = np.empty_like(G)
+    loc[:, 0] = G[:, 0]
+    nz = tgt.parents[1:]
+    loc[:, 1:] = quat_multiply(qinv(G[:, nz]), G[:, 1:])
+    channels = tgt.channels if tgt.channels is not None else [_POS + _ROT] + [_ROT] * (J - 1)
+    positions = np.broadcast_to(tgt.offsets, (F, J, 3)).copy()
+    positions[:, 0] = root_t
+    return tgt.motion_with(loc, positions, frame_time=motion.frame_time, channels=channels, up=up_t)
+
+
+class TreePlan:
+    """:func:`retarget_across` between two fixed skeletons, positions only, for few frames at a time.
+
+    Everything of :func:`retarget_across` that does not depend on the pose (the role
+    tables and their checks, the body frames and the rotation ``C`` between them, the
+    bone-frame rotations, the spine chains' shares, the limbs' joints and lengths, the
+    root path, the depth levels) is computed once here; :meth:`positions` runs only the
+    per-frame arithmetic, the like operations of the joints stacked into one call each
+    (the fixed orientations, the four limbs), and returns what
+    ``retarget_across(motion, character, ...).global_positions()`` returns (``fix_feet``
+    False) without making the Motion.  Used by
+    :meth:`repro.motion.search.retrieval.MotionRetriever.prepare` for characters of another joint
+    tree (one pose per query).
+
+    Parameters
+    ----------
+    motion : Motion
+        On the skeleton the poses are on (its ``up``, else inferred); only its skeleton is read.
+    character : Skeleton or Motion
+    roles, character_roles : mapping role -> joint, optional
+        As :func:`retarget_across`.
+
+    Raises
+    ------
+    repro.errors.MotionError
+        What :func:`retarget_across` raises for these skeletons, with its messages.
+    """
+
+    def __init__(self, motion: Motion, character, *, roles=None, character_roles=None):
+        src, tgt, up_t, pair = _checked_pair(motion, character, roles, character_roles)
+        C, c, ci = pair["C"], pair["c"], pair["ci"]
+        Ps, Pt = pair["Ps"], pair["Pt"]
+        rs, rt = src.roles, tgt.roles
+        si = {role: src.joint_names.index(j) for role, j in rs.items() if j in src.joint_names}
+        ti = {role: tgt.joint_names.index(j) for role, j in rt.items() if j in tgt.joint_names}
+        deltas = pair["delta"]
+
+        def delta(a, b):
+            if (a, b) not in deltas:
+                deltas[(a, b)] = _bone_delta(src, tgt, Ps, Pt, pair["ax_s"], pair["ax_t"], C, a, b)
+            return deltas[(a, b)]
+
+        # fixed global rotations, as retarget_across: joint -> (source joint mapped, right factor)
+        fixed: dict[int, tuple[int, np.ndarray]] = {}
+        fixed[ti["pelvis"]] = (si["pelvis"], delta("pelvis", "chest"))
+        fixed[ti["chest"]] = (si["chest"], delta("chest", "head"))
+        fixed[ti["head"]] = (si["head"], delta("chest", "head"))
+        for side in ("left", "right"):
+            for a, b in (("clavicle", "shoulder"), ("wrist", "hand"), ("ankle", "toe"), ("toe", "toe")):
+                ra, rb = f"{side}_{a}", f"{side}_{b}"
+                if ra in rt and ra in rs:
+                    if a == "toe":
+                        fixed[ti[ra]] = (si[ra], delta(f"{side}_ankle", ra))
+                    elif rb in rt and rb in rs:
+                        fixed[ti[ra]] = (si[ra], delta(ra, rb))
+                    elif a == "wrist":
+                        fixed[ti[ra]] = (si[ra], delta(f"{side}_elbow", ra))
+                    elif a == "ankle":
+                        fixed[ti[ra]] = (si[ra], delta(f"{side}_knee", ra))
+        for a, b in (("pelvis", "chest"), ("chest", "head")):
+            T = [ti[a]] + tgt.path(rt[a], rt[b])
+            Sj = [si[a]] + src.path(rs[a], rs[b])
+            ut, us = _arc(Pt, T), _arc(Ps, Sj)
+            for i in range(1, len(T) - 1):
+                mid = 0.5 * (ut[i] + ut[i + 1])
+                k = int(np.clip(np.searchsorted(us, mid, side="right") - 1, 0, len(Sj) - 2))
+                dt = Pt[T[i + 1]] - Pt[T[i]]
+                ds = C @ (Ps[Sj[k + 1]] - Ps[Sj[k]])
+                d = min_rotation(dt, ds) if np.linalg.norm(dt) > 0 and np.linalg.norm(ds) > 0 else np.array([0, 0, 0, 1.0])
+                fixed[T[i]] = (Sj[k], d)
+        limbs = {}
+        for side in ("left", "right"):
+            for p_, m_, d_ in (("shoulder", "elbow", "wrist"), ("hip", "knee", "ankle")):
+                roles3 = tuple(f"{side}_{r}" for r in (p_, m_, d_))
+                limbs[ti[roles3[0]]] = roles3
+        self.k = tgt.hip_height / src.hip_height
+        root_path = [0] + tgt.path(tgt.joint_names[0], rt["pelvis"])
+        if tgt.channels is not None and not all(ch in tgt.channels[0] for ch in _POS):
+            raise MotionError(
+                f"character root {tgt.joint_names[0]!r} has no position channels (channels "
+                f"{list(tgt.channels[0])}); the retargeted motion needs to move it"
+            )
+        self.root_off = sum(tgt.offsets[j] for j in root_path[1:]) if len(root_path) > 1 else None
+        J = tgt.n_joints
+        parents = np.asarray(tgt.parents)
+        # the limbs solve_limb runs (a proximal joint without a fixed rotation), the middle joints after them
+        act = [j for j in limbs if j not in fixed]
+        rp = [limbs[j] for j in act]
+        self.l_prox = np.array(act, dtype=np.intp)
+        self.l_src = np.array([[si[r] for r in roles3] for roles3 in rp], dtype=np.intp).reshape(-1, 3)
+        bl_s, bl_t = src.bone_lengths, tgt.bone_lengths
+        self.Ls = np.array([bl_s[si[m]] + bl_s[si[d]] for _, m, d in rp])
+        self.l1 = np.array([bl_t[ti[m]] for _, m, _d in rp])
+        self.l2 = np.array([bl_t[ti[d]] for _, _m, d in rp])
+        self.bl_src_mid = np.array([bl_s[si[m]] for _, m, _d in rp])
+        self.cur_p = np.array([Pt[ti[m]] - Pt[ti[p]] for p, m, _d in rp]).reshape(-1, 3)
+        self.D_pm = np.array([delta(p, m) for p, m, _d in rp]).reshape(-1, 4)
+        mids = []  # (limb number, middle joint) in joint order; a middle joint with a fixed rotation keeps it
+        for n, (_, m, _d) in enumerate(rp):
+            j = ti[m]
+            if j not in fixed and j not in limbs and parents[j] >= 0:
+                first = next(v for v in limbs.values() if ti[v[1]] == j)
+                if first == rp[n]:
+                    mids.append((n, j))
+        self.m_limb = np.array([n for n, _ in mids], dtype=np.intp)
+        self.m_joint = np.array([j for _, j in mids], dtype=np.intp)
+        self.m_src = np.array([si[rp[n][1]] for n, _ in mids], dtype=np.intp)
+        self.D_md = np.array([delta(rp[n][1], rp[n][2]) for n, _ in mids]).reshape(-1, 4)
+        self.cur_m = np.array([Pt[ti[rp[n][2]]] - Pt[j] for n, j in mids]).reshape(-1, 3)
+        self.f_joint = np.array(list(fixed), dtype=np.intp)
+        self.f_src = np.array([v[0] for v in fixed.values()], dtype=np.intp)
+        self.D_f = np.array([v[1] for v in fixed.values()]).reshape(-1, 4)
+        # every other joint: the rotation of its nearest ancestor that has one of its own (J: identity)
+        own = np.zeros(J, dtype=bool)
+        own[self.f_joint] = True
+        own[self.l_prox] = True
+        own[self.m_joint] = True
+        anchor = np.full(J, J, dtype=np.intp)
+        for j in range(J):
+            if own[j]:
+                anchor[j] = j
+            elif parents[j] >= 0:
+                anchor[j] = anchor[parents[j]]
+        self.inherit = np.flatnonzero(~own)
+        self.anchor = anchor[self.inherit]
+        # positions solve reads: the proximal joints', from the root down; the middle joints', from them
+        self.path_prox = self._paths(parents, [0], self.l_prox)
+        self.path_mid = self._paths(parents, self.l_prox.tolist(), self.m_joint)
+        # one stacked product for every "C G_s C^-1 times a fixed factor": the fixed joints', then the
+        # limbs' proximal and middle starting rotations
+        self.map_src = np.concatenate([self.f_src, self.l_src[:, 0], self.m_src]).astype(np.intp)
+        self.map_D = np.concatenate([self.D_f, self.D_pm, self.D_md])
+        nf, nl = len(self.f_src), len(self.l_prox)
+        self.sl_f, self.sl_p, self.sl_m = slice(0, nf), slice(nf, nf + nl), slice(nf + nl, None)
+        self.C, self.c, self.ci = C, c, ci
+        self.CT = np.ascontiguousarray(C.T)
+        self.s_pelvis = si["pelvis"]
+        self.levels_s = depth_levels(src.parents)
+        self.levels_t = depth_levels(tgt.parents)
+        self.parents = parents
+        self.offsets = np.asarray(tgt.offsets, dtype=float)
+        self.n_joints = J
+        self.deep = len(self.levels_t) > 64
+        self.target = tgt
+        self.up = up_t
+
+    @staticmethod
+    def _paths(parents, tops, ends):
+        """Joints strictly below ``tops`` down to ``ends`` (included), each after its parent."""
+        out: set[int] = set()
+        for e in ends:
+            j = int(e)
+            while j not in tops and j >= 0:
+                out.add(j)
+                j = int(parents[j])
+        return np.array(sorted(out), dtype=np.intp)
+
+    def _chain(self, G, P, path):
+        """``P[j] = P[parent] + R(G[parent]) offset[j]`` along ``path`` (in place, in its order): the
+        rotations in one call, the sums joint by joint (the numbers of retarget_across's loop)."""
+        if not len(path):
+            return
+        par = self.parents[path]
+        w = qrot(G[:, par], np.broadcast_to(self.offsets[path], (G.shape[0], len(path), 3)))
+        for i, (j, p) in enumerate(zip(path.tolist(), par.tolist())):
+            P[:, j] = P[:, p] + w[:, i]
+
+    def positions(self, rotations: np.ndarray, translations: np.ndarray, *, source=None) -> np.ndarray:
+        """(F, J, 3) world positions of the character's joints (its units, ``up``).
+
+        ``rotations`` (F, J, 4) unit quaternions and ``translations`` (F, J, 3) the local
+        translations (:meth:`~repro.motion.core.motion.Motion.local_translations`) of the
+        motion's frames: ``retarget_across(...).global_positions()`` of them.  ``source``:
+        their world ``(rotations, positions)`` when already made by forward kinematics
+        over :func:`~repro.motion.core.kinematics.depth_levels` (what ``retarget_across`` runs, and
+        :meth:`~repro.motion.core.motion.Motion.global_transforms` on trees up to 64 levels deep).
+        """
+        rotations, translations = check_pose_arrays(rotations, translations, 1 + sum(len(i) for i, _ in self.levels_s))
+        gq_s, gp_s = world_of(self.levels_s, rotations, translations, source)
+        F = gq_s.shape[0]
+        J = self.n_joints
+        c = self.c
+        G = np.zeros((F, J + 1, 4))
+        G[..., 3] = 1.0
+        mapped = quat_multiply(quat_multiply(c[None, None], gq_s[:, self.map_src]), self.ci[None, None])
+        G0 = quat_multiply(mapped, self.map_D[None])
+        G[:, self.f_joint] = G0[:, self.sl_f]
+        G[:, self.inherit] = G[:, self.anchor]
+        pel_goal = qrot(np.broadcast_to(c, (F, 4)), gp_s[:, self.s_pelvis] * self.k)
+        root_t = pel_goal - self.root_off if self.root_off is not None else pel_goal
+        P = np.zeros((F, J, 3))
+        P[:, 0] = root_t
+        self._chain(G, P, self.path_prox)
+        if len(self.l_prox):
+            S = P[:, self.l_prox]
+            g3 = gp_s[:, self.l_src]  # (F, L, 3, 3): proximal, middle, distal
+            we = g3[:, :, 2:0:-1] - g3[:, :, :1]  # (F, L, 2, 3): distal - proximal, middle - proximal
+            nl = len(self.l_prox)
+            CT = self.CT
+            n = np.stack([we[:, i, 0] @ CT / self.Ls[i] for i in range(nl)], axis=1)
+            e = np.stack([we[:, i, 1] @ CT for i in range(nl)], axis=1)
+            l1, l2 = self.l1[None], self.l2[None]
+            a, dn = normalize(n * (l1 + l2)[..., None])
+            bend = e - np.sum(e * a, axis=-1, keepdims=True) * a
+            b, bn = normalize(bend)
+            valid = bn > 1e-9 * self.bl_src_mid[None]
+            if not valid.all():
+                b = b.copy()
+                for i in np.flatnonzero(~valid.all(axis=0)).tolist():
+                    b[:, i] = self._straight(a[:, i], b[:, i], valid[:, i])
+            d = np.clip(dn, np.abs(l1 - l2), l1 + l2)
+            cosb = np.clip((l1**2 + d**2 - l2**2) / (2 * l1 * np.maximum(d, 1e-300)), -1.0, 1.0)
+            sinb = np.sqrt(1.0 - cosb**2)
+            E = S + a * (l1 * cosb)[..., None] + b * (l1 * sinb)[..., None]
+            W = S + a * d[..., None]
+            Gp = G0[:, self.sl_p]
+            cur = qrot(Gp, np.broadcast_to(self.cur_p, (F,) + self.cur_p.shape))
+            G[:, self.l_prox] = quat_multiply(min_rotation(cur, E - S), Gp)
+            if len(self.m_joint):
+                G[:, self.inherit] = G[:, self.anchor]
+                self._chain(G, P, self.path_mid)
+                Gm = G0[:, self.sl_m]
+                cur = qrot(Gm, np.broadcast_to(self.cur_m, (F,) + self.cur_m.shape))
+                G[:, self.m_joint] = quat_multiply(min_rotation(cur, W[:, self.m_limb] - P[:, self.m_joint]), Gm)
+            G[:, self.inherit] = G[:, self.anchor]
+        G = G[:, :J]
+        loc = np.empty_like(G)
+        loc[:, 0] = G[:, 0]
+        loc[:, 1:] = quat_multiply(qinv(G[:, self.parents[1:]]), G[:, 1:])
+        loc = loc / np.linalg.norm(loc, axis=-1, keepdims=True)  # as a new Motion renormalises
+        t = np.broadcast_to(self.offsets, (F, J, 3)).copy()
+        t[:, 0] = root_t
+        if self.deep:  # Motion.global_transforms' other path
+            tgt = self.target
+            channels = tgt.channels if tgt.channels is not None else [_POS + _ROT] + [_ROT] * (J - 1)
+            return tgt.motion_with(loc, t, frame_time=1.0, channels=channels, up=self.up).global_positions()
+        return fk_arrays(self.levels_t, loc, t, copy=False)[1]
+
+    def _straight(self, a, b, valid):
+        """``_solve_limb``'s bend plane of one limb with straight frames (F, 3)."""
+        F = a.shape[0]
+        idx = np.where(valid, np.arange(F), -1)
+        idx = np.maximum.accumulate(idx)
+        first = int(np.argmax(valid)) if valid.any() else -1
+        if first >= 0:
+            idx = np.where(idx < 0, first, idx)
+            b = b[idx]
+            return normalize(b - np.sum(b * a, axis=-1, keepdims=True) * a)[0]
+        ref = np.broadcast_to(self.C @ np.array([0.0, 0.0, 1.0]), a.shape)
+        return normalize(cross(a, cross(ref, a)) + 1e-12)[0]
+
+
+def _ref_dir(P, roles_, names, a, b):
+    return _unit(P[names.index(roles_[b])] - P[names.index(roles_[a])])
+
+
+def _bone_delta(src, tgt, Ps, Pt, ax_s, ax_t, C, a, b):
+    """Rotation taking the character's rest frame of bone a->b to the mapped source one.
+
+    The frame: the bone direction and the part's rest axis (left, up or forward of
+    :func:`rest_axes`) least aligned with the bone on both skeletons, so the twist
+    about the bone is carried too (the smallest rotation between the bone directions
+    alone would leave it to the rest poses' accident)."""
+    dt = _ref_dir(Pt, tgt.roles, tgt.joint_names, a, b)
+    ds = C @ _ref_dir(Ps, src.roles, src.joint_names, a, b)
+    part = "leg" if any(x in a for x in ("pelvis", "hip", "knee", "ankle", "toe")) else "arm"
+    at, as_ = ax_t[part], ax_s[part] @ C.T
+    k = int(np.argmin(np.maximum(np.abs(at @ dt), np.abs(as_ @ ds))))
+    return _mat_to_quat(_frame(ds, as_[k]) @ _frame(dt, at[k]).T)
+
+
+def _fix_feet(motion, src, tgt, gp_s, up_t, up_s, root_t, G, P, solve, blend_time):
+    """``fix_feet`` of :func:`retarget_across`: planted ankles pinned, root lowered, feet above the floor."""
+    from repro.motion.body.feet import foot_contacts, foot_goals
+
+    kt = 2 if up_t == "z" else 1
+    e_up = _AXIS[up_t]
+    ank = [tgt.index("left_ankle"), tgt.index("right_ankle")]
+    hips = [tgt.index("left_hip"), tgt.index("right_hip")]
+    L = np.array([tgt.limb_lengths[f"{s}_leg"] for s in ("left", "right")])
+    contacts = foot_contacts(motion, skeleton=src, global_positions=gp_s, up_axis=2 if up_s == "z" else 1)
+    A = P[:, ank]
+    n_blend = round(min(blend_time / motion.frame_time, 2.0**53))  # longer than any clip: no overflow
+    goal, w = foot_goals(A, contacts, A[..., 1], n_blend)  # every coordinate: the phase mean
+    goal = A + w[..., None] * (goal - A)
+    r = goal - P[:, hips]
+    ry = r[..., kt]
+    rh2 = np.sum(r * r, axis=-1) - ry**2
+    drop = np.maximum(0.0, -ry - np.sqrt(np.maximum(L[None] ** 2 - rh2, 0.0))).max(axis=1)
+    root_t = root_t - drop[:, None] * e_up
+    goals = {ank[0]: goal[:, 0], ank[1]: goal[:, 1]}
+    G, P = solve(root_t, goals)
+    # no ankle / toe below the floor: raise the ankle goal by the depth
+    feet = []
+    for s in ("left", "right"):
+        pts = [tgt.index(f"{s}_ankle")] + ([tgt.index(f"{s}_toe")] if f"{s}_toe" in tgt.roles else [])
+        feet.append(pts)
+    depth = np.stack([np.maximum(0.0, -P[:, pts, kt].min(axis=1)) for pts in feet], axis=1)
+    if np.any(depth > 0):
+        goals = {ank[i]: P[:, ank[i]] + (depth[:, i] * (1 + 1e-9))[:, None] * e_up for i in range(2)}
+        G, P = solve(root_t, goals)
+    return root_t, G, P
+
+
+def _solve_limb(src, tgt, gp_s, gq_s, C, mapped, delta, S, roles3, si, ti, goal=None):
+    """Proximal global rotation and the middle / distal goals of one limb (Kulpa: normalised
+    distal vector x limb length, middle joint in the source's bend plane); ``goal``: the
+    distal joint's world position instead (``fix_feet``)."""
+    rp, rm, rd = roles3
+    F = gp_s.shape[0]
+    Ss, Es, Ws = gp_s[:, si(rp)], gp_s[:, si(rm)], gp_s[:, si(rd)]
+    Ls = src.bone_lengths[si(rm)] + src.bone_lengths[si(rd)]
+    l1, l2 = tgt.bone_lengths[ti(rm)], tgt.bone_lengths[ti(rd)]
+    n = (Ws - Ss) @ C.T / Ls  # normalised limb vector, character world
+    a, dn = normalize(n * (l1 + l2) if goal is None else goal - S)
+    e = (Es - Ss) @ C.T
+    bend = e - np.sum(e * a, axis=-1, keepdims=True) * a
+    b, bn = normalize(bend)
+    valid = bn > 1e-9 * src.bone_lengths[si(rm)]
+    if not valid.all():
+        # straight limb: keep the last defined bend plane (first one backward), else any
+        idx = np.where(valid, np.arange(F), -1)
+        idx = np.maximum.accumulate(idx)
+        first = int(np.argmax(valid)) if valid.any() else -1
+        if first >= 0:
+            idx = np.where(idx < 0, first, idx)
+            b = b[idx]
+            b = normalize(b - np.sum(b * a, axis=-1, keepdims=True) * a)[0]
+        else:
+            ref = np.broadcast_to(C @ np.array([0.0, 0.0, 1.0]), a.shape)
+            b = normalize(cross(a, cross(ref, a)) + 1e-12)[0]
+    d = np.clip(dn, abs(l1 - l2), l1 + l2)
+    cosb = np.clip((l1**2 + d**2 - l2**2) / (2 * l1 * np.maximum(d, 1e-300)), -1.0, 1.0)
+    sinb = np.sqrt(1.0 - cosb**2)
+    E = S + a * (l1 * cosb)[:, None] + b * (l1 * sinb)[:, None]
+    W = S + a * d[:, None]
+    G0 = quat_multiply(mapped(rp), delta(rp, rm)[None])
+    Pt = tgt.rest_positions()
+    cur = qrot(G0, np.broadcast_to(Pt[ti(rm)] - Pt[ti(rp)], (F, 3)))
+    return quat_multiply(min_rotation(cur, E - S), G0), E, W

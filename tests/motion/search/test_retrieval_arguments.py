@@ -1,0 +1,96 @@
+"""The retrieval's helpers check their arguments at the entry (issue 23, sections 3, 6).
+
+What is asserted: ``make_queries(db, 10**12)`` and ``time_search(db, 10**12)`` (which ran
+until killed) are a :class:`RetrievalError` naming the count and its bound
+:data:`MAX_QUERIES`; ``retarget_to_tree`` given a motion or target that is not a Motion
+is a :class:`MotionError` (was an ``AttributeError``); ``scoring_frame_miss`` with a grid,
+height, semantics or (method, scoring) pairs that are not what it takes is a
+:class:`RetrievalError` raised before any search (a 10**6 x 10**6 grid would search
+10**12 targets).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from repro.errors import MotionError, RetrievalError
+from repro.motion.search.retrieval import (
+    MAX_QUERIES,
+    MotionRetriever,
+    make_queries,
+    retarget_to_tree,
+    scoring_frame_miss,
+    time_search,
+)
+
+
+@pytest.fixture(scope="module")
+def small(synthetic_db):
+    return synthetic_db.select(np.arange(3))
+
+
+@pytest.mark.parametrize("n", [MAX_QUERIES + 1, 10**12])
+def test_query_counts_are_bounded(small, n):
+    with pytest.raises(RetrievalError, match=rf"^n \(number of queries\) must be an integer in 0\.\.{MAX_QUERIES}"):
+        make_queries(small, n)
+    with pytest.raises(RetrievalError, match=rf"^n_queries must be an integer in 1\.\.{MAX_QUERIES}"):
+        time_search(small, n, retriever=MotionRetriever(small, seed=0))
+
+
+def test_query_counts_in_range(small):
+    assert len(make_queries(small, 3)) == 3
+
+
+HOSTILE = ["x", None, float("nan"), 1j, -1, np.zeros(0), np.zeros((2, 7)), ["a"]]
+
+
+@pytest.mark.parametrize("v", HOSTILE, ids=repr)
+def test_retarget_to_tree_motion(small, v):
+    ch = small.actor_skeleton(0)
+    with pytest.raises(MotionError, match="^motion must be"):
+        retarget_to_tree(v, ch)
+    if v is not None:
+        with pytest.raises(MotionError, match="^target must be"):
+            retarget_to_tree(small.motion(0), ch, target=v)
+
+
+BAD_MISS = {
+    "grid huge": dict(grid=(10**6, 10**6)),
+    "grid 0": dict(grid=(0, 3)),
+    "grid float": dict(grid=(2.5, 3)),
+    "grid scalar": dict(grid=9),
+    "grid three": dict(grid=(1, 2, 3)),
+    "grid str": dict(grid="ab"),
+    "height nan": dict(height=float("nan")),
+    "height 0": dict(height=0.0),
+    "height huge": dict(height=1e300),
+    "height str": dict(height="1.7"),
+    "semantics unknown": dict(semantics=("headbutt",)),
+    "semantics empty": dict(semantics=()),
+    "semantics None": dict(semantics=None),
+    "semantics number": dict(semantics=(1,)),
+    "configs method": dict(configs=(("fast", "first"),)),
+    "configs scoring": dict(configs=(("exact", "last"),)),
+    "configs shape": dict(configs=(("exact",),)),
+    "configs None": dict(configs=None),
+    "db": dict(db="synthetic"),
+}
+
+
+@pytest.mark.parametrize("kw", BAD_MISS.values(), ids=BAD_MISS.keys())
+def test_scoring_frame_miss_arguments(synthetic_db, kw):
+    name = next(iter(kw))
+    want = "expected a MotionDatabase" if name == "db" else rf"^{name}"
+    with pytest.raises(RetrievalError, match=want):  # the full database: it has the stance clip
+        scoring_frame_miss(**{"db": synthetic_db, **kw})
+
+
+@pytest.mark.parametrize("stats", ["x", 1, [], (), np.zeros(2)], ids=repr)
+def test_search_exact_stats(small, stats):
+    """``stats`` is filled after the search: anything but a dict (or None) was an AttributeError then."""
+    from repro.motion.runtime.strike import one_frame
+
+    r = MotionRetriever(small, seed=0)
+    with pytest.raises(RetrievalError, match="^stats must be a dict"):
+        r.search_exact([0.3, 1.4, 0.5], one_frame(small.motion(0), 0), small.actor_skeleton(0), "punch", stats=stats)
