@@ -26,6 +26,7 @@ import os
 from repro.errors import ArgumentError
 
 __all__ = [
+    "read_only",
     "describe",
     "as_real_array",
     "abs_max",
@@ -45,6 +46,14 @@ _INT64_MAX = np.iinfo(np.int64).max
 
 _REPR = reprlib.Repr()
 _REPR.maxstring = _REPR.maxother = 60
+
+
+def read_only(a, dtype=None) -> np.ndarray:
+    """A private copy of ``a`` that cannot be written: how the immutable types of both papers
+    (``Motion``, ``Skeleton``, ``BlendshapeModel``) keep the arrays they were given."""
+    a = np.array(a, dtype=dtype, copy=True)
+    a.flags.writeable = False
+    return a
 
 
 def describe(x) -> str:

@@ -68,10 +68,12 @@ def _resolve(module: str, node: ast.ImportFrom) -> str:
     return ".".join(base + ([node.module] if node.module else []))
 
 
-def _imports(module: str, tree: ast.Module):
+def _imports(module: str, tree: ast.Module, *, typing_only_too: bool = False):
     """(target module, imported name or None, line, at module level?) for every import.
 
-    Imports under ``if TYPE_CHECKING:`` are for annotations only (never run) and are skipped.
+    Imports under ``if TYPE_CHECKING:`` are for annotations only (never run): skipped, except
+    with ``typing_only_too`` (the cycle check: a circle of type-only imports is still a circle
+    a reader has to untangle).
     """
     top = {id(n) for n in tree.body}
     typing_only = {
@@ -82,7 +84,7 @@ def _imports(module: str, tree: ast.Module):
         for sub in ast.walk(stmt)
     }
     for node in ast.walk(tree):
-        if id(node) in typing_only:
+        if id(node) in typing_only and not typing_only_too:
             continue
         if isinstance(node, ast.Import):
             for a in node.names:
@@ -157,10 +159,17 @@ def test_no_private_name_imported_across_modules():
     assert not found, "\n".join(found)
 
 
+#: cycles being removed (issue 24); each entry the sorted modules of one strongly connected component
+KNOWN_CYCLES: list[list[str]] = [
+    ["repro.motion.search.exact", "repro.motion.search.retrieval", "repro.motion.search.start"],
+    ["repro.blendshapes.gltf_write", "repro.blendshapes.model"],
+]
+
+
 def test_no_import_cycle():
     graph: dict[str, set[str]] = {m: set() for m in MODULES}
     for module, (_, tree) in MODULES.items():
-        for target, _name, _line, _top in _imports(module, tree):
+        for target, _name, _line, _top in _imports(module, tree, typing_only_too=True):
             if target in MODULES and target != module:
                 # a package's own __init__ importing its submodules is how packages work;
                 # the reverse (a submodule importing its package) would make a cycle
@@ -201,7 +210,8 @@ def test_no_import_cycle():
                             break
                     if len(comp) > 1:
                         comps.append(sorted(comp))
-    assert comps == [], f"import cycles: {comps}"
+    comps = [c for c in comps if c not in KNOWN_CYCLES]
+    assert comps == [], f"import cycles (type-only imports count): {comps}"
 
 
 @pytest.mark.parametrize("bad", ["from repro.motion.io.bvh import _read_bytes", "from repro.ui.face_panel import X"])

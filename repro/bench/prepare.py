@@ -35,7 +35,7 @@ class _Unplanned:
         self.m, self.actor, self.roles, self.rest = m, actor, dict(roles), rest
 
     def positions(self, rotations, translations, *, source=None):
-        from repro.motion.search.retrieval import retarget_to_tree
+        from repro.motion.retargeting.dispatch import retarget_to_tree
 
         return retarget_to_tree(self.m, self.actor, roles=self.roles, target=self.rest).global_positions()
 
@@ -70,7 +70,8 @@ def bench_prepare(*, quick: bool = False, n_queries: int = 200, seed: int = 0, p
     progress = as_bool(progress, "progress", error=ArgumentError)
     n_queries = as_int(n_queries, "n_queries", 1, MAX_QUERIES, error=ArgumentError)
     seed = as_int(seed, "seed", 0, None, error=ArgumentError)
-    from repro.motion.search.retrieval import MotionRetriever, rest_motion_y_up, retarget_to_tree
+    from repro.motion.retargeting.dispatch import rest_motion_y_up, retarget_to_tree
+    from repro.motion.search.retrieval import MotionRetriever
     from repro.motion.body.skeleton import Skeleton, scale_skeleton
     from repro.motion.database.sources import default_database
     from repro.motion.database.synthetic.conventions import build

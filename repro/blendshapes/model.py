@@ -28,19 +28,13 @@ from functools import cached_property
 
 import numpy as np
 
-from repro.checks import abs_max, as_int, as_real, as_real_array, as_str, describe
+from repro.checks import abs_max, as_int, as_real, as_real_array, as_str, describe, read_only
 from repro.errors import ModelError
 
 __all__ = ["BlendshapeModel", "AXES"]
 
 #: Axis names in the order of the xyz packing of ``D``.
 AXES = ("x", "y", "z")
-
-
-def _frozen(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, copy=True)
-    a.flags.writeable = False
-    return a
 
 
 @dataclass(frozen=True, eq=False)
@@ -158,12 +152,12 @@ class BlendshapeModel:
             v = v.ravel()
             if v.size == 0 or v.min() < 0 or v.max() >= n:
                 raise ModelError(f"region {region!r} must list vertices in 0..{n - 1}")
-            regions[str(region)] = _frozen(v)
+            regions[str(region)] = read_only(v)
         set_ = object.__setattr__
-        set_(self, "f0", _frozen(f0))
-        set_(self, "D", _frozen(D))
+        set_(self, "f0", read_only(f0))
+        set_(self, "D", read_only(D))
         set_(self, "names", names)
-        set_(self, "faces", _frozen(faces.astype(np.int64)))
+        set_(self, "faces", read_only(faces.astype(np.int64)))
         set_(self, "sliders", sliders)
         set_(self, "regions", regions)
 

@@ -243,19 +243,19 @@ def _time_search():
 
 
 def _character_skeleton():
-    from repro.motion.search.retrieval import character_skeleton
+    from repro.motion.retargeting.dispatch import character_skeleton
 
     return character_skeleton, dict(character=_character(), purposes=("a punch",))
 
 
 def _rest_motion_y_up():
-    from repro.motion.search.retrieval import rest_motion_y_up
+    from repro.motion.retargeting.dispatch import rest_motion_y_up
 
     return rest_motion_y_up, dict(character=_character())
 
 
 def _retarget_to_tree():
-    from repro.motion.search.retrieval import retarget_to_tree
+    from repro.motion.retargeting.dispatch import retarget_to_tree
 
     return retarget_to_tree, dict(motion=_db().motion(1), character=_character(), roles=None, target=None,
                                   fix_feet=False)

@@ -189,7 +189,7 @@ def hit_gaps(src, out, hit_frame: int, hit_role: str) -> dict:
 
 def _real_clip_rows(quick: bool) -> list[dict]:
     """Annotated CMU and Bandai Namco clips onto the other skeleton, with the hit columns."""
-    from repro.motion.search.retrieval import retarget_to_tree
+    from repro.motion.retargeting.dispatch import retarget_to_tree
     from repro.motion.database.sources import build_real_database, clip_source_dataset
 
     with warnings.catch_warnings():

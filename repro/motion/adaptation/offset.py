@@ -7,22 +7,11 @@ import numpy as np
 from repro.checks import as_choice, as_int, check_alloc
 from repro.errors import MotionError
 from repro.motion.adaptation.rig import vec3
+from repro.motion.core.ops import EASINGS, ease
 
 __all__ = ["EASINGS", "offset_curve"]
 
-#: Easings of ``d(t)`` between ``t0`` and ``tc``.
-EASINGS = ("linear", "smoothstep", "smootherstep")
-
-
 # ---------------------------------------------------------------------- d(t)
-def _ease(u: np.ndarray, kind: str) -> np.ndarray:
-    if kind == "linear":
-        return u
-    if kind == "smoothstep":
-        return u * u * (3.0 - 2.0 * u)
-    return u * u * u * (u * (6.0 * u - 15.0) + 10.0)  # smootherstep
-
-
 def offset_curve(
     t0: int, tc: int, d_tc, frames: int, kind: str = "smoothstep", release: int | None = None
 ) -> np.ndarray:
@@ -73,7 +62,7 @@ def offset_curve(
         release = as_int(release, "release", 0, 2**62, error=MotionError)
     t = np.arange(F, dtype=float)
     if tc > t0:
-        w = _ease(np.clip((t - t0) / (tc - t0), 0.0, 1.0), kind)
+        w = ease(np.clip((t - t0) / (tc - t0), 0.0, 1.0), kind)
     else:
         w = (t >= tc).astype(float)
     w[tc] = 1.0
@@ -83,5 +72,5 @@ def offset_curve(
         w[tc + 1:] = 0.0
     else:
         after = t > tc
-        w[after] = 1.0 - _ease(np.clip((t[after] - tc) / release, 0.0, 1.0), kind)
+        w[after] = 1.0 - ease(np.clip((t[after] - tc) / release, 0.0, 1.0), kind)
     return w[:, None] * d_tc[None, :]

@@ -31,7 +31,7 @@ from functools import cached_property
 
 import numpy as np
 
-from repro.checks import as_int, as_real, as_real_array, check_alloc, describe
+from repro.checks import as_int, as_real, as_real_array, check_alloc, describe, read_only
 from repro.errors import MotionError, UnitWarning
 from repro.motion.core.kinematics import check_indices, check_joint_names
 from repro.motion.core.motion import CMU_UNIT_M, Motion
@@ -80,12 +80,6 @@ def infer_unit(stature: float) -> tuple[float, str]:
         )
     _, u, n = min(fits)
     return u, n
-
-
-def _readonly(a) -> np.ndarray:
-    a = np.array(a, dtype=float, copy=True)
-    a.flags.writeable = False
-    return a
 
 
 @dataclass(frozen=True, eq=False)
@@ -182,12 +176,12 @@ class Skeleton:
         set_(self, "joint_names", names)
         set_(self, "parents", np.asarray(parents, dtype=np.intp).copy())
         self.parents.flags.writeable = False
-        set_(self, "offsets", _readonly(offsets))
+        set_(self, "offsets", read_only(offsets, float))
         set_(self, "channels", channels)
         esp = esp.copy()
         esp.flags.writeable = False
         set_(self, "end_site_parents", esp)
-        set_(self, "end_site_offsets", _readonly(eso))
+        set_(self, "end_site_offsets", read_only(eso, float))
         set_(self, "unit_m", None if self.unit_m is None else float(self.unit_m))
         set_(self, "roles", dict(roles))
         # zero-length bones where a role needs a length

@@ -44,7 +44,7 @@ from functools import cached_property
 
 import numpy as np
 
-from repro.checks import as_real, as_real_array, describe
+from repro.checks import as_real, as_real_array, describe, read_only
 from repro.errors import BVHError, MotionError
 from repro.motion.io.channels import channel_layout, channel_table
 from repro.motion.core.kinematics import MAX_COORDINATE, check_joint_names, depth_levels, fk_arrays
@@ -103,12 +103,6 @@ class UnknownJointError(MotionError, KeyError):
 
     def __str__(self) -> str:  # the message, not KeyError's quoted repr of it
         return str(self.args[0]) if self.args else ""
-
-
-def _readonly(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, copy=True)
-    a.flags.writeable = False
-    return a
 
 
 @dataclass(frozen=True, eq=False)
@@ -280,14 +274,14 @@ class Motion:
             raise BVHError(f"up must be 'y', 'z' or None, got {describe(self.up)}")
         set_ = object.__setattr__
         set_(self, "joint_names", names)
-        set_(self, "parents", _readonly(parents))
-        set_(self, "offsets", _readonly(offsets))
+        set_(self, "parents", read_only(parents))
+        set_(self, "offsets", read_only(offsets))
         set_(self, "channels", channels)
         set_(self, "frame_time", ft)
-        set_(self, "rotations", _readonly(rot))
-        set_(self, "positions", _readonly(pos))
-        set_(self, "end_site_parents", _readonly(esp.astype(np.intp)))
-        set_(self, "end_site_offsets", _readonly(eso))
+        set_(self, "rotations", read_only(rot))
+        set_(self, "positions", read_only(pos))
+        set_(self, "end_site_parents", read_only(esp.astype(np.intp)))
+        set_(self, "end_site_offsets", read_only(eso))
         set_(self, "unit_m", None if self.unit_m is None else float(self.unit_m))
         if self.up is not None and self.up not in ("y", "z"):
             raise BVHError(f"up must be 'y', 'z' or None, got {self.up!r}")

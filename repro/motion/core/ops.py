@@ -23,6 +23,27 @@ from repro.motion.core.quaternion import slerp
 __all__ = ["resample", "cut", "mirror_joint_map", "mirror_motion", "variant_motion"]
 
 
+#: the easing curves ``s`` of :func:`ease` (by name, for options and panels)
+EASINGS = ("linear", "smoothstep", "smootherstep")
+
+
+def ease(u, kind: str = "smootherstep") -> np.ndarray:
+    """An easing curve ``s(u)``: ``s(0) = 0``, ``s(1) = 1``, increasing, ``u`` clipped to [0, 1] first.
+
+    ``"linear"``; ``"smoothstep"`` ``3u^2 - 2u^3`` (zero speed at both ends); ``"smootherstep"``
+    ``6u^5 - 15u^4 + 10u^3`` (zero speed and acceleration at both ends).  The one easing of the
+    library: the offset ``d(t)`` of Section 3.4.2, blends between clips, the synthetic tracks.
+    """
+    u = np.clip(u, 0.0, 1.0)
+    if kind == "linear":
+        return u
+    if kind == "smoothstep":
+        return u * u * (3.0 - 2.0 * u)
+    if kind == "smootherstep":
+        return u * u * u * (u * (6.0 * u - 15.0) + 10.0)
+    raise MotionError(f"kind must be one of {EASINGS}, got {kind!r}")
+
+
 def resample(motion: Motion, fps: float | None = None, *, frames: Sequence[float] | np.ndarray | None = None,
              frame_time: float | None = None) -> Motion:
     """A motion sampled at other times: slerp of rotations, linear position channels.

@@ -98,7 +98,9 @@ from repro.motion.database.annotation import SEMANTICS
 from repro.motion.database.clips import MotionDatabase
 from repro.motion.retargeting.morphology import retarget
 from repro.motion.core.motion import Motion, finite_vector3
-from repro.motion.search.retrieval import MotionRetriever, character_skeleton, retarget_to_tree
+from repro.motion.core.ops import ease
+from repro.motion.retargeting.dispatch import character_skeleton, retarget_to_tree
+from repro.motion.search.retrieval import MotionRetriever
 from repro.motion.body.units import y_up_metres
 from repro.motion.body.skeleton import (
     Skeleton,
@@ -178,11 +180,6 @@ def character_from(height: float = 1.75, arm_scale: float = 1.0, leg_scale: floa
 
 
 # ------------------------------------------------------------------ the user
-def _smooth(u):
-    u = np.clip(u, 0.0, 1.0)
-    return u * u * u * (u * (6.0 * u - 15.0) + 10.0)
-
-
 def simulated_user(seed: int = 0, duration: float = 10.0, fps: float = 30.0, *, heights=(1.5, 1.8),
                    crouch_every: float = 4.0, crouch_depth=(0.25, 0.45), margin: float = 0.2) -> np.ndarray:
     """A deterministic head trajectory of a user wandering in the 3 m x 3 m area.
@@ -245,7 +242,7 @@ def simulated_user(seed: int = 0, duration: float = 10.0, fps: float = 30.0, *, 
         wz[i] = np.clip(wz[i - 1] + r * np.sin(a), z0 + m, z1 - m)
     wy = rng.uniform(lo, hi, k)
     seg = np.clip(np.searchsorted(times, t, side="right") - 1, 0, k - 2)
-    u = _smooth((t - times[seg]) / (times[seg + 1] - times[seg]))
+    u = ease((t - times[seg]) / (times[seg + 1] - times[seg]))
     x = wx[seg] + u * (wx[seg + 1] - wx[seg])
     z = wz[seg] + u * (wz[seg + 1] - wz[seg])
     y = wy[seg] + u * (wy[seg + 1] - wy[seg])

@@ -64,21 +64,20 @@ import numpy as np
 from repro.checks import as_bool, as_choice, as_int, as_real, as_real_array, describe
 from repro.errors import MotionError, RetrievalError
 from repro.motion.adaptation import EFFECTOR_STEMS, Adaptation, adapt
-from repro.motion.adaptation.offset import EASINGS
 from repro.motion.database.annotation import SEMANTICS
 from repro.motion.adaptation.cost import adaptation_cost
 from repro.motion.adaptation.offset import offset_curve
 from repro.motion.search.clustering import from_root_frame, rotate_y, to_root_frame
 from repro.motion.database.clips import MotionDatabase
-from repro.motion.core.ops import cut
+from repro.motion.core.ops import EASINGS, cut, ease
 from repro.motion.body.roles import effector_role
 from repro.motion.body.feet import foot_contacts, max_foot_slide
 from repro.motion.core.quaternion import slerp
-from repro.motion.retargeting.morphology import retarget
 from repro.motion.core.motion import MAX_COORDINATE, Motion, finite_vector3
 from repro.motion.runtime.paper import REACTION_BUDGET_S
 from repro.motion.core.quaternion import quat_multiply
-from repro.motion.search.retrieval import MotionRetriever, Query, RetrievalResult, character_skeleton, retarget_to_tree
+from repro.motion.retargeting.dispatch import character_skeleton, retarget_to
+from repro.motion.search.retrieval import MotionRetriever, Query, RetrievalResult
 from repro.motion.body.skeleton import Skeleton, rescale_constraint
 
 __all__ = [
@@ -153,11 +152,6 @@ def turn_and_move(motion: Motion, theta: float, translation) -> Motion:
     return dataclasses.replace(motion, rotations=rot, positions=pos)
 
 
-def _smooth(u):
-    u = np.clip(u, 0.0, 1.0)
-    return u * u * u * (u * (6.0 * u - 15.0) + 10.0)
-
-
 def blend_into(pose: Motion, placed: Motion, n_blend: int) -> Motion:
     """Blend ``placed`` into the pose (frame 0 of the result = ``pose``'s last frame) over ``n_blend`` frames.
 
@@ -169,7 +163,7 @@ def blend_into(pose: Motion, placed: Motion, n_blend: int) -> Motion:
         raise MotionError(f"pose and placed must have the same joints, got {pose.n_joints} and {placed.n_joints}")
     F = placed.n_frames
     nb = max(1, as_int(n_blend, "n_blend (frames)", 0, error=MotionError))
-    w = _smooth(np.arange(F) / nb)
+    w = ease(np.arange(F) / nb)
     r0 = np.broadcast_to(pose.rotations[-1], placed.rotations.shape)
     rot = slerp(r0, placed.rotations, w[:, None, None])
     pos = np.array(placed.positions)
@@ -515,7 +509,7 @@ def strike(
     m = cut(db.motion(res.clip), res.start_frame, int(db.n_frames[res.clip]))
     contacts = foot_contacts(m)
     t_rt = time.perf_counter()
-    mc = retarget(m, ch, fix_feet=fix_feet) if ch.is_compatible(m) else retarget_to_tree(m, ch, fix_feet=fix_feet)
+    mc = retarget_to(m, ch, fix_feet=fix_feet)
     t_adapt = time.perf_counter()
     # ---- 4. place on the current pose, blend with the current motion
     k = res.size_c / res.size_a

@@ -101,7 +101,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from repro.checks import as_choice, as_int, as_real, as_str, describe
+from repro.checks import as_choice, as_int, as_real, describe
 from repro.errors import MotionError, RetrievalError
 from repro.motion.database.annotation import SEMANTICS
 from repro.motion.search.clustering import (
@@ -116,10 +116,10 @@ from repro.motion.retargeting.morphology import RetargetPlan, retarget
 from repro.motion.core.motion import LEVEL_LOOP_MAX_DEPTH as _FK_LEVEL_LOOP_MAX
 from repro.motion.core.motion import Motion, finite_vector3
 from repro.motion.core.ops import resample
-from repro.motion.retargeting.trees import TreePlan, retarget_across
+from repro.motion.retargeting.trees import TreePlan
 from repro.motion.search.exact import ExactSearch
 from repro.motion.search.start import StartScoring
-from repro.motion.body.roles import check_roles, find_roles
+from repro.motion.retargeting.dispatch import rest_motion_y_up
 from repro.motion.body.skeleton import Skeleton, rescale_constraint, skeleton_of
 
 __all__ = [
@@ -131,10 +131,7 @@ __all__ = [
     "MotionRetriever",
     "Query",
     "RetrievalResult",
-    "character_skeleton",
     "make_queries",
-    "rest_motion_y_up",
-    "retarget_to_tree",
     "scoring_frame_miss",
     "search",
     "time_search",
@@ -330,95 +327,6 @@ def _check_flag(name: str, v) -> bool:
     if not isinstance(v, (bool, np.bool_)):
         raise RetrievalError(f"{name} must be True or False, got {v!r}")
     return bool(v)
-
-
-_ROT_CH = ("Zrotation", "Xrotation", "Yrotation")
-_POS_CH = ("Xposition", "Yposition", "Zposition")
-
-
-def character_skeleton(character, purposes: Sequence[str] = ()) -> Skeleton:
-    """The Skeleton of a character (Skeleton or Motion) that must be able to do ``purposes``.
-
-    ``purposes``: keys of :data:`repro.motion.body.roles.ROLES_FOR` (``"a punch"``, ``"a kick"``).
-    A partial skeleton (legs only, arms only) is refused naming what is missing *for
-    what* (:func:`repro.motion.body.roles.check_roles`: "a punch needs an arm ...") rather
-    than only the roles a Skeleton needs.
-
-    Raises
-    ------
-    repro.errors.MotionError
-    """
-    if isinstance(purposes, str):
-        purposes = (purposes,)
-    try:
-        purposes = tuple(as_str(p, "purposes entry", error=MotionError) for p in purposes)
-    except TypeError:
-        raise MotionError(f"purposes must be a sequence of purposes such as 'a punch', got {describe(purposes)}") from None
-    try:
-        ch = skeleton_of(character)
-    except MotionError as e:
-        names, par, off = (getattr(character, k, None) for k in ("joint_names", "parents", "offsets"))
-        if names is not None and par is not None and off is not None:
-            try:
-                partial = find_roles(list(names), np.asarray(par), offsets=np.asarray(off, dtype=float), required=())
-            except MotionError:
-                raise e from None
-            _check_purposes(partial, purposes, list(names))
-        raise
-    _check_purposes(ch.roles, purposes, ch.joint_names)
-    return ch
-
-
-def _check_purposes(roles, purposes, names) -> None:
-    """:func:`check_roles` of every purpose; one MotionError naming every purpose that fails."""
-    why = []
-    for purpose in purposes:
-        try:
-            check_roles(roles, purpose, names)
-        except MotionError as e:
-            why.append(str(e).split("; joints:")[0])
-    if why:
-        raise MotionError("; ".join(why) + f"; joints: {list(names)}")
-
-
-def rest_motion_y_up(character) -> Motion:
-    """The rest pose of ``character`` (Skeleton or Motion) as a one-frame Motion in the database
-    world (Y up): the target :func:`retarget_to_tree` decodes onto.  A database actor's rest
-    pose need not stand along Y (Bandai's lies along +X), but its clips do."""
-    sk = skeleton_of(character)
-    J = sk.n_joints
-    rot = np.zeros((1, J, 4))
-    rot[..., 3] = 1.0
-    channels = list(sk.channels) if sk.channels is not None else [_POS_CH + _ROT_CH] + [_ROT_CH] * (J - 1)
-    return Motion.from_unit_rotations(
-        joint_names=list(sk.joint_names), parents=sk.parents, offsets=sk.offsets, channels=channels,
-        frame_time=1.0 / 30.0, rotations=rot, positions=np.asarray(sk.offsets, dtype=float)[None].copy(),
-        end_site_parents=sk.end_site_parents, end_site_offsets=sk.end_site_offsets, unit_m=sk.unit_m, up="y")
-
-
-def retarget_to_tree(motion: Motion, character, *, roles=None, target=None, fix_feet: bool = False) -> Motion:
-    """``motion`` (database world: Y up, metres) played by ``character`` of another joint tree.
-
-    Through the body-part roles (:func:`repro.motion.retargeting.trees.retarget_across`), the
-    character's own role table (``character.roles``; an explicit one is kept) and its
-    rest pose decoded in the Y-up world (:func:`rest_motion_y_up`, or ``target`` when
-    already made).  ``roles``: the motion's role table (default: found); ``fix_feet``: see
-    :func:`~repro.motion.retargeting.trees.retarget_across`.  The result is a Motion on the
-    character's skeleton, Y up.
-
-    Raises
-    ------
-    repro.errors.MotionError
-        Missing roles on either side (named), a rest pose whose facing cannot be told.
-    """
-    if not isinstance(motion, Motion):
-        raise MotionError(f"motion must be a repro.motion.Motion, got {describe(motion)}")
-    if target is not None and not isinstance(target, Motion):
-        raise MotionError(f"target must be a repro.motion.Motion (a rest pose) or None, got {describe(target)}")
-    ch = skeleton_of(character)
-    src = motion if motion.up is not None else dataclasses.replace(motion, up="y")
-    tgt = rest_motion_y_up(ch) if target is None else target
-    return retarget_across(src, tgt, roles=roles, character_roles=dict(ch.roles), fix_feet=fix_feet)
 
 
 class MotionRetriever(ExactSearch, StartScoring):

@@ -28,6 +28,7 @@ import numpy as np
 import pytest
 
 import repro.motion.search.retrieval as retrieval_mod
+from repro.motion.retargeting import dispatch
 from repro.errors import MotionError, RetrievalError
 from repro.motion.database.clips import Clip, MotionDatabase
 from repro.motion.runtime.fighter import KungFuFighter
@@ -183,7 +184,7 @@ def test_across_trees_caches_the_actor_rest_poses(mixed, monkeypatch):
     # and q_r on each actor is what retargeting the pose to it gives
     q = r.prepare(pose, ch)
     a0 = db.actors[0]
-    g = retrieval_mod.retarget_to_tree(pose, a0).global_positions()
+    g = dispatch.retarget_to_tree(pose, a0).global_positions()
     from repro.motion.search.clustering import pose_points
 
     pts = pose_points(g, [a0.index(x) for x in db.pose_roles], a0.index("pelvis"), a0.index("left_hip"),
@@ -196,7 +197,7 @@ def test_a_strike_on_a_character_of_another_tree(synthetic_db, rigs):
     r = MotionRetriever(db, seed=0, across_trees=True)
     ch_m = rigs["mixamo"]
     ch = Skeleton.from_motion(ch_m)
-    stance = retrieval_mod.retarget_to_tree(frame_of(db.motion(0), 0), ch)
+    stance = dispatch.retarget_to_tree(frame_of(db.motion(0), 0), ch)
     i = int(np.flatnonzero(db.semantics == "punch")[0])
     c = db.hit_position[i] * ch.size / db.size_a[i]
     s = strike(r, ch, stance, c, "punch", frame="root")

@@ -27,7 +27,8 @@ import pytest
 from repro.errors import MotionError
 from repro.motion.search.clustering import pose_points
 from repro.motion.retargeting.morphology import RetargetPlan, retarget
-from repro.motion.search.retrieval import MotionRetriever, rest_motion_y_up, retarget_to_tree
+from repro.motion.retargeting.dispatch import rest_motion_y_up, retarget_to_tree
+from repro.motion.search.retrieval import MotionRetriever
 from repro.motion.body.skeleton import Skeleton, scale_skeleton
 from repro.motion.database.synthetic.conventions import build
 

@@ -32,7 +32,8 @@ from repro.motion import BANDAI_UNIT_M, CMU_UNIT_M, read_bvh
 from repro.motion.search.clustering import pose_points
 from repro.motion.retargeting.morphology import retarget
 from repro.motion.retargeting.trees import TreePlan, body_frame, rest_axes, retarget_across
-from repro.motion.search.retrieval import MotionRetriever, rest_motion_y_up, retarget_to_tree
+from repro.motion.retargeting.dispatch import rest_motion_y_up, retarget_to_tree
+from repro.motion.search.retrieval import MotionRetriever
 from repro.motion.body.skeleton import Skeleton
 from repro.motion.database.synthetic import synthetic_clip
 from repro.motion.database.synthetic.conventions import CONVENTIONS, build

@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from repro.errors import MotionError, RetrievalError
+from repro.motion.retargeting.dispatch import retarget_to_tree
 from repro.motion.search.retrieval import (
     MAX_QUERIES,
     MotionRetriever,
     make_queries,
-    retarget_to_tree,
     scoring_frame_miss,
     time_search,
 )

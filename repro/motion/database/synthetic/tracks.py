@@ -17,6 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from repro.errors import MotionError
+from repro.motion.core.ops import ease
 
 __all__ = [
     "UNIT_X",
@@ -36,8 +37,8 @@ __all__ = [
 UNIT_X, UNIT_Y, UNIT_Z = np.eye(3)
 
 
-def ease_smooth(u):
-    return u * u * u * (10.0 + u * (-15.0 + 6.0 * u))
+def ease_smooth(u):  # the library's smootherstep (repro.motion.core.ops.ease)
+    return ease(u, "smootherstep")
 
 
 def ease_strike(u):  # speed 20 u^3 (1 - u): peaks at u = 0.75, zero at both ends
