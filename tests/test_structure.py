@@ -67,10 +67,6 @@ STAGES = {
 #: stage-order violations not yet removed ("module -> target")
 KNOWN_STAGE_VIOLATIONS: set[str] = {
     "repro.motion.core.motion -> repro.motion.io.channels",
-    "repro.motion.database.annotation -> repro.motion.search.clustering",
-    "repro.motion.database.augment -> repro.motion.search.clustering",
-    "repro.motion.database.clips -> repro.motion.search.clustering",
-    "repro.motion.database.sources -> repro.motion.search.clustering",
 }
 
 
@@ -120,7 +116,6 @@ KNOWN_LONG_MODULES: set[str] = {
     "repro.motion.database.clips",
     "repro.motion.database.synthetic.choreography",
     "repro.motion.retargeting.morphology",
-    "repro.motion.search.clustering",
     "repro.motion.search.retrieval",
     "repro.ui.face_panel",
 }

@@ -41,7 +41,7 @@ class _Unplanned:
 
 
 def _cloud(db, actor, g):
-    from repro.motion.search.clustering import pose_points
+    from repro.motion.body.pose_frames import pose_points
 
     idx = [actor.index(r) for r in db.pose_roles]
     return pose_points(g, idx, actor.index("pelvis"), actor.index("left_hip"), actor.index("right_hip"),

@@ -90,13 +90,9 @@ __all__ += [
 
 # The annotated motion database (Section 3.2), pose clustering (Section 3.2.2) and the
 # motion retrieval (Section 3.3): repro.motion.database.annotation, .database, .sources, .augment,
-# .clustering, .retrieval
-from repro.motion.search.clustering import (  # noqa: E402
-    AlignedPoseIndex,
-    PoseClusters,
-    aligned_distance,
-    cluster_poses,
-)
+# repro.motion.search.distance, .kmeans, .retrieval
+from repro.motion.search.distance import AlignedPoseIndex, aligned_distance  # noqa: E402
+from repro.motion.search.kmeans import PoseClusters, cluster_poses  # noqa: E402
 from repro.motion.database.annotation import Hit, detect_hits, hit_point_trajectory  # noqa: E402
 from repro.motion.database.augment import augment  # noqa: E402
 from repro.motion.database.clips import Clip, MotionDatabase  # noqa: E402

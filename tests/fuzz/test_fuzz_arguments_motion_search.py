@@ -5,7 +5,8 @@ The database (:class:`repro.motion.database.clips.MotionDatabase`'s accessors, `
 variants (:mod:`repro.motion.database.sources`, :func:`repro.motion.database.augment.augment`), the
 annotation (:mod:`repro.motion.database.annotation`), the retrieval (:class:`MotionRetriever` and its
 searches, :func:`make_queries`, :func:`time_search`, the retargeting helpers), the pose
-clouds and their clustering (:mod:`repro.motion.search.clustering`), the exact search's public
+clouds, their distance and their clustering (:mod:`repro.motion.body.pose_frames`, :mod:`repro.motion.search.distance`,
+:mod:`repro.motion.search.kmeans`), the exact search's public
 helpers (:mod:`repro.motion.search.exact`), the synthetic generator and the BVH writer:
 every parameter gets the hostile values of :mod:`tests.fuzz.arguments` (a ReproError or a
 finite result, never another exception, a hang or an allocation past the budget).
@@ -264,16 +265,18 @@ def _retarget_to_tree():
 # ------------------------------------------------------------------ pose clouds and clustering
 def _clustering(name, **kw):
     def setup():
-        import repro.motion.search.clustering as cl
+        from repro.motion.body import pose_frames
+        from repro.motion.search import distance, kmeans
 
-        return getattr(cl, name), {k: (v() if callable(v) else v) for k, v in kw.items()}
+        module = next(m for m in (pose_frames, distance, kmeans) if hasattr(m, name))
+        return getattr(module, name), {k: (v() if callable(v) else v) for k, v in kw.items()}
 
     return setup
 
 
 @functools.cache
 def _index():
-    from repro.motion.search.clustering import AlignedPoseIndex
+    from repro.motion.search.distance import AlignedPoseIndex
 
     return AlignedPoseIndex(_points())
 

@@ -69,7 +69,7 @@ def _segments(sk) -> list[tuple[int, int]]:
 
 
 def _compute(quick: bool, progress: bool = False):
-    from repro.motion.search.clustering import to_root_frame
+    from repro.motion.body.pose_frames import to_root_frame
     from repro.motion.database.sources import default_database
     from repro.motion.retargeting.morphology import retarget
     from repro.motion.search.retrieval import MotionRetriever

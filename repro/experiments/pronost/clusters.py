@@ -7,8 +7,8 @@ trajectory as red spots, the constraint ``c_r`` as a green spot), which the sear
 to discard clips (Section 3.3).
 
 The clusters are those :class:`repro.motion.search.retrieval.MotionRetriever` builds by default:
-:func:`repro.motion.search.clustering.cluster_poses` of all poses with the default ``k``
-(:func:`~repro.motion.search.clustering.default_k`) and seed 0.  Poses are clouds of 17 joints in
+:func:`repro.motion.search.kmeans.cluster_poses` of all poses with the default ``k``
+(:func:`~repro.motion.search.kmeans.default_k`) and seed 0.  Poses are clouds of 17 joints in
 their own root frame (origin on the floor below the pelvis, y up, z the heading, x the
 body's left), divided by the actor's size; the centroids are mean clouds in the same
 units, drawn as stick figures seen from the side (z to the right) and from the front
@@ -34,7 +34,7 @@ import pandas as pd
 
 from repro.experiments.registry import Result, experiment
 
-#: Stick-figure bones between pose roles (:data:`repro.motion.search.clustering.POSE_ROLES`).
+#: Stick-figure bones between pose roles (:data:`repro.motion.body.pose_frames.POSE_ROLES`).
 BONES: tuple[tuple[str, str], ...] = (
     ("pelvis", "chest"), ("chest", "head"),
     ("chest", "left_shoulder"), ("left_shoulder", "left_elbow"), ("left_elbow", "left_wrist"),
@@ -126,7 +126,7 @@ def example_target(db, i: int) -> np.ndarray:
 @experiment("clusters", "What the k-means pose clusters and the hit-trajectory boxes look like (Sections 3.2.1-3.2.2, "
             "Fig. 4 analog)", paper="pronost2008")
 def clusters(quick: bool = False) -> Result:
-    from repro.motion.search.clustering import cluster_poses
+    from repro.motion.search.kmeans import cluster_poses
 
     made = [(name, db, cluster_poses(db.pose_points, None, seed=0)) for name, db in _databases()]
     table = pd.concat([cluster_table(n, db, cl) for n, db, cl in made], ignore_index=True)

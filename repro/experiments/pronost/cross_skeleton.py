@@ -173,7 +173,7 @@ def _real_rows(quick: bool) -> list[dict]:
 
 def hit_gaps(src, out, hit_frame: int, hit_role: str) -> dict:
     """``eq1_gap_m`` and ``hip_ratio_gap_m`` of one retargeted clip (module docstring); metres."""
-    from repro.motion.search.clustering import root_frames, to_root_frame
+    from repro.motion.body.pose_frames import root_frames, to_root_frame
     from repro.motion.body.skeleton import Skeleton, skeleton_of
 
     out_m = {}

@@ -127,7 +127,7 @@ def databases() -> dict:
 
 def first_root_frame(motion, skeleton) -> tuple[float, np.ndarray]:
     """Heading and origin of the root reference frame of a motion's first frame."""
-    from repro.motion.search.clustering import root_frames
+    from repro.motion.body.pose_frames import root_frames
 
     g = motion.global_positions()[:1]
     th, o = root_frames(g, skeleton.index("pelvis"), skeleton.index("left_hip"), skeleton.index("right_hip"))
@@ -155,7 +155,7 @@ def bone_length_error(motion, skeleton, *, globals_=None) -> float:
 
 def _measure(mo, ch, db, i: int, c: np.ndarray, contacts: np.ndarray) -> dict:
     """Hit error (vs ``c``, first-frame root frame), feet and bone measures of a motion on ``ch``."""
-    from repro.motion.search.clustering import root_frames, to_root_frame
+    from repro.motion.body.pose_frames import root_frames, to_root_frame
 
     g = mo.global_positions()  # forward kinematics once
     th, o = root_frames(g[:1], ch.index("pelvis"), ch.index("left_hip"), ch.index("right_hip"))
@@ -192,7 +192,7 @@ def _clip_indices(name: str, db, quick: bool) -> list[int]:
 def _methods(motion, ch, i, db, c):
     """Yield (method, motion, extra) for one clip on one character."""
     from repro.motion.adaptation import adapt
-    from repro.motion.search.clustering import from_root_frame
+    from repro.motion.body.pose_frames import from_root_frame
     from repro.motion.retargeting.morphology import decode, encode, naive_retarget
     from repro.motion.runtime.strike import clip_effector
 

@@ -29,7 +29,7 @@ prepared query (each query run 3 times, its fastest time kept).  The query prepa
 reported separately as ``prepare_p50_ms`` (drawn as a grey line): a full query costs
 ``prepare_p50_ms + p50_ms``.  ``precompute_s`` is building the retriever (k-means and
 indices, once per database, Section 3.2.2), not part of a query.  ``k`` is the number of
-clusters (:func:`repro.motion.search.clustering.default_k`, which grows as the square root of
+clusters (:func:`repro.motion.search.kmeans.default_k`, which grows as the square root of
 the number of poses).
 
 Quality: ``differs_from_exhaustive`` is the fraction of queries whose selected (clip,
@@ -90,7 +90,7 @@ def k_sweep(databases=None, k_values=K_VALUES_QUICK, *, n_queries: int = 100, se
     pruned search is run once more per query (untimed) to count the poses it scored and
     the fallbacks it took.
     """
-    from repro.motion.search.clustering import default_k
+    from repro.motion.search.kmeans import default_k
     from repro.motion.database.sources import default_database
     from repro.motion.search.retrieval import MotionRetriever, make_queries, time_search
 

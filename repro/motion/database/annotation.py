@@ -21,7 +21,7 @@ import numpy as np
 
 from repro.checks import as_choice, as_real, as_real_array, as_str, describe
 from repro.errors import MotionError
-from repro.motion.search.clustering import heading_from_hips
+from repro.motion.body.pose_frames import heading_from_hips
 from repro.motion.core.motion import Motion
 from repro.motion.body.skeleton import Skeleton
 

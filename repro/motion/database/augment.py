@@ -14,7 +14,7 @@ import numpy as np
 
 from repro.checks import as_int, as_real, as_real_array, check_alloc, describe
 from repro.errors import MotionError
-from repro.motion.search.clustering import pose_points, root_frames, to_root_frame
+from repro.motion.body.pose_frames import pose_points, root_frames, to_root_frame
 from repro.motion.database.clips import MotionDatabase
 from repro.motion.core.ops import mirror_joint_map, resample
 from repro.motion.core.quaternion import quat_rotate
@@ -49,7 +49,7 @@ def augment(db: MotionDatabase, factor: int, seed: int = 0, *, scale_range=(0.85
     ``pose_dtype``: dtype of the result's pose clouds, ``float64`` or ``float32`` (default: the
     base database's, float64).  float32 halves the largest array (4.6 M poses at 1,000x: 0.93 GB
     instead of 1.86 GB) for a rounding of 6e-8 relative; the retrieval's index computes its terms
-    in float64 from either (:class:`~repro.motion.search.clustering.AlignedPoseIndex`).
+    in float64 from either (:class:`~repro.motion.search.distance.AlignedPoseIndex`).
 
     All variants of a clip are computed at once (:func:`_variants_of_clip`); the numbers drawn
     and the arrays are those of building every variant with

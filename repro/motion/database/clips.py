@@ -23,7 +23,7 @@ Section 3.2.1 (Motion annotation):
   (:mod:`repro.motion.search.retrieval`) precomputes from them: per clip the actor and its
   :attr:`~repro.motion.body.skeleton.Skeleton.size` ``size_a`` (Eq. 1), the hit-point
   trajectory and its axis-aligned bounding box; per pose (every frame of every clip)
-  the pose cloud of :mod:`repro.motion.search.clustering`.  Saved to / loaded from ``.npz``
+  the pose cloud of :mod:`repro.motion.body.pose_frames`.  Saved to / loaded from ``.npz``
   without pickles (:meth:`MotionDatabase.save`, :meth:`MotionDatabase.load`; a
   damaged file is refused with a :class:`~repro.errors.DataError` naming it).
 
@@ -37,7 +37,7 @@ Frames
 World: Y up, floor y = 0, metres.  The **root reference frame** of a frame (the frame
 in which the paper expresses the target ``c``, Section 3.3) has its origin on the floor
 below the pelvis, y up and z along the body's heading (see
-:func:`repro.motion.search.clustering.root_frames`).  A clip's **hit-point trajectory**, its
+:func:`repro.motion.body.pose_frames.root_frames`).  A clip's **hit-point trajectory**, its
 **bounding box** and :attr:`MotionDatabase.hit_position` are expressed in the root frame
 of the clip's **first frame** (the paper compares ``c_r``, "expressed in the root
 reference frame", with them), in metres of the actor.  Pose clouds are expressed in the
@@ -64,7 +64,7 @@ from repro.motion.database.annotation import (
     check_semantics,
     hit_point_trajectory,
 )
-from repro.motion.search.clustering import MAX_WINDOW, POSE_ROLES, pose_points, root_frames, to_root_frame
+from repro.motion.body.pose_frames import MAX_WINDOW, POSE_ROLES, pose_points, root_frames, to_root_frame
 from repro.motion.core.motion import Motion
 from repro.motion.core.ops import variant_motion
 from repro.motion.body.skeleton import Skeleton
@@ -209,9 +209,9 @@ class MotionDatabase:
     fps : float
         Frame rate of every clip.
     pose_roles : tuple of str
-        Roles of the pose points (:data:`~repro.motion.search.clustering.POSE_ROLES`).
+        Roles of the pose points (:data:`~repro.motion.body.pose_frames.POSE_ROLES`).
     window, step : int
-        Frames per pose cloud and their spacing (:func:`~repro.motion.search.clustering.pose_points`).
+        Frames per pose cloud and their spacing (:func:`~repro.motion.body.pose_frames.pose_points`).
     actors : list of Skeleton
         The distinct *base* actor skeletons (metres); every clip's actor is a base actor
         scaled uniformly by :attr:`scale` (several synthetic actors of other heights
@@ -413,7 +413,7 @@ class MotionDatabase:
         pose_roles : sequence of str
             Roles of the pose clouds.
         window, step : int
-            Pose cloud window (:func:`~repro.motion.search.clustering.pose_points`).
+            Pose cloud window (:func:`~repro.motion.body.pose_frames.pose_points`).
         meta : mapping, optional
             JSON-serialisable provenance stored with the database.
         """

@@ -43,7 +43,7 @@ from repro.motion.database.annotation import (
     hit_frame_for,
 )
 from repro.motion.io.bvh import read_bvh
-from repro.motion.search.clustering import MAX_WINDOW, POSE_ROLES
+from repro.motion.body.pose_frames import MAX_WINDOW, POSE_ROLES
 from repro.motion.database.clips import DATABASE_FPS, Clip, MotionDatabase
 from repro.motion.core.motion import BANDAI_UNIT_M, CMU_UNIT_M, Motion
 from repro.motion.core.ops import resample
@@ -460,7 +460,7 @@ def build_real_database(include: Sequence[str] = REAL_SOURCES, *, cmu_takes=None
     :func:`build_bandai_database`, in that order.  The two skeletons have different
     joint trees (31 CMU joints, 22 Bandai joints), so the database holds two base actors
     (:attr:`MotionDatabase.actors`, ``actor`` per clip); pose clouds are role-based
-    (:data:`~repro.motion.search.clustering.POSE_ROLES`) and share one array and one
+    (:data:`~repro.motion.body.pose_frames.POSE_ROLES`) and share one array and one
     clustering (in practice every k-means cluster holds poses of one family only: the
     clouds are divided by sizes that the two rigs measure differently).
 

@@ -93,7 +93,7 @@ import numpy as np
 
 from repro.checks import as_bool, as_int, as_real, as_real_array, check_alloc, describe
 from repro.errors import MotionError, RetrievalError
-from repro.motion.search.clustering import root_frames
+from repro.motion.body.pose_frames import root_frames
 from repro.motion.database.annotation import SEMANTICS
 from repro.motion.database.clips import MotionDatabase
 from repro.motion.retargeting.morphology import retarget

@@ -67,7 +67,7 @@ from repro.motion.adaptation import EFFECTOR_STEMS, Adaptation, adapt
 from repro.motion.database.annotation import SEMANTICS
 from repro.motion.adaptation.cost import adaptation_cost
 from repro.motion.adaptation.offset import offset_curve
-from repro.motion.search.clustering import from_root_frame, rotate_y, to_root_frame
+from repro.motion.body.pose_frames import from_root_frame, rotate_y, to_root_frame
 from repro.motion.database.clips import MotionDatabase
 from repro.motion.core.ops import EASINGS, cut, ease
 from repro.motion.body.roles import effector_role

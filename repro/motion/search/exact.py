@@ -36,7 +36,8 @@ from scipy.spatial import cKDTree
 from repro.checks import abs_max, as_int, as_real_array, check_alloc
 from repro.errors import RetrievalError
 from repro.motion.database.annotation import SEMANTICS
-from repro.motion.search.clustering import MAX_COORD, aligned_distance
+from repro.motion.core.kinematics import MAX_COORDINATE as MAX_COORD
+from repro.motion.search.distance import aligned_distance
 
 if TYPE_CHECKING:  # annotations only (retrieval imports this module)
     from repro.motion.search.retrieval import Query, RetrievalResult
@@ -563,8 +564,8 @@ def _index_dtype(n: int):
 
 
 def _index_terms(index) -> dict:
-    """The terms of an :class:`~repro.motion.search.clustering.AlignedPoseIndex` subset the compiled search reads
-    (:meth:`~repro.motion.search.clustering.AlignedPoseIndex.terms`), C-contiguous (views when they are)."""
+    """The terms of an :class:`~repro.motion.search.distance.AlignedPoseIndex` subset the compiled search reads
+    (:meth:`~repro.motion.search.distance.AlignedPoseIndex.terms`), C-contiguous (views when they are)."""
     return dict(zip(("M", "X", "Z", "H", "Y2", "perm"), (np.ascontiguousarray(t) for t in index.terms())))
 
 

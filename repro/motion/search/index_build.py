@@ -1,9 +1,9 @@
 """Building the retrieval's pose index for databases up to 1,000x (Pronost et al., Section 3.2.2).
 
 "We propose to organize the database into clusters in a precomputation process": k-means of
-all poses (:func:`repro.motion.search.clustering.cluster_poses`: beyond 20,000 poses, k-means on a
+all poses (:func:`repro.motion.search.kmeans.cluster_poses`: beyond 20,000 poses, k-means on a
 seeded sample then one chunked assignment pass over all poses) and the closed-form terms of
-the aligned distance (:class:`~repro.motion.search.clustering.AlignedPoseIndex`).
+the aligned distance (:class:`~repro.motion.search.distance.AlignedPoseIndex`).
 
 Why a sample and one assignment pass is enough: the exact search
 (:meth:`repro.motion.search.retrieval.MotionRetriever.search_exact`) only needs *valid* bounds, each
@@ -33,7 +33,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from repro.motion.database.annotation import SEMANTICS
-from repro.motion.search.clustering import AlignedPoseIndex, PoseClusters, cluster_poses
+from repro.motion.search.distance import AlignedPoseIndex
+from repro.motion.search.kmeans import PoseClusters, cluster_poses
 from repro.motion.database.clips import MotionDatabase
 
 __all__ = ["block_order", "build_pose_index", "startable_poses"]

@@ -34,7 +34,7 @@ for step 2), 22.9-30.0x faster than the exhaustive scan against 12.6-21.4x.  Whe
 the median (stage timers inside the kernel, CMU 100x): ~0.1 ms the query's terms, box gaps and
 nearest samples, ~0.2 ms the seeds, ~0.25 ms step 3 (about 690 clips pass the box bound, 600
 get their segments measured, 80 are within reach), ~0.2 ms step 4.  The arithmetic is the numpy path's
-(the closed form of :meth:`~repro.motion.search.clustering.AlignedPoseIndex.distances` for ``D``); sums
+(the closed form of :meth:`~repro.motion.search.distance.AlignedPoseIndex.distances` for ``D``); sums
 round differently in the last bits, which the near-best re-scoring of
 :meth:`~repro.motion.search.retrieval.MotionRetriever._select` absorbs: both searches report the same
 pose with the same numbers.  Compiled once per machine and source (``cache=True``): about 9 s
@@ -53,7 +53,7 @@ __all__ = ["compile_search", "search_first"]
 @numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
 def _pose_distance(M, j, qp, qs, X, Z, H, Y2):  # pragma: no cover - compiled
     """Kovar et al.'s aligned distance of stored pose ``j`` to the query (the closed form of
-    :meth:`~repro.motion.search.clustering.AlignedPoseIndex.distances`; ``qp`` (3, P) the query's x, y, z:
+    :meth:`~repro.motion.search.distance.AlignedPoseIndex.distances`; ``qp`` (3, P) the query's x, y, z:
     the products ``M @ Q`` without the zeros of ``Q``)."""
     P = qp.shape[1]
     r0 = 0.0

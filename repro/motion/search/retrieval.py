@@ -11,7 +11,7 @@ pose ``q`` and skeleton, and the semantics ordered by the supervisor (``"punch"`
    stature, :attr:`repro.motion.body.skeleton.Skeleton.size`).
 2. **q_r**: the current pose retargeted to the actor
    (:func:`repro.motion.retargeting.morphology.retarget`, Section 3.4.1), as a pose cloud
-   (:mod:`repro.motion.search.clustering`), "so that the distance calculated between q_r and a
+   (:mod:`repro.motion.body.pose_frames`), "so that the distance calculated between q_r and a
    pose in each clip is based on the same skeleton".
 3. **Cluster selection**: "the centroids are compared with the initial pose q_r"; the
    cluster whose centroid is nearest to ``q_r`` in the aligned distance of Kovar et al.
@@ -52,7 +52,7 @@ Choices the paper leaves open (documented here, all parameters):
   made once and cached; the same numbers as :func:`~repro.motion.retargeting.morphology.retarget`).
 * Several joint trees (a mixed-skeleton database: CMU + Bandai, synthetic clips
   rewritten onto other rigs, any user BVH): pose clouds are role point clouds
-  (:data:`~repro.motion.search.clustering.POSE_ROLES`) in units of stature, so they compare
+  (:data:`~repro.motion.body.pose_frames.POSE_ROLES`) in units of stature, so they compare
   across trees.  The actors of the character's own tree take ``q_r`` as before (same
   numbers); where an actor's tree differs, ``q_r`` is retargeted across trees
   (:func:`retarget_to_tree`), so every clip can be served to any humanoid character
@@ -104,12 +104,8 @@ from scipy.spatial import cKDTree
 from repro.checks import as_choice, as_int, as_real, describe
 from repro.errors import MotionError, RetrievalError
 from repro.motion.database.annotation import SEMANTICS
-from repro.motion.search.clustering import (
-    AlignedPoseIndex,
-    pose_points,
-    root_frames,
-    rotate_y,
-)
+from repro.motion.body.pose_frames import pose_points, root_frames, rotate_y
+from repro.motion.search.distance import AlignedPoseIndex
 from repro.motion.database.clips import MotionDatabase
 from repro.motion.search.index_build import block_order, build_pose_index
 from repro.motion.retargeting.morphology import RetargetPlan, retarget
@@ -341,7 +337,7 @@ class MotionRetriever(ExactSearch, StartScoring):
     ----------
     db : MotionDatabase
     k : int, optional
-        Number of clusters (default :func:`repro.motion.search.clustering.default_k`).
+        Number of clusters (default :func:`repro.motion.search.kmeans.default_k`).
     seed : int, default 0
         k-means seed.
     weights : (P',) array, optional

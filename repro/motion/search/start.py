@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from repro.motion.database.annotation import SEMANTICS
-from repro.motion.search.clustering import rotate_y
+from repro.motion.body.pose_frames import rotate_y
 
 if TYPE_CHECKING:  # annotations only (retrieval imports this module)
     from repro.motion.search.retrieval import Query

@@ -29,7 +29,7 @@ import pytest
 
 from repro.errors import MotionError
 from repro.motion import read_bvh
-from repro.motion.search.clustering import root_frames, to_root_frame
+from repro.motion.body.pose_frames import root_frames, to_root_frame
 from repro.motion.database.annotation import detect_hits, hit_frame_for
 from repro.motion.database.augment import augment
 from repro.motion.database.clips import Clip, MotionDatabase

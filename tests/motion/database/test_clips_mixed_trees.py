@@ -185,7 +185,7 @@ def test_across_trees_caches_the_actor_rest_poses(mixed, monkeypatch):
     q = r.prepare(pose, ch)
     a0 = db.actors[0]
     g = dispatch.retarget_to_tree(pose, a0).global_positions()
-    from repro.motion.search.clustering import pose_points
+    from repro.motion.body.pose_frames import pose_points
 
     pts = pose_points(g, [a0.index(x) for x in db.pose_roles], a0.index("pelvis"), a0.index("left_hip"),
                       a0.index("right_hip"))[-1] / a0.size

@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 
 from repro.errors import MotionError
-from repro.motion.search.clustering import pose_points
+from repro.motion.body.pose_frames import pose_points
 from repro.motion.retargeting.morphology import RetargetPlan, retarget
 from repro.motion.retargeting.dispatch import rest_motion_y_up, retarget_to_tree
 from repro.motion.search.retrieval import MotionRetriever

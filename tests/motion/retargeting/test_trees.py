@@ -170,7 +170,7 @@ def test_a_rest_pose_lying_and_twisted_gives_the_same_body(clips):
 def test_bandai_clip_on_cmu_keeps_its_heading():
     """Bandai Namco's rest pose lies along +X with the pelvis' left along -Y and the chest's
     along +Z: the retargeted CMU pelvis faces where the Bandai one does, every frame."""
-    from repro.motion.search.clustering import root_frames
+    from repro.motion.body.pose_frames import root_frames
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -29,7 +29,7 @@ import pytest
 from repro import data
 from repro.errors import MotionError, RetrievalError
 from repro.motion import BANDAI_UNIT_M, CMU_UNIT_M, read_bvh
-from repro.motion.search.clustering import pose_points
+from repro.motion.body.pose_frames import pose_points
 from repro.motion.retargeting.morphology import retarget
 from repro.motion.retargeting.trees import TreePlan, body_frame, rest_axes, retarget_across
 from repro.motion.retargeting.dispatch import rest_motion_y_up, retarget_to_tree

@@ -32,7 +32,8 @@ import pytest
 
 from repro.errors import RetrievalError
 from repro.motion.database.augment import augment
-from repro.motion.search.clustering import aligned_distance, root_frames, rotate_y
+from repro.motion.body.pose_frames import root_frames, rotate_y
+from repro.motion.search.distance import aligned_distance
 from repro.motion.database.clips import MotionDatabase
 from repro.motion.search.retrieval import MotionRetriever, make_queries
 from repro.motion.search.exact import _ball_radius
@@ -207,7 +208,7 @@ def test_cmu_triangle_inequality_and_exact_search():
 
 def test_prepare_fast_path_equals_retargeting(db, retriever):
     """A character that is a uniform scaling of the actor: q_r without retargeting is the retargeted one."""
-    from repro.motion.search.clustering import pose_points
+    from repro.motion.body.pose_frames import pose_points
     from repro.motion.retargeting.morphology import retarget
     from repro.motion.body.skeleton import scale_skeleton
 
@@ -226,7 +227,7 @@ def test_prepare_fast_path_equals_retargeting(db, retriever):
 @pytest.mark.parametrize("weighted", [False, True])
 def test_invariant_features_bound_the_aligned_distance(db, weighted):
     """Issue 13 item 5: the distance between alignment-invariant features never exceeds D, and is not vacuous."""
-    from repro.motion.search.clustering import pose_weights
+    from repro.motion.body.pose_frames import pose_weights
     from repro.motion.search.exact import invariant_features
 
     rng = np.random.default_rng(2)

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from repro.errors import MotionError
-from repro.motion.search.clustering import AlignedPoseIndex, aligned_distance
+from repro.motion.search.distance import AlignedPoseIndex, aligned_distance
 from repro.motion.search.retrieval import MotionRetriever, make_queries
 from repro.motion.search.exact import sample_grid
 from repro.motion.search.kernel import _argsort, _cloud_distance, _nearest_samples, compile_search, search_first

@@ -27,7 +27,8 @@ import numpy as np
 import pytest
 
 from repro.errors import MotionError, RetrievalError
-from repro.motion.search.clustering import aligned_distance, rotate_y
+from repro.motion.body.pose_frames import rotate_y
+from repro.motion.search.distance import aligned_distance
 from repro.motion.database.clips import MotionDatabase
 from repro.motion.retargeting.morphology import retarget
 from repro.motion.search.retrieval import MotionRetriever, Query, search, time_search
@@ -67,7 +68,7 @@ def brute_force(db, c, pose, character, semantics, w_q=1.0, w_c=1.0):
     sk = db.actors[0]
     qr = retarget(pose, sk)
     g = qr.global_positions()
-    from repro.motion.search.clustering import pose_points
+    from repro.motion.body.pose_frames import pose_points
 
     q = pose_points(g, [sk.index(r) for r in db.pose_roles], sk.index("pelvis"), sk.index("left_hip"),
                     sk.index("right_hip"))[-1] / sk.size

@@ -20,13 +20,9 @@ import numpy as np
 import pytest
 
 from repro.errors import MotionError, ReproError, ReproWarning, RetrievalError
-from repro.motion.search.clustering import (
-    AlignedPoseIndex,
-    aligned_distance,
-    cluster_poses,
-    pose_points,
-    pose_weights,
-)
+from repro.motion.body.pose_frames import pose_points, pose_weights
+from repro.motion.search.distance import AlignedPoseIndex, aligned_distance
+from repro.motion.search.kmeans import cluster_poses
 from repro.motion.database.clips import Clip
 from repro.motion.search.retrieval import (
     MAX_TARGET_M,
