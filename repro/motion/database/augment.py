@@ -64,26 +64,52 @@ def augment(db: MotionDatabase, factor: int, seed: int = 0, *, scale_range=(0.85
     """
     db, factor, seed, scale_range, warp_range, noise, mirror_probability = _checked(
         db, factor, seed, scale_range, warp_range, noise, mirror_probability)
-    C = db.n_clips
     if factor == 1 and pose_dtype is None:
         return db
-    V = (factor - 1) * C  # variant j = (v - 1) * C + i is variant v of clip i
-    WP = db.pose_points.shape[1]
-    F0 = db.n_frames.astype(np.intp)
-    # one pass over the stream, in the historical order (per variant: mirror, scale, warp, then the
-    # noise of its trajectory and of its pose clouds, whose sizes depend on the warp); the noise is
-    # drawn straight into the new rows of buffers sized for the longest warp, trimmed at the end
-    rng = np.random.default_rng(seed)
-    mir, sc, wp, nf = np.empty(V, dtype=bool), np.empty(V), np.empty(V), np.empty(V, dtype=np.intp)
-    N0, T0 = db.n_poses, db.traj.shape[0]
-    nmax = np.maximum(2, np.round((F0 - 1) * max(warp_range)).astype(np.intp) + 1)
-    cap = int(nmax.sum()) * (factor - 1)  # every variant of clip i has at most nmax[i] frames
+    pdt = _pose_dtype(db, pose_dtype)
+    mir, sc, wp, nf, pose_points, traj = _drawn(db, factor, seed, scale_range, warp_range, noise,
+                                                mirror_probability, pdt)
+    v = _variants(db, mir, sc, nf, pose_points, traj)
+    arrays = _augmented_arrays(db, factor, noise, mir, sc, wp, nf, v)
+    meta = {**db.meta, "augmented": {"factor": factor, "seed": seed, "scale_range": list(scale_range),
+                                     "warp_range": list(warp_range), "noise_m": noise,
+                                     "mirror_probability": mirror_probability,
+                                     "note": "synthetic variants of the original clips, for latency-vs-size only"}}
+    return MotionDatabase(fps=db.fps, pose_roles=db.pose_roles, window=db.window, step=db.step, actors=db.actors,
+                          motions=db.stored_motions(), arrays=arrays, meta=meta)
+
+
+def _pose_dtype(db: MotionDatabase, pose_dtype) -> np.dtype:
+    """The result's pose cloud dtype: ``pose_dtype``, float32 or float64 (default: the base's), else
+    :class:`MotionError`."""
     try:
         pdt = np.dtype(db.pose_points.dtype if pose_dtype is None else pose_dtype)
     except TypeError:
         pdt = None
     if pdt not in (np.float32, np.float64):
         raise MotionError(f"pose_dtype must be float32 or float64, got {pose_dtype!r}")
+    return pdt
+
+
+def _drawn(db: MotionDatabase, factor: int, seed: int, scale_range, warp_range, noise: float,
+           mirror_probability: float, pdt: np.dtype) -> tuple:
+    """The variants' parameters ``mir, sc, wp, nf`` (mirrored, scale, warp, frames) and the result's pose
+    clouds and trajectory samples: the base's rows, then each variant's noise (zeros without noise).
+
+    Variant ``j = (v - 1) * C + i`` is variant ``v`` of clip ``i``.  One pass over the stream, in the
+    historical order (per variant: mirror, scale, warp, then the noise of its trajectory and of its pose
+    clouds, whose sizes depend on the warp); the noise is drawn straight into the new rows of buffers
+    sized for the longest warp, trimmed at the end.
+    """
+    C = db.n_clips
+    V = (factor - 1) * C
+    WP = db.pose_points.shape[1]
+    F0 = db.n_frames.astype(np.intp)
+    rng = np.random.default_rng(seed)
+    mir, sc, wp, nf = np.empty(V, dtype=bool), np.empty(V), np.empty(V), np.empty(V, dtype=np.intp)
+    N0, T0 = db.n_poses, db.traj.shape[0]
+    nmax = np.maximum(2, np.round((F0 - 1) * max(warp_range)).astype(np.intp) + 1)
+    cap = int(nmax.sum()) * (factor - 1)  # every variant of clip i has at most nmax[i] frames
     pose_points = np.empty((N0 + cap, WP, 3), dtype=pdt)
     traj = np.empty((T0 + cap, 3))
     scratch = None if pdt == np.float64 else np.empty((int(nmax.max()) + 1, WP, 3))
@@ -92,13 +118,20 @@ def augment(db: MotionDatabase, factor: int, seed: int = 0, *, scale_range=(0.85
     # no view of the buffers is left (_draw's died with it): shrink them in place
     pose_points.resize((N0 + Nv, WP, 3), refcheck=False)
     traj.resize((T0 + Nv, 3), refcheck=False)
-    vstart = np.concatenate([[0], np.cumsum(nf)])  # variant j's rows: N0 + vstart[j] ... N0 + vstart[j + 1]
     pose_points[:N0] = db.pose_points
     traj[:T0] = db.traj
-    new_p, new_t = pose_points[N0:], traj[T0:]
     if noise <= 0:
-        new_p[:] = 0.0
-        new_t[:] = 0.0
+        pose_points[N0:] = 0.0
+        traj[T0:] = 0.0
+    return mir, sc, wp, nf, pose_points, traj
+
+
+def _variants(db: MotionDatabase, mir, sc, nf, pose_points: np.ndarray, traj: np.ndarray) -> dict:
+    """Every clip's variants (:func:`_variants_of_clip`): their rows of ``pose_points`` and ``traj`` filled
+    in place, and their per-pose root frames and per-variant annotations, returned."""
+    C, N0, T0, V = db.n_clips, db.n_poses, db.traj.shape[0], mir.size
+    vstart = np.concatenate([[0], np.cumsum(nf)])  # variant j's rows: N0 + vstart[j] ... N0 + vstart[j + 1]
+    Nv = int(vstart[-1])
     heading = np.empty(N0 + Nv)
     heading[:N0] = db.pose_heading
     origin = np.empty((N0 + Nv, 3))
@@ -107,41 +140,47 @@ def augment(db: MotionDatabase, factor: int, seed: int = 0, *, scale_range=(0.85
     size_v = np.empty(V)
     box_min, box_max, hit_pos = np.empty((V, 3)), np.empty((V, 3)), np.empty((V, 3))
     roles, sides, joints = np.empty(V, dtype=object), np.empty(V, dtype=object), np.empty(V, dtype=object)
+    new_p, new_t = pose_points[N0:], traj[T0:]
     for i in range(C if V else 0):
         js = np.arange(i, V, C)  # this clip's variants, in order
         _variants_of_clip(db, i, js, mir, sc, nf, vstart, new_p, new_t, heading[N0:], origin[N0:], hit_frame, size_v,
                           box_min, box_max, hit_pos, roles, sides, joints)
+    return {"vstart": vstart, "heading": heading, "origin": origin, "hit_frame": hit_frame, "size": size_v,
+            "box_min": box_min, "box_max": box_max, "hit_position": hit_pos, "roles": roles, "sides": sides,
+            "joints": joints, "traj": traj, "pose_points": pose_points}
+
+
+def _augmented_arrays(db: MotionDatabase, factor: int, noise: float, mir, sc, wp, nf, v: dict) -> dict:
+    """The result's arrays: the base's clips, then the variants (:func:`_variants`) of each."""
+    C, N0, T0 = db.n_clips, db.n_poses, db.traj.shape[0]
+    V, vstart = mir.size, v["vstart"]
+    Nv = int(vstart[-1])
     src = np.tile(np.arange(C), factor - 1)
     arrays = {
         "names": np.concatenate([db.names, [f"{db.names[j % C]}~v{j // C + 1:03d}" for j in range(V)]]),
-        "hit_roles": np.concatenate([db.hit_roles, roles.astype(str)]),
-        "sides": np.concatenate([db.sides, sides.astype(str)]),
-        "hit_joints": np.concatenate([db.hit_joints, joints.astype(str)]),
-        "hit_frame": np.concatenate([db.hit_frame, hit_frame]),
+        "hit_roles": np.concatenate([db.hit_roles, v["roles"].astype(str)]),
+        "sides": np.concatenate([db.sides, v["sides"].astype(str)]),
+        "hit_joints": np.concatenate([db.hit_joints, v["joints"].astype(str)]),
+        "hit_frame": np.concatenate([db.hit_frame, v["hit_frame"]]),
         "n_frames": np.concatenate([db.n_frames, nf]),
         "scale": np.concatenate([db.scale, db.scale[src] * sc]),
-        "size_a": np.concatenate([db.size_a, size_v]),
+        "size_a": np.concatenate([db.size_a, v["size"]]),
         "source_clip": np.concatenate([db.source_clip, db.source_clip[src]]),
         "mirror": np.concatenate([db.mirror, mir ^ db.mirror[src]]),
         "warp": np.concatenate([db.warp, wp * db.warp[src]]),
         "noise": np.concatenate([db.noise, np.full(V, float(noise))]),
-        "box_min": np.concatenate([db.box_min, box_min]),
-        "box_max": np.concatenate([db.box_max, box_max]),
-        "hit_position": np.concatenate([db.hit_position, hit_pos]),
+        "box_min": np.concatenate([db.box_min, v["box_min"]]),
+        "box_max": np.concatenate([db.box_max, v["box_max"]]),
+        "hit_position": np.concatenate([db.hit_position, v["hit_position"]]),
         "traj_start": np.concatenate([db.traj_start, T0 + vstart[1:]]),
         "pose_start": np.concatenate([db.pose_start, N0 + vstart[1:]]),
-        "traj": traj, "pose_points": pose_points, "pose_heading": heading, "pose_origin": origin,
+        "traj": v["traj"], "pose_points": v["pose_points"], "pose_heading": v["heading"], "pose_origin": v["origin"],
         "pose_clip": np.concatenate([db.pose_clip, C + np.repeat(np.arange(V), nf)]),
         "pose_frame": np.concatenate([db.pose_frame, np.arange(Nv) - np.repeat(vstart[:-1], nf)]),
     }
     for k in ("sources", "semantics", "kinds", "levels", "hit_wheres", "source_time", "actor"):
         arrays[k] = np.concatenate([getattr(db, k), getattr(db, k)[src]])
-    meta = {**db.meta, "augmented": {"factor": factor, "seed": seed, "scale_range": list(scale_range),
-                                     "warp_range": list(warp_range), "noise_m": noise,
-                                     "mirror_probability": mirror_probability,
-                                     "note": "synthetic variants of the original clips, for latency-vs-size only"}}
-    return MotionDatabase(fps=db.fps, pose_roles=db.pose_roles, window=db.window, step=db.step, actors=db.actors,
-                          motions=db.stored_motions(), arrays=arrays, meta=meta)
+    return arrays
 
 
 def _checked(db, factor, seed, scale_range, warp_range, noise, mirror_probability) -> tuple:

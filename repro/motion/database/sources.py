@@ -45,6 +45,7 @@ from repro.motion.database.annotation import (
 from repro.motion.io.bvh import read_bvh
 from repro.motion.body.pose_frames import MAX_WINDOW, POSE_ROLES
 from repro.motion.database.clips import DATABASE_FPS, Clip, MotionDatabase
+from repro.motion.core.cache import LRUCache
 from repro.motion.core.motion import BANDAI_UNIT_M, CMU_UNIT_M, Motion
 from repro.motion.core.ops import resample
 from repro.motion.body.rest_pose import match_rest_pose
@@ -240,47 +241,61 @@ def build_database(source, *, fps: float = DATABASE_FPS, window: tuple[float, fl
         raise MotionError(f"source {describe(source)} is not a usable path: {exc}") from None
     folder = src.parent if is_file else src
     mpath = src if is_file else (inside(folder, manifest, error=MotionError, what="manifest") if manifest else None)
-    clips: list[Clip] = []
     if mpath is not None and mpath.exists() and not mpath.is_file():  # a FIFO, a folder: not silently skipped
         raise MotionError(f"{mpath}: the manifest is not a regular file")
     if mpath is not None and mpath.is_file():
-        for r in _read_manifest_rows(mpath):
-            sem = (r.get("semantics") or "").strip()
-            if sem not in SEMANTICS:
-                continue
-            # a manifest names files of its own folder only (issue 23, section 2)
-            f = inside(folder, r["file"], error=MotionError, what=f"{mpath.name}: file")
-            if not f.is_file():
-                raise MotionError(f"{mpath}: {r['file']} is missing")
-            u = unit_m if unit_m is not None else (float(r["unit_m"]) if r.get("unit_m") else None)
-            m = _read(f, u)
-            side = (r.get("side") or "").strip()
-            role = HIT_ROLE_OF.get((sem, side))
-            if role is None:
-                raise MotionError(f"{mpath}: {r['file']}: side must be left or right, got {side!r}")
-            hf = (r.get("hit_frame") or "").strip()
-            hf = int(hf) if hf not in ("",) else -1
-            if hf < 0:
-                hf = hit_frame_for(m, role, **detect_kw)
-            where = (r.get("hit_point") or "joint").strip() or "joint"
-            hj = (r.get("hit_joint") or "").strip() or None
-            hit = Hit(frame=hf, time=hf * m.frame_time, role=role, semantics=sem, side=side, extension=float("nan"),
-                      height=float("nan"), start=hf, stop=hf + 1)
-            clips += _clips_from_take(m, Path(r["file"]).stem, fps=fps, window=window, hits=[hit],
-                                      kind=(r.get("kind") or "").strip(), level=(r.get("level") or "").strip(),
-                                      hit_joint=hj, hit_where=where, tag=False)
+        clips = _manifest_clips(mpath, folder, unit_m=unit_m, fps=fps, window=window, detect_kw=detect_kw)
         how = f"manifest {mpath.name}"
     else:
-        for f in sorted(folder.glob("*.bvh")):
-            m = _read(f, unit_m)
-            hits = detect_hits(m, **detect_kw)
-            clips += _clips_from_take(m, f.stem, fps=fps, window=CMU_WINDOW if window is None else window, hits=hits)
+        clips = _detected_clips(folder, unit_m=unit_m, fps=fps, window=CMU_WINDOW if window is None else window,
+                                detect_kw=detect_kw)
         how = "detect_hits"
     if not clips:
         raise MotionError(f"no punch or kick clip found in {src}")
     return MotionDatabase.from_clips(clips, pose_roles=pose_roles, window=pose_window,
                                      meta={"built_from": str(src), "annotations": how, "fps": fps,
                                            "window": None if window is None else list(window)})
+
+
+def _manifest_clips(mpath: Path, folder: Path, *, unit_m, fps: float, window, detect_kw: Mapping) -> list[Clip]:
+    """The clips of a manifest's strike rows, annotated as it says (:func:`build_database`)."""
+    clips: list[Clip] = []
+    for r in _read_manifest_rows(mpath):
+        sem = (r.get("semantics") or "").strip()
+        if sem not in SEMANTICS:
+            continue
+        # a manifest names files of its own folder only (issue 23, section 2)
+        f = inside(folder, r["file"], error=MotionError, what=f"{mpath.name}: file")
+        if not f.is_file():
+            raise MotionError(f"{mpath}: {r['file']} is missing")
+        u = unit_m if unit_m is not None else (float(r["unit_m"]) if r.get("unit_m") else None)
+        m = _read(f, u)
+        side = (r.get("side") or "").strip()
+        role = HIT_ROLE_OF.get((sem, side))
+        if role is None:
+            raise MotionError(f"{mpath}: {r['file']}: side must be left or right, got {side!r}")
+        hf = (r.get("hit_frame") or "").strip()
+        hf = int(hf) if hf not in ("",) else -1
+        if hf < 0:
+            hf = hit_frame_for(m, role, **detect_kw)
+        where = (r.get("hit_point") or "joint").strip() or "joint"
+        hj = (r.get("hit_joint") or "").strip() or None
+        hit = Hit(frame=hf, time=hf * m.frame_time, role=role, semantics=sem, side=side, extension=float("nan"),
+                  height=float("nan"), start=hf, stop=hf + 1)
+        clips += _clips_from_take(m, Path(r["file"]).stem, fps=fps, window=window, hits=[hit],
+                                  kind=(r.get("kind") or "").strip(), level=(r.get("level") or "").strip(),
+                                  hit_joint=hj, hit_where=where, tag=False)
+    return clips
+
+
+def _detected_clips(folder: Path, *, unit_m, fps: float, window, detect_kw: Mapping) -> list[Clip]:
+    """Every BVH file of ``folder`` searched with :func:`detect_hits` and cut around each strike."""
+    clips: list[Clip] = []
+    for f in sorted(folder.glob("*.bvh")):
+        m = _read(f, unit_m)
+        hits = detect_hits(m, **detect_kw)
+        clips += _clips_from_take(m, f.stem, fps=fps, window=window, hits=hits)
+    return clips
 
 
 #: Highest database frame rate the builders accept (Hz); the takes are captured at 120 Hz or less.
@@ -408,9 +423,7 @@ def build_cmu_database(takes: Mapping[str, str] | Sequence[str] | None = None, *
     """
     fps, window, pose_roles, pose_window, detect_kw = _build_arguments(fps, window, pose_roles, pose_window, detect_kw)
     clips, takes = _cmu135_clips(takes, fps=fps, window=window, detect_kw=detect_kw)
-    return MotionDatabase.from_clips(clips, pose_roles=pose_roles, window=pose_window,
-                                     meta={"built_from": "mocap/cmu", "takes": dict(takes), "annotations": "detect_hits",
-                                           "fps": fps, "window": list(window)})
+    return _detected_database(clips, "mocap/cmu", dict(takes), fps, window, pose_roles, pose_window)
 
 
 def build_bandai_database(takes: Mapping[str, str] | Sequence[str] | None = None, *, fps: float = DATABASE_FPS,
@@ -444,9 +457,8 @@ def build_bandai_database(takes: Mapping[str, str] | Sequence[str] | None = None
     clips, takes = _bandai_clips(takes, fps=fps, window=window, detect_kw=detect_kw)
     if not clips:
         raise MotionError("no strike found in the Bandai takes")
-    return MotionDatabase.from_clips(clips, pose_roles=pose_roles, window=pose_window,
-                                     meta={"built_from": "mocap/bandai", "takes": takes, "annotations": "detect_hits",
-                                           "fps": fps, "window": list(window), "sources": {"bandai": len(clips)}})
+    return _detected_database(clips, "mocap/bandai", takes, fps, window, pose_roles, pose_window,
+                              sources={"bandai": len(clips)})
 
 
 def build_real_database(include: Sequence[str] = REAL_SOURCES, *, cmu_takes=None, bandai_takes=None,
@@ -511,11 +523,16 @@ def build_real_database(include: Sequence[str] = REAL_SOURCES, *, cmu_takes=None
         takes[s] = t
     if not clips:
         raise MotionError(f"no strike found in {list(include)}")
+    return _detected_database(clips, ["mocap/cmu" if s == "cmu135" else "mocap/bandai" for s in counts], takes, fps,
+                              window, pose_roles, pose_window, sources=counts)
+
+
+def _detected_database(clips: list[Clip], built_from, takes: dict, fps: float, window, pose_roles, pose_window: int,
+                       **more) -> MotionDatabase:
+    """The database of clips cut around detected strikes, its metadata saying from what (and ``more``)."""
     return MotionDatabase.from_clips(clips, pose_roles=pose_roles, window=pose_window,
-                                     meta={"built_from": ["mocap/cmu" if s == "cmu135" else "mocap/bandai"
-                                                          for s in counts],
-                                           "takes": takes, "annotations": "detect_hits", "fps": fps,
-                                           "window": list(window), "sources": counts})
+                                     meta={"built_from": built_from, "takes": takes, "annotations": "detect_hits",
+                                           "fps": fps, "window": list(window), **more})
 
 
 # ================================================================ named databases
@@ -558,29 +575,30 @@ def default_database(name: str = "synthetic", seed: int = 0) -> MotionDatabase:
     seed = as_int(seed, "seed", 0, None, error=RetrievalError)
     if name == "synthetic":
         key = ("synthetic", seed)
-    elif name == "cmu":
+    else:
         reason = data.missing_reason("cmu-bvh")
         if reason:
             raise DataError(reason)
         key = ("cmu", str(data.data_dir()))
-    else:
-        raise RetrievalError(f"unknown database {name!r}; known: 'synthetic', 'cmu'")
-    if key not in _DEFAULT_DATABASES:
-        if name == "synthetic":
-            with tempfile.TemporaryDirectory(prefix="repro-synthetic-") as tmp:
-                synthetic_database(tmp, seed=seed)
-                built = build_database(tmp)
-            # the folder is gone: each clip's source names what it is, the generated set and its file
-            built.sources = np.array([f"synthetic/seed{int(seed)}/{Path(s).name}" for s in built.sources.tolist()])
-            _DEFAULT_DATABASES[key] = built
-        else:
-            _DEFAULT_DATABASES[key] = build_cmu_database()
     # a copy each call (~20 ms): a caller changing its database cannot change the next caller's
-    return copy.deepcopy(_DEFAULT_DATABASES[key])
+    return copy.deepcopy(_DEFAULT_DATABASES.get(key, lambda: _default_build(name, seed)))
 
 
-#: :func:`default_database`'s builds, by (name, seed or data folder): built once per process
-_DEFAULT_DATABASES: dict = {}
+def _default_build(name: str, seed: int) -> MotionDatabase:
+    """:func:`default_database`'s build of ``name``."""
+    if name == "cmu":
+        return build_cmu_database()
+    with tempfile.TemporaryDirectory(prefix="repro-synthetic-") as tmp:
+        synthetic_database(tmp, seed=seed)
+        built = build_database(tmp)
+    # the folder is gone: each clip's source names what it is, the generated set and its file
+    built.sources = np.array([f"synthetic/seed{int(seed)}/{Path(s).name}" for s in built.sources.tolist()])
+    return built
+
+
+#: :func:`default_database`'s builds, by (name, seed or data folder): each built once per process, the
+#: 8 most recently asked kept (a database of the embedded set is about 5 MB)
+_DEFAULT_DATABASES: LRUCache[MotionDatabase] = LRUCache(8)
 
 
 def clip_source_dataset(db: MotionDatabase) -> np.ndarray:

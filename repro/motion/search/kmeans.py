@@ -9,8 +9,8 @@ k-means and the aligned distance
 seed, so the result is deterministic) on the poses in their canonical root frame
 (flattened and multiplied by ``sqrt(w)``, so that squared Euclidean distance is the
 weighted squared distance *without* alignment).  Because the identity is one of the
-transformations the aligned distance (:mod:`repro.motion.search.distance`) minimises over, ``D(p, q) <= |p - q|_w`` for poses
-in canonical frames: k-means minimises an upper bound of the aligned intra-cluster
+transformations the aligned distance (:mod:`repro.motion.search.distance`) minimises over,
+``D(p, q) <= |p - q|_w`` for poses in canonical frames: k-means minimises an upper bound of the aligned intra-cluster
 variance, and each centroid (the weighted mean cloud of its members in the canonical
 frame) is itself a pose cloud that the aligned distance can compare with a query; the
 retrieval (:mod:`repro.motion.search.retrieval`) picks the cluster whose centroid is nearest

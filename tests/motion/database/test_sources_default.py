@@ -13,8 +13,8 @@ from repro.motion.database import sources
 
 
 def test_the_synthetic_database_is_generated_once_per_process(monkeypatch):
-    # forget this process's build, if any (the new one is kept for the tests that follow)
-    monkeypatch.delitem(sources._DEFAULT_DATABASES, ("synthetic", 0), raising=False)
+    # forget this process's builds, if any (the new one is kept for the tests that follow)
+    sources._DEFAULT_DATABASES.clear()
     real, calls = sources.synthetic_database, []
 
     def counting(*args, **kwargs):
