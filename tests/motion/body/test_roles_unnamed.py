@@ -24,16 +24,16 @@ from repro.motion.body.skeleton import Skeleton, infer_unit
 from repro.motion.database.synthetic.conventions import (
     SYNTHETIC_ROLES,
     Z_UP,
-    Rig,
+    RigConvention,
     a_pose,
     build,
     expected_roles,
 )
 
 
-def restructured(pose: str, up: str, height: float = 1.75) -> tuple[Rig, dict[str, str]]:
+def restructured(pose: str, up: str, height: float = 1.75) -> tuple[RigConvention, dict[str, str]]:
     """The synthetic rig with every kind of extra joint; (rig, expected role -> joint name)."""
-    r = Rig.synthetic(height)
+    r = RigConvention.synthetic(height)
     r.split("Spine1", ["SpineA", "SpineB"])  # extra spine joints: the chest stays the top one
     r.insert_above("Hips", "RootHelper", 1.0)  # a root carrying the rest height, pelvis at zero length below
     r.insert_above("LeftForeArm", "LeftArmHelper", 0.0)  # zero-length helper: the shoulder is the deepest

@@ -23,10 +23,10 @@ from repro.motion.core.quaternion import quat_multiply
 from repro.motion.database.synthetic import (
     ELBOW_FLEXION_LIMITS_DEG,
     HINGE_AXES,
+    HIT_LEVELS,
     JOINT_NAMES,
     KINDS,
     KNEE_FLEXION_LIMITS_DEG,
-    LEVELS,
     MANIFEST_COLUMNS,
     MANIFEST_NAME,
     REFERENCE_HEIGHT_M,
@@ -94,7 +94,7 @@ def test_database_has_every_kind_side_level_per_actor(db):
     for h in heights:
         mine = [r for r in recs if r["actor_height_m"] == h]
         combos = {(r["kind"], r["side"], r["level"]) for r in mine if r["kind"] != "stance"}
-        assert combos == set(itertools.product(STRIKE_KINDS, SIDES, LEVELS))
+        assert combos == set(itertools.product(STRIKE_KINDS, SIDES, HIT_LEVELS))
         assert sum(r["kind"] == "stance" for r in mine) == 1
     assert {r["kind"] for r in recs} == set(KINDS)
     semantics = {r["kind"]: r["semantics"] for r in recs}
@@ -277,7 +277,7 @@ def test_hit_height_follows_the_level(clips):
         assert abs(r["hit_y_m"] / H - frac) <= 0.02 + 1e-6, (c.name, r["hit_y_m"] / H)
         by[(H, r["kind"], r["side"], r["level"])] = r["hit_y_m"]
     for H, kind, side in {k[:3] for k in by}:
-        hi, mid, lo = (by[(H, kind, side, lv)] for lv in LEVELS)
+        hi, mid, lo = (by[(H, kind, side, lv)] for lv in HIT_LEVELS)
         assert hi > mid + 0.1 > lo + 0.2, (H, kind, side, hi, mid, lo)
 
 

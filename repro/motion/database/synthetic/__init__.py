@@ -68,9 +68,9 @@ target is always straight ahead (+Z).
 
 Layout
 ------
-:mod:`.skeleton` (the actor), :mod:`.tracks` (keyframe tracks, easing, rotation
-helpers), :mod:`.ik` (hinge-clamped two-bone IK), :mod:`.choreography` (one clip:
-:func:`synthetic_clip`), :mod:`.writer` (the database on disk: :func:`synthetic_database`,
+:mod:`.skeleton` (the actor), :mod:`.moves` (kinds, sides, target heights, semantics,
+hit points), :mod:`.tracks` (keyframe tracks, easing, rotation helpers), :mod:`.ik`
+(hinge-clamped two-bone IK), :mod:`.choreography` (one clip: :func:`synthetic_clip`), :mod:`.writer` (the database on disk: :func:`synthetic_database`,
 :func:`read_manifest`).
 
 Example
@@ -80,15 +80,15 @@ Example
 ('kick', 'RightFoot')
 """
 
-from repro.motion.database.synthetic.choreography import (
+from repro.motion.database.synthetic.choreography import synthetic_clip
+from repro.motion.database.synthetic.moves import (
+    HIT_LEVELS,
     HIT_POINTS,
+    KIND_SEMANTICS,
     KINDS,
-    LEVELS,
-    SEMANTICS,
     SIDES,
     STRIKE_KINDS,
     TARGET_HEIGHT_FRACTION,
-    synthetic_clip,
 )
 from repro.motion.database.synthetic.skeleton import (
     DEFAULT_FPS,
@@ -112,8 +112,8 @@ __all__ = [
     "KINDS",
     "STRIKE_KINDS",
     "SIDES",
-    "LEVELS",
-    "SEMANTICS",
+    "HIT_LEVELS",
+    "KIND_SEMANTICS",
     "JOINT_NAMES",
     "HINGE_AXES",
     "HIT_POINTS",

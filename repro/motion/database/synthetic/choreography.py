@@ -31,6 +31,14 @@ from repro.motion.core.quaternion import (
     slerp,
 )
 from repro.motion.database.synthetic.ik import IKSolution, Limb, flexion_at, limb_of, limb_reach, two_bone
+from repro.motion.database.synthetic.moves import (
+    HIT_LEVELS,
+    HIT_POINTS,
+    KIND_SEMANTICS,
+    KINDS,
+    SIDES,
+    TARGET_HEIGHT_FRACTION,
+)
 from repro.motion.database.synthetic.skeleton import (
     DEFAULT_FPS,
     JOINT_INDEX,
@@ -52,51 +60,16 @@ from repro.motion.database.synthetic.tracks import (
     unit,
 )
 
-__all__ = [
-    "KINDS",
-    "STRIKE_KINDS",
-    "SIDES",
-    "LEVELS",
-    "SEMANTICS",
-    "HIT_POINTS",
-    "TARGET_HEIGHT_FRACTION",
-    "synthetic_clip",
-]
+__all__ = ["synthetic_clip"]
 
-# ---------------------------------------------------------------- public constants
-#: Motion kinds; the four strikes, then the idle fighting stance.
-KINDS: tuple[str, ...] = ("punch", "kick_front", "kick_side", "kick_round", "stance")
-#: The kinds that have a hit.
-STRIKE_KINDS: tuple[str, ...] = KINDS[:4]
-#: Striking side (the hand or foot that hits); for ``"stance"``, the side held back.
-SIDES: tuple[str, ...] = ("left", "right")
-#: Target heights; see :data:`TARGET_HEIGHT_FRACTION`.
-LEVELS: tuple[str, ...] = ("high", "middle", "low")
-#: Semantics of each kind, as annotated in the paper (Section 3.2.1).
-SEMANTICS: dict[str, str] = {
-    "punch": "punch",
-    "kick_front": "kick",
-    "kick_side": "kick",
-    "kick_round": "kick",
-    "stance": "other",
-}
 
-#: Hit point of each strike kind: ``(joint suffix, where)``; ``where`` is
-#: ``"end_site"`` (the joint's End Site: the fist) or ``"joint"`` (the joint itself:
-#: the ball of the foot for front kicks, the ankle for side kicks (heel) and round
-#: kicks (instep)).  The joint name is ``"Left"`` or ``"Right"`` + suffix.
-HIT_POINTS: dict[str, tuple[str, str]] = {
-    "punch": ("Hand", "end_site"),
-    "kick_front": ("ToeBase", "joint"),
-    "kick_side": ("Foot", "joint"),
-    "kick_round": ("Foot", "joint"),
-}
-#: Target height of the hit point, as a fraction of the actor height, per semantics and
-#: level (face, chest, belly for punches; head, ribs, thigh for kicks).  Each clip adds
-#: a uniform jitter of +-0.02 of the height.
-TARGET_HEIGHT_FRACTION: dict[str, dict[str, float]] = {
-    "punch": {"high": 0.90, "middle": 0.72, "low": 0.56},
-    "kick": {"high": 0.86, "middle": 0.60, "low": 0.32},
+#: The trunk of the round and side kicks, which turn the body away from the kicking side: the
+#: ranges (degrees) of the yaw at the hit, at the chamber and at the recoil, of the pitch and roll
+#: at the hit per level (high, middle, low), the root's shift back at the hit (x the actor's
+#: scale, metres) and the spine's share of the yaw.
+_TURNING_KICKS: dict[str, tuple] = {
+    "kick_round": ((55, 70), (20, 30), (35, 45), [(8, 14), (4, 8), (0, 2)], [(15, 22), (8, 12), (2, 6)], -0.03, 0.35),
+    "kick_side": ((65, 75), (55, 62), (55, 62), [(4, 8), (2, 5), (0, 2)], [(28, 35), (16, 22), (6, 12)], -0.06, 0.3),
 }
 
 
@@ -263,20 +236,13 @@ class _Builder:
             roll_h = sg * rad(r.uniform(0, 4))
             back = np.array([0.0, -0.04 * s])
             kfac = 0.3
-        elif kind == "kick_round":
-            y_h = -sg * rad(r.uniform(55, 70))
-            yc, yr = -sg * rad(r.uniform(20, 30)), -sg * rad(r.uniform(35, 45))
-            pitch_h = -rad(r.uniform(*[(8, 14), (4, 8), (0, 2)][li]))
-            roll_h = sg * rad(r.uniform(*[(15, 22), (8, 12), (2, 6)][li]))
-            back = np.array([0.0, -0.03 * s])
-            kfac = 0.35
-        else:  # kick_side
-            y_h = -sg * rad(r.uniform(65, 75))
-            yc, yr = -sg * rad(r.uniform(55, 62)), -sg * rad(r.uniform(55, 62))
-            pitch_h = -rad(r.uniform(*[(4, 8), (2, 5), (0, 2)][li]))
-            roll_h = sg * rad(r.uniform(*[(28, 35), (16, 22), (6, 12)][li]))
-            back = np.array([0.0, -0.06 * s])
-            kfac = 0.3
+        else:  # the kicks that turn the body away from the kicking side
+            yaw_hit, yaw_chamber, yaw_recoil, pitch, roll, back_z, kfac = _TURNING_KICKS[kind]
+            y_h = -sg * rad(r.uniform(*yaw_hit))
+            yc, yr = -sg * rad(r.uniform(*yaw_chamber)), -sg * rad(r.uniform(*yaw_recoil))
+            pitch_h = -rad(r.uniform(*pitch[li]))
+            roll_h = sg * rad(r.uniform(*roll[li]))
+            back = np.array([0.0, back_z * s])
         yaws = [y0, y0, y0 + 0.3 * (yc - y0), yc, y_h, yr, y0 + 0.4 * (yr - y0), y0, y0]
         self.yaw = track(t, list(zip(keys, yaws)), ez)
         self.pitch = track(t, list(zip(keys, [p0, p0, p0, p0 + 0.6 * (pitch_h - p0), pitch_h,
@@ -751,7 +717,7 @@ def synthetic_clip(
     _check_choice("kind", kind, KINDS)
     _check_choice("side", side, SIDES)
     if kind != "stance":
-        _check_choice("level", level, LEVELS)
+        _check_choice("level", level, HIT_LEVELS)
     fps = as_real(fps, "fps", lo=24.0, hi=240.0, error=MotionError)
     scale_of(actor_height)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(_seed(seed))
@@ -771,7 +737,7 @@ def _annotation(b: _Builder, motion: Motion, kind: str, side: str, fps: float, a
     """The annotation :func:`synthetic_clip` returns (see its docstring)."""
     ann = {
         "kind": kind,
-        "semantics": SEMANTICS[kind],
+        "semantics": KIND_SEMANTICS[kind],
         "side": side,
         "level": b.level,
         "hit_joint": "",

@@ -15,11 +15,12 @@ from repro.errors import MotionError
 from repro.motion.core.motion import Motion
 from repro.motion.database.synthetic.skeleton import synthetic_skeleton
 
-SIDES = ("Left", "Right")
+#: The prefixes of the synthetic actor's side joints.
+SIDE_PREFIXES = ("Left", "Right")
 
 
 @dataclass
-class Rig:
+class RigConvention:
     """An editable joint list: names, parent names and offsets (metres, Y up, facing +Z)."""
 
     names: list[str]
@@ -28,7 +29,7 @@ class Rig:
     end_sites: dict[str, np.ndarray] = field(default_factory=dict)
 
     @classmethod
-    def synthetic(cls, height: float = 1.75) -> Rig:
+    def synthetic(cls, height: float = 1.75) -> RigConvention:
         m = synthetic_skeleton(height)
         par = [None if p < 0 else m.joint_names[p] for p in m.parents]
         es = {m.joint_names[p]: np.array(o) for p, o in zip(m.end_site_parents, m.end_site_offsets)}
@@ -37,13 +38,13 @@ class Rig:
     def i(self, name: str) -> int:
         return self.names.index(name)
 
-    def rename(self, table: dict[str, str]) -> Rig:
+    def rename(self, table: dict[str, str]) -> RigConvention:
         self.names = [table.get(n, n) for n in self.names]
         self.parents = [None if p is None else table.get(p, p) for p in self.parents]
         self.end_sites = {table.get(k, k): v for k, v in self.end_sites.items()}
         return self
 
-    def insert_above(self, joint: str, new: str, fraction: float = 0.0) -> Rig:
+    def insert_above(self, joint: str, new: str, fraction: float = 0.0) -> RigConvention:
         """A new joint between ``joint`` and its parent, ``fraction`` of the bone along (0: zero-length helper)."""
         j = self.i(joint)
         off = self.offsets[j]
@@ -54,14 +55,14 @@ class Rig:
         self.offsets[j + 1] = off * (1.0 - fraction)
         return self
 
-    def split(self, joint: str, new_names: list[str]) -> Rig:
+    def split(self, joint: str, new_names: list[str]) -> RigConvention:
         """Split the bone ending at ``joint`` into len(new_names)+1 equal bones (extra spine joints)."""
         k = len(new_names) + 1
         for n, name in enumerate(new_names):
             self.insert_above(joint, name, 1.0 / (k - n))
         return self
 
-    def add_leaf(self, parent: str, name: str, offset) -> Rig:
+    def add_leaf(self, parent: str, name: str, offset) -> RigConvention:
         j = self.i(parent)
         # after the parent's subtree
         end = j + 1
@@ -80,7 +81,7 @@ class Rig:
             p = self.parents[self.i(p)]
         return False
 
-    def fingers(self, hand: str, fmt: str, side_x: float) -> Rig:
+    def fingers(self, hand: str, fmt: str, side_x: float) -> RigConvention:
         for f, z in (("Thumb", 0.03), ("Index", 0.015), ("Middle", 0.0), ("Ring", -0.015), ("Pinky", -0.03)):
             prev = hand
             for k in (1, 2, 3):
@@ -89,7 +90,7 @@ class Rig:
                 prev = name
         return self
 
-    def rotate_subtree(self, joint: str, rot: Rotation) -> Rig:
+    def rotate_subtree(self, joint: str, rot: Rotation) -> RigConvention:
         """Rest-pose change: the offsets of ``joint``'s descendants turned by ``rot`` (A-pose)."""
         for j, n in enumerate(self.names):
             if self._is_below(j, joint):
@@ -99,7 +100,7 @@ class Rig:
                 self.end_sites[k] = rot.apply(self.end_sites[k])
         return self
 
-    def transform(self, rot: Rotation | None = None, scale: float = 1.0) -> Rig:
+    def transform(self, rot: Rotation | None = None, scale: float = 1.0) -> RigConvention:
         rot = rot or Rotation.identity()
         self.offsets = [rot.apply(o) * scale for o in self.offsets]
         self.end_sites = {k: rot.apply(v) * scale for k, v in self.end_sites.items()}
@@ -131,16 +132,16 @@ _SIDE_STEMS = ("Shoulder", "Arm", "ForeArm", "Hand", "UpLeg", "Leg", "Foot", "To
 Z_UP = Rotation.from_euler("x", 90, degrees=True)  # +Y -> +Z, +Z -> -Y (facing -Y)
 
 
-def a_pose(rig: Rig, left_arm: str, right_arm: str, deg: float = 45.0) -> Rig:
+def a_pose(rig: RigConvention, left_arm: str, right_arm: str, deg: float = 45.0) -> RigConvention:
     rig.rotate_subtree(left_arm, Rotation.from_euler("z", -deg, degrees=True))
     rig.rotate_subtree(right_arm, Rotation.from_euler("z", deg, degrees=True))
     return rig
 
 
-def build(convention: str, height: float = 1.75) -> tuple[Rig, dict[str, str]]:
+def build(convention: str, height: float = 1.75) -> tuple[RigConvention, dict[str, str]]:
     """(rig in metres, expected roles) of a naming convention; roles map the synthetic ones."""
     as_choice(convention, "convention", CONVENTIONS, error=MotionError)
-    r = Rig.synthetic(height)
+    r = RigConvention.synthetic(height)
     t: dict[str, str]
     if convention == "mixamo":
         t = {n: "mixamorig:" + n for n in r.names}
@@ -210,7 +211,7 @@ CONVENTIONS = ("mixamo", "motionbuilder", "poser", "secondlife", "biped", "smpl"
 #: Roles of the synthetic skeleton (Mixamo names).
 SYNTHETIC_ROLES = {
     "pelvis": "Hips", "spine": "Spine", "chest": "Spine1", "neck": "Neck", "head": "Head",
-    **{f"{s.lower()}_{k}": f"{s}{v}" for s in SIDES for k, v in (
+    **{f"{s.lower()}_{k}": f"{s}{v}" for s in SIDE_PREFIXES for k, v in (
         ("clavicle", "Shoulder"), ("shoulder", "Arm"), ("elbow", "ForeArm"), ("wrist", "Hand"), ("hip", "UpLeg"),
         ("knee", "Leg"), ("ankle", "Foot"), ("toe", "ToeBase"), ("fist", "Hand"), ("foot", "ToeBase"))},
 }  # fmt: skip

@@ -18,7 +18,8 @@ from repro.checks import as_bool, as_int
 from repro.errors import MotionError
 from repro.io import atomic_path, inside, open_regular, read_bytes
 from repro.motion.io.bvh import write_bvh
-from repro.motion.database.synthetic.choreography import LEVELS, SIDES, STRIKE_KINDS, synthetic_clip
+from repro.motion.database.synthetic.choreography import synthetic_clip
+from repro.motion.database.synthetic.moves import HIT_LEVELS, SIDES, STRIKE_KINDS
 from repro.motion.database.synthetic.skeleton import DEFAULT_FPS, REFERENCE_HEIGHT_M
 
 __all__ = [
@@ -85,7 +86,7 @@ def _plan(n_actors: int, seed: int) -> list[dict]:
     """The clips of a database: per actor, every strike kind x side x level, plus one stance."""
     plan = []
     for a, height in enumerate(database_actor_heights(n_actors), start=1):
-        combos = [(k, s, lv) for k in STRIKE_KINDS for s in SIDES for lv in LEVELS]
+        combos = [(k, s, lv) for k in STRIKE_KINDS for s in SIDES for lv in HIT_LEVELS]
         combos.append(("stance", SIDES[(a - 1) % 2], "none"))
         for kind, side, level in combos:
             name = f"actor{a}_{kind}_{side}" + ("" if kind == "stance" else f"_{level}") + ".bvh"
