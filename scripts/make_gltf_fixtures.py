@@ -6,7 +6,7 @@
 Each file holds the same face, :func:`fixture_model` (a 108-vertex patch of the
 500-vertex procedural face -- brows to chin -- with five shapes under
 ARKit names, deltas below 2% of each shape's peak set to exactly zero so that a
-sparse file is sparse), in metres, written by :func:`repro.blendshapes.gltf_write.write_gltf`
+sparse file is sparse), in metres, written by :func:`repro.blendshapes.faces.gltf_write.write_gltf`
 with one storage feature each.  The tests only read the committed results and
 compare them with :func:`fixture_model`; this script is not needed at test time.
 """
@@ -36,7 +36,7 @@ NODE_MATRIX = np.array([[0.01, 0, 0, 0.0], [0, 0.01, 0, 1.6], [0, 0, 0.01, 0.05]
 def fixture_model():
     """The fixture face (metres), the expected content of every fixture file."""
     from repro.blendshapes import BlendshapeModel, load_model
-    from repro.blendshapes.gltf import arkit_rig
+    from repro.blendshapes.faces.arkit import arkit_rig
 
     full = load_model("procedural", n_vertices=500)
     x, y = full.f0[:, 0], full.f0[:, 1]
@@ -89,6 +89,8 @@ def run_gltfpack() -> None:
 
 def main(argv=None) -> int:
     sys.path.insert(0, str(REPO))
+    from repro.blendshapes import write_gltf
+
     argv = sys.argv[1:] if argv is None else argv
     model = fixture_model()
     OUT.mkdir(parents=True, exist_ok=True)
@@ -96,7 +98,7 @@ def main(argv=None) -> int:
         kw = dict(kw)
         if kw.get("extra_meshes") == "eye":
             kw["extra_meshes"] = [eye_mesh()]
-        model.to_gltf(OUT / name, **kw)
+        write_gltf(model, OUT / name, **kw)
     if "--gltfpack" in argv:
         run_gltfpack()
     for p in sorted(OUT.iterdir()):

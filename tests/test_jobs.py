@@ -63,13 +63,13 @@ def test_timing_figures_run_here_and_the_others_in_workers(jobs_figures, tmp_pat
 def test_the_faces_reach_the_workers(jobs_figures, tmp_path):
     import pandas as pd
 
-    from repro.blendshapes import BlendshapeModel, load_model
+    from repro.blendshapes import BlendshapeModel, load_model, write_gltf
     from tests.experiments.test_user_faces import ARKIT
 
     proc = load_model("procedural")
     keep = [i for i, n in enumerate(proc.names) if n in ARKIT]
     face = BlendshapeModel(proc.f0, proc.D[:, keep], [ARKIT[proc.names[i]] for i in keep], proc.faces, units=proc.units)
-    path = face.to_gltf(tmp_path / "my_face.gltf")
+    path = write_gltf(face, tmp_path / "my_face.gltf")
     status = run_many(["zz_jobs_a", "zz_jobs_faces"], tmp_path / "out", jobs=2, faces=[path])
     assert set(status.values()) == {"ran"}
     table = pd.read_csv(tmp_path / "out" / "zz_jobs_faces.csv")

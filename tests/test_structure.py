@@ -21,10 +21,6 @@ MAX_FUNCTION_LINES = 80
 #: functions allowed over MAX_FUNCTION_LINES, by "module:qualname", with why
 LONG_FUNCTIONS: dict[str, str] = {
     "repro.bench.prepare:bench_prepare": "to split into named steps (issue 24; 92 lines)",
-    "repro.blendshapes.gltf:arkit_rig": "to split into named steps (issue 24; 88 lines)",
-    "repro.blendshapes.gltf_write:write_gltf": "to split into named steps (issue 24; 191 lines)",
-    "repro.blendshapes.ict:ict_regions": "to split into named steps (issue 24; 105 lines)",
-    "repro.blendshapes.procedural:_shapes": "to split into named steps (issue 24; 106 lines)",
     "repro.io:read_npz": "to split into named steps (issue 24; 116 lines)",
     "repro.motion.adaptation.adapt_clip:adapt": "to split into named steps (issue 24; 187 lines)",
     "repro.motion.adaptation.ccd_solver:ccd_sweeps": "to split into named steps (issue 24; 94 lines)",
@@ -107,8 +103,6 @@ def _stage_violations() -> set[str]:
 
 #: modules still over the limit, being split (issue 24)
 KNOWN_LONG_MODULES: set[str] = {
-    "repro.blendshapes.gltf",
-    "repro.blendshapes.ict",
     "repro.motion.body.roles",
     "repro.motion.database.synthetic.choreography",
     "repro.motion.retargeting.morphology",

@@ -1,20 +1,31 @@
 """Lewis, Mooser, Deng, Neumann, "Reducing Blendshape Interference by Selected
-Motion Attenuation" (I3D 2005).
+Motion Attenuation" (I3D 2005), as a map of the paper's pieces.
 
-- :mod:`~repro.blendshapes.model`: the delta model ``f = f0 + D w`` and the
-  whole-face form (Section 3).
-- :mod:`~repro.blendshapes.procedural`: the embedded 2,016-vertex face.
-- :mod:`~repro.blendshapes.ict`: the real ICT Face Model (staged data).
-- :mod:`~repro.blendshapes.gltf`: glTF 2.0 faces (morph targets) in and out.
-- :mod:`~repro.blendshapes.attenuation`: Eq. (3), ``attenuate`` and the cached
-  ``Attenuator`` (Sections 4-5).
-- :mod:`~repro.blendshapes.alternatives`: zeroed rows and orthogonal locking,
-  the approaches Section 3 rejects.
+The model and where it comes from:
+
+- :mod:`~repro.blendshapes.model` (Section 3): the delta model ``f = f0 + D w``
+  and the whole-face form.
+- :mod:`~repro.blendshapes.faces`: the faces to run it on, apart from the model
+  because they are data, not method: the embedded procedural face, the ICT Face
+  Model (OBJ), any glTF 2.0 face read and written (:func:`load_model`,
+  :func:`read_gltf`, :func:`write_gltf`).
+
+The method and what the paper compares it with, each a function of a model:
+
+- :mod:`~repro.blendshapes.attenuation` (Sections 4-5): Eq. (3), ``attenuate``
+  and the cached ``Attenuator``, the selections, the default ``alpha``.
+- :mod:`~repro.blendshapes.alternatives` (Section 3): zeroed rows and orthogonal
+  locking, the approaches the paper rejects.
 - :mod:`~repro.blendshapes.metrics`: selected motion, unselected fidelity,
-  surface smoothness.
-"""
+  surface smoothness: the numbers the figures report.
+- :mod:`~repro.blendshapes.scenarios` (Figs. 1-5): the paper's slider sessions.
+- :mod:`~repro.blendshapes.bounded` and :mod:`~repro.blendshapes.manipulation`:
+  beyond the paper, Eq. (2) with sliders kept in range, and direct manipulation
+  (Lewis and Anjyo 2010) on the same Gram machinery.
 
-import os
+The names below are what figures, panels and notebooks use; everything else is
+imported from its module.
+"""
 
 from repro.blendshapes.alternatives import edit_orthogonal, edit_zeroed, orthogonal_lock, zero_rows
 from repro.blendshapes.attenuation import (
@@ -26,63 +37,16 @@ from repro.blendshapes.attenuation import (
     select_pairs,
     select_vertices,
 )
+from repro.blendshapes.faces import MODELS, load_model
+from repro.blendshapes.faces.gltf import read_gltf
+from repro.blendshapes.faces.gltf_write import write_gltf
 from repro.blendshapes.model import AXES, BlendshapeModel
-from repro.errors import ModelError
 
 __all__ = [
-    "AXES",
-    "BlendshapeModel",
-    "MODELS",
-    "load_model",
-    "attenuate",
-    "Attenuator",
-    "default_alpha",
-    "check_selection",
-    "select_vertices",
-    "select_pairs",
-    "select_axis",
-    "zero_rows",
-    "edit_zeroed",
-    "orthogonal_lock",
-    "edit_orthogonal",
-]
-
-#: Models :func:`load_model` knows, with the dataset each needs (None = embedded).
-MODELS = {"procedural": None, "ict": "ict"}  # and any .gltf/.glb path
-
-
-def load_model(name="procedural", **kw) -> BlendshapeModel:
-    """A blendshape model by name, or a glTF 2.0 face by path.
-
-    A path (``str`` or ``os.PathLike``) ending in ``.gltf`` or ``.glb``: the face
-    in that file, in metres (keywords of :func:`repro.blendshapes.gltf.read_gltf`).
-    ``"procedural"``: the embedded 2,016-vertex face, always available
-    (keyword ``n_vertices`` for a scaled-up one).  ``"ict"``: the ICT Face Model
-    from the data folder (keywords of :func:`repro.blendshapes.ict.load_ict`);
-    raises :class:`~repro.errors.DataError` saying how to get it when absent.
-    A keyword the chosen loader does not take is a :class:`~repro.errors.ModelError`.
-    """
-    if isinstance(name, os.PathLike) or (isinstance(name, str) and name.lower().endswith((".gltf", ".glb"))):
-        from repro.blendshapes.gltf import read_gltf
-
-        unknown = sorted(set(kw) - {"mesh", "primitive", "max_bytes"})
-        if unknown:
-            raise ModelError(f"load_model of a glTF file takes only mesh=, primitive= and max_bytes=, got {unknown}")
-        return read_gltf(name, **kw)
-    if not isinstance(name, str):
-        raise ModelError(f"model name must be a string or a .gltf/.glb path, got {name!r}; known: {sorted(MODELS)}")
-    if name == "procedural":
-        from repro.blendshapes.procedural import procedural_model
-
-        unknown = sorted(set(kw) - {"n_vertices"})
-        if unknown:
-            raise ModelError(f"load_model('procedural') takes only n_vertices=, got {unknown}")
-        return procedural_model(**kw)
-    if name == "ict":
-        from repro.blendshapes.ict import load_ict
-
-        unknown = sorted(set(kw) - {"face_only", "shapes", "cache"})
-        if unknown:
-            raise ModelError(f"load_model('ict') takes only face_only=, shapes= and cache=, got {unknown}")
-        return load_ict(**kw)
-    raise ModelError(f"unknown model {name!r}; known: {sorted(MODELS)}")
+    # Section 3: the model, and the faces
+    "BlendshapeModel", "AXES", "MODELS", "load_model", "read_gltf", "write_gltf",
+    # Sections 4-5: Eq. (3) and its selections
+    "attenuate", "Attenuator", "default_alpha", "check_selection", "select_vertices", "select_pairs", "select_axis",
+    # Section 3's rejected approaches
+    "zero_rows", "edit_zeroed", "orthogonal_lock", "edit_orthogonal",
+]  # fmt: skip

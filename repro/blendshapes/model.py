@@ -331,12 +331,6 @@ class BlendshapeModel:
             raise ModelError("B - b_neutral overflows float64: the whole-face basis is too large to subtract")
         return cls(f0=f0.reshape(-1, 3), D=D, names=names, faces=faces, **kw)
 
-    def to_gltf(self, path, weights=None, animation=None, **kw):
-        """Write this face as glTF 2.0 (``.glb``/``.gltf``); see :func:`repro.blendshapes.gltf_write.write_gltf`."""
-        from repro.blendshapes.gltf_write import write_gltf
-
-        return write_gltf(self, path, weights, animation, **kw)
-
     # --------------------------------------------------------------- topology
     @cached_property
     def edges(self) -> np.ndarray:

@@ -134,7 +134,7 @@ def test_intended_displacement_is_required(model):
 
 def test_edge_strain_overflow_is_an_error():
     """A displacement with one 1e308 coordinate: strain = ~1e308 / edge length (< 1) overflowed (RuntimeWarning, inf)."""
-    from repro.blendshapes.procedural import procedural_model
+    from repro.blendshapes.faces.procedural import procedural_model
 
     model = procedural_model()
     d = np.zeros(3 * model.n_vertices)

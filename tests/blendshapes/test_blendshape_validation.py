@@ -35,7 +35,7 @@ from repro.blendshapes import (
     zero_rows,
 )
 from repro.blendshapes import attenuation as attenuation_module
-from repro.blendshapes.procedural import procedural_model
+from repro.blendshapes.faces.procedural import procedural_model
 from repro.errors import AttenuationError, ModelError, ReproError, SelectionError
 from tests.helpers import grid_model
 

@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from repro.blendshapes import BlendshapeModel, load_model
+from repro.blendshapes import BlendshapeModel, load_model, write_gltf
 from repro.errors import ModelError
 from repro.experiments.lewis import common
 from repro.experiments.registry import call_experiment, get, run_many
@@ -26,7 +26,7 @@ def face_path(tmp_path_factory):
     keep = [i for i, n in enumerate(proc.names) if n in ARKIT]
     face = BlendshapeModel(proc.f0, proc.D[:, keep], [ARKIT[proc.names[i]] for i in keep], proc.faces, units=proc.units)
     path = tmp_path_factory.mktemp("face") / "my_face.gltf"
-    face.to_gltf(path)
+    write_gltf(face, path)
     doc = json.loads(path.read_text())
     doc["meshes"][0].get("extras", {}).pop("repro", None)  # as another exporter writes it: ARKit names only
     path.write_text(json.dumps(doc))

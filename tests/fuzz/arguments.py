@@ -23,7 +23,7 @@ level and one test calling :func:`check`::
 
     @functools.cache                # shared, expensive fixtures: build once per child
     def _model():
-        from repro.blendshapes.procedural import procedural_model
+        from repro.blendshapes.faces.procedural import procedural_model
         return procedural_model()
 
     def _solve():

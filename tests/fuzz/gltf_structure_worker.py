@@ -2,7 +2,7 @@
 
 Started by :class:`tests.fuzz.test_fuzz_gltf_structure.StructureWorker` in place of
 ``worker.py`` (same protocol, same ``RLIMIT_AS``).  The target reads a mutated ``.gltf`` with
-:func:`repro.blendshapes.gltf.read_gltf`, then checks, besides what the ``gltf`` target checks
+:func:`repro.blendshapes.faces.gltf.read_gltf`, then checks, besides what the ``gltf`` target checks
 (finite values, the model posable):
 
 * the peak resident memory of the read (``VmHWM``, reset through ``/proc/self/clear_refs``
@@ -44,7 +44,7 @@ class StructureTargets(worker.Targets):
     def gltf_structure(self, path, req=None):
         import numpy as np
 
-        from repro.blendshapes.gltf import read_gltf
+        from repro.blendshapes.faces.gltf import read_gltf
         from repro.errors import ReproError
 
         limit = int(self.ctx.get("peak_limit", 0))

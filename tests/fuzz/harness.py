@@ -48,10 +48,10 @@ READERS = {
     "bvh": "repro/motion/io/bvh.py read_bvh / write_bvh, repro/motion/core/motion.py",
     "asf": "repro/motion/io/asfamc.py read_asf, then read_amc",
     "amc": "repro/motion/io/asfamc.py read_amc / read_asf_amc",
-    "obj": "repro/blendshapes/ict.py read_obj",
-    "gltf": "repro/blendshapes/gltf.py read_gltf",
+    "obj": "repro/blendshapes/faces/obj.py read_obj",
+    "gltf": "repro/blendshapes/faces/gltf.py read_gltf",
     "glb": "repro/blendshapes load_model -> gltf.py read_gltf",
-    "ict_cache": "repro/blendshapes/ict.py read_cache -> repro/io.py read_npz",
+    "ict_cache": "repro/blendshapes/faces/ict.py read_cache -> repro/io.py read_npz",
     "db": "repro/motion/database/clips.py MotionDatabase.load",
     "manifest": "repro/experiments/registry.py run_many (figures/manifest.json)",
 }
@@ -420,7 +420,7 @@ def tiny_ict_cache() -> tuple[bytes, dict]:
     and the worker context that makes its sizes the ICT mesh's."""
     import numpy as np
 
-    from repro.blendshapes import ict
+    from repro.blendshapes.faces import ict
 
     rng = np.random.default_rng(0)
     shapes = list(ict.ICT_SHAPES[:2])

@@ -22,7 +22,7 @@ pytestmark = pytest.mark.fuzz
 
 @functools.cache
 def _model():
-    from repro.blendshapes.procedural import procedural_model
+    from repro.blendshapes.faces.procedural import procedural_model
 
     return procedural_model()
 
@@ -92,13 +92,13 @@ def _from_whole():
 
 
 def _procedural():
-    from repro.blendshapes.procedural import procedural_model
+    from repro.blendshapes.faces.procedural import procedural_model
 
     return procedural_model, dict(n_vertices=2016)
 
 
 def _grid_shape():
-    from repro.blendshapes.procedural import procedural_grid_shape
+    from repro.blendshapes.faces.procedural import procedural_grid_shape
 
     return procedural_grid_shape, dict(n_vertices=2016)
 

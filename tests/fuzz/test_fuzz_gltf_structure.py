@@ -3,7 +3,7 @@
 Mutants of the glTF fixtures' JSON (:mod:`tests.fuzz.gltf_structure`: accessor aliasing and
 counts, zero-filled accessors, sparse accessors, bufferView offsets/lengths/strides, buffer
 ``uri``s with ``..``, percent-encoding, absolute paths, symlinks, FIFOs and folders, node,
-mesh, primitive and target counts) are read by :func:`repro.blendshapes.gltf.read_gltf` in a
+mesh, primitive and target counts) are read by :func:`repro.blendshapes.faces.gltf.read_gltf` in a
 worker process (:mod:`tests.fuzz.harness`'s, with :mod:`tests.fuzz.gltf_structure_worker`'s
 extra target) under an address-space limit (``RLIMIT_AS``, 2 GiB) and a 10 s time limit.
 For every mutant:

@@ -2,10 +2,10 @@
 
 Every reader of a file a user may hand to repro -- :func:`repro.motion.read_bvh` (then
 forward kinematics, ``write_bvh`` and reading that back), ``read_asf`` / ``read_amc`` /
-``read_asf_amc``, :func:`repro.blendshapes.ict.read_obj`, glTF faces
-(:func:`repro.blendshapes.gltf.read_gltf` on ``.gltf`` files beside their buffer,
+``read_asf_amc``, :func:`repro.blendshapes.faces.obj.read_obj`, glTF faces
+(:func:`repro.blendshapes.faces.gltf.read_gltf` on ``.gltf`` files beside their buffer,
 :func:`repro.blendshapes.load_model` on ``.glb`` files, then posing the model),
-the ICT ``.npz`` cache check (:func:`repro.blendshapes.ict.read_cache`, what ``load_ict``
+the ICT ``.npz`` cache check (:func:`repro.blendshapes.faces.ict.read_cache`, what ``load_ict``
 runs before using a cache), :meth:`MotionDatabase.load` and the figure manifest
 (``figures/manifest.json`` as :func:`repro.experiments.registry.run_many` reads, merges
 and rewrites it) -- gets mutants of small real and hand-made seed files

@@ -227,7 +227,7 @@ class Targets:
     def obj(self, path, req=None):
         import numpy as np
 
-        from repro.blendshapes.ict import read_obj
+        from repro.blendshapes.faces.obj import read_obj
 
         self.stage = "read_obj"
         v, f = read_obj(path)
@@ -255,7 +255,7 @@ class Targets:
             check_finite(db.motion(i).global_positions(), f"db.motion({i}).global_positions()")
 
     def ict_cache(self, path, req=None):
-        from repro.blendshapes import ict
+        from repro.blendshapes.faces import ict
 
         # the small seed cache stands for the ICT mesh: sizes patched to its own
         ict.ICT_N_VERTICES, ict.ICT_N_TRIANGLES = self.ctx["ict_sizes"]
@@ -276,7 +276,7 @@ class Targets:
 
     # glTF: a mutated .gltf (its .bin beside it) through read_gltf; a mutated .glb through load_model
     def gltf(self, path, req=None):
-        from repro.blendshapes.gltf import read_gltf
+        from repro.blendshapes.faces.gltf import read_gltf
 
         self.stage = "read_gltf"
         self._gltf_model(read_gltf(path))
@@ -397,8 +397,8 @@ def main() -> None:
 
         import pygltflib  # noqa: F401 - (2 s to import: before the first input's time limit)
 
-        import repro.blendshapes.gltf  # noqa: F401
-        import repro.blendshapes.ict  # noqa: F401
+        import repro.blendshapes.faces.gltf  # noqa: F401
+        import repro.blendshapes.faces.ict  # noqa: F401
         import repro.experiments.registry  # noqa: F401
         import repro.motion  # noqa: F401
         from repro.errors import ReproError

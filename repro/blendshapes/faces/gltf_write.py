@@ -1,35 +1,31 @@
 """glTF 2.0 blendshape faces out: a model's neutral and morph targets, weights and a weight animation.
 
-The writer half of :mod:`repro.blendshapes.gltf` (which reads such files, and
-documents the container library, ``pygltflib``, and what is read).  It knows the
-model only by its attributes (``f0``, ``D``, ``names``, ``faces``, ``units``,
-``sliders``, ``regions``), so :meth:`BlendshapeModel.to_gltf` can call it without an
-import cycle.  Files are written atomically; :func:`repro.blendshapes.gltf.read_gltf`
-gives the same model back.
+The writer half of :mod:`repro.blendshapes.faces.gltf` (which says what is read back) and of
+:mod:`repro.blendshapes.faces.gltf_document` (the container library, ``pygltflib``, which
+serialises the document built here).  Files are written atomically;
+:func:`repro.blendshapes.faces.gltf.read_gltf` gives the same model back.
 """
 
 from __future__ import annotations
 
+import os
 import struct
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from repro.blendshapes.faces.gltf_document import CHUNK_BIN, CHUNK_JSON, GLB_MAGIC
+from repro.blendshapes.model import BlendshapeModel
+from repro.checks import as_bool, as_real, as_real_array, describe
 from repro.errors import ModelError
 from repro.io import atomic_path
 
-if TYPE_CHECKING:  # annotations only
-    from repro.blendshapes.model import BlendshapeModel
-
-__all__ = ["write_gltf", "UNIT_SCALE", "GLB_MAGIC", "CHUNK_JSON", "CHUNK_BIN"]
+__all__ = ["write_gltf", "UNIT_SCALE"]
 
 #: Metres per unit of a model's ``units``, used by :func:`write_gltf` (glTF is metres).
 #: The procedural face's "model units" are meant as centimetres (see its module docstring).
 UNIT_SCALE = {"m": 1.0, "cm": 0.01, "mm": 0.001, "model units": 0.01}
-#: GLB framing: the file magic and the two chunk types (glTF 2.0 spec, "Binary glTF Layout").
-GLB_MAGIC, CHUNK_JSON, CHUNK_BIN = b"glTF", 0x4E4F534A, 0x004E4942
 
 
 def _f32(a) -> bytes:
@@ -116,7 +112,7 @@ def write_gltf(
         Metres per model unit; default from ``model.units`` (:data:`UNIT_SCALE`).
     node_matrix : (4, 4) array, optional
         The mesh node's transform; the vertices are stored in its local frame so that the
-        world positions (what :func:`~repro.blendshapes.gltf.read_gltf` returns) are the model's, in metres.
+        world positions (what :func:`~repro.blendshapes.faces.gltf.read_gltf` returns) are the model's, in metres.
     quantize : bool
         Store positions and target deltas as normalised 16-bit integers
         (``KHR_mesh_quantization``), dequantised by the node's transform.
@@ -129,26 +125,54 @@ def write_gltf(
         before the face's mesh.
 
     Names go to ``mesh.extras.targetNames``; the model's sliders and regions to
-    ``mesh.extras.repro``, so :func:`~repro.blendshapes.gltf.read_gltf` gives the same model back.
+    ``mesh.extras.repro``, so :func:`~repro.blendshapes.faces.gltf.read_gltf` gives the same model back.
     """
-    import os
-
-    from repro.checks import as_bool, as_real, as_real_array, describe
-
-    # every argument checked at the entry (issue 23, section 6), before anything is built; the model
-    # by what it offers (model.py imports this module: importing it back here would be a cycle)
-    if not all(hasattr(model, a) for a in ("f0", "D", "faces", "names", "units", "sliders", "regions", "check_weights")):
-        raise ModelError(f"write_gltf writes a BlendshapeModel, got {describe(model)}")
-    if not isinstance(path, (str, os.PathLike)):
-        raise ModelError(f"path must be a .glb or .gltf path, got {describe(path)}")
+    # every argument checked at the entry (issue 23, section 6), before anything is built
+    path, scale, T, extra_meshes = _check_arguments(model, path, scale, node_matrix, extra_meshes)
     quantize = as_bool(quantize, "quantize", error=ModelError)
     sparse = as_bool(sparse, "sparse", error=ModelError)
     meshopt = as_bool(meshopt, "meshopt", error=ModelError)
     g = _Builder()
     pg = g.g
+    local, deltas = _local_frame(model, scale, T)
+    extensions = []
+    if quantize:
+        T, pos_acc, targets = _quantized_geometry(g, local, deltas, T, sparse)
+        extensions.append("KHR_mesh_quantization")
+    else:
+        pos_acc, targets = _float_geometry(g, local, deltas, sparse)
+    prim = _face_primitive(g, model, pos_acc, targets)
+    mesh_weights = model.check_weights(weights).tolist() if weights is not None else []
+    meshes, nodes = _extra_mesh_nodes(g, extra_meshes)  # first, as exporters often list eyes before the head
+    head = len(nodes)
+    meshes.append(pg.Mesh(name=model.name, primitives=[prim], weights=mesh_weights, extras=_mesh_extras(model)))
+    nodes.append(pg.Node(mesh=head, name=model.name, matrix=None if np.allclose(T, np.eye(4), atol=0) else T.T.ravel().tolist()))
+    animations = [] if animation is None else [_weight_animation(g, model, animation, head)]
+    buffers = [pg.Buffer(byteLength=len(g.blob))]
+    if meshopt:
+        extensions.append("EXT_meshopt_compression")
+        buffers = _meshopt_compress(g)
+    else:
+        for bv in g.views:
+            bv.extras = {}
+    doc = pg.GLTF2(
+        asset=pg.Asset(generator="repro", version="2.0"),
+        scene=0, scenes=[pg.Scene(nodes=list(range(len(nodes))))], nodes=nodes, meshes=meshes,
+        accessors=g.accessors, bufferViews=g.views, buffers=buffers, animations=animations,
+        extensionsUsed=extensions, extensionsRequired=list(extensions),
+    )
+    _save(doc, bytes(g.blob), path)
+    return path
+
+
+def _check_arguments(model, path, scale, node_matrix, extra_meshes) -> tuple[Path, float, np.ndarray, list]:
+    """The model, the path (``.glb``/``.gltf``), metres per unit, the node's 4x4 transform and the extra meshes, checked."""
+    if not isinstance(model, BlendshapeModel):
+        raise ModelError(f"write_gltf writes a BlendshapeModel, got {describe(model)}")
+    if not isinstance(path, (str, os.PathLike)):
+        raise ModelError(f"path must be a .glb or .gltf path, got {describe(path)}")
     path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in (".glb", ".gltf"):
+    if path.suffix.lower() not in (".glb", ".gltf"):
         raise ModelError(f"{path}: a glTF file ends in .glb or .gltf")
     if scale is None:
         if model.units not in UNIT_SCALE:
@@ -160,7 +184,7 @@ def write_gltf(
         raise ModelError("node_matrix must be a finite invertible 4x4 transform")
     if isinstance(extra_meshes, (str, bytes)) or not isinstance(extra_meshes, Sequence):
         raise ModelError(f"extra_meshes must be a sequence of (name, vertices, triangles), got {describe(extra_meshes)}")
-    extras_checked = []
+    checked = []
     for j, item in enumerate(extra_meshes):
         if not isinstance(item, (tuple, list)) or len(item) != 3 or not isinstance(item[0], str):
             raise ModelError(f"extra_meshes[{j}] must be (name, vertices (k, 3), triangles (t, 3)), got {describe(item)}")
@@ -168,79 +192,98 @@ def write_gltf(
         tris = as_real_array(item[2], f"extra_meshes[{j}] triangles", integer=True, shape=(None, 3), error=ModelError)
         if len(verts) == 0 or len(tris) == 0 or tris.min() < 0 or tris.max() >= len(verts):
             raise ModelError(f"extra_meshes[{j}] needs vertices and triangles indexing them (0..{len(verts) - 1})")
-        extras_checked.append((item[0], verts, tris))
-    extra_meshes = extras_checked
+        checked.append((item[0], verts, tris))
+    return path, scale, T, checked
+
+
+def _local_frame(model: BlendshapeModel, scale: float, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The neutral (n, 3) and the deltas (n, 3, m) in metres, in the frame of the node's transform ``T``."""
     Tinv = np.linalg.inv(T)
     n, m = model.n_vertices, model.n_shapes
     world = model.f0 * scale
     local = world @ Tinv[:3, :3].T + Tinv[:3, 3]
     deltas = np.einsum("ij,vjk->vik", Tinv[:3, :3], model.D.reshape(n, 3, m) * scale)
-    used, required = [], []
-    if quantize:
-        lo_, hi_ = local.min(axis=0), local.max(axis=0)
-        centre, half = 0.5 * (lo_ + hi_), max(0.5 * float((hi_ - lo_).max()), 1e-12)
-        peak = float(np.abs(deltas).max()) if m else 0.0
-        if peak > half:
-            raise ModelError(f"a delta ({peak:.3g}) exceeds the quantisation range ({half:.3g}); write without quantize")
-        Q = np.eye(4)
-        Q[:3, :3] *= half
-        Q[:3, 3] = centre
-        T = T @ Q
-        qpos = np.round((local - centre) / half * 32767).astype("<i2")
-        qdel = np.round(deltas / half * 32767).astype("<i2")
-        used.append("KHR_mesh_quantization")
-        required.append("KHR_mesh_quantization")
+    return local, deltas
 
-        def put_vec3(a, bounds: bool):
-            padded = np.zeros((len(a), 4), dtype="<i2")
-            padded[:, :3] = a
-            v = g.view(padded.tobytes(), stride=8, target=34962, count=len(a))
-            return g.accessor(v, 5122, len(a), "VEC3", normalized=True,
-                              lo=a.min(axis=0).tolist() if bounds else None, hi=a.max(axis=0).tolist() if bounds else None)
 
-        pos_acc = put_vec3(qpos, True)
-        if sparse:
-            targets = [_sparse_target(g, qdel[:, :, k], 5122, "<i2", True) for k in range(m)]
-        elif m:  # all targets in one buffer view (fewer JSON objects), one accessor each
-            padded = np.zeros((m, n, 4), dtype="<i2")
-            padded[:, :, :3] = qdel.transpose(2, 0, 1)
-            v = g.view(padded.tobytes(), stride=8, target=34962, count=m * n)
-            targets = [g.accessor(v, 5122, n, "VEC3", normalized=True, offset=8 * n * k,
-                                  lo=qdel[:, :, k].min(axis=0).tolist(), hi=qdel[:, :, k].max(axis=0).tolist())
-                       for k in range(m)]
-        else:
-            targets = []
+def _quantized_geometry(g: _Builder, local, deltas, T, sparse: bool) -> tuple[np.ndarray, int, list[int]]:
+    """``KHR_mesh_quantization``: the node's transform times the dequantisation, the position accessor, the targets'."""
+    n, _, m = deltas.shape
+    lo_, hi_ = local.min(axis=0), local.max(axis=0)
+    centre, half = 0.5 * (lo_ + hi_), max(0.5 * float((hi_ - lo_).max()), 1e-12)
+    peak = float(np.abs(deltas).max()) if m else 0.0
+    if peak > half:
+        raise ModelError(f"a delta ({peak:.3g}) exceeds the quantisation range ({half:.3g}); write without quantize")
+    Q = np.eye(4)
+    Q[:3, :3] *= half
+    Q[:3, 3] = centre
+    qpos = np.round((local - centre) / half * 32767).astype("<i2")
+    qdel = np.round(deltas / half * 32767).astype("<i2")
+    padded = np.zeros((n, 4), dtype="<i2")
+    padded[:, :3] = qpos
+    v = g.view(padded.tobytes(), stride=8, target=34962, count=n)
+    pos_acc = g.accessor(v, 5122, n, "VEC3", normalized=True, lo=qpos.min(axis=0).tolist(), hi=qpos.max(axis=0).tolist())
+    if sparse:
+        targets = [_sparse_target(g, qdel[:, :, k], 5122, "<i2", True) for k in range(m)]
+    elif m:  # all targets in one buffer view (fewer JSON objects), one accessor each
+        padded = np.zeros((m, n, 4), dtype="<i2")
+        padded[:, :, :3] = qdel.transpose(2, 0, 1)
+        v = g.view(padded.tobytes(), stride=8, target=34962, count=m * n)
+        targets = [g.accessor(v, 5122, n, "VEC3", normalized=True, offset=8 * n * k,
+                              lo=qdel[:, :, k].min(axis=0).tolist(), hi=qdel[:, :, k].max(axis=0).tolist())
+                   for k in range(m)]
     else:
-        pos_acc = g.accessor(g.view(_f32(local), stride=12, target=34962, count=n), 5126, n, "VEC3",
-                             lo=local.min(axis=0).astype(np.float32).tolist(), hi=local.max(axis=0).astype(np.float32).tolist())
-        d32 = deltas.astype(np.float32)
-        if sparse:
-            targets = [_sparse_target(g, d32[:, :, k], 5126, "<f4", False) for k in range(m)]
-        elif m:  # all targets in one buffer view (fewer JSON objects), one accessor each
-            v = g.view(np.ascontiguousarray(d32.transpose(2, 0, 1)).tobytes(), stride=12, target=34962, count=m * n)
-            targets = [g.accessor(v, 5126, n, "VEC3", offset=12 * n * k,
-                                  lo=d32[:, :, k].min(axis=0).tolist(), hi=d32[:, :, k].max(axis=0).tolist())
-                       for k in range(m)]
-        else:
-            targets = []
+        targets = []
+    return T @ Q, pos_acc, targets
+
+
+def _float_geometry(g: _Builder, local, deltas, sparse: bool) -> tuple[int, list[int]]:
+    """Float32 positions and targets: the position accessor and the targets'."""
+    n, _, m = deltas.shape
+    pos_acc = g.accessor(g.view(_f32(local), stride=12, target=34962, count=n), 5126, n, "VEC3",
+                         lo=local.min(axis=0).astype(np.float32).tolist(), hi=local.max(axis=0).astype(np.float32).tolist())
+    d32 = deltas.astype(np.float32)
+    if sparse:
+        targets = [_sparse_target(g, d32[:, :, k], 5126, "<f4", False) for k in range(m)]
+    elif m:  # all targets in one buffer view (fewer JSON objects), one accessor each
+        v = g.view(np.ascontiguousarray(d32.transpose(2, 0, 1)).tobytes(), stride=12, target=34962, count=m * n)
+        targets = [g.accessor(v, 5126, n, "VEC3", offset=12 * n * k,
+                              lo=d32[:, :, k].min(axis=0).tolist(), hi=d32[:, :, k].max(axis=0).tolist())
+                   for k in range(m)]
+    else:
+        targets = []
+    return pos_acc, targets
+
+
+def _face_primitive(g: _Builder, model: BlendshapeModel, pos_acc: int, targets: list[int]):
+    """The face's triangles primitive: its positions, indices and morph targets."""
+    pg = g.g
     faces = np.ascontiguousarray(model.faces, dtype="<u4")
     prim_kw = {}
     if len(faces):
         iv = g.view(faces.tobytes(), target=34963, count=faces.size, mode="TRIANGLES")
         prim_kw["indices"] = g.accessor(iv, 5125, faces.size, "SCALAR")
-    elif n % 3:
-        raise ModelError(f"a model without triangles needs a multiple of 3 vertices to be written, has {n}")
-    prim = pg.Primitive(attributes=pg.Attributes(POSITION=pos_acc), mode=4, targets=[{"POSITION": t} for t in targets], **prim_kw)
-    extras = {
+    elif model.n_vertices % 3:
+        raise ModelError(f"a model without triangles needs a multiple of 3 vertices to be written, has {model.n_vertices}")
+    return pg.Primitive(attributes=pg.Attributes(POSITION=pos_acc), mode=4, targets=[{"POSITION": t} for t in targets], **prim_kw)
+
+
+def _mesh_extras(model: BlendshapeModel) -> dict:
+    """The shape names (``targetNames``) and the model's sliders and regions (``repro``), for :func:`read_gltf`."""
+    return {
         "targetNames": list(model.names),
         "repro": {
             "sliders": {k: dict(v) for k, v in model.sliders.items()},
             "regions": {k: v.tolist() for k, v in model.regions.items()},
         },
     }
-    mesh_weights = model.check_weights(weights).tolist() if weights is not None else []
+
+
+def _extra_mesh_nodes(g: _Builder, extra_meshes: list) -> tuple[list, list]:
+    """A mesh and a node for each (name, vertices, triangles) without targets."""
+    pg = g.g
     meshes, nodes = [], []
-    for name, verts, tris in extra_meshes:  # first, as exporters often list eyes before the head
+    for name, verts, tris in extra_meshes:
         verts = np.asarray(verts, dtype=np.float32)
         tris = np.ascontiguousarray(tris, dtype="<u4")
         pa = g.accessor(g.view(verts.tobytes(), stride=12, target=34962, count=len(verts)), 5126, len(verts), "VEC3",
@@ -248,36 +291,21 @@ def write_gltf(
         ia = g.accessor(g.view(tris.tobytes(), target=34963, count=tris.size, mode="TRIANGLES"), 5125, tris.size, "SCALAR")
         meshes.append(pg.Mesh(name=name, primitives=[pg.Primitive(attributes=pg.Attributes(POSITION=pa), indices=ia, mode=4)]))
         nodes.append(pg.Node(mesh=len(meshes) - 1, name=name))
-    head = len(nodes)
-    meshes.append(pg.Mesh(name=model.name, primitives=[prim], weights=mesh_weights, extras=extras))
-    nodes.append(pg.Node(mesh=head, name=model.name, matrix=None if np.allclose(T, np.eye(4), atol=0) else T.T.ravel().tolist()))
-    animations = []
-    if animation is not None:
-        times, frames = _animation_arrays(model, animation)
-        ta = g.accessor(g.view(_f32(times), count=times.size), 5126, times.size, "SCALAR",
-                        lo=[float(times.min())], hi=[float(times.max())])
-        wa = g.accessor(g.view(_f32(frames.ravel()), count=frames.size), 5126, frames.size, "SCALAR")
-        animations.append(pg.Animation(
-            name="weights",
-            samplers=[pg.AnimationSampler(input=ta, output=wa, interpolation="LINEAR")],
-            channels=[pg.AnimationChannel(sampler=0, target=pg.AnimationChannelTarget(node=head, path="weights"))],
-        ))
-    buffers = [pg.Buffer(byteLength=len(g.blob))]
-    if meshopt:
-        used.append("EXT_meshopt_compression")
-        required.append("EXT_meshopt_compression")
-        buffers = _meshopt_compress(g)
-    else:
-        for bv in g.views:
-            bv.extras = {}
-    doc = pg.GLTF2(
-        asset=pg.Asset(generator="repro", version="2.0"),
-        scene=0, scenes=[pg.Scene(nodes=list(range(len(nodes))))], nodes=nodes, meshes=meshes,
-        accessors=g.accessors, bufferViews=g.views, buffers=buffers, animations=animations,
-        extensionsUsed=used, extensionsRequired=required,
+    return meshes, nodes
+
+
+def _weight_animation(g: _Builder, model: BlendshapeModel, animation, node: int):
+    """The weight animation of ``node``: one LINEAR sampler over the times, one weight vector per time."""
+    pg = g.g
+    times, frames = _animation_arrays(model, animation)
+    ta = g.accessor(g.view(_f32(times), count=times.size), 5126, times.size, "SCALAR",
+                    lo=[float(times.min())], hi=[float(times.max())])
+    wa = g.accessor(g.view(_f32(frames.ravel()), count=frames.size), 5126, frames.size, "SCALAR")
+    return pg.Animation(
+        name="weights",
+        samplers=[pg.AnimationSampler(input=ta, output=wa, interpolation="LINEAR")],
+        channels=[pg.AnimationChannel(sampler=0, target=pg.AnimationChannelTarget(node=node, path="weights"))],
     )
-    _save(doc, bytes(g.blob), path)
-    return path
 
 
 def _sparse_target(g: _Builder, d: np.ndarray, ctype: int, dt: str, normalized: bool) -> int:

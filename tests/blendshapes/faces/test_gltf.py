@@ -13,8 +13,11 @@ import pygltflib
 import pytest
 
 from repro.blendshapes import BlendshapeModel, load_model, scenarios
-from repro.blendshapes.gltf import _Reader, arkit_rig, read_gltf
-from repro.blendshapes.ict import ICT_SLIDERS
+from repro.blendshapes.faces.arkit import arkit_rig
+from repro.blendshapes.faces.gltf import read_gltf
+from repro.blendshapes.faces.gltf_document import GltfDocument
+from repro.blendshapes.faces.gltf_write import write_gltf
+from repro.blendshapes.faces.ict import ICT_SLIDERS
 from repro.errors import ModelError
 from tests.conftest import REPO
 
@@ -53,7 +56,7 @@ def _canonical_faces(faces):
 
 
 def _doc(path):
-    return _Reader(path, path.read_bytes(), 1 << 30).doc
+    return GltfDocument(path, path.read_bytes(), 1 << 30).doc
 
 
 # ---------------------------------------------------------------- round trip
@@ -66,7 +69,7 @@ def _doc(path):
 )
 def test_procedural_face_round_trips_through_gltf(face, tmp_path, suffix, opts, tol):
     path = tmp_path / f"face{suffix}"
-    assert face.to_gltf(path, **opts) == path
+    assert write_gltf(face, path, **opts) == path
     back = load_model(path)
     assert back.units == "m" and back.names == face.names
     # procedural "model units" are centimetres: glTF stores metres
@@ -88,7 +91,7 @@ def test_round_trip_of_a_metre_model_is_exact_to_float32(tmp_path):
     rng = np.random.default_rng(3)
     f0 = rng.normal(size=(30, 3)) * 0.1
     m = BlendshapeModel(f0, rng.normal(size=(90, 4)) * 0.01, ["a", "b", "c", "d"], np.arange(30).reshape(10, 3), units="m")
-    m.to_gltf(tmp_path / "m.glb")
+    write_gltf(m, tmp_path / "m.glb")
     back = load_model(tmp_path / "m.glb")
     np.testing.assert_array_equal(back.f0, f0.astype(np.float32).astype(np.float64))
     np.testing.assert_array_equal(back.D, m.D.astype(np.float32).astype(np.float64))
@@ -99,8 +102,8 @@ def test_weights_and_weight_animation_are_written(face, tmp_path):
     times = [0.0, 0.5, 1.25]
     frames = [face.weights(), face.weights(Furrow=0.4), face.weights(Furrow=0.4, JawOpen=0.6)]
     path = tmp_path / "anim.glb"
-    face.to_gltf(path, weights=w, animation=(times, frames))
-    r = _Reader(path, path.read_bytes(), 1 << 30)
+    write_gltf(face, path, weights=w, animation=(times, frames))
+    r = GltfDocument(path, path.read_bytes(), 1 << 30)
     mesh = r.doc.meshes[0]
     np.testing.assert_allclose(mesh.weights, w)
     assert mesh.extras["targetNames"] == list(face.names)
@@ -114,14 +117,14 @@ def test_weights_and_weight_animation_are_written(face, tmp_path):
 
 def test_bad_weights_raise_and_leave_an_existing_file_untouched(face, tmp_path):
     path = tmp_path / "face.glb"
-    face.to_gltf(path)
+    write_gltf(face, path)
     before = path.read_bytes()
     with pytest.raises(ModelError, match="weights"):
-        face.to_gltf(path, weights=np.full(face.n_shapes, np.nan))
+        write_gltf(face, path, weights=np.full(face.n_shapes, np.nan))
     with pytest.raises(ModelError, match="strictly increasing"):
-        face.to_gltf(path, animation=([1.0, 0.5], [face.weights(), face.weights()]))
+        write_gltf(face, path, animation=([1.0, 0.5], [face.weights(), face.weights()]))
     with pytest.raises(ModelError, match=r"\.glb or \.gltf"):
-        face.to_gltf(tmp_path / "face.obj")
+        write_gltf(face, tmp_path / "face.obj")
     assert path.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["face.glb"]
 
@@ -164,7 +167,7 @@ def test_fixtures_use_the_storage_they_are_named_for():
 
 def test_node_transform_is_applied_to_neutral_and_deltas(fixtures, expected):
     """Stored in centimetres under scale 0.01 + translation: world metres come back."""
-    r = _Reader(DATA / "face_node.glb", (DATA / "face_node.glb").read_bytes(), 1 << 30)
+    r = GltfDocument(DATA / "face_node.glb", (DATA / "face_node.glb").read_bytes(), 1 << 30)
     prim = r.doc.meshes[0].primitives[0]
     local = r.accessor(prim.attributes.POSITION, "p")
     local_d = r.accessor(prim.targets[0]["POSITION"], "d")
@@ -175,11 +178,11 @@ def test_node_transform_is_applied_to_neutral_and_deltas(fixtures, expected):
 def test_rotated_node_applies_the_linear_part_to_deltas(expected, tmp_path):
     c, s = np.cos(0.7), np.sin(0.7)
     T = np.array([[c, 0, s, 0.3], [0, 2.0, 0, -0.1], [-s, 0, c, 1.0], [0, 0, 0, 1]])
-    expected.to_gltf(tmp_path / "rot.glb", node_matrix=T)
+    write_gltf(expected, tmp_path / "rot.glb", node_matrix=T)
     back = load_model(tmp_path / "rot.glb")
     np.testing.assert_allclose(back.f0, expected.f0, atol=F32)
     np.testing.assert_allclose(back.D, expected.D, atol=F32)
-    assert not np.allclose(_Reader(tmp_path / "rot.glb", (tmp_path / "rot.glb").read_bytes(), 1 << 30).accessor(0, "p"), expected.f0, atol=1e-3)
+    assert not np.allclose(GltfDocument(tmp_path / "rot.glb", (tmp_path / "rot.glb").read_bytes(), 1 << 30).accessor(0, "p"), expected.f0, atol=1e-3)
 
 
 def test_the_mesh_with_targets_is_chosen_and_named(expected):
@@ -199,7 +202,7 @@ def test_the_mesh_with_targets_is_chosen_and_named(expected):
 
 def test_primitives_of_one_mesh_with_targets_are_merged(expected, tmp_path):
     gpath = tmp_path / "two.gltf"
-    expected.to_gltf(gpath)
+    write_gltf(expected, gpath)
     doc = json.loads(gpath.read_text())
     prim = doc["meshes"][0]["primitives"][0]
     # the same vertices again as a second primitive (an exporter's split by material)
@@ -214,7 +217,7 @@ def test_primitives_of_one_mesh_with_targets_are_merged(expected, tmp_path):
 
 def test_target_names_fall_back_to_primitive_extras_then_target_k(expected, tmp_path):
     gpath = tmp_path / "names.gltf"
-    expected.to_gltf(gpath)
+    write_gltf(expected, gpath)
     doc = json.loads(gpath.read_text())
     names = doc["meshes"][0]["extras"].pop("targetNames")
     del doc["meshes"][0]["extras"]["repro"]
@@ -228,7 +231,7 @@ def test_target_names_fall_back_to_primitive_extras_then_target_k(expected, tmp_
 
 def test_target_normals_and_tangents_are_ignored(expected, tmp_path):
     gpath = tmp_path / "n.gltf"
-    expected.to_gltf(gpath)
+    write_gltf(expected, gpath)
     doc = json.loads(gpath.read_text())
     for t in doc["meshes"][0]["primitives"][0]["targets"]:
         t["NORMAL"] = t["TANGENT"] = 10_000  # would be out of range if read
@@ -257,7 +260,7 @@ def _third_party(face, tmp_path, rename, perm=None):
     D = face.D[:, keep].reshape(n, 3, -1)[perm].reshape(3 * n, -1)
     m = BlendshapeModel(face.f0[perm], D, [rename(ARKIT[face.names[i]]) for i in keep], inv[face.faces], units=face.units)
     gpath = tmp_path / "arkit.gltf"
-    m.to_gltf(gpath)
+    write_gltf(m, gpath)
     doc = json.loads(gpath.read_text())
     del doc["meshes"][0]["extras"]["repro"]
     doc["asset"]["generator"] = "some exporter"
@@ -305,7 +308,7 @@ def test_arkit_rig_without_the_shapes_gives_no_regions():
 # ---------------------------------------------------------------- bad files
 def _gltf(expected, tmp_path, mutate=None, **kw):
     gpath = tmp_path / "bad.gltf"
-    expected.to_gltf(gpath, **kw)
+    write_gltf(expected, gpath, **kw)
     if mutate:
         doc = json.loads(gpath.read_text())
         mutate(doc, tmp_path)
@@ -447,7 +450,7 @@ def test_missing_file_and_not_gltf(tmp_path):
 
 def test_pygltflib_reads_what_we_write(expected, tmp_path):
     """An independent reader (pygltflib's own GLB loader) accepts our container."""
-    expected.to_gltf(tmp_path / "f.glb")
+    write_gltf(expected, tmp_path / "f.glb")
     g = pygltflib.GLTF2.load(str(tmp_path / "f.glb"))
     assert g.meshes[0].extras["targetNames"] == list(expected.names)
     assert len(g.binary_blob()) >= expected.n_vertices * 12
@@ -461,7 +464,7 @@ def test_ict_written_as_a_third_party_arkit_face_gets_icts_sliders_and_nearby_re
     ICT's own sliders, and regions found from the shapes' motion near ICT's landmark ones."""
     ict = load_model("ict")
     gpath = tmp_path / "ict.gltf"
-    ict.to_gltf(gpath, quantize=True, meshopt=True)
+    write_gltf(ict, gpath, quantize=True, meshopt=True)
     doc = json.loads(gpath.read_text())
     del doc["meshes"][0]["extras"]["repro"]
     gpath.write_text(json.dumps(doc))

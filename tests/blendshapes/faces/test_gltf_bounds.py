@@ -15,8 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from repro.blendshapes import gltf, load_model
-from repro.blendshapes.gltf import read_gltf
+from repro.blendshapes import load_model
+from repro.blendshapes.faces import gltf, gltf_document
+from repro.blendshapes.faces.arkit import arkit_rig
+from repro.blendshapes.faces.gltf import read_gltf
 from repro.errors import ModelError
 from tests.conftest import REPO
 
@@ -292,7 +294,7 @@ def test_repro_run_with_a_bad_face_prints_one_line_and_fails(tmp_path, capsys, k
 
 def test_meshopt_decoding_is_bounded_per_file_not_per_view(monkeypatch):
     # face_meshopt.glb decodes views of 832, 4160 and 2016 bytes; its size bound is 64 KiB x the ratio
-    monkeypatch.setattr(gltf, "_MESHOPT_MAX_RATIO", 0.1)  # 6.5 KB: each view fits, the three together do not
+    monkeypatch.setattr(gltf_document, "_MESHOPT_MAX_RATIO", 0.1)  # 6.5 KB: each view fits, the three together do not
     with pytest.raises(ModelError, match=r"7008 for the file's meshopt views so far; refusing"):
         read_gltf(DATA / "face_meshopt.glb")
 
@@ -307,7 +309,7 @@ def test_meshopt_decoding_is_bounded_per_file_not_per_view(monkeypatch):
 ])
 def test_arkit_rig_refuses_bad_arguments(args, match):
     with pytest.raises(ModelError, match=match):
-        gltf.arkit_rig(*args)
+        arkit_rig(*args)
 
 
 @pytest.mark.parametrize("kw, match", [
@@ -323,7 +325,7 @@ def test_arkit_rig_refuses_bad_arguments(args, match):
     ({"extra_meshes": 5}, r"extra_meshes must be a sequence"),
 ])
 def test_write_gltf_refuses_bad_arguments_before_writing(tmp_path, reference, kw, match):
-    from repro.blendshapes.gltf_write import write_gltf
+    from repro.blendshapes.faces.gltf_write import write_gltf
 
     path = kw.pop("path", tmp_path / "out.glb")
     with pytest.raises(ModelError, match=match):

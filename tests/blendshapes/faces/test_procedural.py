@@ -1,4 +1,4 @@
-"""The embedded procedural face (repro.blendshapes.procedural).
+"""The embedded procedural face (repro.blendshapes.faces.procedural).
 
 Checks the contracts the figures rely on: the paper-sized vertex count, the
 paper's shape names, a valid triangulated face, linear independence, and -
@@ -18,7 +18,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from repro.blendshapes.model import BlendshapeModel
-from repro.blendshapes.procedural import (
+from repro.blendshapes.faces.procedural import (
     PROCEDURAL_REGIONS,
     PROCEDURAL_SHAPES,
     _build_cached,
@@ -141,7 +141,7 @@ def test_deterministic_across_processes(face):
 
     code = (
         "import hashlib, numpy as np\n"
-        "from repro.blendshapes.procedural import procedural_model\n"
+        "from repro.blendshapes.faces.procedural import procedural_model\n"
         "m = procedural_model()\n"
         "h = hashlib.sha256()\n"
         "for a in (m.f0, m.D, m.faces, *(m.regions[k] for k in sorted(m.regions))):\n"

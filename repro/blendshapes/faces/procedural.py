@@ -5,7 +5,7 @@ Lewis et al. (2005) show their attenuation on a professionally sculpted model
 stand-in that needs no data file and exhibits the same *kinds* of blendshape
 interference, so every figure of the paper can be reproduced and tested
 offline.  The real scanned ICT face model is used separately
-(:mod:`repro.blendshapes.ict`).
+(:mod:`repro.blendshapes.faces.ict`).
 
 The face
 --------
@@ -321,78 +321,98 @@ def _neutral_z(x, y):
     return z
 
 
+def _v(*c):
+    """A 3-vector as a (1, 3) row, to scale a (n, 1) bump into a displacement field."""
+    return np.array(c, dtype=np.float64)[None, :]
+
+
 def _shapes(x, y, z):
     """Displacement fields (n, 3) of every shape, keyed by name."""
     B = lambda *a: _bump(x, y, *a)[:, None]  # noqa: E731
-    v = lambda *c: np.array(c, dtype=np.float64)[None, :]  # noqa: E731
-    n = x.size
-    out: dict[str, np.ndarray] = {}
-    # Broad skin slide dragging the middle of the brow down (Figs. 2-3).
-    brow_drag = lambda cx=0.0: B(cx, 2.5, 4.5, 3.5)  # noqa: E731
+    out = _brow_shapes(B)
+    for s, side in ((1.0, "Left"), (-1.0, "Right")):
+        out.update(_side_shapes(B, s, side))
+    out.update(_both_sides_shapes(B))
+    out["JawOpen"] = _jaw_open(B, x, y, z)
+    out["LipUpperUp"] = B(0.0, _UPPER_LIP_Y, 1.6, 0.45) * _v(0, 0.45, 0.1) + (
+        B(1.28, _UPPER_LIP_Y, 0.8, 0.5) + B(-1.28, _UPPER_LIP_Y, 0.8, 0.5)
+    ) * _v(0, 0.1, 0)
+    out["LipLowerDown"] = B(0.0, _LOWER_LIP_Y, 1.5, 0.5) * _v(0, -0.5, 0.1)
+    return out
 
-    # ---- brows -----------------------------------------------------------
+
+def _brow_drag(B, cx=0.0):
+    """Broad skin slide dragging the middle of the brow down (Figs. 2-3)."""
+    return B(cx, 2.5, 4.5, 3.5)
+
+
+def _brow_shapes(B) -> dict[str, np.ndarray]:
+    """``Furrow`` (the inner brows down and together) and ``BrowInnerUp``."""
+    v = _v
     furrow = B(0.0, 3.0, 0.8, 0.9) * v(0, -0.3, 0.25)  # glabella bunching
     for s in (1.0, -1.0):
         furrow = furrow + B(s * 1.4, 3.3, 1.1, 0.8) * v(-s * 0.45, -0.55, 0.15)
-    out["Furrow"] = furrow
-    out["BrowInnerUp"] = (
-        (B(1.3, 3.6, 1.2, 1.3) + B(-1.3, 3.6, 1.2, 1.3)) * v(0, 0.7, 0.05)
-        + B(0.0, 5.5, 2.5, 2.0) * v(0, 0.3, 0)
-    )
-    # ---- per side ----------------------------------------------------------
-    for s, side in ((1.0, "Left"), (-1.0, "Right")):
-        ex = s * _EYE_X
-        upper_lid = B(ex, 1.95, 1.2, 0.6)
-        out[f"BrowUp{side}"] = (
-            B(s * 3.5, 3.6, 1.9, 1.1) * v(s * 0.05, 0.9, 0.05)
-            + B(s * 3.0, 6.0, 2.5, 2.5) * v(0, 0.35, 0)
-            + upper_lid * v(0, 0.3, 0)  # Fig. 1: the brow lifts the eyelid
-        )
-        out[f"BrowDown{side}"] = (
-            B(s * 3.3, 3.3, 2.0, 0.9) * v(-s * 0.1, -0.6, 0.1)
-            + upper_lid * v(0, -0.2, 0)  # Fig. 1: the brow pushes the eyelid down
-        )
-        out[f"Blink{side}"] = upper_lid * v(0, -0.8, 0.25) + B(ex, 1.06, 1.1, 0.5) * v(0, 0.15, 0)
-        out[f"EyeWide{side}"] = upper_lid * v(0, 0.45, -0.1) + B(s * 3.3, _BROW_Y, 1.6, 0.8) * v(
-            0, 0.15, 0
-        )
-        out[f"EyeSquint{side}"] = B(ex, 0.64, 1.4, 0.6) * v(0, 0.45, 0.1) + B(
-            s * 3.8, -0.2, 1.5, 1.0
-        ) * v(0, 0.25, 0.15)
-        out[f"Sneer{side}"] = (
-            B(s * 1.07, -3.19, 0.7, 0.6) * v(s * 0.1, 0.55, 0.15)  # nose wing
-            + B(s * 1.07, _UPPER_LIP_Y, 0.9, 0.5) * v(0, 0.5, 0.15)  # upper lip
-            + B(s * 2.4, -2.5, 1.2, 1.2) * v(s * 0.05, 0.4, 0.2)  # cheek
-            + B(s * 2.9, 0.5, 1.3, 0.9) * v(0, 0.45, 0.2)  # Fig. 5: under the eye
-            + B(s * 0.7, -0.5, 0.5, 1.0) * v(0, 0.2, 0.05)  # side of the nose
-        )
-        corner = lambda sx=0.9, sy=0.7, cy=_MOUTH_Y: B(s * _CORNER_X, cy, sx, sy)  # noqa: E731
-        out[f"MouthStretch{side}"] = (
-            corner(1.1, 0.8) * v(s * 0.7, -0.3, -0.15)
-            + B(s * 1.49, _LOWER_LIP_Y, 1.0, 0.5) * v(s * 0.2, -0.25, 0)
-            + B(s * 4.0, -8.0, 2.0, 2.0) * v(0, -0.2, 0)
-            + brow_drag(s * 1.5) * v(0, -0.06, 0)  # Fig. 2
-        )
-        out[f"Smirk{side}"] = (
-            corner(1.0, 0.8) * v(s * 0.75, 0.8, -0.35)  # Fig. 4: out and up
-            + B(s * 3.6, -3.5, 1.5, 1.3) * v(s * 0.25, 0.4, -0.15)  # cheek pushed back
-            + B(ex, 0.6, 1.3, 0.7) * v(0, 0.12, 0.05)
-            + brow_drag(s * 1.5) * v(0, -0.05, 0)  # Fig. 2
-        )
-        out[f"MouthFrown{side}"] = corner(0.9, 0.8, -5.9) * v(s * 0.1, -0.6, 0) + B(
-            s * 2.3, -7.5, 1.0, 1.0
-        ) * v(0, -0.2, 0.1)
+    return {
+        "Furrow": furrow,
+        "BrowInnerUp": (
+            (B(1.3, 3.6, 1.2, 1.3) + B(-1.3, 3.6, 1.2, 1.3)) * v(0, 0.7, 0.05)
+            + B(0.0, 5.5, 2.5, 2.0) * v(0, 0.3, 0)
+        ),
+    }
 
-    # ---- both sides ----------------------------------------------------------
+
+def _side_shapes(B, s: float, side: str) -> dict[str, np.ndarray]:
+    """The shapes of one side (``s`` = 1 the subject's left, -1 the right, its mirror image)."""
+    v = _v
+    out: dict[str, np.ndarray] = {}
+    ex = s * _EYE_X
+    upper_lid = B(ex, 1.95, 1.2, 0.6)
+    out[f"BrowUp{side}"] = (
+        B(s * 3.5, 3.6, 1.9, 1.1) * v(s * 0.05, 0.9, 0.05)
+        + B(s * 3.0, 6.0, 2.5, 2.5) * v(0, 0.35, 0)
+        + upper_lid * v(0, 0.3, 0)  # Fig. 1: the brow lifts the eyelid
+    )
+    out[f"BrowDown{side}"] = (
+        B(s * 3.3, 3.3, 2.0, 0.9) * v(-s * 0.1, -0.6, 0.1)
+        + upper_lid * v(0, -0.2, 0)  # Fig. 1: the brow pushes the eyelid down
+    )
+    out[f"Blink{side}"] = upper_lid * v(0, -0.8, 0.25) + B(ex, 1.06, 1.1, 0.5) * v(0, 0.15, 0)
+    out[f"EyeWide{side}"] = upper_lid * v(0, 0.45, -0.1) + B(s * 3.3, _BROW_Y, 1.6, 0.8) * v(0, 0.15, 0)
+    out[f"EyeSquint{side}"] = B(ex, 0.64, 1.4, 0.6) * v(0, 0.45, 0.1) + B(s * 3.8, -0.2, 1.5, 1.0) * v(0, 0.25, 0.15)
+    out[f"Sneer{side}"] = (
+        B(s * 1.07, -3.19, 0.7, 0.6) * v(s * 0.1, 0.55, 0.15)  # nose wing
+        + B(s * 1.07, _UPPER_LIP_Y, 0.9, 0.5) * v(0, 0.5, 0.15)  # upper lip
+        + B(s * 2.4, -2.5, 1.2, 1.2) * v(s * 0.05, 0.4, 0.2)  # cheek
+        + B(s * 2.9, 0.5, 1.3, 0.9) * v(0, 0.45, 0.2)  # Fig. 5: under the eye
+        + B(s * 0.7, -0.5, 0.5, 1.0) * v(0, 0.2, 0.05)  # side of the nose
+    )
+    corner = lambda sx=0.9, sy=0.7, cy=_MOUTH_Y: B(s * _CORNER_X, cy, sx, sy)  # noqa: E731
+    out[f"MouthStretch{side}"] = (
+        corner(1.1, 0.8) * v(s * 0.7, -0.3, -0.15)
+        + B(s * 1.49, _LOWER_LIP_Y, 1.0, 0.5) * v(s * 0.2, -0.25, 0)
+        + B(s * 4.0, -8.0, 2.0, 2.0) * v(0, -0.2, 0)
+        + _brow_drag(B, s * 1.5) * v(0, -0.06, 0)  # Fig. 2
+    )
+    out[f"Smirk{side}"] = (
+        corner(1.0, 0.8) * v(s * 0.75, 0.8, -0.35)  # Fig. 4: out and up
+        + B(s * 3.6, -3.5, 1.5, 1.3) * v(s * 0.25, 0.4, -0.15)  # cheek pushed back
+        + B(ex, 0.6, 1.3, 0.7) * v(0, 0.12, 0.05)
+        + _brow_drag(B, s * 1.5) * v(0, -0.05, 0)  # Fig. 2
+    )
+    out[f"MouthFrown{side}"] = corner(0.9, 0.8, -5.9) * v(s * 0.1, -0.6, 0) + B(s * 2.3, -7.5, 1.0, 1.0) * v(0, -0.2, 0.1)
+    return out
+
+
+def _both_sides_shapes(B) -> dict[str, np.ndarray]:
+    """``Wince``, ``CheekPuff``, ``MouthPucker``, ``MouthFunnel``: one shape over both sides of the face."""
+    v = _v
     wince = (
         B(0.0, 0.5, 0.8, 1.2) * v(0, 0.25, 0)  # nose wrinkle
         + B(0.0, _UPPER_LIP_Y, 1.8, 0.6) * v(0, 0.35, 0.1)  # upper lip raised
     )
     puff = B(0.0, _MOUTH_Y, 1.6, 0.6) * v(0, 0, 0.2)
     pucker = B(0.0, _MOUTH_Y, 1.8, 0.9) * v(0, 0, 0.8)
-    funnel = B(0.0, _UPPER_LIP_Y, 1.4, 0.45) * v(0, 0.3, 0.4) + B(0.0, _LOWER_LIP_Y, 1.4, 0.45) * v(
-        0, -0.35, 0.4
-    )
+    funnel = B(0.0, _UPPER_LIP_Y, 1.4, 0.45) * v(0, 0.3, 0.4) + B(0.0, _LOWER_LIP_Y, 1.4, 0.45) * v(0, -0.35, 0.4)
     for s in (1.0, -1.0):
         wince = wince + (
             B(s * _EYE_X, 1.95, 1.2, 0.6) * v(0, -0.35, 0.1)  # eyes squeezed
@@ -403,30 +423,24 @@ def _shapes(x, y, z):
         puff = puff + B(s * 3.4, -4.5, 1.6, 1.4) * v(s * 0.5, 0, 0.6)
         pucker = pucker + B(s * 2.3, _MOUTH_Y, 0.9, 0.7) * v(-s * 0.7, 0, 0.3)
         funnel = funnel + B(s * 2.3, _MOUTH_Y, 0.9, 0.7) * v(-s * 0.4, 0, 0.1)
-    out["Wince"] = wince
-    out["CheekPuff"] = puff
-    out["MouthPucker"] = pucker
-    out["MouthFunnel"] = funnel
+    return {"Wince": wince, "CheekPuff": puff, "MouthPucker": pucker, "MouthFunnel": funnel}
 
-    # JawOpen: linearised rotation about a hinge behind the face, masked to
-    # the lower face (the transition widens towards the sides), plus skin drag.
+
+def _jaw_open(B, x, y, z):
+    """``JawOpen``: a linearised rotation about a hinge behind the face, masked to the lower face
+    (the transition widens towards the sides), plus skin drag."""
+    v = _v
     theta, hinge_y, hinge_z, forward = 0.22, -1.0, -3.0, 0.9
     edge = _MOUTH_Y - 0.15 + 0.25 * (x / 3.0) ** 2
     width = 0.5 + 0.25 * np.abs(x)
     mask = _smoothstep(edge + 0.5 * width, edge - 0.5 * width, y)
-    jaw = np.zeros((n, 3))
+    jaw = np.zeros((x.size, 3))
     jaw[:, 1] = -theta * (z - hinge_z)
     jaw[:, 2] = theta * (y - hinge_y) + forward * theta
     jaw *= mask[:, None]
     jaw = jaw + (B(3.5, -3.0, 2.0, 1.5) + B(-3.5, -3.0, 2.0, 1.5)) * v(0, -0.25, 0)
     jaw = jaw + B(0.0, -3.0, 1.0, 0.8) * v(0, -0.1, 0)
-    out["JawOpen"] = jaw + brow_drag() * v(0, -0.14, 0)  # Fig. 2
-
-    out["LipUpperUp"] = B(0.0, _UPPER_LIP_Y, 1.6, 0.45) * v(0, 0.45, 0.1) + (
-        B(1.28, _UPPER_LIP_Y, 0.8, 0.5) + B(-1.28, _UPPER_LIP_Y, 0.8, 0.5)
-    ) * v(0, 0.1, 0)
-    out["LipLowerDown"] = B(0.0, _LOWER_LIP_Y, 1.5, 0.5) * v(0, -0.5, 0.1)
-    return out
+    return jaw + _brow_drag(B) * v(0, -0.14, 0)  # Fig. 2
 
 
 # ---------------------------------------------------------------- regions
