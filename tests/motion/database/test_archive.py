@@ -1,4 +1,5 @@
-"""MotionDatabase.load on damaged, truncated or foreign files; save is atomic (issue 9, item 6).
+"""The database's file (repro.motion.database.archive): MotionDatabase.load on damaged, truncated
+or foreign files; save is atomic (issue 9, item 6); a file's identity (issue 23, 5).
 
 What is asserted: every bad file -- missing, a folder, empty, truncated, random bytes, a
 valid ``.npz`` of another program, missing keys, wrong dtypes or shapes, object
@@ -7,13 +8,16 @@ declares more than it holds, seeded byte flips -- raises :class:`DataError` nami
 file (never ``BadZipFile``, ``KeyError``, ``JSONDecodeError``, ``ValueError`` or a later
 ``IndexError``); a file that loads is equal to what was saved.  ``save`` replaces the
 file atomically: saving over the file a database was loaded from works, and a failed
-save leaves the previous file intact with no temporary file behind.
+save leaves the previous file intact with no temporary file behind.  A file says what it
+is (``identity``, inside its hashed content) and ``load(..., identity=...)`` refuses
+another database put in its place.
 """
 
 from __future__ import annotations
 
 import io
 import json
+import math
 import zipfile
 
 import numpy as np
@@ -306,3 +310,34 @@ def test_save_bad_targets_and_meta(small, tmp_path):
     with pytest.raises(MotionError, match="JSON"):
         odd.save(p)
     assert p.read_bytes() == before
+
+
+ID = {"base": "synthetic", "factor": 10, "seed": 0, "format": 2}
+
+
+def test_identity_round_trip_and_mismatch(small, tmp_path):
+    p = small.save(tmp_path / "a.npz", identity=ID)
+    assert MotionDatabase.load(p, identity=ID).equals(small)
+    assert MotionDatabase.load(p).equals(small)  # no identity asked: read as any database
+    with pytest.raises(DataError, match=r"another database .*\['factor'\]"):
+        MotionDatabase.load(p, identity=dict(ID, factor=20))
+    q = small.save(tmp_path / "b.npz")  # saved without identity
+    with pytest.raises(DataError, match="holds no identity"):
+        MotionDatabase.load(q, identity=ID)
+    assert MotionDatabase.load(q).equals(small)
+
+
+@pytest.mark.parametrize("bad", [["x"], "factor=10", {"x": math.nan}, {"x": object()}])
+def test_an_identity_that_is_not_a_json_object_is_refused(small, tmp_path, bad):
+    with pytest.raises(MotionError, match="identity"):
+        small.save(tmp_path / "a.npz", identity=bad)
+    assert not (tmp_path / "a.npz").exists()
+
+
+def test_load_checks_its_arguments(small, tmp_path):
+    p = small.save(tmp_path / "a.npz")
+    with pytest.raises(DataError, match="identity must be a mapping"):
+        MotionDatabase.load(p, identity=["x"])
+    for bad in ("10", None, -1, 1.5):
+        with pytest.raises(DataError, match="max_bytes must be an integer"):
+            MotionDatabase.load(p, max_bytes=bad)
