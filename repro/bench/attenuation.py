@@ -8,6 +8,8 @@ interactive speeds").
     versus one bare ``D @ w``.  Goal <= 2x.
 
 :func:`bench_attenuation_scaling`: the same costs versus model size and number of shapes.
+:func:`bench_bounded`: a slider move through the bounded solve (Eq. 2 within the slider
+range, :mod:`repro.blendshapes.bounded`) versus Eq. (3)'s.
 """
 
 from __future__ import annotations
@@ -24,7 +26,9 @@ __all__ = [
     "GOAL_SLIDER_SLOWDOWN",
     "bench_attenuation",
     "bench_attenuation_scaling",
+    "bench_bounded",
     "format_attenuation",
+    "MAX_REPEATS",
 ]
 
 #: (a): a new selection through the cached Attenuator is at least this many times faster than Eq. 3 direct
@@ -187,3 +191,51 @@ def bench_attenuation_scaling(*, quick: bool = False, seed: int = 0, progress: b
     table = pd.DataFrame(out)
     table["machine"] = machine()
     return table
+
+
+#: Largest ``repeats`` of :func:`bench_bounded` (a few seconds on the ICT face).
+MAX_REPEATS = 100_000
+
+
+def bench_bounded(model=None, *, repeats: int = 200) -> dict:
+    """Per-slider-move cost of the bounded solve against Eq. (3)'s mat-vec (same process, ratios).
+
+    On ``model`` (default the ICT face when present, else the procedural one) with
+    the Fig. 5 scenario (``wince_sneer_under_eye``), whose Eq. (3) result leaves
+    [0, 1]: median microseconds per call of ``Attenuator.edit`` (baseline),
+    :func:`~repro.blendshapes.bounded.bounded_edit`, and ``scipy.optimize.lsq_linear``
+    on the same Gram form (:func:`~repro.blendshapes.bounded.solve_box_qp` with
+    ``method="lsq_linear"``).  Prints nothing; returns the numbers (for a benchmark
+    table, not a test).  ``repeats``: 1..:data:`MAX_REPEATS` calls timed per method.
+    """
+    from repro import data
+    from repro.blendshapes import Attenuator, BlendshapeModel, load_model
+    from repro.blendshapes import scenarios as S
+    from repro.blendshapes.bounded import bounded_edit, check_bounds, solve_box_qp
+    from repro.checks import as_int, describe
+    from repro.errors import AttenuationError
+
+    repeats = as_int(repeats, "repeats", lo=1, hi=MAX_REPEATS, error=AttenuationError)
+    if model is not None and not isinstance(model, BlendshapeModel):
+        raise AttenuationError(f"model must be a BlendshapeModel or None, got {describe(model)}")
+    if model is None:
+        model = load_model("ict" if data.missing_reason("ict") is None else "procedural")
+    att = Attenuator(model)
+    sc = S.scenario("wince_sneer_under_eye")
+    sel = sc.selection(model)
+    w_base, w_target = sc.weights(model)
+    lo, hi = check_bounds(0.0, 1.0, att.m)
+    A, P, _ = att.system(sel)
+    g = P @ (w_target - w_base)
+
+    def median_us(f, n):
+        return 1e6 * median_time(f, [()] * n)
+
+    base = median_us(lambda: att.edit(w_base, w_target, sel), repeats)
+    bounded = median_us(lambda: bounded_edit(att, w_base, w_target, sel), repeats)
+    ref = median_us(lambda: solve_box_qp(A, g, lo - w_base, hi - w_base, method="lsq_linear"), max(5, repeats // 20))
+    r = bounded_edit(att, w_base, w_target, sel, info=True)
+    return {"model": model.name, "n_vertices": model.n_vertices, "n_shapes": model.n_shapes,
+            "eq3_edit_us": base, "bounded_edit_us": bounded, "lsq_linear_us": ref,
+            "bounded_over_eq3": bounded / base, "lsq_linear_over_bounded": ref / bounded,
+            "active_set_steps": r.iterations, "n_at_bounds": r.n_at_bounds, "under_1ms": bounded < 1000.0}

@@ -20,8 +20,9 @@ solves one free-set linear system per step (each step fixes or frees one shape).
 ``scipy.optimize.lsq_linear`` on a factor of ``A`` gives the same minimiser but
 costs milliseconds per call (its set-up dominates at m = 57); the active set is
 used for speed and ``lsq_linear`` as the fallback for a singular ``A`` (a
-rank-deficient ``D``) and as the reference in the tests.  Speed per slider
-move, as ratios against Eq. (3)'s mat-vec in the same process: :func:`benchmark`.
+rank-deficient ``D``) and as the reference in the tests (``method="lsq_linear"``).
+Speed per slider move, as ratios against Eq. (3)'s mat-vec in the same process:
+:func:`repro.bench.attenuation.bench_bounded`.
 
 Bounds
 ------
@@ -47,7 +48,6 @@ from repro.errors import AttenuationError
 
 __all__ = [
     "BoxQPResult",
-    "benchmark",
     "bounded_attenuate",
     "bounded_edit",
     "check_bounds",
@@ -345,56 +345,3 @@ def clamped_edit(att: Attenuator, w_base, w_target, selected, alpha=None, lo=0.0
     att = _checked(att)
     lo, hi = check_bounds(lo, hi, att.m)
     return np.clip(att.edit(w_base, w_target, selected, alpha), lo, hi)
-
-
-#: Largest ``repeats`` of :func:`benchmark` (a few seconds on the ICT face).
-MAX_REPEATS = 100_000
-
-
-def benchmark(model=None, *, repeats: int = 200) -> dict:
-    """Per-slider-move cost of the bounded solve against Eq. (3)'s mat-vec (same process, ratios).
-
-    On ``model`` (default the ICT face when present, else the procedural one) with
-    the Fig. 5 scenario (``wince_sneer_under_eye``), whose Eq. (3) result leaves
-    [0, 1]: median microseconds per call of ``Attenuator.edit`` (baseline),
-    :func:`bounded_edit`, and ``scipy.optimize.lsq_linear`` on the same Gram
-    form.  Prints nothing; returns the numbers (for a benchmark table, not a test).
-    ``repeats``: 1..:data:`MAX_REPEATS` calls timed per method.
-    """
-    import time
-
-    from repro import data
-    from repro.blendshapes import load_model
-    from repro.blendshapes import scenarios as S
-    from repro.blendshapes.model import BlendshapeModel
-
-    repeats = as_int(repeats, "repeats", lo=1, hi=MAX_REPEATS, error=AttenuationError)
-    if model is not None and not isinstance(model, BlendshapeModel):
-        raise AttenuationError(f"model must be a BlendshapeModel or None, got {describe(model)}")
-    if model is None:
-        model = load_model("ict" if data.missing_reason("ict") is None else "procedural")
-    att = Attenuator(model)
-    sc = S.scenario("wince_sneer_under_eye")
-    sel = sc.selection(model)
-    w_base, w_target = sc.weights(model)
-    lo, hi = check_bounds(0.0, 1.0, att.m)
-    A, P, _ = att.system(sel)
-
-    def median_us(f, n):
-        f()
-        t = []
-        for _ in range(n):
-            t0 = time.perf_counter()
-            f()
-            t.append(time.perf_counter() - t0)
-        return 1e6 * float(np.median(t))
-
-    base = median_us(lambda: att.edit(w_base, w_target, sel), repeats)
-    bounded = median_us(lambda: bounded_edit(att, w_base, w_target, sel), repeats)
-    g = P @ (w_target - w_base)
-    ref = median_us(lambda: _lsq_linear(A, g, lo - w_base, hi - w_base), max(5, repeats // 20))
-    r = bounded_edit(att, w_base, w_target, sel, info=True)
-    return {"model": model.name, "n_vertices": model.n_vertices, "n_shapes": model.n_shapes,
-            "eq3_edit_us": base, "bounded_edit_us": bounded, "lsq_linear_us": ref,
-            "bounded_over_eq3": bounded / base, "lsq_linear_over_bounded": ref / bounded,
-            "active_set_steps": r.iterations, "n_at_bounds": r.n_at_bounds, "under_1ms": bounded < 1000.0}

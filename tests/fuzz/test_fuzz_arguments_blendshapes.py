@@ -2,7 +2,7 @@
 
 The model and its methods, the procedural face, Eq. (3) (``attenuate``, ``Attenuator`` and its
 methods, the selection helpers), the bounded solve (``solve_box_qp``, ``bounded_attenuate`` /
-``bounded_edit`` / ``clamped_edit``, ``check_bounds``, ``benchmark``), direct manipulation, the
+``bounded_edit`` / ``clamped_edit``, ``check_bounds``, and its benchmark ``bench_bounded``), direct manipulation, the
 rejected alternatives, the metrics and the scenarios: every parameter gets every value of the
 table of :mod:`tests.fuzz.arguments`; each call raises a ReproError or returns finite numbers.
 (glTF reading and writing and the ICT loader have their own fuzzers: the file readers'.)
@@ -211,10 +211,10 @@ def _check_bounds():
     return check_bounds, dict(lo=0.0, hi=np.ones(3), m=3)
 
 
-def _benchmark():
-    from repro.blendshapes.bounded import benchmark
+def _bench_bounded():
+    from repro.bench.attenuation import bench_bounded
 
-    return benchmark, dict(model=_model(), repeats=1)
+    return bench_bounded, dict(model=_model(), repeats=1)
 
 
 _BOUNDED_PARAMS = {"att": "any", "selected": "index_array", "alpha": "real", "lo": "array", "hi": "array"}
@@ -228,7 +228,7 @@ BOUNDED = [
     Case("clamped_edit", _bounded("clamped_edit"), {**_BOUNDED_PARAMS, "w_base": "array", "w_target": "array"}),
     # -inf / inf bounds are documented (one-sided ranges) and come back as they are
     Case("check_bounds", _check_bounds, {"lo": "array", "hi": "array", "m": "int"}, nonfinite_ok=True),
-    Case("bounded.benchmark", _benchmark, {"model": "any", "repeats": "int"}),
+    Case("bench_bounded", _bench_bounded, {"model": "any", "repeats": "int"}),
 ]
 
 
