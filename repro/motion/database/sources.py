@@ -597,7 +597,7 @@ def _default_build(name: str, seed: int) -> MotionDatabase:
 
 
 #: :func:`default_database`'s builds, by (name, seed or data folder): each built once per process, the
-#: 8 most recently asked kept (a database of the embedded set is about 5 MB)
+#: 8 most recently asked kept (the embedded set's database holds about 8 MB: 2.2 MB of arrays, 5.4 MB of motions)
 _DEFAULT_DATABASES: LRUCache[MotionDatabase] = LRUCache(8)
 
 
