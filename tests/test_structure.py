@@ -39,7 +39,6 @@ LONG_FUNCTIONS: dict[str, str] = {
     "repro.motion.search.kernel:search_first": "a numba-compiled kernel: one loop, no Python calls inside (splitting costs a call per candidate)",
     "repro.motion.search.retrieval:MotionRetriever.prepare": "to split into named steps (issue 24; 104 lines)",
     "repro.motion.search.retrieval:time_search": "to split into named steps (issue 24; 97 lines)",
-    "repro.ui.face_panel:BlendshapePanel.__init__": "to split into named steps (issue 24; 152 lines)",
     "repro.ui.fighter_panel:FighterPanel.__init__": "to split into named steps (issue 24; 88 lines)",
     "repro.ui.render:skeleton_images": "to split into named steps (issue 24; 151 lines)",
 }
@@ -107,7 +106,6 @@ KNOWN_LONG_MODULES: set[str] = {
     "repro.motion.database.synthetic.choreography",
     "repro.motion.retargeting.morphology",
     "repro.motion.search.retrieval",
-    "repro.ui.face_panel",
 }
 
 

@@ -2,6 +2,7 @@
 
 - :mod:`~repro.ui.panel`: what both panels share (guarded callbacks, batched updates).
 - :mod:`~repro.ui.face_panel`: the blendshape panel of Lewis et al. 2005 (``BlendshapePanel``).
+  its views in :mod:`~repro.ui.face_views`, its drag mode in :mod:`~repro.ui.drag_panel` (``DragPanel``).
 - :mod:`~repro.ui.fighter_panel`: the kung-fu fighter panel of Pronost et al. (``FighterPanel``).
 - :mod:`~repro.ui.render`: pyvista/matplotlib drawing (headless probe, face and skeleton images).
 - :mod:`~repro.ui.webview`: a 3D view drawn in the browser (rotate, zoom) for both panels.

@@ -48,7 +48,6 @@ error in the panel; no widget callback raises.
 from __future__ import annotations
 
 import html
-import io
 import math
 import re
 import time
@@ -57,10 +56,11 @@ from collections.abc import Iterable, Mapping
 import ipywidgets as widgets
 import numpy as np
 
-from repro.ui.panel import PanelCallbacks
 from repro.blendshapes import Attenuator, load_model, metrics, select_vertices
 from repro.blendshapes.model import AXES, BlendshapeModel
 from repro.errors import AttenuationError, ModelError, SelectionError
+from repro.ui.face_views import VIEWS, MatplotlibFaceView, face_view
+from repro.ui.panel import PanelCallbacks
 
 __all__ = [
     "BlendshapePanel",
@@ -84,8 +84,6 @@ NUMBERS_FORMAT = (
 
 #: Exponents (base 10) of the alpha slider's range.
 ALPHA_EXPONENTS = (-3.0, 6.0)
-
-VIEWS = ("matplotlib", "pyvista", "3d", "auto", "none")
 
 _NUMBER_FIELDS = {
     "selected motion": "selected_motion",
@@ -112,157 +110,6 @@ def parse_numbers(text: str) -> dict:
     if set(out) != set(_NUMBER_FIELDS.values()):
         raise ValueError(f"not a numbers line of the panel: {text!r}")
     return out
-
-
-# ----------------------------------------------------------------------- views
-class _MatplotlibView:
-    """Front view (x, y) of the posed face: flat-shaded triangles coloured by motion, drawn with Agg.
-
-    One figure per panel, updated in place (vertices and colours of one
-    PolyCollection, offsets of one scatter); the picture is the figure's background
-    (drawn once) with the triangles rasterised over it by :func:`repro.ui.raster.rasterize`
-    and written to PNG; deterministic.
-    """
-
-    def __init__(self, model: BlendshapeModel, clim, cmap: str, size):
-        import matplotlib as mpl
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.cm import ScalarMappable
-        from matplotlib.collections import PolyCollection
-        from matplotlib.figure import Figure
-
-        self.model = model
-        self.cmap = mpl.colormaps[cmap]
-        self.norm = mpl.colors.Normalize(*clim)
-        # painter's order: far triangles (small z, the face looks toward +z) first
-        depth = model.f0[model.faces].mean(axis=1)[:, 2]
-        self.faces = model.faces[np.argsort(depth, kind="stable")]
-        light = np.array([0.3, 0.4, 1.0])
-        self.light = light / np.linalg.norm(light)
-        w, h = size
-        dpi = 100
-        self.fig = Figure(figsize=(w / dpi, h / dpi), dpi=dpi)
-        FigureCanvasAgg(self.fig)
-        self.ax = self.fig.add_axes((0.0, 0.13, 1.0, 0.87))
-        self.ax.set_aspect("equal")
-        self.ax.axis("off")
-        lo, hi = model.f0.min(axis=0), model.f0.max(axis=0)
-        pad = 0.06 * (hi - lo)
-        self.ax.set_xlim(lo[0] - pad[0], hi[0] + pad[0])
-        self.ax.set_ylim(lo[1] - pad[1], hi[1] + pad[1])
-        self.poly = PolyCollection(np.zeros((len(self.faces), 3, 2)), antialiaseds=False, linewidths=0.3)
-        self.ax.add_collection(self.poly)
-        self.markers = self.ax.scatter([], [], s=22, c="cyan", edgecolors="k", linewidths=0.6, zorder=3)
-        cax = self.fig.add_axes((0.15, 0.045, 0.7, 0.022))
-        cb = self.fig.colorbar(ScalarMappable(self.norm, self.cmap), cax=cax, orientation="horizontal")
-        cb.ax.tick_params(labelsize=7)
-        cb.ax.xaxis.set_label_position("top")
-        cb.set_label(f"motion since the selection ({model.units}); cyan: selected", fontsize=7)
-        self._bg = None  # the figure without the face, drawn on the first render
-
-    def _background(self):
-        """The figure without the face (axes, colour bar, label) as RGB, drawn once; and data -> pixel."""
-        if self._bg is None:
-            self.poly.set_visible(False)
-            self.markers.set_visible(False)
-            self.fig.canvas.draw()
-            self._bg = np.asarray(self.fig.canvas.buffer_rgba())[:, :, :3].copy()
-            self.poly.set_visible(True)
-            self.markers.set_visible(True)
-            self._to_pixels = self.ax.transData.get_affine().get_matrix().copy()
-        return self._bg
-
-    def render(self, points: np.ndarray, motion: np.ndarray, selected_vertices) -> bytes:
-        """The posed face as PNG bytes: the triangles rasterised (numpy) over the cached figure background.
-
-        Same colours as an Agg drawing of the figure's PolyCollection (:meth:`sync_figure`
-        puts the last pose into it, e.g. for ``fig.savefig``), about ten times faster on
-        the ICT face (``set_verts`` alone builds one Path per triangle: 0.2 s).
-        """
-        from repro.ui.raster import png_bytes, rasterize, stamp_discs
-
-        T = points[self.faces]
-        # smooth (vertex-normal) Lambert shading, averaged over each triangle
-        fn = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
-        idx = self.faces.ravel()
-        vn = np.column_stack([np.bincount(idx, np.repeat(fn[:, k], 3), minlength=len(points)) for k in range(3)])
-        vn /= np.linalg.norm(vn, axis=1, keepdims=True) + 1e-300
-        shade = (0.35 + 0.65 * np.abs(vn @ self.light))[self.faces].mean(axis=1)
-        colours = self.cmap(self.norm(motion[self.faces].mean(axis=1)))
-        colours[:, :3] *= shade[:, None]
-        sel = np.asarray(selected_vertices if selected_vertices is not None else [], dtype=np.int64)
-        self._last = (T[:, :, :2], colours, points[sel, :2] if sel.size else np.zeros((0, 2)))
-        bg = self._background()
-        H = bg.shape[0]
-        M = self._to_pixels
-        xy = points[:, :2] @ M[:2, :2].T + M[:2, 2]
-        xy[:, 1] = H - xy[:, 1]  # image rows run down
-        img = bg.copy()
-        rgb = np.clip(np.rint(colours[:, :3] * 255), 0, 255).astype(np.uint8)
-        # painter's order as the PolyCollection draws it: later triangles (nearer) on top
-        rasterize(xy, self.faces, rgb, np.arange(len(self.faces), dtype=float), img)
-        if sel.size:
-            stamp_discs(img, xy[sel], 3.25, (0, 255, 255), edge=(0, 0, 0), edge_width=0.85)
-        return png_bytes(img)
-
-    def sync_figure(self):
-        """Put the last rendered pose into the figure's artists (the live view does not need them); the figure."""
-        if getattr(self, "_last", None) is not None:
-            verts, colours, marks = self._last
-            self.poly.set_verts(verts)
-            self.poly.set_facecolors(colours)
-            self.poly.set_edgecolors(colours)
-            self.markers.set_offsets(marks)
-        return self.fig
-
-    def close(self) -> None:
-        self.fig.clear()
-
-
-class _PyvistaView:
-    """The same view through ONE persistent off-screen pyvista plotter (points and scalars updated in place)."""
-
-    def __init__(self, model: BlendshapeModel, clim, cmap: str, size):
-        from repro.ui.render import require_render
-
-        require_render()
-        import pyvista as pv
-
-        pv.vtk_verbosity("error")
-        self.pv = pv
-        self.model = model
-        faces = np.column_stack([np.full(len(model.faces), 3), model.faces]).ravel()
-        self.mesh = pv.PolyData(model.f0.copy(), faces)
-        self.mesh.point_data["motion"] = np.zeros(model.n_vertices)
-        self.markers = pv.PolyData(model.f0[:1].copy())
-        self.pl = pv.Plotter(off_screen=True, window_size=list(size))
-        self.pl.set_background("white")
-        self.pl.add_mesh(self.mesh, scalars="motion", cmap=cmap, clim=list(clim), smooth_shading=True,
-                         specular=0.2, scalar_bar_args={"title": f"motion since the selection ({model.units})",
-                                                        "title_font_size": 12, "label_font_size": 10,
-                                                        "color": "black", "n_labels": 3, "fmt": "%.2g"})
-        self.marker_actor = self.pl.add_mesh(self.markers, color="cyan", point_size=9.0,
-                                             render_points_as_spheres=True)
-        self.pl.view_xy()
-        self.pl.camera.zoom(1.1)
-
-    def render(self, points: np.ndarray, motion: np.ndarray, selected_vertices) -> bytes:
-        from PIL import Image
-
-        self.mesh.points = points
-        self.mesh.point_data["motion"] = motion
-        sel = np.asarray(selected_vertices if selected_vertices is not None else [], dtype=np.int64)
-        self.marker_actor.SetVisibility(bool(sel.size))
-        if sel.size:
-            self.markers.copy_from(self.pv.PolyData(points[sel].copy()), deep=True)
-        self.pl.render()  # pyvista only renders a screenshot once otherwise
-        img = self.pl.screenshot(return_img=True)
-        buf = io.BytesIO()
-        Image.fromarray(np.ascontiguousarray(img)).save(buf, format="png")
-        return buf.getvalue()
-
-    def close(self) -> None:
-        self.pl.close()
 
 
 # ----------------------------------------------------------------------- panel
@@ -338,10 +185,7 @@ class BlendshapePanel(PanelCallbacks):
         alpha_on_top: bool = False,
         defer_view: bool = True,
     ):
-        if isinstance(model, str):
-            model = load_model(model)
-        if not isinstance(model, BlendshapeModel):
-            raise ModelError(f"model must be a model name or a BlendshapeModel, got {type(model).__name__}")
+        model = self._model_arg(model)
         if view not in VIEWS:
             raise ValueError(f"view must be one of {VIEWS}, got {view!r}")
         if not model.regions:
@@ -352,6 +196,38 @@ class BlendshapePanel(PanelCallbacks):
         # weights = C @ slider values: one column per slider (named combinations resolved once)
         self._C = np.column_stack([model.weights({s: 1.0}) for s in self.slider_names])
         self._regions = dict(model.regions)
+        first = region if region is not None else next(iter(self._regions))
+        if first not in self._regions:
+            raise ModelError(f"unknown region {first!r} of model {model.name!r}; known: {list(self._regions)}")
+        axes = self._axes_arg(axes)
+        self._init_state(defer_view)
+        self._view, self.view_kind = face_view(view, model, clim, cmap, image_size)
+        self._picture_args = (clim, cmap, image_size)
+        self._picture_view = None  # a matplotlib view for image_png() when the live view is drawn in the browser
+        self._make_widgets(first, axes, alpha is None, continuous_update, image_size)
+        self._observe_widgets()
+        self.widget = self._layout(alpha_on_top)
+        with self._batch():
+            self._refresh_selection()
+            if alpha is not None:
+                self.set_alpha(alpha)
+            if values:
+                self.set_sliders(values)
+            if attenuation:
+                self.set_attenuation(True)
+            self._request_update()
+
+    # ---------------------------------------------------------- construction
+    @staticmethod
+    def _model_arg(model) -> BlendshapeModel:
+        if isinstance(model, str):
+            model = load_model(model)
+        if not isinstance(model, BlendshapeModel):
+            raise ModelError(f"model must be a model name or a BlendshapeModel, got {type(model).__name__}")
+        return model
+
+    def _init_state(self, defer_view) -> None:
+        """The panel's state before any widget: no batch open, no selection, neutral weights."""
         self._batch_depth = 0
         self._pending = False
         self._internal = False  # set while the panel itself moves a widget
@@ -362,31 +238,17 @@ class BlendshapePanel(PanelCallbacks):
         self.defer_view = bool(defer_view)
         self._view_state = None
         self._render_scheduled = False
+        self._alpha = 1.0
+        self._sel = None
+        self._sel_vertices = None
+        self._sel_error: str | None = None
+        n = self.model.n_shapes
+        self._w_base = np.zeros(n)
+        self._d_base = np.zeros(3 * self.model.n_vertices)
+        self._weights = np.zeros(n)
 
-        first = region if region is not None else next(iter(self._regions))
-        if first not in self._regions:
-            raise ModelError(f"unknown region {first!r} of model {model.name!r}; known: {list(self._regions)}")
-        axes = self._axes_arg(axes)
-
-        # view
-        if view == "auto":
-            from repro.ui.render import render_unavailable_reason
-
-            view = "pyvista" if render_unavailable_reason() is None else "matplotlib"
-        self.view_kind = view
-        self._view = None
-        if view == "matplotlib":
-            self._view = _MatplotlibView(model, clim, cmap, image_size)
-        elif view == "pyvista":
-            self._view = _PyvistaView(model, clim, cmap, image_size)
-        elif view == "3d":
-            from repro.ui.webview import MeshWebView
-
-            self._view = MeshWebView(model, clim, cmap, image_size)
-        self._picture_args = (clim, cmap, image_size)
-        self._picture_view = None  # a matplotlib view for image_png() when the live view is drawn in the browser
-
-        # widgets
+    def _make_widgets(self, region: str, axes: str, default_alpha: bool, continuous_update: bool, image_size) -> None:
+        """Section 5's controls: the sliders, the selection, alpha and its default, attenuation, the view, the numbers."""
         style = {"description_width": "110px"}
         self.sliders = {
             name: widgets.FloatSlider(value=0.0, min=0.0, max=1.0, step=0.01, description=name,
@@ -394,7 +256,7 @@ class BlendshapePanel(PanelCallbacks):
                                       layout=widgets.Layout(width="340px"))
             for name in self.slider_names
         }
-        self.region = widgets.Dropdown(options=list(self._regions), value=first, description="region",
+        self.region = widgets.Dropdown(options=list(self._regions), value=region, description="region",
                                        layout=widgets.Layout(width="260px"), style={"description_width": "50px"})
         self.axis_boxes = {a: widgets.Checkbox(value=a in axes, description=a, indent=False,
                                                layout=widgets.Layout(width="44px"))
@@ -410,7 +272,7 @@ class BlendshapePanel(PanelCallbacks):
                                                    layout=widgets.Layout(width="560px"),
                                                    style={"description_width": "50px"})
         self.alpha_slider.add_class("repro-alpha")
-        self.default_alpha = widgets.Checkbox(value=alpha is None, description="default alpha (Section 5)",
+        self.default_alpha = widgets.Checkbox(value=default_alpha, description="default alpha (Section 5)",
                                               indent=False)
         self.attenuation = widgets.ToggleButton(value=False, description="attenuation", icon="anchor",
                                                 tooltip="attenuate the motion of the selected coordinates (Eq. 3)")
@@ -418,22 +280,14 @@ class BlendshapePanel(PanelCallbacks):
         self.reset_button = widgets.Button(description="reset", tooltip="all sliders to 0, attenuation off")
         self.view_image = widgets.Image(format="png", layout=widgets.Layout(
             width=f"{image_size[0]}px", height=f"{image_size[1]}px",
-            display="none" if self._view is None or view == "3d" else None))
+            display="none" if self._view is None or self.view_kind == "3d" else None))
         self.numbers_html = widgets.HTML()
         self.numbers_html.add_class("repro-numbers")
         self.status_html = widgets.HTML()
         self.status_html.add_class("repro-status")
 
-        # state
-        self._alpha = 1.0
-        self._sel = None
-        self._sel_vertices = None
-        self._sel_error: str | None = None
-        self._w_base = np.zeros(model.n_shapes)
-        self._d_base = np.zeros(3 * model.n_vertices)
-        self._weights = np.zeros(model.n_shapes)
-
-        for name, s in self.sliders.items():
+    def _observe_widgets(self) -> None:
+        for s in self.sliders.values():
             s.observe(self._guarded(self._on_slider), names="value")
         self.region.observe(self._guarded(self._on_selection), names="value")
         for box in self.axis_boxes.values():
@@ -444,11 +298,14 @@ class BlendshapePanel(PanelCallbacks):
         self.default_alpha.observe(self._guarded(self._on_default), names="value")
         self.attenuation.observe(self._guarded(self._on_attenuation), names="value")
 
+    def _layout(self, alpha_on_top: bool) -> widgets.VBox:
+        """The panel: sliders beside the view, then the selection, alpha, attenuation and the numbers."""
+        model = self.model
         header = widgets.HTML(
             f"<b>{html.escape(model.name)}</b>: {model.n_vertices:,} vertices, {model.n_shapes} shapes "
             f"({html.escape(model.units)})")
         left = widgets.VBox([header, *self.sliders.values()])
-        right = widgets.VBox([self._view.widget if view == "3d" else self.view_image])
+        right = widgets.VBox([self._view.widget if self.view_kind == "3d" else self.view_image])
         alpha_row = widgets.HBox([self.alpha_slider, self.default_alpha])
         rows = [
             widgets.HBox([left, right]),
@@ -460,18 +317,9 @@ class BlendshapePanel(PanelCallbacks):
         ]
         if alpha_on_top:  # alpha and its numbers first (the Fig. 5 notebook)
             rows = [alpha_row, self.numbers_html] + [r for r in rows if r not in (alpha_row, self.numbers_html)]
-        self.widget = widgets.VBox(rows)
-        self.widget.add_class("repro-blendshape-panel")
-
-        with self._batch():
-            self._refresh_selection()
-            if alpha is not None:
-                self.set_alpha(alpha)
-            if values:
-                self.set_sliders(values)
-            if attenuation:
-                self.set_attenuation(True)
-            self._request_update()
+        panel = widgets.VBox(rows)
+        panel.add_class("repro-blendshape-panel")
+        return panel
 
     # ------------------------------------------------------------- helpers
     @staticmethod
@@ -846,7 +694,7 @@ class BlendshapePanel(PanelCallbacks):
             if self._view_state is None:
                 return b""
             if self._picture_view is None:
-                self._picture_view = _MatplotlibView(self.model, *self._picture_args)
+                self._picture_view = MatplotlibFaceView(self.model, *self._picture_args)
             d, d_base, sel_vertices = self._view_state
             motion = np.linalg.norm((d - d_base).reshape(-1, 3), axis=1)
             return self._picture_view.render(self.model.f0 + d.reshape(-1, 3), motion, sel_vertices)
@@ -892,171 +740,3 @@ def _nan_quiet(func, *args):
 def blendshape_panel(model="procedural", sliders=None, view: str = "matplotlib", **kw) -> widgets.Widget:
     """The ipywidgets widget of a :class:`BlendshapePanel` (keep the panel itself to drive it from code)."""
     return BlendshapePanel(model, sliders, view, **kw).widget
-
-
-# ------------------------------------------------------------------ drag mode
-#: The drag line of :class:`DragPanel` (plain text).
-DRAG_FORMAT = ("dragged error: {dragged_error:.6g} | pinned motion: {pinned_motion:.6g} | "
-               "sliders moved: {n_sliders_moved} | solve: {method}")
-
-
-class DragPanel(BlendshapePanel):
-    """The blendshape panel with a drag mode: direct manipulation (Lewis and Anjyo 2010).
-
-    Everything of :class:`BlendshapePanel`, plus a row to drag vertices: a
-    ``Dropdown`` choosing the dragged region (any of the panel's regions; add a
-    single vertex with :meth:`add_region`), x/y/z ``FloatSlider`` s moving its
-    target (an offset from where the drag started, model units), a "drag"
-    ``ToggleButton``, "pin the selection" (the panel's selection is held with
-    the 2005 pin while dragging) and "weights in [0, 1]" (bounded solve).
-
-    Switching drag on takes the displayed weights as the start; while it is on
-    the face shows :meth:`~repro.blendshapes.manipulation.DirectManipulator.solve`
-    from that start (the blendshape sliders are not followed), and the drag
-    line (:data:`DRAG_FORMAT`) gives the dragged vertices' distance from their
-    targets, the pinned region's largest motion and how many sliders moved.
-    Choosing another drag region restarts from the displayed weights.  Errors
-    (a pin overlapping the drag, no usable selection to pin) are shown in the panel.
-
-    ``drag_range``: the offset sliders' range, default a fifth of the face's extent.
-    """
-
-    def __init__(self, model="procedural", sliders=None, view: str = "matplotlib", *, drag_region: str | None = None,
-                 drag_range: float | None = None, **kw):
-        from repro.blendshapes.manipulation import DirectManipulator
-
-        self._drag_on = False  # read by _compute during the base panel's first update
-        super().__init__(model, sliders, view, **kw)
-        self.manipulator = DirectManipulator(self.attenuator)
-        extent = float(np.ptp(self.model.f0, axis=0).max()) or 1.0
-        r = float(drag_range) if drag_range is not None else extent / 5
-        if not (math.isfinite(r) and r > 0):
-            raise ModelError(f"drag_range must be a finite number > 0, got {drag_range!r}")
-        regions = list(self._regions)
-        first = drag_region if drag_region is not None else ("mouth_corners" if "mouth_corners" in regions else regions[0])
-        if first not in regions:
-            raise ModelError(f"unknown drag region {first!r}; known: {regions}")
-        self.drag_region = widgets.Dropdown(options=regions, value=first, description="drag",
-                                            layout=widgets.Layout(width="260px"), style={"description_width": "40px"})
-        self.offset_sliders = {a: widgets.FloatSlider(value=0.0, min=-r, max=r, step=r / 200, description=f"target {a}",
-                                                      readout_format=".3g", layout=widgets.Layout(width="300px"))
-                               for a in AXES}
-        self.drag_toggle = widgets.ToggleButton(value=False, description="drag", icon="hand-paper-o",
-                                                tooltip="drag the chosen vertices; weights follow (Lewis and Anjyo 2010)")
-        self.pin_box = widgets.Checkbox(value=True, description="pin the selection", indent=False)
-        self.bounded_box = widgets.Checkbox(value=True, description="weights in [0, 1]", indent=False)
-        self.drag_html = widgets.HTML()
-        self.drag_html.add_class("repro-drag")
-        self._drag_text = ""
-        self._drag_result = None
-        self._drag_w0 = np.zeros(self.model.n_shapes)
-        self._drag_vertices = np.zeros(0, dtype=np.int64)
-        self._drag_start = np.zeros((0, 3))
-        for s in self.offset_sliders.values():
-            s.observe(self._guarded(lambda _c: self._request_update()), names="value")
-        for box in (self.pin_box, self.bounded_box):
-            box.observe(self._guarded(lambda _c: self._request_update()), names="value")
-        self.drag_region.observe(self._guarded(self._on_drag_region), names="value")
-        self.drag_toggle.observe(self._guarded(self._on_drag_toggle), names="value")
-        self.widget.children = (*self.widget.children,
-                                widgets.HBox([self.drag_region, self.drag_toggle, self.pin_box, self.bounded_box]),
-                                widgets.HBox(list(self.offset_sliders.values())), self.drag_html)
-
-    # ------------------------------------------------------------- drag state
-    def _start_drag(self) -> None:
-        """The displayed weights become the start; the chosen region's vertices are dragged from where they are."""
-        self._drag_w0 = self._weights.copy()
-        self._drag_vertices = np.asarray(self._regions[self.drag_region.value], dtype=np.int64)
-        self._drag_start = self.manipulator.positions(self._drag_w0, self._drag_vertices)
-        for s in self.offset_sliders.values():
-            self._set_widget(s, 0.0)
-
-    def _on_drag_toggle(self, change) -> None:
-        if self._internal:
-            return
-        with self._batch():
-            if change["new"]:
-                self._start_drag()
-            self._drag_on = bool(change["new"])
-            if not self._drag_on:
-                self._drag_result = None
-                self._drag_text = ""
-                self.drag_html.value = ""
-            self._request_update()
-
-    def _on_drag_region(self, change) -> None:
-        if self._drag_on:
-            with self._batch():
-                self._start_drag()
-                self._request_update()
-
-    def _compute(self):
-        if not getattr(self, "_drag_on", False):
-            return super()._compute()
-        offset = np.array([self.offset_sliders[a].value for a in AXES], dtype=np.float64)
-        pinned = None
-        if self.pin_box.value:
-            if self._sel is None:
-                raise SelectionError(f"nothing to pin: {self._sel_error}")
-            pinned = self._sel
-        bounds = {"lo": 0.0, "hi": 1.0} if self.bounded_box.value else {}
-        r = self.manipulator.solve(self._drag_w0, self._drag_vertices, self._drag_start + offset, pinned,
-                                   info=True, **bounds)
-        self._drag_result = r
-        self._drag_text = DRAG_FORMAT.format(**r._asdict())
-        self.drag_html.value = f"<code>{html.escape(self._drag_text)}</code>"
-        d = self.attenuator.displacement(r.w)
-        numbers = {
-            "selected_motion": metrics.selected_motion(d, self._sel, self._d_base) if self._sel is not None else math.nan,
-            "unselected_fidelity": math.nan,  # no slider target to be faithful to while dragging
-            "alpha": float(self._alpha),
-            "attenuation": "drag",
-        }
-        return r.w, (d, numbers), None
-
-    # ------------------------------------------------------------ public API
-    @property
-    def drag_text(self) -> str:
-        """The drag line as displayed (:data:`DRAG_FORMAT`), "" when drag mode is off."""
-        return self._drag_text
-
-    @property
-    def drag_result(self):
-        """The last :class:`~repro.blendshapes.manipulation.DragResult` (None when drag mode is off)."""
-        return self._drag_result
-
-    @property
-    def drag_targets(self) -> np.ndarray:
-        """Where the dragged vertices are asked to go ((k, 3), model units)."""
-        offset = np.array([self.offset_sliders[a].value for a in AXES], dtype=np.float64)
-        return self._drag_start + offset
-
-    def set_drag(self, on: bool, region: str | None = None) -> None:
-        """Switch drag mode on (from the displayed weights; optionally choosing the region first) or off."""
-        if region is not None:
-            if region not in self._regions:
-                raise ModelError(f"unknown drag region {region!r}; known: {list(self._regions)}")
-            self.drag_region.value = region
-        self.drag_toggle.value = bool(on)
-
-    def set_target_offset(self, dx: float | None = None, dy: float | None = None, dz: float | None = None) -> None:
-        """Move the drag target (offset from where the drag started; one update)."""
-        with self._batch():
-            for a, v in zip(AXES, (dx, dy, dz)):
-                if v is not None:
-                    self.offset_sliders[a].value = v
-            self._request_update()
-
-    def add_region(self, name: str, vertices, *, select: bool = True) -> None:
-        super().add_region(name, vertices, select=select)
-        if hasattr(self, "drag_region"):
-            self.drag_region.options = list(self._regions)
-
-    def close(self) -> None:
-        for w in [self.drag_region, *self.offset_sliders.values(), self.drag_toggle, self.pin_box, self.bounded_box,
-                  self.drag_html]:
-            w.close()
-        super().close()
-
-    def __repr__(self) -> str:
-        return super().__repr__().replace("BlendshapePanel(", "DragPanel(", 1)

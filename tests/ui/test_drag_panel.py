@@ -1,4 +1,4 @@
-"""The drag mode of the face panel (repro.ui.face_panel.DragPanel): its numbers are DirectManipulator's."""
+"""The drag mode of the face panel (repro.ui.drag_panel.DragPanel): its numbers are DirectManipulator's."""
 
 import numpy as np
 import pytest
@@ -6,7 +6,8 @@ import pytest
 from repro.blendshapes import load_model
 from repro.blendshapes.manipulation import DirectManipulator
 from repro.errors import ModelError
-from repro.ui.face_panel import DragPanel, parse_numbers
+from repro.ui.drag_panel import DragPanel
+from repro.ui.face_panel import parse_numbers
 
 
 @pytest.fixture(scope="module")
