@@ -186,7 +186,7 @@ import importlib, os, sys, time
 from pathlib import Path
 reg = importlib.import_module("repro.experiments.registry")
 if sys.argv[2] == "fallback":
-    reg._pdeathsig = lambda: False  # as where there is no prctl: the watching thread alone
+    importlib.import_module("repro.processes").parent_death_signal = lambda signum: False  # as where there is no prctl: the watching thread alone
 reg._die_with_parent(os.getppid())
 Path(sys.argv[1], f"started-{os.getpid()}").write_text("")
 time.sleep(300)

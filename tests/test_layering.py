@@ -21,7 +21,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1] / "repro"
 
 #: the shared ground both papers may use
-SHARED = {"repro", "repro.errors", "repro.checks", "repro.io", "repro.data"}
+SHARED = {"repro", "repro.errors", "repro.checks", "repro.io", "repro.data", "repro.processes"}
 #: the two papers' library packages
 PAPERS = ("repro.blendshapes", "repro.motion")
 #: layers above the library: figures, measurements, ledger, user interface, command line

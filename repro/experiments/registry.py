@@ -457,38 +457,19 @@ def _die_with_parent(parent: int) -> None:
     """End this process when ``parent`` ends, however it ends (SIGKILL included), and never publish
     a file (:data:`repro.io.publish_hooks`) once it has: a killed ``repro run`` leaves nothing behind.
 
-    On Linux the kernel sends SIGKILL when the parent dies (``prctl(PR_SET_PDEATHSIG)``; it fires
-    when the parent's *thread* that started this process ends: :func:`_pool` starts its workers from
-    the thread that waits for them).  Elsewhere, or should prctl fail, a thread polls the parent.
+    On Linux the kernel sends SIGKILL when the parent dies (:func:`repro.processes.die_with_parent`; it
+    fires when the parent's *thread* that started this process ends: :func:`_pool` starts its workers
+    from the thread that waits for them).  Elsewhere, or should prctl fail, a thread polls the parent.
     (The resource tracker ``spawn`` starts beside the workers ends by itself once every process
     holding its pipe, the parent and these workers, has ended.)
     """
     import threading
 
-    from repro import io
+    from repro import io, processes
 
-    _pdeathsig()
-    if os.getppid() != parent:  # the parent died before the signal was asked for
-        os._exit(1)
+    processes.die_with_parent(parent)
     io.publish_hooks.append(lambda tmp, path: _publish_guard(parent, tmp))
     threading.Thread(target=_watch_parent, args=(parent,), name="repro-watch-parent", daemon=True).start()
-
-
-def _pdeathsig() -> bool:
-    """Ask Linux for SIGKILL when this process's parent dies; whether that was granted."""
-    import ctypes
-    import signal
-    import sys
-
-    if not sys.platform.startswith("linux"):
-        return False
-    try:
-        prctl = ctypes.CDLL(None, use_errno=True).prctl
-    except (OSError, AttributeError):
-        return False
-    PR_SET_PDEATHSIG = 1
-    return prctl(PR_SET_PDEATHSIG, ctypes.c_ulong(signal.SIGKILL), ctypes.c_ulong(0), ctypes.c_ulong(0),
-                 ctypes.c_ulong(0)) == 0
 
 
 def _orphaned(parent: int) -> bool:

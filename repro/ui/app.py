@@ -23,15 +23,18 @@ well as from a clone.
 from __future__ import annotations
 
 import errno
+import functools
 import ipaddress
 import os
 import secrets
+import signal
 import socket
 import subprocess
 import sys
 from pathlib import Path
 
 from repro.errors import ReproError
+from repro.processes import parent_death_signal
 
 __all__ = [
     "APPS",
@@ -198,21 +201,19 @@ def run_app(which: str, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, *, n
     try:
         proc = subprocess.Popen(voila_command(which, host, port, open_browser=want_browser and not secret,
                                               token=bool(secret)), env=app_environment(token=secret),
-                                preexec_fn=_term_with_parent if sys.platform.startswith("linux") else None)
+                                preexec_fn=functools.partial(parent_death_signal, signal.SIGTERM)
+                                if sys.platform.startswith("linux") else None)
         if want_browser and secret:
             _open_when_listening(url, host, port, proc)
         return _serve(proc)
     finally:
         if previous is not None:
-            import signal
-
             signal.signal(signal.SIGTERM, previous)
 
 
 def _terminate_on_sigterm():
     """SIGTERM raises KeyboardInterrupt (the Ctrl-C path stops Voila); the previous handler, or None
     when not on the main thread (signals cannot be handled there)."""
-    import signal
     import threading
 
     if threading.current_thread() is not threading.main_thread():
@@ -222,18 +223,6 @@ def _terminate_on_sigterm():
         raise KeyboardInterrupt
 
     return signal.signal(signal.SIGTERM, interrupt)
-
-
-def _term_with_parent() -> None:
-    """In the Voila child, before exec: SIGTERM when its parent (``repro app``) dies (``PR_SET_PDEATHSIG``)."""
-    import ctypes
-    import signal
-
-    try:
-        ctypes.CDLL(None).prctl(1, ctypes.c_ulong(signal.SIGTERM), ctypes.c_ulong(0), ctypes.c_ulong(0),
-                                ctypes.c_ulong(0))  # 1: PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass  # not Linux's libc: Voila then outlives a killed repro app, as before
 
 
 def _serve(proc) -> int:

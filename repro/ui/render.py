@@ -22,12 +22,10 @@ from repro.errors import RenderUnavailableError
 __all__ = ["render_unavailable_reason", "require_render", "configure_headless"]
 
 _PROBE = (
-    # dies with the process that probes, however it ends (as repro run's workers do with theirs, issue 23)
-    "import ctypes, os, signal, sys\n"
-    "if sys.platform.startswith('linux'):\n"
-    "    ctypes.CDLL(None).prctl(1, ctypes.c_ulong(signal.SIGKILL), *[ctypes.c_ulong(0)] * 3)\n"
-    "if os.getppid() != int(sys.argv[1]):\n"
-    "    sys.exit('the probing process is gone')\n"
+    # dies with the process that probes, however it ends (as repro run's workers do with theirs)
+    "import sys\n"
+    "from repro.processes import die_with_parent\n"
+    "die_with_parent(int(sys.argv[1]))\n"
     "import pyvista as pv\n"
     "pl = pv.Plotter(off_screen=True, window_size=(64, 64))\n"
     "pl.add_mesh(pv.Sphere())\n"
