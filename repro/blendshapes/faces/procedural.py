@@ -66,7 +66,7 @@ Sculpted interference (what each overlap is there for)
   selected, the paper's default ``alpha = (2016 - 6) / 6 = 335``.
 
 Measured at 2,016 vertices (and asserted, with margins, by
-``tests/blendshapes/test_procedural.py``): ``Furrow`` = 0.4 moves each ``brow_middle``
+``tests/blendshapes/faces/test_procedural.py``): ``Furrow`` = 0.4 moves each ``brow_middle``
 vertex 0.35 units (0.31 down); then ``JawOpen`` 0.5, ``Smirk*`` 0.4 and
 ``MouthStretch*`` 0.3 move them 0.14 further down (40% of Furrow's move).
 ``SmirkLeft`` = ``SmirkRight`` = 0.7 moves the mouth corners 0.55 out and

@@ -1,132 +1,35 @@
-"""glTF 2.0 blendshape faces: read (pygltflib container, quantised, meshopt, sparse, node
-transforms, several meshes), write back (targets, weights, animation), ARKit names onto the
-paper's sliders, and bad files as ModelErrors naming the file."""
+"""glTF 2.0 blendshape faces read (repro.blendshapes.faces.gltf, through the container of
+repro.blendshapes.faces.gltf_document): the fixture files (pygltflib container, quantised, meshopt,
+sparse, node transforms, several meshes), and bad files as ModelErrors naming the file.
+
+Bounds (issue 23, sections 2, 3, 4 and 6 for glTF): a buffer is read only from a regular file
+inside the model's folder and only its ``byteLength``; the JSON's counts are bounded before
+pygltflib builds the document; what one file may make the loader allocate is summed over its
+primitives, targets and accessors and checked first; and ``read_gltf`` / ``load_model`` refuse
+arguments of the wrong type with a ModelError."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
+import os
+import shutil
 import struct
+from pathlib import Path
 
 import numpy as np
-import pygltflib
 import pytest
 
-from repro.blendshapes import BlendshapeModel, load_model, scenarios
-from repro.blendshapes.faces.arkit import arkit_rig
+from repro.blendshapes import load_model
+from repro.blendshapes.faces import gltf, gltf_document
 from repro.blendshapes.faces.gltf import read_gltf
 from repro.blendshapes.faces.gltf_document import GltfDocument
 from repro.blendshapes.faces.gltf_write import write_gltf
-from repro.blendshapes.faces.ict import ICT_SLIDERS
 from repro.errors import ModelError
-from tests.conftest import REPO
-
-DATA = REPO / "tests" / "data" / "gltf"
-F32 = 1e-6  # float32 rounding of coordinates of a few decimetres, in metres
-
-
-def _script():
-    spec = importlib.util.spec_from_file_location("make_gltf_fixtures", REPO / "scripts" / "make_gltf_fixtures.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-@pytest.fixture(scope="module")
-def fixtures():
-    return _script()
-
-
-@pytest.fixture(scope="module")
-def expected(fixtures):
-    return fixtures.fixture_model()
-
-
-@pytest.fixture(scope="module")
-def face():
-    return load_model("procedural")
-
-
-def _canonical_faces(faces):
-    """Triangles up to a cyclic rotation (meshopt's index codec may rotate them, winding kept)."""
-    f = np.asarray(faces)
-    k = np.argmin(f, axis=1)
-    rolled = np.stack([np.roll(row, -s) for row, s in zip(f, k)])
-    return rolled[np.lexsort(rolled.T[::-1])]
+from tests.blendshapes.faces.conftest import DATA, F32, canonical_faces
 
 
 def _doc(path):
     return GltfDocument(path, path.read_bytes(), 1 << 30).doc
-
-
-# ---------------------------------------------------------------- round trip
-@pytest.mark.parametrize("suffix", [".glb", ".gltf"])
-@pytest.mark.parametrize(
-    "opts, tol",
-    [({}, F32), ({"sparse": True}, F32), ({"quantize": True}, 2e-6), ({"meshopt": True}, F32),
-     ({"quantize": True, "meshopt": True, "sparse": True}, 2e-6)],
-    ids=["plain", "sparse", "quantized", "meshopt", "all"],
-)
-def test_procedural_face_round_trips_through_gltf(face, tmp_path, suffix, opts, tol):
-    path = tmp_path / f"face{suffix}"
-    assert write_gltf(face, path, **opts) == path
-    back = load_model(path)
-    assert back.units == "m" and back.names == face.names
-    # procedural "model units" are centimetres: glTF stores metres
-    np.testing.assert_allclose(back.f0, face.f0 * 0.01, rtol=0, atol=tol)
-    np.testing.assert_allclose(back.D, face.D * 0.01, rtol=0, atol=tol)
-    if opts.get("meshopt"):
-        np.testing.assert_array_equal(_canonical_faces(back.faces), _canonical_faces(face.faces))
-    else:
-        np.testing.assert_array_equal(back.faces, face.faces)
-    assert back.sliders == face.sliders
-    assert set(back.regions) == set(face.regions)
-    for k, v in face.regions.items():
-        np.testing.assert_array_equal(back.regions[k], v)
-    if suffix == ".gltf":
-        assert (tmp_path / "face.bin").is_file()
-
-
-def test_round_trip_of_a_metre_model_is_exact_to_float32(tmp_path):
-    rng = np.random.default_rng(3)
-    f0 = rng.normal(size=(30, 3)) * 0.1
-    m = BlendshapeModel(f0, rng.normal(size=(90, 4)) * 0.01, ["a", "b", "c", "d"], np.arange(30).reshape(10, 3), units="m")
-    write_gltf(m, tmp_path / "m.glb")
-    back = load_model(tmp_path / "m.glb")
-    np.testing.assert_array_equal(back.f0, f0.astype(np.float32).astype(np.float64))
-    np.testing.assert_array_equal(back.D, m.D.astype(np.float32).astype(np.float64))
-
-
-def test_weights_and_weight_animation_are_written(face, tmp_path):
-    w = face.weights(Furrow=0.4, JawOpen=0.2)
-    times = [0.0, 0.5, 1.25]
-    frames = [face.weights(), face.weights(Furrow=0.4), face.weights(Furrow=0.4, JawOpen=0.6)]
-    path = tmp_path / "anim.glb"
-    write_gltf(face, path, weights=w, animation=(times, frames))
-    r = GltfDocument(path, path.read_bytes(), 1 << 30)
-    mesh = r.doc.meshes[0]
-    np.testing.assert_allclose(mesh.weights, w)
-    assert mesh.extras["targetNames"] == list(face.names)
-    (anim,) = r.doc.animations
-    (channel,) = anim.channels
-    assert channel.target.path == "weights" and r.doc.nodes[channel.target.node].mesh == 0
-    sampler = anim.samplers[channel.sampler]
-    np.testing.assert_allclose(r.accessor(sampler.input, "t").ravel(), times)
-    np.testing.assert_allclose(r.accessor(sampler.output, "w").reshape(3, -1), np.array(frames), atol=1e-7)
-
-
-def test_bad_weights_raise_and_leave_an_existing_file_untouched(face, tmp_path):
-    path = tmp_path / "face.glb"
-    write_gltf(face, path)
-    before = path.read_bytes()
-    with pytest.raises(ModelError, match="weights"):
-        write_gltf(face, path, weights=np.full(face.n_shapes, np.nan))
-    with pytest.raises(ModelError, match="strictly increasing"):
-        write_gltf(face, path, animation=([1.0, 0.5], [face.weights(), face.weights()]))
-    with pytest.raises(ModelError, match=r"\.glb or \.gltf"):
-        write_gltf(face, tmp_path / "face.obj")
-    assert path.read_bytes() == before
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["face.glb"]
 
 
 # ---------------------------------------------------------------- fixtures
@@ -141,7 +44,7 @@ def test_fixture_files_hold_the_fixture_face(expected, name, tol):
     assert back.name.startswith(f"{name}:fixture-face/")
     np.testing.assert_allclose(back.f0, expected.f0, rtol=0, atol=tol)
     np.testing.assert_allclose(back.D, expected.D, rtol=0, atol=tol)
-    np.testing.assert_array_equal(_canonical_faces(back.faces), _canonical_faces(expected.faces))
+    np.testing.assert_array_equal(canonical_faces(back.faces), canonical_faces(expected.faces))
 
 
 def test_fixtures_use_the_storage_they_are_named_for():
@@ -237,72 +140,6 @@ def test_target_normals_and_tangents_are_ignored(expected, tmp_path):
         t["NORMAL"] = t["TANGENT"] = 10_000  # would be out of range if read
     gpath.write_text(json.dumps(doc))
     np.testing.assert_allclose(load_model(gpath).D, expected.D, atol=F32)
-
-
-# ---------------------------------------------------------------- ARKit names
-ARKIT = {
-    "BrowInnerUp": "browInnerUp", "BrowUpLeft": "browOuterUp_L", "BrowUpRight": "browOuterUp_R",
-    "BrowDownLeft": "browDown_L", "BrowDownRight": "browDown_R", "BlinkLeft": "eyeBlink_L",
-    "BlinkRight": "eyeBlink_R", "EyeSquintLeft": "eyeSquint_L", "EyeSquintRight": "eyeSquint_R",
-    "SneerLeft": "noseSneer_L", "SneerRight": "noseSneer_R", "JawOpen": "jawOpen",
-    "MouthStretchLeft": "mouthStretch_L", "MouthStretchRight": "mouthStretch_R",
-    "SmirkLeft": "mouthSmile_L", "SmirkRight": "mouthSmile_R", "MouthFrownLeft": "mouthFrown_L",
-    "MouthFrownRight": "mouthFrown_R",
-}
-
-
-def _third_party(face, tmp_path, rename, perm=None):
-    """The procedural face under ARKit names, as another exporter would write it (no repro extras)."""
-    keep = [i for i, n in enumerate(face.names) if n in ARKIT]
-    n = face.n_vertices
-    perm = np.arange(n) if perm is None else perm
-    inv = np.argsort(perm)
-    D = face.D[:, keep].reshape(n, 3, -1)[perm].reshape(3 * n, -1)
-    m = BlendshapeModel(face.f0[perm], D, [rename(ARKIT[face.names[i]]) for i in keep], inv[face.faces], units=face.units)
-    gpath = tmp_path / "arkit.gltf"
-    write_gltf(m, gpath)
-    doc = json.loads(gpath.read_text())
-    del doc["meshes"][0]["extras"]["repro"]
-    doc["asset"]["generator"] = "some exporter"
-    gpath.write_text(json.dumps(doc))
-    return load_model(gpath)
-
-
-@pytest.mark.parametrize("style", ["arkit", "camel"])
-def test_arkit_names_map_onto_the_papers_sliders_as_for_ict(face, tmp_path, style):
-    rename = (lambda s: s) if style == "arkit" else (lambda s: s.replace("_L", "Left").replace("_R", "Right"))
-    m = _third_party(face, tmp_path, rename)
-    # every ICT slider whose shapes the face has is the same combination
-    for slider, combo in ICT_SLIDERS.items():
-        if all(rename(s) in m.names for s in combo):
-            assert m.sliders[slider] == {rename(s): c for s, c in combo.items()}
-    assert m.sliders["BrowUp"] == {rename(s): 1.0 for s in ("browInnerUp", "browOuterUp_L", "browOuterUp_R")}
-    # the regions the scenarios select, found from where the shapes move, lie where the
-    # procedural face's hand-placed presets are (within 1.1 units = 2.5 grid steps)
-    for key in ("brow_middle", "mouth_corners", "under_left_eye"):
-        got, want = m.f0[m.regions[key]] / 0.01, face.f0[face.regions[key]]
-        assert len(got) == len(want)
-        assert np.abs(got - want)[:, :2].max() < 1.1, key
-    # every scenario runs and attenuates about as on the procedural face with its own names
-    for key in scenarios.SCENARIOS:
-        res, ref = scenarios.evaluate(m, key), scenarios.evaluate(face, key)
-        assert res["n_selected_vertices"] == ref["n_selected_vertices"]
-        assert res["reduction"] < 0.15, (key, res["reduction"])
-        assert abs(res["attenuated_unselected_fidelity"] - ref["attenuated_unselected_fidelity"]) < 0.1, key
-
-
-def test_arkit_regions_follow_the_shapes_not_the_vertex_ids(face, tmp_path):
-    plain = _third_party(face, tmp_path, lambda s: s)
-    perm = np.random.default_rng(7).permutation(face.n_vertices)
-    shuffled = _third_party(face, tmp_path, lambda s: s, perm)
-    for key, verts in plain.regions.items():
-        np.testing.assert_array_equal(np.sort(perm[shuffled.regions[key]]), np.sort(verts), err_msg=key)
-
-
-def test_arkit_rig_without_the_shapes_gives_no_regions():
-    f0 = np.zeros((4, 3))
-    sliders, regions = arkit_rig(f0, np.ones((12, 1)), ["cheekPuff"])
-    assert sliders == {} and regions == {}
 
 
 # ---------------------------------------------------------------- bad files
@@ -448,41 +285,6 @@ def test_missing_file_and_not_gltf(tmp_path):
         load_model(tmp_path / "y.gltf")
 
 
-def test_pygltflib_reads_what_we_write(expected, tmp_path):
-    """An independent reader (pygltflib's own GLB loader) accepts our container."""
-    write_gltf(expected, tmp_path / "f.glb")
-    g = pygltflib.GLTF2.load(str(tmp_path / "f.glb"))
-    assert g.meshes[0].extras["targetNames"] == list(expected.names)
-    assert len(g.binary_blob()) >= expected.n_vertices * 12
-
-
-# ---------------------------------------------------------------- the real ICT face
-@pytest.mark.slow
-@pytest.mark.data("ict")
-def test_ict_written_as_a_third_party_arkit_face_gets_icts_sliders_and_nearby_regions(tmp_path):
-    """ICT's names are ARKit's: through glTF without repro's extras, the ARKit mapping gives
-    ICT's own sliders, and regions found from the shapes' motion near ICT's landmark ones."""
-    ict = load_model("ict")
-    gpath = tmp_path / "ict.gltf"
-    write_gltf(ict, gpath, quantize=True, meshopt=True)
-    doc = json.loads(gpath.read_text())
-    del doc["meshes"][0]["extras"]["repro"]
-    gpath.write_text(json.dumps(doc))
-    m = load_model(gpath)
-    assert m.units == "m" and m.names == ict.names
-    assert m.sliders == ict.sliders
-    for key, tol_cm in (("mouth_corners", 0.2), ("under_left_eye", 0.8), ("brow_middle", 1.5)):
-        got, want = m.f0[m.regions[key]] / 0.01, ict.f0[ict.regions[key]]
-        assert len(got) == len(want)
-        # each selected vertex lies near the landmark-based selection
-        gap = np.linalg.norm(got[:, None] - want[None], axis=2).min(axis=1)
-        assert gap.max() < tol_cm, (key, gap)
-    for key in scenarios.SCENARIOS:
-        res, ref = scenarios.evaluate(m, key), scenarios.evaluate(ict, key)
-        assert res["n_selected_vertices"] == ref["n_selected_vertices"]
-        assert res["reduction"] < max(1.5 * ref["reduction"], 0.1), key
-
-
 def test_a_face_packed_by_gltfpack_loads(expected):
     """Third-party writer: gltfpack 1.3 -cc (its own quantisation, TRS node under a parent node,
     vertex reordering, meshopt-compressed 16-bit triangle indices) of face.glb."""
@@ -498,7 +300,7 @@ def test_a_face_packed_by_gltfpack_loads(expected):
     dist, idx = cKDTree(expected.f0).query(back.f0)
     assert np.unique(idx).size == expected.n_vertices and dist.max() < 1e-5  # gltfpack's 14-bit grid
     np.testing.assert_allclose(back.D.reshape(-1, 3, 5), expected.D.reshape(-1, 3, 5)[idx], atol=1e-5)
-    np.testing.assert_array_equal(_canonical_faces(idx[back.faces]), _canonical_faces(expected.faces))
+    np.testing.assert_array_equal(canonical_faces(idx[back.faces]), canonical_faces(expected.faces))
     # sliders and regions come from the ARKit names, at the same places as the original's
     assert back.sliders == expected.sliders
     for key in ("brow_middle", "mouth_corners"):
@@ -590,3 +392,272 @@ def test_deeply_nested_json_is_a_model_error(tmp_path, suffix, kind):
         path.write_bytes(b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body)
     with pytest.raises(ModelError, match=r"deep\.gl(tf|b): malformed glTF \(JSON nested too deeply\)"):
         load_model(path)
+
+
+def _face(folder: Path, uri: str | None = "face.bin", edit=None) -> Path:
+    """The fixture ``face.gltf`` copied into ``folder`` with its buffer ``uri`` replaced (and ``edit(doc)``)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    doc = json.loads((DATA / "face.gltf").read_text())
+    shutil.copy(DATA / "face.bin", folder / "face.bin")
+    if uri is not None:
+        doc["buffers"][0]["uri"] = uri
+    if edit:
+        edit(doc)
+    path = folder / "face.gltf"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def _to_root(folder: Path) -> str:
+    """``../`` enough times to climb from ``folder`` to ``/``."""
+    return "../" * (len(Path(os.path.realpath(folder)).parts) - 1)
+
+
+def _glb(js: dict, bin_: bytes | None = None) -> bytes:
+    j = json.dumps(js).encode()
+    j += b" " * (-len(j) % 4)
+    out = struct.pack("<II", len(j), 0x4E4F534A) + j
+    if bin_ is not None:
+        b = bin_ + b"\0" * (-len(bin_) % 4)
+        out += struct.pack("<II", len(b), 0x004E4942) + b
+    return b"glTF" + struct.pack("<II", 2, 12 + len(out)) + out
+
+
+def bomb(n_prims: int, n: int = 87_000, m: int = 32) -> bytes:
+    """A few KB of GLB whose ``n_prims`` primitives share one zero-filled ``n``-vertex accessor for all ``m`` targets."""
+    prim = {"attributes": {"POSITION": 0}, "targets": [{"POSITION": 0}] * m}
+    return _glb({"asset": {"version": "2.0"}, "accessors": [{"componentType": 5126, "type": "VEC3", "count": n}],
+                 "meshes": [{"name": "bomb", "primitives": [prim] * n_prims}]})
+
+
+# ---------------------------------------------------------------- bounds (issue 23, section 2): paths
+def test_a_buffer_outside_the_folder_is_refused_even_when_it_holds_a_valid_face(tmp_path):
+    shutil.copy(DATA / "face.bin", tmp_path / "outside.bin")  # a complete face would be built from it
+    path = _face(tmp_path / "a" / "b", "../../outside.bin")
+    with pytest.raises(ModelError, match=r"buffers\[0\] uri '\.\./\.\./outside\.bin' leads outside its folder"):
+        read_gltf(path)
+
+
+@pytest.mark.parametrize("uri", [
+    "{root}etc/passwd",
+    "{root_pct}etc/passwd",  # %2e%2e: percent-decoded before the check
+    "{root}proc/self/environ",
+    "{root}dev/zero",  # would stream forever (2 GiB before the old size cap)
+    "%2E%2E/%2e%2e/outside.bin",
+    "sub/../../../outside.bin",
+])
+def test_buffer_uris_that_climb_out_are_refused_before_reading(tmp_path, uri):
+    shutil.copy(DATA / "face.bin", tmp_path / "outside.bin")
+    folder = tmp_path / "a" / "b"
+    folder.mkdir(parents=True)
+    root = _to_root(folder)
+    uri = uri.format(root=root, root_pct=root.replace("..", "%2e%2e"))
+    path = _face(folder, uri)
+    with pytest.raises(ModelError, match="leads outside its folder") as info:
+        read_gltf(path)
+    assert str(path) in str(info.value)
+
+
+def test_a_buffer_symlinked_out_of_the_folder_is_refused(tmp_path):
+    shutil.copy(DATA / "face.bin", tmp_path / "outside.bin")
+    for target in ("/etc/passwd", str(tmp_path / "outside.bin")):
+        folder = tmp_path / Path(target).name.replace(".", "_")
+        path = _face(folder)
+        (folder / "face.bin").unlink()
+        (folder / "face.bin").symlink_to(target)
+        with pytest.raises(ModelError, match="leads outside its folder"):
+            read_gltf(path)
+
+
+def test_a_symlink_that_stays_inside_the_folder_is_read(tmp_path, reference):
+    path = _face(tmp_path, "link.bin")
+    (tmp_path / "link.bin").symlink_to("face.bin")
+    np.testing.assert_array_equal(read_gltf(path).D, reference.D)
+
+
+@pytest.mark.parametrize("kind", ["fifo", "folder"])
+def test_a_buffer_that_is_not_a_regular_file_is_refused_without_waiting(tmp_path, kind):
+    path = _face(tmp_path)
+    (tmp_path / "face.bin").unlink()
+    if kind == "fifo":
+        os.mkfifo(tmp_path / "face.bin")  # nobody writes: a plain open() would wait forever
+    else:
+        (tmp_path / "face.bin").mkdir()
+    with pytest.raises(ModelError, match="buffer 0 .*(FIFO|folder).*only regular files are read|is a folder"):
+        read_gltf(path)
+
+
+def test_the_gltf_file_itself_as_a_fifo_is_refused(tmp_path):
+    os.mkfifo(tmp_path / "pipe.glb")
+    with pytest.raises(ModelError, match="FIFO"):
+        load_model(tmp_path / "pipe.glb")
+
+
+def test_byte_length_bounds_what_is_read(tmp_path, reference):
+    path = _face(tmp_path)
+    with open(tmp_path / "face.bin", "ab") as fh:  # a larger file: only byteLength bytes are read
+        fh.write(b"\xff" * 100_000)
+    model = read_gltf(path)
+    np.testing.assert_array_equal(model.D, reference.D)
+    (tmp_path / "face.bin").write_bytes((DATA / "face.bin").read_bytes()[:-4])
+    with pytest.raises(ModelError, match=r"buffers\[0\] file 'face\.bin' is 9500 bytes, shorter than its byteLength 9504"):
+        read_gltf(path)
+
+
+def test_max_bytes_bounds_the_file_and_its_buffers_together(tmp_path):
+    path = _face(tmp_path)
+    size = path.stat().st_size
+    read_gltf(path, max_bytes=size + 9504)
+    with pytest.raises(ModelError, match=r"byteLength 9504 would bring what is read to more than max_bytes"):
+        read_gltf(path, max_bytes=size + 9503)
+
+
+def test_a_huge_declared_byte_length_is_refused_before_reading(tmp_path):
+    path = _face(tmp_path, edit=lambda d: d["buffers"][0].update(byteLength=1 << 40))
+    with pytest.raises(ModelError, match="more than max_bytes"):
+        read_gltf(path)
+
+
+# ---------------------------------------------------------------- bounds (section 3): sizes
+@pytest.mark.parametrize("n_prims", [1, 10, 20])
+def test_primitives_sharing_a_zero_filled_accessor_are_refused_before_allocating(tmp_path, n_prims):
+    path = tmp_path / "bomb.glb"
+    path.write_bytes(bomb(n_prims))
+    assert path.stat().st_size < 14_000
+    with pytest.raises(ModelError, match=rf"asks for .* of vertex data across {n_prims} primitive\(s\).*"
+                                         r"accessor 0 is used \d+ times.*the cap for this file is 64 MiB") as info:
+        load_model(path)
+    assert "bomb.glb" in str(info.value)
+
+
+def test_the_allocation_cap_grows_with_the_data_a_file_holds(tmp_path, monkeypatch):
+    # the same shapes with real (float32) data are a legitimate face: 64x its bytes is plenty
+    n, m = 3000, 8
+    pos = np.random.default_rng(0).normal(size=(n, 3)).astype("<f4")
+    deltas = np.random.default_rng(1).normal(size=(m, n, 3)).astype("<f4")
+    blob = pos.tobytes() + deltas.tobytes()
+    accessors = [{"bufferView": 0, "componentType": 5126, "type": "VEC3", "count": n}]
+    views = [{"buffer": 0, "byteOffset": 0, "byteLength": pos.nbytes}]
+    for k in range(m):
+        views.append({"buffer": 0, "byteOffset": pos.nbytes * (k + 1), "byteLength": pos.nbytes})
+        accessors.append({"bufferView": k + 1, "componentType": 5126, "type": "VEC3", "count": n})
+    prim = {"attributes": {"POSITION": 0}, "targets": [{"POSITION": k + 1} for k in range(m)]}
+    doc = {"asset": {"version": "2.0"}, "buffers": [{"byteLength": len(blob)}], "bufferViews": views,
+           "accessors": accessors, "meshes": [{"primitives": [prim]}]}
+    (tmp_path / "ok.glb").write_bytes(_glb(doc, blob))
+    model = load_model(tmp_path / "ok.glb")
+    assert model.D.shape == (3 * n, m)
+    monkeypatch.setattr(gltf, "MODEL_BYTES_FLOOR", 1 << 10)
+    monkeypatch.setattr(gltf, "MODEL_BYTES_RATIO", 1)  # the stated cap, not the machine, decides
+    with pytest.raises(ModelError, match=r"the cap for this file is .*1x the"):
+        load_model(tmp_path / "ok.glb")
+
+
+def _nodes(count):
+    return lambda d: d.update(nodes=[{"name": f"n{i}"} for i in range(count)])
+
+
+@pytest.mark.parametrize("edit, match", [
+    (_nodes(100_000), r"has 100000 nodes, more than the 4096 .*MAX_NODES"),
+    (lambda d: d.update(meshes=d["meshes"] * 2000), r"has 2000 meshes, more than the 1024 .*MAX_MESHES"),
+    (lambda d: d["meshes"][0].update(primitives=d["meshes"][0]["primitives"] * 5000),
+     r"has 5000 mesh primitives, more than the 4096 .*MAX_PRIMITIVES"),
+    (lambda d: d.update(materials=[{}] * 20_000), r"has 20\d\d\d glTF objects .*MAX_OBJECTS"),
+])
+def test_counts_are_bounded_before_the_document_is_built(tmp_path, edit, match):
+    path = _face(tmp_path, edit=edit)
+    with pytest.raises(ModelError, match=match):
+        read_gltf(path)
+
+
+@pytest.mark.parametrize("edit", [
+    lambda d: d["accessors"][0].update(max=[0.0] * 150_000),
+    lambda d: d["nodes"][0].update(children=[0] * 150_000),
+    lambda d: d.update(scenes=[{"nodes": [0] * 150_000}]),
+    lambda d: d["meshes"][0].update(weights=[0.0] * 150_000),
+    lambda d: d["meshes"][0]["primitives"][0]["attributes"].update({f"A{i}": 0 for i in range(150_000)}),
+], ids=["accessor_max", "children", "scene_nodes", "weights", "attributes"])
+def test_long_lists_inside_objects_are_bounded_before_the_document_is_built(tmp_path, edit):
+    # pygltflib converts each value (~20 us): 200,000 numbers in one accessor's "max" took 4 s
+    with pytest.raises(ModelError, match=r"more than 100000 JSON values .*MAX_VALUES"):
+        read_gltf(_face(tmp_path, edit=edit))
+
+
+def test_extras_and_extensions_are_not_counted(tmp_path, reference):
+    path = _face(tmp_path, edit=lambda d: d.update(extras={"big": [0] * 150_000}))
+    np.testing.assert_array_equal(read_gltf(path).D, reference.D)
+
+
+def test_the_count_limits_are_generous_for_real_avatars(tmp_path, reference):
+    def avatar(d):  # a rig of 600 bones above the face, 40 more meshes (no targets), 300 materials
+        d["nodes"] = [{"name": f"bone{i}", "children": [i + 1]} for i in range(600)] + [dict(d["nodes"][0])]
+        d["scenes"] = [{"nodes": [0]}]
+        d["scene"] = 0
+        d["meshes"] += [{"name": f"m{i}", "primitives": [{"attributes": {"POSITION": 0}}]} for i in range(40)]
+        d["materials"] = [{"name": f"mat{i}"} for i in range(300)]
+
+    model = read_gltf(_face(tmp_path, edit=avatar))
+    np.testing.assert_allclose(model.D, reference.D)
+
+
+# ---------------------------------------------------------------- bounds (section 6): arguments
+@pytest.mark.parametrize("kw, match", [
+    ({"foo": 1}, r"takes only mesh=, primitive= and max_bytes=, got \['foo'\]"),
+    ({"max_bytes": "10"}, r"max_bytes must be an integer, got '10'"),
+    ({"max_bytes": 0}, r"max_bytes must be an integer in 1\.\."),
+    ({"max_bytes": 1e9}, r"max_bytes must be an integer"),
+    ({"mesh": 1.5}, r"mesh= .* must be an integer"),
+    ({"mesh": True}, r"mesh= .* must be an integer, got the bool"),
+    ({"mesh": [0]}, r"mesh= .* must be an integer"),
+    ({"mesh": -1}, r"mesh= .* must be an integer in 0\.\."),
+    ({"primitive": "0"}, r"primitive= must be an integer"),
+    ({"primitive": -1}, r"primitive= must be an integer in 0\.\."),
+    ({"primitive": None, "mesh": None}, None),
+])
+def test_load_model_and_read_gltf_refuse_bad_arguments(kw, match):
+    if match is None:
+        assert load_model(DATA / "face.glb", **kw).n_vertices > 0
+        return
+    with pytest.raises(ModelError, match=match):
+        load_model(DATA / "face.glb", **kw)
+    if "foo" not in kw:
+        with pytest.raises(ModelError, match=match):
+            read_gltf(DATA / "face.glb", **kw)
+
+
+def test_read_gltf_refuses_a_stream_clearly():
+    with open(DATA / "face.glb", "rb") as fh, pytest.raises(ModelError, match="reads a path .*got <_io.BufferedReader"):
+        read_gltf(fh)
+    for bad in (None, 3, b"face.glb"):
+        with pytest.raises(ModelError, match="reads a path"):
+            read_gltf(bad)
+
+
+def test_load_model_ict_refuses_unknown_keywords_before_looking_for_data():
+    with pytest.raises(ModelError, match=r"load_model\('ict'\) takes only face_only=, shapes= and cache=, got \['foo'\]"):
+        load_model("ict", foo=1)
+
+
+# ---------------------------------------------------------------- bounds (sections 3, 4): the command line
+@pytest.mark.parametrize("kind", ["bomb", "fifo"])
+def test_repro_run_with_a_bad_face_prints_one_line_and_fails(tmp_path, capsys, kind):
+    from repro.cli import main
+
+    face = tmp_path / ("bomb.glb" if kind == "bomb" else "pipe.glb")
+    if kind == "bomb":
+        face.write_bytes(bomb(20))
+    else:
+        os.mkfifo(face)
+    rc = main(["run", "fig4_axis_selection", "--quick", "--face", str(face), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert rc == 1
+    lines = [line for line in err.splitlines() if line.startswith("repro:")]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert ("vertex data" if kind == "bomb" else "FIFO") in lines[0]
+
+
+def test_meshopt_decoding_is_bounded_per_file_not_per_view(monkeypatch):
+    # face_meshopt.glb decodes views of 832, 4160 and 2016 bytes; its size bound is 64 KiB x the ratio
+    monkeypatch.setattr(gltf_document, "_MESHOPT_MAX_RATIO", 0.1)  # 6.5 KB: each view fits, the three together do not
+    with pytest.raises(ModelError, match=r"7008 for the file's meshopt views so far; refusing"):
+        read_gltf(DATA / "face_meshopt.glb")
