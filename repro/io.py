@@ -251,59 +251,12 @@ def read_npz(
         kind ``allow`` does not list, a missing ``required`` member, NaN/inf
         (``finite``), or more than ``max_bytes`` in all.
 
-    Notes
-    -----
-    Memory is bounded by what the archive holds: each member's declared size is
-    checked against its compressed size (deflate expands at most 1032:1; a stored
-    member holds exactly its size), and data is read in chunks, so a lying
-    ``ZipInfo.file_size`` ends in an error, not an allocation.  Cost: one pass over
-    the decompressed bytes, as ``numpy.load``.
+    Memory is bounded by what the archive holds (:func:`_npz_member`); cost: one pass over the
+    decompressed bytes, as ``numpy.load``.
     """
-    import numpy as np
-    from numpy.lib import format as npy
-
-    if hasattr(src, "read"):
-        where = str(getattr(src, "name", "<stream>"))
-        fh, own = src, False
-    else:
-        try:
-            p = Path(src)
-        except TypeError:
-            raise error(f"expected a path or a binary stream, got {type(src).__name__}") from None
-        where = str(p)
-        fh, _ = open_regular(p, error=error, max_bytes=None)  # (each member's size is bounded below)
-        own = True
-    out: dict = {}
-    member = None
-    budget = max_bytes
+    fh, own, where = _npz_source(src, error)
     try:
-        try:
-            disk = fh.seek(0, os.SEEK_END)
-            fh.seek(0)
-            with zipfile.ZipFile(fh) as z:
-                infos = z.infolist()
-                dup = sorted(n for n, c in Counter(i.filename for i in infos).items() if c > 1)
-                if dup:
-                    raise error(f"{where}: duplicate archive members {dup[:5]}")
-                for info in infos:
-                    member = info.filename
-                    if not member.endswith(".npy"):
-                        raise error(f"{where}: member {member!r} is not an .npy array (not a numpy .npz archive?)")
-                    key = member[:-4]
-                    if allow is not None and key not in allow:
-                        continue
-                    budget -= info.file_size  # (checked before the member is read)
-                    if budget < 0:
-                        raise error(f"{where}: more than {max_bytes} bytes of arrays; refusing to read it")
-                    out[key] = _npz_member(z, info, disk, where, error, allow, finite, np, npy)
-                member = None
-        except ReproError:
-            raise
-        except MemoryError:
-            raise error(f"{where}{_in(member)}: not enough memory to read it") from None
-        except _NPZ_ERRORS as exc:
-            msg = str(exc)[:200] if not isinstance(exc, RecursionError) else "nested too deeply"
-            raise error(f"{where}{_in(member)}: not a readable .npz archive ({type(exc).__name__}: {msg})") from None
+        out = _npz_arrays(fh, where, error, allow, finite, max_bytes)
     finally:
         if own:
             fh.close()
@@ -314,12 +267,68 @@ def read_npz(
     return out
 
 
+def _npz_source(src, error):
+    """The archive as (binary file, whether it is ours to close, its name for messages)."""
+    if hasattr(src, "read"):
+        return src, False, str(getattr(src, "name", "<stream>"))
+    try:
+        p = Path(src)
+    except TypeError:
+        raise error(f"expected a path or a binary stream, got {type(src).__name__}") from None
+    fh, _ = open_regular(p, error=error, max_bytes=None)  # (each member's size is bounded below)
+    return fh, True, str(p)
+
+
+def _npz_arrays(fh, where, error, allow, finite, max_bytes) -> dict:
+    """The members ``allow`` names (every member without it), in archive order, within ``max_bytes`` in all;
+    any failure of the zip or numpy readers as one ``error`` naming the file and member."""
+    import numpy as np
+    from numpy.lib import format as npy
+
+    out: dict = {}
+    member = None
+    budget = max_bytes
+    try:
+        disk = fh.seek(0, os.SEEK_END)
+        fh.seek(0)
+        with zipfile.ZipFile(fh) as z:
+            infos = z.infolist()
+            dup = sorted(n for n, c in Counter(i.filename for i in infos).items() if c > 1)
+            if dup:
+                raise error(f"{where}: duplicate archive members {dup[:5]}")
+            for info in infos:
+                member = info.filename
+                if not member.endswith(".npy"):
+                    raise error(f"{where}: member {member!r} is not an .npy array (not a numpy .npz archive?)")
+                key = member[:-4]
+                if allow is not None and key not in allow:
+                    continue
+                budget -= info.file_size  # (checked before the member is read)
+                if budget < 0:
+                    raise error(f"{where}: more than {max_bytes} bytes of arrays; refusing to read it")
+                out[key] = _npz_member(z, info, disk, where, error, allow, finite, np, npy)
+            member = None
+    except ReproError:
+        raise
+    except MemoryError:
+        raise error(f"{where}{_in(member)}: not enough memory to read it") from None
+    except _NPZ_ERRORS as exc:
+        msg = str(exc)[:200] if not isinstance(exc, RecursionError) else "nested too deeply"
+        raise error(f"{where}{_in(member)}: not a readable .npz archive ({type(exc).__name__}: {msg})") from None
+    return out
+
+
 def _in(member) -> str:
     return f", member {member!r}" if member else ""
 
 
 def _npz_member(z, info, disk, where, error, allow, finite, np, npy):
-    """One ``.npy`` member of an open archive, every size checked before it is read."""
+    """One ``.npy`` member of an open archive, every size checked before it is read.
+
+    Memory is bounded by what the archive holds: the member's declared size is checked against
+    its compressed size (deflate expands at most 1032:1; a stored member holds exactly its size),
+    and data is read in chunks, so a lying ``ZipInfo.file_size`` ends in an error, not an allocation.
+    """
     name = info.filename
     key = name[:-4]
     at = f"{where}, member {name!r}"
