@@ -155,9 +155,9 @@ def cluster_poses(points: np.ndarray, k: int | None = None, *, weights=None, see
     Parameters
     ----------
     points : (N, P, 3) array
-        Pose clouds in their canonical root frames (:func:`pose_points`); float32 or
+        Pose clouds in their canonical root frames (:func:`~repro.motion.body.pose_frames.pose_points`); float32 or
         float64, never copied whole (the passes over all poses work by chunks of
-        :data:`CHUNK` rows).
+        :data:`~repro.motion.body.pose_frames.CHUNK` rows).
     k : int, optional
         Number of clusters, an int >= 1 (default :func:`default_k`); more than N is cut
         to N with a :class:`~repro.errors.ReproWarning` saying so.
