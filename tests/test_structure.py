@@ -38,7 +38,6 @@ LONG_FUNCTIONS: dict[str, str] = {
     "repro.motion.search.retrieval:MotionRetriever.prepare": "to split into named steps (issue 24; 104 lines)",
     "repro.motion.search.retrieval:time_search": "to split into named steps (issue 24; 97 lines)",
     "repro.ui.fighter_panel:FighterPanel.__init__": "to split into named steps (issue 24; 88 lines)",
-    "repro.ui.render:skeleton_images": "to split into named steps (issue 24; 151 lines)",
 }
 
 #: repro.motion's stages in pipeline order; a stage may import its own and earlier stages only
@@ -101,6 +100,7 @@ def _stage_violations() -> set[str]:
 #: modules still over the limit, being split (issue 24)
 KNOWN_LONG_MODULES: set[str] = {
     "repro.motion.body.roles",
+    "repro.motion.database.synthetic.choreography",
     "repro.motion.retargeting.morphology",
     "repro.motion.search.retrieval",
 }

@@ -213,64 +213,14 @@ def skeleton_images(
     sizes compare across panels.
     """
     require_render()
-    import numpy as np
     import pyvista as pv
 
-    panels = [[np.asarray(P, dtype=float).reshape(-1, 3) for P in skels] for skels in panels]
-    edges = np.asarray(edges, dtype=int).reshape(-1, 2)
-    colors = list(colors)
-    n_sk = max((len(s) for s in panels), default=0)
-    if len(colors) < n_sk:
-        raise ValueError(f"{len(colors)} colours for panels of {n_sk} skeletons")
-
-    def per_skeleton(value):
-        return list(value) if np.ndim(value) else [float(value)] * len(colors)
-
-    bone_r, joint_r = per_skeleton(bone_radius), per_skeleton(joint_radius)
-    targets = list(targets) if targets is not None else [None] * len(panels)
-    paths = [[np.asarray(q, dtype=float).reshape(-1, 3) for q in ps] for ps in paths] if paths is not None else None
-    path_colors = list(path_colors) if path_colors is not None else colors
-    if len(targets) != len(panels) or (paths is not None and len(paths) != len(panels)):
-        raise ValueError("targets and paths need one entry per panel")
-
-    # one camera and floor for every panel, fitted to everything any panel draws
-    pts = [P for s in panels for P in s] + [np.asarray(t, float).reshape(1, 3) for t in targets if t is not None]
-    pts += [q for ps in paths for q in ps] if paths is not None else []
-    pts = np.vstack(pts) if pts else np.zeros((1, 3))
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    pad = max(bone_r + joint_r + [target_radius])
+    scene = _Skeletons(panels, edges, colors, bone_radius, joint_radius, targets, paths, path_colors)
+    points = scene.points()
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    pad = max(scene.bone_r + scene.joint_r + [target_radius])
     if camera is None:
-        az, el = np.radians(azimuth), np.radians(elevation)
-        back = np.array([np.sin(az) * np.cos(el), np.sin(el), np.cos(az) * np.cos(el)])  # towards the camera
-        right = np.cross((0.0, 1.0, 0.0), back)
-        right /= np.linalg.norm(right)
-        up = np.cross(back, right)
-        fl_lo, fl_hi = lo - 2 * pad, hi + 2 * pad  # the floor's extent too
-        corners = np.array([[x, 0.0, z] for x in (fl_lo[0], fl_hi[0]) for z in (fl_lo[2], fl_hi[2])])
-        fit = np.vstack([pts, corners, pts + pad * up, pts - pad * up, pts + pad * right, pts - pad * right])
-        # perspective fit (VTK's default view angle: 30 degrees vertically), iterated a few times:
-        # distance so the farthest-out point just fits, then re-centre on the projected extent
-        tan_v = np.tan(np.radians(15.0))
-        tan_h = tan_v * window_size[0] / window_size[1]
-        centre = (fit.min(axis=0) + fit.max(axis=0)) / 2
-        for _ in range(8):
-            r = fit - centre
-            w, u, v = r @ back, r @ right, r @ up
-            dist = float(np.max(w + np.maximum(np.abs(u) / tan_h, np.abs(v) / tan_v)))
-            pu, pv_ = u / (dist - w), v / (dist - w)
-            centre = centre + dist * ((pu.max() + pu.min()) / 2 * right + (pv_.max() + pv_.min()) / 2 * up)
-        r = fit - centre
-        w = r @ back
-        dist = 1.03 * float(np.max(w + np.maximum(np.abs(r @ right) / tan_h, np.abs(r @ up) / tan_v)))
-        camera = [tuple(centre + dist * back), tuple(centre), tuple(up)]
-
-    def skeleton_meshes(P, k):
-        lines = np.column_stack([np.full(len(edges), 2), edges]).ravel()
-        bones = pv.PolyData(P.copy(), lines=lines).tube(radius=bone_r[k], n_sides=14, capping=True)
-        joints = pv.PolyData(P.copy()).glyph(geom=pv.Sphere(radius=joint_r[k], theta_resolution=14,
-                                                           phi_resolution=10), scale=False, orient=False)
-        return bones, joints
-
+        camera = _fitted_camera(points, lo, hi, pad, azimuth, elevation, window_size)
     configure_headless()
     with pv.vtk_verbosity("error"):
         pl = pv.Plotter(off_screen=True, window_size=list(window_size), lighting="three lights")
@@ -278,31 +228,10 @@ def skeleton_images(
             pl.set_background("white")
             pl.enable_anti_aliasing("msaa")
             if floor:
-                a, b = lo[[0, 2]] - 2 * pad, hi[[0, 2]] + 2 * pad
-                plane = pv.Plane(center=((a[0] + b[0]) / 2, 0.0, (a[1] + b[1]) / 2), direction=(0, 1, 0),
-                                 i_size=b[1] - a[1], j_size=b[0] - a[0])
-                pl.add_mesh(plane, color="#ebebeb", lighting=False, name="floor")  # flat: no shading
-            n_paths = max((len(p) for p in paths), default=0) if paths is not None else 0
+                _add_floor(pl, lo, hi, pad)
             images = []
-            for i, skels in enumerate(panels):
-                for k in range(n_sk):
-                    for part in ("bones", "joints"):
-                        pl.remove_actor(f"skeleton{k}_{part}")
-                for k, P in enumerate(skels):
-                    bones, joints = skeleton_meshes(P, k)
-                    pl.add_mesh(bones, color=colors[k], smooth_shading=True, specular=0.2, name=f"skeleton{k}_bones")
-                    pl.add_mesh(joints, color=colors[k], smooth_shading=True, specular=0.2,
-                                name=f"skeleton{k}_joints")
-                pl.remove_actor("target")
-                if targets[i] is not None:
-                    pl.add_mesh(pv.Sphere(radius=target_radius, center=np.asarray(targets[i], float).ravel()),
-                                color=target_color, smooth_shading=True, specular=0.3, name="target")
-                for k in range(n_paths):
-                    pl.remove_actor(f"path{k}")
-                for k, q in enumerate(paths[i] if paths is not None else []):
-                    if len(q) >= 2:
-                        pl.add_mesh(pv.Spline(q, max(2, 4 * len(q))).tube(radius=path_radius, n_sides=8),
-                                    color=path_colors[k % len(path_colors)], name=f"path{k}")
+            for i in range(len(scene.panels)):
+                scene.draw(pl, i, target_color, target_radius, path_radius)
                 pl.camera_position = camera
                 if zoom != 1.0:
                     pl.camera.zoom(zoom)
@@ -311,3 +240,104 @@ def skeleton_images(
             return images
         finally:
             pl.close()
+
+
+class _Skeletons:
+    """What :func:`skeleton_images` draws: per panel its skeletons, target and paths, checked."""
+
+    def __init__(self, panels, edges, colors, bone_radius, joint_radius, targets, paths, path_colors):
+        import numpy as np
+
+        self.panels = [[np.asarray(P, dtype=float).reshape(-1, 3) for P in skels] for skels in panels]
+        self.edges = np.asarray(edges, dtype=int).reshape(-1, 2)
+        self.colors = list(colors)
+        self.n_sk = max((len(s) for s in self.panels), default=0)
+        if len(self.colors) < self.n_sk:
+            raise ValueError(f"{len(self.colors)} colours for panels of {self.n_sk} skeletons")
+
+        def per_skeleton(value):
+            return list(value) if np.ndim(value) else [float(value)] * len(self.colors)
+
+        self.bone_r, self.joint_r = per_skeleton(bone_radius), per_skeleton(joint_radius)
+        self.targets = list(targets) if targets is not None else [None] * len(self.panels)
+        self.paths = ([[np.asarray(q, dtype=float).reshape(-1, 3) for q in ps] for ps in paths]
+                      if paths is not None else None)
+        self.path_colors = list(path_colors) if path_colors is not None else self.colors
+        if len(self.targets) != len(self.panels) or (self.paths is not None and len(self.paths) != len(self.panels)):
+            raise ValueError("targets and paths need one entry per panel")
+        self.n_paths = max((len(p) for p in self.paths), default=0) if self.paths is not None else 0
+
+    def points(self):
+        """Everything any panel draws, as (n, 3) points: one camera and floor fit them all."""
+        import numpy as np
+
+        pts = [P for s in self.panels for P in s]
+        pts += [np.asarray(t, float).reshape(1, 3) for t in self.targets if t is not None]
+        pts += [q for ps in self.paths for q in ps] if self.paths is not None else []
+        return np.vstack(pts) if pts else np.zeros((1, 3))
+
+    def draw(self, pl, i: int, target_color, target_radius: float, path_radius: float) -> None:
+        """Panel ``i`` in the plotter, in place of the previous panel's actors."""
+        import numpy as np
+        import pyvista as pv
+
+        for k in range(self.n_sk):
+            for part in ("bones", "joints"):
+                pl.remove_actor(f"skeleton{k}_{part}")
+        for k, P in enumerate(self.panels[i]):
+            lines = np.column_stack([np.full(len(self.edges), 2), self.edges]).ravel()
+            bones = pv.PolyData(P.copy(), lines=lines).tube(radius=self.bone_r[k], n_sides=14, capping=True)
+            joints = pv.PolyData(P.copy()).glyph(geom=pv.Sphere(radius=self.joint_r[k], theta_resolution=14,
+                                                                phi_resolution=10), scale=False, orient=False)
+            pl.add_mesh(bones, color=self.colors[k], smooth_shading=True, specular=0.2, name=f"skeleton{k}_bones")
+            pl.add_mesh(joints, color=self.colors[k], smooth_shading=True, specular=0.2, name=f"skeleton{k}_joints")
+        pl.remove_actor("target")
+        if self.targets[i] is not None:
+            pl.add_mesh(pv.Sphere(radius=target_radius, center=np.asarray(self.targets[i], float).ravel()),
+                        color=target_color, smooth_shading=True, specular=0.3, name="target")
+        for k in range(self.n_paths):
+            pl.remove_actor(f"path{k}")
+        for k, q in enumerate(self.paths[i] if self.paths is not None else []):
+            if len(q) >= 2:
+                pl.add_mesh(pv.Spline(q, max(2, 4 * len(q))).tube(radius=path_radius, n_sides=8),
+                            color=self.path_colors[k % len(self.path_colors)], name=f"path{k}")
+
+
+def _fitted_camera(pts, lo, hi, pad: float, azimuth: float, elevation: float, window_size) -> list:
+    """A perspective three-quarter view (``azimuth`` degrees from +z towards +x, ``elevation`` up) in which
+    ``pts``, the floor under them and a margin ``pad`` around them just fit: (position, focal point, view up)."""
+    import numpy as np
+
+    az, el = np.radians(azimuth), np.radians(elevation)
+    back = np.array([np.sin(az) * np.cos(el), np.sin(el), np.cos(az) * np.cos(el)])  # towards the camera
+    right = np.cross((0.0, 1.0, 0.0), back)
+    right /= np.linalg.norm(right)
+    up = np.cross(back, right)
+    fl_lo, fl_hi = lo - 2 * pad, hi + 2 * pad  # the floor's extent too
+    corners = np.array([[x, 0.0, z] for x in (fl_lo[0], fl_hi[0]) for z in (fl_lo[2], fl_hi[2])])
+    fit = np.vstack([pts, corners, pts + pad * up, pts - pad * up, pts + pad * right, pts - pad * right])
+    # perspective fit (VTK's default view angle: 30 degrees vertically), iterated a few times:
+    # distance so the farthest-out point just fits, then re-centre on the projected extent
+    tan_v = np.tan(np.radians(15.0))
+    tan_h = tan_v * window_size[0] / window_size[1]
+    centre = (fit.min(axis=0) + fit.max(axis=0)) / 2
+    for _ in range(8):
+        r = fit - centre
+        w, u, v = r @ back, r @ right, r @ up
+        dist = float(np.max(w + np.maximum(np.abs(u) / tan_h, np.abs(v) / tan_v)))
+        pu, pv_ = u / (dist - w), v / (dist - w)
+        centre = centre + dist * ((pu.max() + pu.min()) / 2 * right + (pv_.max() + pv_.min()) / 2 * up)
+    r = fit - centre
+    w = r @ back
+    dist = 1.03 * float(np.max(w + np.maximum(np.abs(r @ right) / tan_h, np.abs(r @ up) / tan_v)))
+    return [tuple(centre + dist * back), tuple(centre), tuple(up)]
+
+
+def _add_floor(pl, lo, hi, pad: float) -> None:
+    """A light, unshaded floor plane at y = 0, ``2 pad`` beyond the extent ``lo``..``hi`` in x and z."""
+    import pyvista as pv
+
+    a, b = lo[[0, 2]] - 2 * pad, hi[[0, 2]] + 2 * pad
+    plane = pv.Plane(center=((a[0] + b[0]) / 2, 0.0, (a[1] + b[1]) / 2), direction=(0, 1, 0),
+                     i_size=b[1] - a[1], j_size=b[0] - a[0])
+    pl.add_mesh(plane, color="#ebebeb", lighting=False, name="floor")  # flat: no shading
