@@ -252,12 +252,7 @@ def content_sha256(p: Path) -> str:
     :class:`~repro.errors.DataError`, as is a file that grows while read or a ``.gz`` holding
     more than :data:`repro.io.MAX_READ_BYTES`.
     """
-    try:
-        p = Path(p)
-    except TypeError:
-        raise DataError(f"expected a file path, got {describe(p)}") from None
-    if "\x00" in str(p):
-        raise DataError(f"{str(p)[:60]!r}: a path cannot hold a NUL character")
+    p = as_path(p, "the file to hash", error=DataError)
     try:
         st = p.stat()
     except OSError as exc:

@@ -226,7 +226,7 @@ def test_content_sha256_opens_regular_files_only(tmp_path):
         data.content_sha256(tmp_path)
     with pytest.raises(DataError, match="no such file"):
         data.content_sha256(tmp_path / "absent")
-    with pytest.raises(DataError, match="expected a file path"):
+    with pytest.raises(DataError, match="the file to hash must be a path"):
         data.content_sha256(None)
     with pytest.raises(DataError, match="NUL"):
         data.content_sha256("a\x00b")
