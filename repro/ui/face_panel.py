@@ -49,7 +49,6 @@ from __future__ import annotations
 
 import html
 import math
-import re
 import time
 from collections.abc import Iterable, Mapping
 
@@ -60,7 +59,7 @@ from repro.blendshapes import Attenuator, load_model, metrics, select_vertices
 from repro.blendshapes.model import AXES, BlendshapeModel
 from repro.errors import AttenuationError, ModelError, SelectionError
 from repro.ui.face_views import VIEWS, MatplotlibFaceView, face_view
-from repro.ui.panel import PanelCallbacks
+from repro.ui.panel import PanelCallbacks, parse_numbers_line
 
 __all__ = [
     "BlendshapePanel",
@@ -100,16 +99,7 @@ def parse_numbers(text: str) -> dict:
     gives ``{"selected_motion": 0.0837, "unselected_fidelity": 0.547, "alpha": 335.0, "attenuation": "on"}``.
     Raises ``ValueError`` for anything else (e.g. an ``error: ...`` line).
     """
-    out = {}
-    for part in text.strip().split(" | "):
-        m = re.fullmatch(r"([a-z ]+): (\S+)", part.strip())
-        if not m or m.group(1) not in _NUMBER_FIELDS:
-            raise ValueError(f"not a numbers line of the panel: {text!r}")
-        key = _NUMBER_FIELDS[m.group(1)]
-        out[key] = m.group(2) if key == "attenuation" else float(m.group(2))
-    if set(out) != set(_NUMBER_FIELDS.values()):
-        raise ValueError(f"not a numbers line of the panel: {text!r}")
-    return out
+    return parse_numbers_line(text, _NUMBER_FIELDS, {"attenuation"}, pattern=r"([a-z ]+): (\S+)", panel="the panel")
 
 
 # ----------------------------------------------------------------------- panel

@@ -33,12 +33,11 @@ shown in the panel.
 from __future__ import annotations
 
 import html
-import re
 
 import ipywidgets as widgets
 import numpy as np
 
-from repro.ui.panel import PanelCallbacks
+from repro.ui.panel import PanelCallbacks, parse_numbers_line
 from repro.ui.strike_view import FilmstripView, animation_html, animation_png, key_frames
 from repro.motion.runtime.fighter import AREA, KungFuFighter, Strike, character_from, simulated_user
 
@@ -90,16 +89,8 @@ def parse_fighter_numbers(text: str) -> dict:
     ``ValueError`` for anything else (e.g. ``"error: ..."`` or the text shown before the
     first order).
     """
-    out = {}
-    for part in text.strip().split(" | "):
-        m = re.fullmatch(r"([a-z_+ ]+): (\S+)(?: (m|ms))?", part.strip())
-        if not m or m.group(1) not in _FIELDS:
-            raise ValueError(f"not a numbers line of the fighter panel: {text!r}")
-        key = _FIELDS[m.group(1)]
-        out[key] = m.group(2) if key in _TEXT_FIELDS else float(m.group(2))
-    if set(out) != set(_FIELDS.values()):
-        raise ValueError(f"not a numbers line of the fighter panel: {text!r}")
-    return out
+    return parse_numbers_line(text, _FIELDS, _TEXT_FIELDS, pattern=r"([a-z_+ ]+): (\S+)(?: (m|ms))?",
+                              panel="the fighter panel")
 
 
 # ----------------------------------------------------------------------- drawing

@@ -1,7 +1,10 @@
-"""What the ipywidgets panels of both papers share (``repro.ui.face_panel``, ``repro.ui.fighter_panel``)."""
+"""What the ipywidgets panels of both papers share (``repro.ui.face_panel``, ``repro.ui.fighter_panel``):
+guarded callbacks, batched updates and the reading back of a numbers line."""
 
 from __future__ import annotations
 
+import re
+from collections.abc import Collection, Mapping
 from contextlib import contextmanager
 
 
@@ -42,3 +45,23 @@ class PanelCallbacks:
             self._batch_depth -= 1
             if self._batch_depth == 0:
                 self._flush()
+
+
+def parse_numbers_line(text: str, fields: Mapping[str, str], text_fields: Collection[str], *, pattern: str,
+                       panel: str) -> dict:
+    """A panel's numbers line (``label: value | label: value ...``) back as a dict.
+
+    ``pattern`` matches one ``label: value`` part (the label its first group, the value its second);
+    ``fields`` maps each label to its key, every one of which must be present; a value is a float
+    unless its key is in ``text_fields``.  Raises ``ValueError`` naming ``panel`` for anything else.
+    """
+    out = {}
+    for part in text.strip().split(" | "):
+        m = re.fullmatch(pattern, part.strip())
+        if not m or m.group(1) not in fields:
+            raise ValueError(f"not a numbers line of {panel}: {text!r}")
+        key = fields[m.group(1)]
+        out[key] = m.group(2) if key in text_fields else float(m.group(2))
+    if set(out) != set(fields.values()):
+        raise ValueError(f"not a numbers line of {panel}: {text!r}")
+    return out
