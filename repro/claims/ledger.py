@@ -58,24 +58,42 @@ class Claim:
         return (self.figure, *(r for r in self.reads if r != self.figure))
 
 
-def registrar(ledger: list, paper: str):
+def registrar(ledger: list, paper: str, per: Callable | None = None):
     """A decorator factory adding one claim to ``ledger``: ``@claim("L1", statement, figure, ...)``.
 
-    The decorated function is the claim's ``measure``; ids must be unique in ``ledger``.
+    The decorated function is the claim's ``measure(get)``; or, given ``table`` (``"table"``, the
+    figure's main table, or the name of one of its ``extra_tables``), the judge of that table:
+    ``judge(rows, dataset)`` on each dataset's rows as ``per`` splits them (:func:`per_model`,
+    :func:`per_database`), or with ``embedded_only`` (why the real data has no verdict)
+    ``judge(table)`` on the embedded data alone.  Ids must be unique in ``ledger``.
     """
 
     def claim(id: str, statement: str, *, figure: str, notebook: str, criterion: str, expected: dict,
-              timing: bool = False, reads: tuple = ()):
-        def deco(measure):
+              timing: bool = False, reads: tuple = (), table: str | None = None, embedded_only: str | None = None):
+        def deco(func):
             if any(c.id == id for c in ledger):
                 raise ValueError(f"claim {id!r} is in the {paper} ledger twice")
+            measure = func if table is None else _judging(func, figure, table, per, embedded_only)
             ledger.append(Claim(id, paper, statement, figure, notebook, criterion, measure, dict(expected),
                                 timing, tuple(reads)))
-            return measure
+            return func
 
         return deco
 
     return claim
+
+
+def _judging(judge, figure: str, table: str, per, embedded_only: str | None):
+    """The ``measure`` of a claim that judges one table of its figure (:func:`registrar`)."""
+
+    def measure(get):
+        result = get(figure)
+        rows = result.table if table == "table" else result.extra_tables[table]
+        if embedded_only is not None:
+            return {"embedded": judge(rows), "real": not_applicable(embedded_only)}
+        return per(judge, rows)
+
+    return measure
 
 
 # ----------------------------------------------------------------- what the ledgers share
@@ -91,7 +109,7 @@ def per_model(judge, table, embedded: str = "procedural", real: str = "ict") -> 
     return out
 
 
-def per_database(table, judge) -> dict:
+def per_database(judge, table) -> dict:
     """``judge(rows of the database, name)`` on the synthetic database and on CMU's when in ``table``."""
     out = {"embedded": judge(table[table.database == "synthetic"], "synthetic")}
     real = table[table.database == "cmu"]

@@ -46,27 +46,24 @@ INTERACTIVE_FRAME_S = 1 / 30
 ROUND_TRIP_TOLERANCE = 1e-9
 
 LEDGER: list[Claim] = []
-claim = registrar(LEDGER, PAPER)
+claim = registrar(LEDGER, PAPER, per=per_model)
 
 
 @claim("L1", "Interference: 'the middle of the brow has continued to move downward' (Fig. 2c; Fig. 1)",
-       figure="fig2_interference", notebook=NB1,
+       figure="fig2_interference", notebook=NB1, table="table",
        criterion=f"further moves drag the region the first move positioned by > {DRIFT_FRACTION:.0%} of that move",
        expected={"embedded": "reproduced", "real": "partially"})
-def l1(get):
-    def judge(g, model):
-        g = g.set_index("scenario")
-        fig2 = float(g.loc["furrow_then_mouth", "drift_relative"])
-        fig1 = float(g.loc["eyelid_then_brow", "drift_relative"])
-        vals = {"fig2_drift_relative": fig2, "fig1_drift_relative": fig1}
-        if fig2 > DRIFT_FRACTION and fig1 > DRIFT_FRACTION:
-            return ("reproduced", vals, f"both sessions drag the positioned region by > {DRIFT_FRACTION:.0%} of its first move")
-        if fig2 > DRIFT_FRACTION or fig1 > DRIFT_FRACTION:
-            which = "Fig. 2 (brow under mouth moves)" if fig2 <= DRIFT_FRACTION else "Fig. 1 (eyelid under a brow raise)"
-            return ("partially", vals, f"interference is present, but not in {which}: drift {min(fig1, fig2):.2%} of the first move")
-        return ("not reproduced", vals, f"no session drags the positioned region by > {DRIFT_FRACTION:.0%}")
-
-    return per_model(judge, get("fig2_interference").table)
+def l1(g, model):
+    g = g.set_index("scenario")
+    fig2 = float(g.loc["furrow_then_mouth", "drift_relative"])
+    fig1 = float(g.loc["eyelid_then_brow", "drift_relative"])
+    vals = {"fig2_drift_relative": fig2, "fig1_drift_relative": fig1}
+    if fig2 > DRIFT_FRACTION and fig1 > DRIFT_FRACTION:
+        return ("reproduced", vals, f"both sessions drag the positioned region by > {DRIFT_FRACTION:.0%} of its first move")
+    if fig2 > DRIFT_FRACTION or fig1 > DRIFT_FRACTION:
+        which = "Fig. 2 (brow under mouth moves)" if fig2 <= DRIFT_FRACTION else "Fig. 1 (eyelid under a brow raise)"
+        return ("partially", vals, f"interference is present, but not in {which}: drift {min(fig1, fig2):.2%} of the first move")
+    return ("not reproduced", vals, f"no session drags the positioned region by > {DRIFT_FRACTION:.0%}")
 
 
 @claim("L2", "Attenuation keeps selected coordinates still while the rest moves (Figs. 3, 5c)",
@@ -98,35 +95,29 @@ def l2(get):
 
 
 @claim("L3", "Per-axis selection: 'the corners of the mouth have moved along the x-axis, but not along the y-axis' (Fig. 4)",
-       figure="fig4_axis_selection", notebook=NB1,
+       figure="fig4_axis_selection", notebook=NB1, table="table",
        criterion=f"y kept < {HELD_AXIS_KEPT:.0%}, x kept > {FREE_AXIS_KEPT:.0%}",
        expected={"embedded": "reproduced", "real": "reproduced"})
-def l3(get):
-    def judge(g, model):
-        att, none = g[g.method == "attenuated"], g[g.method == "none"]
-        y = float(np.max(np.abs(att.dy.to_numpy()) / np.abs(none.dy.to_numpy())))
-        x = float(np.min(np.abs(att.dx.to_numpy()) / np.abs(none.dx.to_numpy())))
-        vals = {"y_kept_fraction": y, "x_kept_fraction": x}
-        if y < HELD_AXIS_KEPT and x > FREE_AXIS_KEPT:
-            return ("reproduced", vals, f"the selected y is held (< {HELD_AXIS_KEPT:.0%}) while x moves freely (> {FREE_AXIS_KEPT:.0%})")
-        return ("not reproduced", vals, "y is not held or x does not move")
-
-    return per_model(judge, get("fig4_axis_selection").table)
+def l3(g, model):
+    att, none = g[g.method == "attenuated"], g[g.method == "none"]
+    y = float(np.max(np.abs(att.dy.to_numpy()) / np.abs(none.dy.to_numpy())))
+    x = float(np.min(np.abs(att.dx.to_numpy()) / np.abs(none.dx.to_numpy())))
+    vals = {"y_kept_fraction": y, "x_kept_fraction": x}
+    if y < HELD_AXIS_KEPT and x > FREE_AXIS_KEPT:
+        return ("reproduced", vals, f"the selected y is held (< {HELD_AXIS_KEPT:.0%}) while x moves freely (> {FREE_AXIS_KEPT:.0%})")
+    return ("not reproduced", vals, "y is not held or x does not move")
 
 
 @claim("L4", "Limits: alpha -> 0 gives w2 = w1; alpha -> infinity gives S w2 = 0 (Section 5)",
-       figure="alpha_sweep", notebook=NB2,
+       figure="alpha_sweep", notebook=NB2, table="limits",
        criterion="at alpha 1e-6 w2 = w1 and at 1e12 the selection is still, in every session",
        expected={"embedded": "reproduced", "real": "reproduced"})
-def l4(get):
-    def judge(g, model):
-        vals = {"w_change_at_alpha_low": float(g.low_w_change_vs_w1.max()),
-                "selected_fraction_at_alpha_high": float(g.high_selected_motion_fraction.max())}
-        if g.supports.str.startswith("Eq. 3").all():
-            return ("reproduced", vals, "alpha -> 0 gives w2 = w1 and alpha -> infinity gives S w2 -> 0 in every session")
-        return ("not reproduced", vals, "a session does not reach Section 5's limits")
-
-    return per_model(judge, get("alpha_sweep").extra_tables["limits"])
+def l4(g, model):
+    vals = {"w_change_at_alpha_low": float(g.low_w_change_vs_w1.max()),
+            "selected_fraction_at_alpha_high": float(g.high_selected_motion_fraction.max())}
+    if g.supports.str.startswith("Eq. 3").all():
+        return ("reproduced", vals, "alpha -> 0 gives w2 = w1 and alpha -> infinity gives S w2 -> 0 in every session")
+    return ("not reproduced", vals, "a session does not reach Section 5's limits")
 
 
 @claim("L5", f"Default alpha = #unselected / #selected vertices: {PAPER_DEFAULT_ALPHA} for {PAPER_SELECTED} of "
@@ -187,67 +178,62 @@ def over_attenuation(g, method: str, column: str) -> list[float]:
     return ratios
 
 
+def worse_than_attenuation(ratios: list[float], key: str, worse: str, not_worse: str) -> tuple:
+    """L7, L8: reproduced (``worse``) when every session's ratio to attenuation exceeds :data:`WORSE_FACTOR`."""
+    vals = {key: float(min(ratios))}
+    if min(ratios) > WORSE_FACTOR:
+        return ("reproduced", vals, worse)
+    return ("not reproduced", vals, not_worse)
+
+
 @claim("L7", "Zeroing rows of D 'disrupt[s] the smoothness of the surface' (Section 3)",
-       figure="rejected_alternatives", notebook=NB1,
+       figure="rejected_alternatives", notebook=NB1, table="table",
        criterion=f"roughness at the selection > {WORSE_FACTOR}x attenuation's in every session with motion",
        expected={"embedded": "reproduced", "real": "reproduced"})
-def l7(get):
-    def judge(g, model):
-        ratios = over_attenuation(g, "zeroed_rows", "roughness_at_selection")
-        vals = {"min_roughness_ratio_zeroed_over_attenuation": float(min(ratios))}
-        if min(ratios) > WORSE_FACTOR:
-            return ("reproduced", vals, f"zeroed rows tear the surface at the selection (> {WORSE_FACTOR}x attenuation's roughness) in every session with motion")
-        return ("not reproduced", vals, "zeroing rows is not clearly rougher than attenuation")
-
-    return per_model(judge, get("rejected_alternatives").table)
+def l7(g, model):
+    return worse_than_attenuation(
+        over_attenuation(g, "zeroed_rows", "roughness_at_selection"), "min_roughness_ratio_zeroed_over_attenuation",
+        f"zeroed rows tear the surface at the selection (> {WORSE_FACTOR}x attenuation's roughness) in every session with motion",
+        "zeroing rows is not clearly rougher than attenuation")
 
 
 @claim("L8", "Orthogonal locking 'does not sufficiently constrain the movement of particular vertices' (Section 3)",
-       figure="rejected_alternatives", notebook=NB1,
+       figure="rejected_alternatives", notebook=NB1, table="table",
        criterion=f"selected motion with locking > {WORSE_FACTOR}x attenuation's where a base pose exists",
        expected={"embedded": "reproduced", "real": "reproduced"})
-def l8(get):
-    def judge(g, model):
-        ratios = over_attenuation(g[g.applicable], "orthogonal_lock", "selected_motion")
-        if not ratios:
-            return ("not applicable", {}, "no session with a base pose to lock moves the selection")
-        vals = {"min_selected_motion_ratio_lock_over_attenuation": float(min(ratios))}
-        if min(ratios) > WORSE_FACTOR:
-            return ("reproduced", vals, f"locked shapes leave the selected vertices moving (> {WORSE_FACTOR}x attenuation's motion)")
-        return ("not reproduced", vals, "orthogonal locking holds the selection about as well as attenuation")
-
-    return per_model(judge, get("rejected_alternatives").table)
+def l8(g, model):
+    ratios = over_attenuation(g[g.applicable], "orthogonal_lock", "selected_motion")
+    if not ratios:
+        return ("not applicable", {}, "no session with a base pose to lock moves the selection")
+    return worse_than_attenuation(
+        ratios, "min_selected_motion_ratio_lock_over_attenuation",
+        f"locked shapes leave the selected vertices moving (> {WORSE_FACTOR}x attenuation's motion)",
+        "orthogonal locking holds the selection about as well as attenuation")
 
 
 @claim("L9", "'fast enough to be performed at interactive speeds' (Section 5)",
-       figure="attenuation_speed", notebook=NB1,
+       figure="attenuation_speed", notebook=NB1, table="table",
        criterion=f"a slider move <= {GOAL_SLIDER_SLOWDOWN:g}x a bare D @ w, and under 1/{1 / INTERACTIVE_FRAME_S:.0f} s",
        expected={"embedded": "reproduced", "real": "reproduced"}, timing=True)
-def l9(get):
-    def judge(g, model):
-        move = g[g.measurement.str.startswith("slider move")]
-        sel = g[g.measurement.str.startswith("new selection")]
-        vals = {"slider_move_over_bare_matvec": float(move.ratio.iloc[0]),
-                "slider_move_ms": float(move.method_us.iloc[0]) / 1e3,
-                "new_selection_speedup_over_direct": float(sel.ratio.iloc[0]),
-                "machine": str(g.machine.iloc[0])}
-        ok = vals["slider_move_over_bare_matvec"] <= GOAL_SLIDER_SLOWDOWN and vals["slider_move_ms"] < INTERACTIVE_FRAME_S * 1e3
-        return ("reproduced" if ok else "partially", vals,
-                f"a slider move costs about one D @ w (<= {GOAL_SLIDER_SLOWDOWN:g}x) and fits a 1/{1 / INTERACTIVE_FRAME_S:.0f} s frame"
-                if ok else f"slower than {GOAL_SLIDER_SLOWDOWN:g}x a bare D @ w")
-
-    return per_model(judge, get("attenuation_speed").table)
+def l9(g, model):
+    move = g[g.measurement.str.startswith("slider move")]
+    sel = g[g.measurement.str.startswith("new selection")]
+    vals = {"slider_move_over_bare_matvec": float(move.ratio.iloc[0]),
+            "slider_move_ms": float(move.method_us.iloc[0]) / 1e3,
+            "new_selection_speedup_over_direct": float(sel.ratio.iloc[0]),
+            "machine": str(g.machine.iloc[0])}
+    ok = vals["slider_move_over_bare_matvec"] <= GOAL_SLIDER_SLOWDOWN and vals["slider_move_ms"] < INTERACTIVE_FRAME_S * 1e3
+    return ("reproduced" if ok else "partially", vals,
+            f"a slider move costs about one D @ w (<= {GOAL_SLIDER_SLOWDOWN:g}x) and fits a 1/{1 / INTERACTIVE_FRAME_S:.0f} s frame"
+            if ok else f"slower than {GOAL_SLIDER_SLOWDOWN:g}x a bare D @ w")
 
 
 @claim("L10", "Whole-face and delta forms are 'identical in power' (Section 3)",
-       figure="fig2_interference", notebook=NB1,
+       figure="fig2_interference", notebook=NB1, table="whole_face",
        criterion=f"round trip delta -> whole-face -> delta exact to 1e{np.log10(ROUND_TRIP_TOLERANCE):.0f}",
        expected={"embedded": "reproduced", "real": "reproduced"})
-def l10(get):
-    def judge(g, model):
-        err = float(g.max_round_trip_error.max())
-        ok = err < ROUND_TRIP_TOLERANCE
-        return ("reproduced" if ok else "not reproduced", {"max_round_trip_error": err},
-                "weights (1 - sum w, w1, w2, ...) give the same face in both forms" if ok else "round trip error")
-
-    return per_model(judge, get("fig2_interference").extra_tables["whole_face"])
+def l10(g, model):
+    err = float(g.max_round_trip_error.max())
+    ok = err < ROUND_TRIP_TOLERANCE
+    return ("reproduced" if ok else "not reproduced", {"max_round_trip_error": err},
+            "weights (1 - sum w, w1, w2, ...) give the same face in both forms" if ok else "round trip error")

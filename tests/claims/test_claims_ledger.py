@@ -105,9 +105,10 @@ def test_k3_and_k7_read_the_exact_rows():
             rows.append(dict(database="synthetic", factor=f, n_poses=n, method=method, p50_ms=p50,
                              differs_from_exhaustive=differs))
     get = lambda name: SimpleNamespace(table=pd.DataFrame(rows))  # noqa: E731
-    _, v3, why3 = pronost.k3(get)["embedded"]
+    measure = {c.id: c.measure for c in pronost.LEDGER}
+    _, v3, why3 = measure["K3"](get)["embedded"]
     assert v3["exact_worst_fraction_differing"] == 0.0 and v3["exact_speedup_vs_exhaustive"] == pytest.approx(50 / 2)
     assert "exact branch-and-bound" in why3
-    _, v7, why7 = pronost.k7(get)["embedded"]
+    _, v7, why7 = measure["K7"](get)["embedded"]
     assert v7["loglog_slope_exact"] == pytest.approx(0.5) and v7["loglog_slope_pruned"] == pytest.approx(0.2)
     assert "exact 0.50" in why7
