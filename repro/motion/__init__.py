@@ -122,6 +122,7 @@ __all__ += [
 
 # Section 3.4.2: the constraints solver (d(t), limb IK, CCD, feet kept planted).
 from repro.motion.adaptation import (  # noqa: E402
+    AdaptOptions,
     Adaptation,
     CCDSolution,
     LimbSolution,
@@ -137,6 +138,7 @@ __all__ += [
     "reach_limb",
     "ccd",
     "adapt",
+    "AdaptOptions",
     "Adaptation",
     "LimbSolution",
     "CCDSolution",

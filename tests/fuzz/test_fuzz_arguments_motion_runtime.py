@@ -177,21 +177,31 @@ def _check_target():
 
 # ------------------------------------------------------------------ the solver
 def _adapt():
-    from repro.motion.adaptation import adapt
+    from repro.motion.adaptation import AdaptOptions, adapt
 
     return adapt, dict(motion=_clip(), effector="right_fist", target=[0.0, 1.4, 0.6], t0=0, tc=5,
-                       kind="smoothstep", release=0.25, chain=None, limits=None, hinge_range_deg=(0.0, 150.0),
-                       max_iter=10, tol=None, max_extension=0.98, feet="pin", foot_blend=0.1, hit_point="joint",
-                       roles=None, contacts=None, root_offsets=None, floor=None, max_foot_error=None, frames=None,
-                       foot_offsets=None)
+                       options=AdaptOptions(max_iter=10, hinge_range_deg=(0.0, 150.0)), roles=None, contacts=None,
+                       root_offsets=None, frames=None, foot_offsets=None)
 
 
 ADAPT_PARAMS = {
-    "motion": "any", "effector": "choice", "target": "array", "t0": "int", "tc": "int", "kind": "choice",
-    "release": "real", "chain": "any", "limits": "mapping", "hinge_range_deg": "array", "max_iter": "int",
-    "tol": "real", "max_extension": "real", "feet": "choice", "foot_blend": "real", "hit_point": "choice",
-    "roles": "mapping", "contacts": "array", "root_offsets": "array", "floor": "real", "max_foot_error": "real",
-    "frames": "index_array", "foot_offsets": "array",
+    "motion": "any", "effector": "choice", "target": "array", "t0": "int", "tc": "int", "options": "any",
+    "roles": "mapping", "contacts": "array", "root_offsets": "array", "frames": "index_array", "foot_offsets": "array",
+}
+
+
+def _adapt_options():
+    from repro.motion.adaptation import AdaptOptions
+
+    return AdaptOptions, dict(kind="smoothstep", release=0.25, chain=None, limits=None, hinge_range_deg=(0.0, 150.0),
+                              max_iter=10, tol=None, max_extension=0.98, feet="pin", foot_blend=0.1,
+                              hit_point="joint", floor=None, max_foot_error=None)
+
+
+ADAPT_OPTIONS_PARAMS = {
+    "kind": "choice", "release": "real", "chain": "any", "limits": "mapping", "hinge_range_deg": "array",
+    "max_iter": "int", "tol": "real", "max_extension": "real", "feet": "choice", "foot_blend": "real",
+    "hit_point": "choice", "floor": "real", "max_foot_error": "real",
 }
 
 
@@ -478,6 +488,7 @@ CASES = [
     Case("check_target", _check_target, {"target": "array"}),
     # the solver
     Case("adapt", _adapt, ADAPT_PARAMS),
+    Case("AdaptOptions", _adapt_options, ADAPT_OPTIONS_PARAMS),
     Case("ccd", _ccd, {"motion": "any", "frames": "index_array", "effector": "choice", "targets": "array",
                        "rotations": "array", "chain": "any", "limits": "mapping", "max_iter": "int",
                        "tol": "real", "finish_with_limb": "bool", "max_extension": "real", "hit_point": "choice"}),

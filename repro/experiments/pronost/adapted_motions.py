@@ -124,7 +124,7 @@ def _feet_databases() -> dict:
 
 def feet_of_played_strikes(db, name: str, clips=None, *, progress: bool = False) -> pd.DataFrame:
     """One row per clip of ``db`` (or of ``clips``): its feet once played (module docstring, the feet table)."""
-    from repro.motion.adaptation import adapt
+    from repro.motion.adaptation import AdaptOptions, adapt
     from repro.motion.database.annotation import hit_point_trajectory
     from repro.motion.body.feet import foot_contacts, max_foot_slide, min_toe_height
     from repro.motion.retargeting.morphology import retarget
@@ -141,8 +141,8 @@ def feet_of_played_strikes(db, name: str, clips=None, *, progress: bool = False)
         mc = retarget(m, ch, fix_feet=True)
         tc, where = int(db.hit_frame[i]), str(db.hit_wheres[i])
         X = hit_point_trajectory(mc, str(db.hit_joints[i]), where)[tc] + np.asarray(FEET_TARGET_OFFSET)
-        a = adapt(mc, clip_effector(db, i, ch), X, 0, tc, hit_point=where, contacts=contacts,
-                  feet="plant", floor=0.0)
+        a = adapt(mc, clip_effector(db, i, ch), X, 0, tc, options=AdaptOptions(hit_point=where, feet="plant", floor=0.0),
+                  contacts=contacts)
         g = a.motion.global_positions()
         rows.append({
             "database": name, "clip": str(db.names[i]), "semantics": str(db.semantics[i]),

@@ -191,7 +191,7 @@ def _clip_indices(name: str, db, quick: bool) -> list[int]:
 
 def _methods(motion, ch, i, db, c):
     """Yield (method, motion, extra) for one clip on one character."""
-    from repro.motion.adaptation import adapt
+    from repro.motion.adaptation import AdaptOptions, adapt
     from repro.motion.body.pose_frames import from_root_frame
     from repro.motion.retargeting.morphology import decode, encode, naive_retarget
     from repro.motion.runtime.strike import clip_effector
@@ -204,7 +204,8 @@ def _methods(motion, ch, i, db, c):
     yield "mi_feet", b, {}
     th, o = first_root_frame(b, ch)
     X = from_root_frame(c, th, o)
-    ad = adapt(b, clip_effector(db, i, ch), X, 0, int(db.hit_frame[i]), hit_point=str(db.hit_wheres[i]))
+    ad = adapt(b, clip_effector(db, i, ch), X, 0, int(db.hit_frame[i]),
+               options=AdaptOptions(hit_point=str(db.hit_wheres[i]), feet="pin", floor=None))
     yield "mi_feet_adapt", ad.motion, {"reached": ad.reached}
 
 

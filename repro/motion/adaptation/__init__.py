@@ -72,6 +72,7 @@ from repro.motion.adaptation.ccd_solver import (
 )
 from repro.motion.adaptation.limb import LimbSolution, reach_limb
 from repro.motion.adaptation.offset import offset_curve
+from repro.motion.adaptation.options import AdaptOptions
 from repro.motion.adaptation.rig import EFFECTOR_STEMS
 from repro.motion.adaptation.timing import time_adaptation
 
@@ -83,6 +84,7 @@ __all__ = [
     "reach_limb",
     "ccd",
     "adapt",
+    "AdaptOptions",
     "default_chain",
     "LimbSolution",
     "CCDSolution",

@@ -39,24 +39,20 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from repro.checks import as_choice, as_int, as_real, as_real_array
+from repro.checks import as_int, as_real_array
 from repro.errors import MotionError
-from repro.motion.adaptation.ccd_solver import (
-    DEFAULT_HINGE_RANGE_DEG,
-    ccd_spec,
-    ccd_sweeps,
-)
+from repro.motion.adaptation.ccd_solver import ccd_spec, ccd_sweeps
 from repro.motion.adaptation.limb import limb_dmax, solve_limb
-from repro.motion.adaptation.offset import EASINGS, offset_curve
-from repro.motion.adaptation.rig import Chain, Rig, check_extension, check_frames, default_tol, rig_of, vec3
+from repro.motion.adaptation.offset import offset_curve
+from repro.motion.adaptation.options import AdaptOptions
+from repro.motion.adaptation.rig import Chain, Rig, check_frames, default_tol, rig_of, vec3
 from repro.motion.core.kinematics import fk_arrays
 from repro.motion.core.quaternion import quat_rotate as qrot
-from repro.motion.core.motion import MAX_COORDINATE, Motion
+from repro.motion.core.motion import Motion
 
 __all__ = ["Adaptation", "adapt"]
 
@@ -194,22 +190,10 @@ def adapt(
     t0: int,
     tc: int,
     *,
-    kind: str = "smoothstep",
-    release: float | None = 0.25,
-    chain: Sequence[str] | None = None,
-    limits: Mapping[str, float] | None = None,
-    hinge_range_deg: tuple[float, float] = DEFAULT_HINGE_RANGE_DEG,
-    max_iter: int = 50,
-    tol: float | None = None,
-    max_extension: float = 0.98,
-    feet: str | None = "pin",
-    foot_blend: float = 0.1,
-    hit_point: str = "joint",
+    options: AdaptOptions | None = None,
     roles=None,
     contacts=None,
     root_offsets=None,
-    floor: float | None = None,
-    max_foot_error: float | None = None,
     frames=None,
     foot_offsets=None,
 ) -> Adaptation | None:
@@ -218,43 +202,38 @@ def adapt(
     Contract: frames ``<= t0`` never change (but ``tc`` when ``t0 == tc``); only local
     rotations change (and the root by ``root_offsets``), so bone lengths are kept; every
     frame is solved on its own.  ``effector`` is a role (``right_fist``, ``left_foot``, ...);
-    ``target``, ``tol`` (default 1e-4 of the limb length) and ``root_offsets`` (F, 3) are in
-    the motion's units; ``release`` and ``foot_blend`` in seconds; ``kind`` the easing of
-    ``d(t)``; ``chain`` / ``limits`` (degrees) / ``hinge_range_deg`` / ``max_iter`` are
-    :func:`ccd`'s; ``feet`` one of ``"pin"``, ``"plant"``, ``"track"``, None; ``contacts``
-    (F, 2) bool planted frames (default: detected on ``motion``); ``floor`` a height the
-    pinned toes stay above; ``frames`` solve the hit on those frames only (a streamed solve);
-    ``max_foot_error`` a trial's bound: None is returned as soon as the support foot is
-    known to miss it; ``foot_offsets`` (F, 2, 3) moves the left / right ankle goals (a
-    step; motion units).  Returns an :class:`Adaptation` (unreachable: best effort,
-    ``reached=False``).  Raises :class:`repro.errors.MotionError` for a NaN / non-3-vector
-    target, an unknown effector, ``t0 > tc``, frames out of range or bad options.
+    ``target`` and ``root_offsets`` (F, 3) are in the motion's units; ``options`` an
+    :class:`~repro.motion.adaptation.options.AdaptOptions` (default: the library's);
+    ``contacts`` (F, 2) bool planted frames (default: detected on ``motion``); ``frames``
+    solve the hit on those frames only (a streamed solve); ``foot_offsets`` (F, 2, 3) moves
+    the left / right ankle goals (a step; motion units).  Returns an :class:`Adaptation`
+    (unreachable: best effort, ``reached=False``), or None when ``options.max_foot_error``
+    is set and the support foot is known to miss it.  Raises
+    :class:`repro.errors.MotionError` for a NaN / non-3-vector target, an unknown effector,
+    ``t0 > tc``, frames out of range or bad options.
     """
     t_total = time.perf_counter()
+    o = AdaptOptions() if options is None else options
+    if not isinstance(o, AdaptOptions):
+        raise MotionError(f"options must be an AdaptOptions or None, got {type(o).__name__}")
+    kind, feet, foot_blend, floor, max_iter = o.kind, o.feet, o.foot_blend, o.floor, o.max_iter
+    max_foot_error = o.max_foot_error
     rig = rig_of(motion, roles)
-    ch = rig.chain(effector, hit_point)
+    ch = rig.chain(effector, o.hit_point)
+    hit_point = o.hit_point
     F = motion.n_frames
     X = vec3("target", target)
     t0 = as_int(t0, "t0", 0, F - 1, error=MotionError)
     tc = as_int(tc, "tc", 0, F - 1, error=MotionError)
     if t0 > tc:
         raise MotionError(f"t0={t0} is after the contact frame tc={tc}")
-    feet = as_choice(feet, "feet", ("pin", "plant", "track", None), error=MotionError)
-    kind = as_choice(kind, "kind", EASINGS, error=MotionError)
     contacts = rig.contacts if contacts is None else _check_contacts(contacts, F)
     if foot_offsets is not None:
         foot_offsets = _check_offsets(foot_offsets, F, (F, 2, 3), "foot_offsets")
-    if floor is not None:
-        floor = as_real(floor, "floor (a finite height or None)", error=MotionError, lo=-MAX_COORDINATE,
-                        hi=MAX_COORDINATE)
-    n_release = _release_frames(release, motion.frame_time)
-    foot_blend = as_real(foot_blend, "foot_blend (seconds)", error=MotionError, lo=0.0)
-    tol = default_tol(rig, ch) if tol is None else as_real(tol, "tol", error=MotionError, lo=0.0, lo_open=True)
-    if max_foot_error is not None:
-        max_foot_error = as_real(max_foot_error, "max_foot_error", error=MotionError, lo=0.0)
-    ext = check_extension(max_extension)
-    spec = ccd_spec(rig, ch, chain, limits, hinge_range_deg)
-    max_iter = as_int(max_iter, "max_iter", 0, 10**6, error=MotionError)
+    n_release = _release_frames(o.release, motion.frame_time)
+    tol = default_tol(rig, ch) if o.tol is None else o.tol
+    ext = o.max_extension
+    spec = ccd_spec(rig, ch, o.chain, o.limits, o.hinge_range_deg)
 
     gq, gp = rig.globals
     p = gp[:, ch.hit] + qrot(gq[:, ch.hit], ch.hit_offset)
@@ -379,10 +358,9 @@ def adapt(
 _SIDE_INDEX = {"left": 0, "right": 1}
 
 
-def _release_frames(release, frame_time: float) -> int | None:
+def _release_frames(release: float | None, frame_time: float) -> int | None:
     if release is None:
         return None
-    release = as_real(release, "release (None or seconds)", error=MotionError, lo=0.0)
     # a release longer than any clip is a release that never ends within it: bounded, not overflowed
     return int(round(min(release / frame_time, 2.0**62)))
 

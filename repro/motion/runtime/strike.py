@@ -63,7 +63,7 @@ import numpy as np
 
 from repro.checks import as_bool, as_choice, as_int, as_real, as_real_array, describe
 from repro.errors import MotionError, RetrievalError
-from repro.motion.adaptation import EFFECTOR_STEMS, Adaptation, adapt
+from repro.motion.adaptation import EFFECTOR_STEMS, Adaptation, AdaptOptions, adapt
 from repro.motion.database.annotation import SEMANTICS
 from repro.motion.adaptation.cost import adaptation_cost
 from repro.motion.adaptation.offset import offset_curve
@@ -369,14 +369,14 @@ def _step(blended, effector, X, tc, ad, contacts, ch, opts, kind, release, max_r
         root = 0.5 * w[:, None] * step
         c2 = np.array(contacts)
         c2[1:t_land, side] = False
-        o = dict(opts, contacts=c2)
-        trial = adapt(blended, effector, X, 0, tc, root_offsets=root, foot_offsets=feet_off, max_iter=ROOT_MAX_ITER, **o)
+        o = dict(options=opts, contacts=c2)
+        trial = adapt(blended, effector, X, 0, tc, root_offsets=root, foot_offsets=feet_off, **o)
         trials = [trial]
         if not trial.reached:
             for frac in ROOT_SHIFT_TRIALS:
                 extra = _root_shift(trial, frac, max_root_shift * leg, kind, n_rel)
                 trials.append(adapt(blended, effector, X, 0, tc, root_offsets=root + extra, foot_offsets=feet_off,
-                                    max_iter=ROOT_MAX_ITER, **o))
+                                    **o))
         for t in trials:
             if t.foot_error <= foot_tol and t.residual < (ad.residual if best is None else best[0].residual):
                 best = (t, ("left", "right")[side], c2)
@@ -447,7 +447,7 @@ def strike(
         ``time.perf_counter()`` at the order (default: now).
     early_stop : bool, default True
         A root-shift trial whose support foot fails is stopped before its hit solve when
-        the feet do not depend on it (a punch; ``adapt(max_foot_error=...)``).  False
+        the feet do not depend on it (a punch; ``AdaptOptions.max_foot_error``).  False
         solves every trial in full: the slow path, with the same results (kept for
         :func:`repro.bench.adaptation.bench_order_latency` and the tests).
     stream : bool, default True
@@ -520,7 +520,8 @@ def strike(
     # ---- 5. the constraints: the level decided on the contact frame, the next frame, the rest streamed
     t_solver = time.perf_counter()
     hit_point = str(db.hit_wheres[res.clip])
-    opts = dict(hit_point=hit_point, contacts=contacts, feet=feet, floor=floor, kind=kind, release=release)
+    base = AdaptOptions(hit_point=hit_point, feet=feet, floor=floor, kind=kind, release=release)
+    opts = dict(contacts=contacts)
     # every frame is solved on its own (the same pose alone or with the clip): the level is
     # decided on tc, the first frame after now is final, and the rest follows it
     first = sorted({min(1, blended.n_frames - 1), tc})
@@ -535,16 +536,18 @@ def strike(
     if stream and not part and f1 > 0:
         # a kick solved whole: up to the kicking foot's lift-off t_start, d(t) = 0 and the root
         # shift is 0 at every level, so frame t0 + 1 (feet only) is final before the level is decided
-        a1 = adapt(blended, effector, X, 0, tc, max_iter=0, frames=[f1], **opts)
+        a1 = adapt(blended, effector, X, 0, tc, options=dataclasses.replace(base, max_iter=0), frames=[f1], **opts)
         if f1 <= a1.t_start:
             early = (a1.motion.rotations[f1], a1.motion.positions[f1], time.perf_counter())
-    ad = adapt(blended, effector, X, 0, tc, max_iter=max_iter, frames=first if part else None, **opts)
+    ad = adapt(blended, effector, X, 0, tc, options=dataclasses.replace(base, max_iter=max_iter),
+               frames=first if part else None, **opts)
     tried = ["limb"] if reach == "limb" else ["limb", "spine"]
     off, final = None, (None if part else ad)
     if not ad.reached and whole_body:
         if part and not ad.feet_independent:
             part = False
-            ad = final = adapt(blended, effector, X, 0, tc, max_iter=max_iter, **opts)
+            ad = final = adapt(blended, effector, X, 0, tc, options=dataclasses.replace(base, max_iter=max_iter),
+                               **opts)
         leg = ch.leg_length
         n_rel = None if release is None else int(round(float(release) / blended.frame_time))
         foot_tol = 1e-3 * leg
@@ -553,8 +556,10 @@ def strike(
             shift = _root_shift(ad, frac, max_root_shift * leg, kind, n_rel)
             foot_max = max(foot_tol, ad.foot_error)
             # max_foot_error: a trial whose support foot fails stops before its hit solve when it can (None)
-            ad2 = adapt(blended, effector, X, 0, tc, root_offsets=shift, max_iter=ROOT_MAX_ITER,
-                        max_foot_error=foot_max if early_stop else None, frames=first if part else None, **opts)
+            ad2 = adapt(blended, effector, X, 0, tc, root_offsets=shift,
+                        options=dataclasses.replace(base, max_iter=ROOT_MAX_ITER,
+                                                    max_foot_error=foot_max if early_stop else None),
+                        frames=first if part else None, **opts)
             if ad2 is not None and ad2.foot_error <= foot_max and ad2.residual < ad.residual:
                 ad, off, max_iter = ad2, shift, ROOT_MAX_ITER
                 final = None if part else ad2
@@ -562,17 +567,20 @@ def strike(
     stepped = None
     if not ad.reached and reach == "step" and limb == "arm":
         if final is None:  # the whole clip at the level reached so far: the step starts from it
-            final = adapt(blended, effector, X, 0, tc, root_offsets=off, max_iter=max_iter, **opts)
+            final = adapt(blended, effector, X, 0, tc, root_offsets=off,
+                          options=dataclasses.replace(base, max_iter=max_iter), **opts)
             ad = final
         tried.append("step")
-        best = _step(blended, effector, X, tc, ad, contacts, ch, opts, kind, release, max_root_shift)
+        best = _step(blended, effector, X, tc, ad, contacts, ch, dataclasses.replace(base, max_iter=ROOT_MAX_ITER),
+                     kind, release, max_root_shift)
         if best is not None:
             ad = final = best[0]
             stepped, contacts = best[1], best[2]
             opts["contacts"] = contacts
     t_level = t_first = time.perf_counter()
     if final is None:  # the rest of the clip, at the level decided
-        final = adapt(blended, effector, X, 0, tc, root_offsets=off, max_iter=max_iter, **opts)
+        final = adapt(blended, effector, X, 0, tc, root_offsets=off,
+                      options=dataclasses.replace(base, max_iter=max_iter), **opts)
     ad = final
     t_end = time.perf_counter()
     # the early frame counts only as the played one (checked: the same numbers)

@@ -33,6 +33,7 @@ from repro.errors import MotionError
 from repro.motion import CMU_UNIT_M, Motion, read_bvh
 from repro.motion.adaptation import (
     DEFAULT_LIMITS_DEG,
+    AdaptOptions,
     Adaptation,
     adapt,
     ccd,
@@ -47,6 +48,15 @@ from tests.motion_fixtures import MIXAMO, MIXAMO_NAMES
 PARENTS = np.array([-1 if p is None else MIXAMO_NAMES.index(p) for _, p, _ in MIXAMO])
 OFFSETS = np.array([o for _, _, o in MIXAMO], dtype=float)
 IDX = {n: i for i, n in enumerate(MIXAMO_NAMES)}
+
+
+OPTION_NAMES = {f.name for f in dataclasses.fields(AdaptOptions)}
+
+
+def _adapt(motion, effector, target, t0, tc, **kw):
+    """:func:`adapt` with its options given as keywords among the per-call data (for the refusal tables)."""
+    options = AdaptOptions(**{k: kw.pop(k) for k in list(kw) if k in OPTION_NAMES})
+    return adapt(motion, effector, target, t0, tc, options=options, **kw)
 
 
 def _fixture_motion(n_frames: int = 12, seed: int = 0) -> Motion:
@@ -332,7 +342,7 @@ def test_adapt_bad_inputs_raise_motion_error(kw, match):
     args = {"effector": "right_fist", "target": [-0.3, 1.4, 0.4], "t0": 2, "tc": 6}
     args.update(kw)
     with pytest.raises(MotionError, match=match):
-        adapt(m, args.pop("effector"), args.pop("target"), args.pop("t0"), args.pop("tc"), **args)
+        _adapt(m, args.pop("effector"), args.pop("target"), args.pop("t0"), args.pop("tc"), **args)
 
 
 def test_reach_limb_bad_inputs():
@@ -355,7 +365,7 @@ def test_adapt_on_fixture_is_continuous_and_exact():
     m = _fixture_motion(n_frames=12)
     gp = m.global_positions()
     hit = gp[8, IDX["RightHand"]]
-    a = adapt(m, "right_fist", hit + [0.0, 0.05, 0.05], 2, 8, release=None, feet=None)
+    a = adapt(m, "right_fist", hit + [0.0, 0.05, 0.05], 2, 8, options=AdaptOptions(release=None, feet=None, floor=None))
     assert isinstance(a, Adaptation)
     assert a.reached and a.residual < 1e-9
     np.testing.assert_array_equal(a.motion.rotations[:3], m.rotations[:3])
@@ -366,10 +376,10 @@ def test_adapt_on_fixture_is_continuous_and_exact():
     summary = a.summary()
     assert summary["reached"] and summary["bone_length_error"] < 1e-12
     # the paper's plain limb-first rule (no reach margin) reaches as well
-    b = adapt(m, "right_fist", hit + [0.0, 0.05, 0.05], 2, 8, max_extension=1.0, feet=None)
+    b = adapt(m, "right_fist", hit + [0.0, 0.05, 0.05], 2, 8, options=AdaptOptions(max_extension=1.0, feet=None, floor=None))
     assert b.reached and np.all(b.solver[3:9] == "limb")
     # t0 == tc: the contact frame itself jumps to the target, earlier frames untouched
-    c = adapt(m, "right_fist", hit + [0.0, 0.05, 0.0], 8, 8, feet=None)
+    c = adapt(m, "right_fist", hit + [0.0, 0.05, 0.0], 8, 8, options=AdaptOptions(feet=None, floor=None))
     assert c.reached and not c.changed[:8].any() and c.changed[8]
 
 
@@ -427,7 +437,7 @@ def test_adapt_real_punch_reaches_moved_target(punch, direction):
     move = 0.1 * move / np.linalg.norm(move)
     target = hit + move
     t0 = PUNCH_TC - 40
-    a = adapt(punch, "right_fist", target, t0, PUNCH_TC)
+    a = adapt(punch, "right_fist", target, t0, PUNCH_TC, options=AdaptOptions(feet="pin", floor=None))
     assert a.reached and a.residual < 0.01
     np.testing.assert_allclose(a.offsets[PUNCH_TC], move, atol=1e-12)
     assert np.all(a.offsets[: t0 + 1] == 0)
@@ -450,7 +460,7 @@ def test_adapt_real_kick_reaches_moved_target(kick):
     gp, hit, out = _hit_and_out(kick, KICK_TC, "rtoes", "rfemur")
     target = hit + np.array([0.0, 0.1, 0.0])  # 10 cm higher
     t0 = KICK_TC - 75  # the right foot is still planted on frames 309-317
-    a = adapt(kick, "right_foot", target, t0, KICK_TC)
+    a = adapt(kick, "right_foot", target, t0, KICK_TC, options=AdaptOptions(feet="pin", floor=None))
     assert a.reached and a.residual < 0.01
     _check_common(kick, a, t0)
     # the kicking foot was still planted after t0: d(t) starts at lift-off, so the
@@ -466,7 +476,7 @@ def test_adapt_real_kick_forward_ccd_reduces_error(kick):
     gp, hit, out = _hit_and_out(kick, KICK_TC, "rtoes", "rfemur")
     target = hit + 0.1 * out
     limb = reach_limb(kick, KICK_TC, "right_foot", target)
-    a = adapt(kick, "right_foot", target, KICK_TC - 40, KICK_TC)
+    a = adapt(kick, "right_foot", target, KICK_TC - 40, KICK_TC, options=AdaptOptions(feet="pin", floor=None))
     assert limb.residual[0] > 0.04
     assert a.solver[KICK_TC] == "ccd"
     assert a.residual < limb.residual[0] / 2
@@ -481,7 +491,7 @@ def test_adapt_real_unreachable_target_best_effort(punch):
     arm = sum(np.linalg.norm(punch.offsets[punch.joint_index(n)]) for n in ("rradius", "rwrist"))
     reach = arm + np.linalg.norm(hit - wr)  # farthest the fist can be from the shoulder
     target = sh + (reach + 1.0) * out  # 1 m beyond the arm's reach
-    a = adapt(punch, "right_fist", target, PUNCH_TC - 40, PUNCH_TC, max_iter=50)
+    a = adapt(punch, "right_fist", target, PUNCH_TC - 40, PUNCH_TC, options=AdaptOptions(max_iter=50, feet="pin", floor=None))
     assert not a.reached
     limb = reach_limb(punch, PUNCH_TC, "right_fist", target)
     assert limb.residual[0] >= 1.0 - 1e-6
@@ -504,13 +514,14 @@ def test_real_scalar_equals_batch_and_feet_modes(punch, kick):
         assert _quat_angle(one.rotations[0], batch.rotations[i]).max() < 1e-9
     # feet=None: a punch edit leaves the legs alone
     target = gp[PUNCH_TC, punch.joint_index("rhand")] + [0, -0.05, 0]
-    a = adapt(punch, "right_fist", target, PUNCH_TC - 40, PUNCH_TC, feet=None)
+    a = adapt(punch, "right_fist", target, PUNCH_TC - 40, PUNCH_TC, options=AdaptOptions(feet=None, floor=None))
     legs = [punch.joint_index(n) for n in ("lfemur", "ltibia", "lfoot", "rfemur", "rtibia", "rfoot")]
     np.testing.assert_array_equal(a.motion.rotations[:, legs], punch.rotations[:, legs])
     # feet="track" on a kick whose pelvis is turned by CCD: the support ankle follows its
     # original trajectory exactly
     gk, hit, out = _hit_and_out(kick, KICK_TC, "rtoes", "rfemur")
-    b = adapt(kick, "right_foot", hit + 0.1 * out, KICK_TC - 40, KICK_TC, feet="track")
+    b = adapt(kick, "right_foot", hit + 0.1 * out, KICK_TC - 40, KICK_TC,
+              options=AdaptOptions(feet="track", floor=None))
     assert (b.solver == "ccd").any()
     la = kick.joint_index("lfoot")
     np.testing.assert_allclose(b.motion.global_positions()[:, la], gk[:, la], atol=1e-9)
@@ -530,7 +541,7 @@ def test_synthetic_punch_end_site_hit_point():
     assert ann["hit_joint"] == "RightHand" and ann["hit_point"] == "end_site"
     tc = ann["hit_frame"]
     X = np.array(ann["hit_position"]) + [0.0, 0.1, 0.0]
-    a = adapt(m, "right_fist", X, tc - 20, tc, hit_point="end_site")
+    a = adapt(m, "right_fist", X, tc - 20, tc, options=AdaptOptions(hit_point="end_site", feet="pin", floor=None))
     assert a.reached and a.residual < 1e-6
     np.testing.assert_allclose(a.original_hit[tc], ann["hit_position"], atol=1e-9)
     assert max(a.foot_slide.values()) < 1e-6
@@ -578,7 +589,7 @@ def test_adapt_refuses_bad_options_with_motion_errors(kw, match):
     """Strings, None, booleans and non-finite values used to reach float() (bare ValueError / TypeError)."""
     m = _fixture_motion()
     with pytest.raises(MotionError, match=match):
-        adapt(m, "right_wrist", [0.0, 1.0, 0.5], 0, 5, **kw)
+        _adapt(m, "right_wrist", [0.0, 1.0, 0.5], 0, 5, **kw)
 
 
 def test_the_solvers_refuse_bad_tolerances_rotations_and_repeats():
@@ -634,7 +645,7 @@ def test_adapt_refuses_what_the_argument_fuzzer_found(kw, match):
     args = dict(motion=m, effector="right_wrist", target=[0.0, 1.0, 0.5], t0=0, tc=5)
     args.update(kw)
     with pytest.raises(MotionError, match=match):
-        adapt(**args)
+        _adapt(**args)
 
 
 def test_solvers_refuse_far_targets_and_huge_frame_ranges():

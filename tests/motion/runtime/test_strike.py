@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from repro.errors import MotionError, RetrievalError
-from repro.motion.adaptation import adapt
+from repro.motion.adaptation import AdaptOptions, adapt
 from repro.motion.adaptation.cost import COST_KEYS, adaptation_cost
 from repro.motion.body.feet import foot_contacts, max_foot_slide, min_toe_height
 from repro.motion.runtime.strike import (
@@ -125,7 +125,8 @@ def test_contacts_are_detected_once_on_the_retrieved_clip_and_carried_through(se
     assert s.adaptation.contacts is s.contacts
     # adapt uses the contacts it is given, not its own detection
     none = np.zeros_like(s.contacts)
-    a = adapt(s.original, s.effector, s.target, 0, s.tc, contacts=none, hit_point=str(db.hit_wheres[r.clip]))
+    a = adapt(s.original, s.effector, s.target, 0, s.tc, contacts=none,
+              options=AdaptOptions(hit_point=str(db.hit_wheres[r.clip]), feet="pin", floor=None))
     assert not a.foot_pinned.any()
     with pytest.raises(MotionError, match="contacts"):
         adapt(s.original, s.effector, s.target, 0, s.tc, contacts=none[:-1])
@@ -147,11 +148,13 @@ def test_feet_stay_on_the_floor_and_do_not_slide_on_the_synthetic_database(setup
         tc = int(db.hit_frame[i])
         X = hit_point_trajectory(mc, str(db.hit_joints[i]), str(db.hit_wheres[i]))[tc] + [0.0, 0.0, 0.05]
         eff = clip_effector(db, i, ch)
-        a = adapt(mc, eff, X, 0, tc, hit_point=str(db.hit_wheres[i]), contacts=c, feet="plant", floor=0.0)
+        a = adapt(mc, eff, X, 0, tc, contacts=c,
+                  options=AdaptOptions(hit_point=str(db.hit_wheres[i]), feet="plant", floor=0.0))
         worst_toe = min(worst_toe, min_toe_height(a.motion, c, skeleton=ch))
         worst_slide = max(worst_slide, max_foot_slide(a.motion, c, skeleton=ch))
         if i < 12:
-            old = adapt(mc, eff, X, 0, tc, hit_point=str(db.hit_wheres[i]), contacts=c, feet="pin")
+            old = adapt(mc, eff, X, 0, tc, contacts=c,
+                        options=AdaptOptions(hit_point=str(db.hit_wheres[i]), feet="pin", floor=None))
             old_toe = min(old_toe, min_toe_height(old.motion, c, skeleton=ch))
     assert worst_toe >= -0.005 and worst_slide < 0.01
     assert old_toe < -0.005  # without the floor constraint the toes dip through the floor
@@ -267,9 +270,10 @@ def test_a_streamed_frame_is_the_frame_of_the_whole_clip_solve(setup):
 
     for c, sem in (([0.3, 1.5, 1.0], "punch"), ([0.0, 1.0, 1.1], "kick")):
         s = run(setup, c, sem)
-        opts = {"hit_point": str(setup[0].hit_wheres[s.retrieval.clip]), "contacts": s.contacts, "feet": "plant",
-                "floor": 0.0, "root_offsets": s.adaptation.root_offsets, "max_iter": 20 if s.level == "root" else 50}
-        part = adapt_fn(s.original, s.effector, s.target, 0, s.tc, frames=[1, s.tc], **opts)
+        options = AdaptOptions(hit_point=str(setup[0].hit_wheres[s.retrieval.clip]), feet="plant", floor=0.0,
+                               max_iter=20 if s.level == "root" else 50)
+        part = adapt_fn(s.original, s.effector, s.target, 0, s.tc, frames=[1, s.tc], options=options,
+                        contacts=s.contacts, root_offsets=s.adaptation.root_offsets)
         for f in (1, s.tc):
             np.testing.assert_array_equal(part.motion.rotations[f], s.motion.rotations[f])
         assert part.residual == s.hit_error
@@ -288,9 +292,9 @@ def test_a_planted_kick_plays_its_first_frame_before_the_level_is_decided(setup)
         np.testing.assert_array_equal(s.motion.positions, slow.motion.positions)
         assert s.summary(timings=False) == slow.summary(timings=False)
         assert s.adaptation.t_start >= 1
-        opts = {"hit_point": str(setup[0].hit_wheres[s.retrieval.clip]), "contacts": s.contacts, "feet": "plant",
-                "floor": 0.0}
-        one = adapt_fn(s.original, s.effector, s.target, 0, s.tc, max_iter=0, frames=[1], **opts)
+        options = AdaptOptions(hit_point=str(setup[0].hit_wheres[s.retrieval.clip]), feet="plant", floor=0.0,
+                               max_iter=0)
+        one = adapt_fn(s.original, s.effector, s.target, 0, s.tc, frames=[1], options=options, contacts=s.contacts)
         np.testing.assert_array_equal(one.motion.rotations[1], s.motion.rotations[1])
         np.testing.assert_array_equal(one.motion.positions[1], s.motion.positions[1])
         t = s.timings
