@@ -9,12 +9,18 @@ printed as a ratio to ours, never pass/fail.  The goals below are this reproduct
 from __future__ import annotations
 
 import sys
+import time
+from collections.abc import Sequence
 
 import numpy as np
 
 from repro.bench import machine
 from repro.bench.index_build import FLOAT32_FROM
+from repro.checks import as_int
+from repro.errors import RetrievalError
+from repro.motion.database.clips import MotionDatabase
 from repro.motion.runtime.paper import PAPER_SEARCH_S
+from repro.motion.search.retrieval import MAX_QUERIES, METHODS, MotionRetriever, make_queries
 
 __all__ = [
     "GOAL_BASE_P50_MS",
@@ -25,6 +31,7 @@ __all__ = [
     "check_bench_arguments",
     "format_retrieval",
     "retrieval_summary",
+    "time_search",
 ]
 
 #: the pruned search's median at the base size (a prepared query), milliseconds
@@ -55,6 +62,8 @@ INDEX_OVERHEAD: float = 2.5
 MAX_FACTOR: int = 10**9
 #: the base databases :func:`bench_retrieval` knows
 DATABASES: tuple[str, ...] = ("synthetic", "cmu")
+#: most repeats of each timed search in :func:`time_search` (the figures use 3)
+MAX_REPEATS: int = 1000
 
 
 def check_bench_arguments(databases, factors, n_queries, *, bases=None):
@@ -73,9 +82,7 @@ def check_bench_arguments(databases, factors, n_queries, *, bases=None):
         An unknown database, a factor that is not an int in 1..:data:`MAX_FACTOR` or asks for more
         memory than the budget, ``n_queries`` not an int in 1..:data:`repro.motion.search.retrieval.MAX_QUERIES`.
     """
-    from repro.checks import as_int, check_alloc
-    from repro.errors import RetrievalError
-    from repro.motion.search.retrieval import MAX_QUERIES
+    from repro.checks import check_alloc
 
     if databases is not None:
         databases = [databases] if isinstance(databases, str) else databases
@@ -113,6 +120,105 @@ def check_bench_arguments(databases, factors, n_queries, *, bases=None):
     return databases, factors, n_queries
 
 
+def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retriever: MotionRetriever | None = None,
+                methods: Sequence[str] = ("pruned", "exact", "exhaustive", "kdtree"), repeats: int = 3, noise: float = 0.05,
+                **retriever_kw) -> dict:
+    """Latency of the three searches on random queries (no assertion; for the figures).
+
+    Times, per query, the search proper given the prepared query (Eq. 1, cluster
+    selection, pruning, scoring, alignment) for each method, and separately
+    :meth:`MotionRetriever.prepare` (retargeting the current pose to the actor), which is
+    the same for every method.  Every method sees the same queries (:func:`make_queries`
+    with ``noise``), after a warm-up on the first 20.  Each query (and its preparation) is run
+    ``repeats`` times and its fastest time kept (the machine is shared: this removes most of the
+    scheduler noise, not the cache effects).
+
+    Returns
+    -------
+    dict
+        ``n_clips``, ``n_poses``, ``k``, ``precompute_s`` (building the retriever),
+        ``prepare_ms`` (p50, p99), per method ``{method: {"p50_ms", "p99_ms",
+        "mean_ms"}}`` under ``"latency"``, and ``"agreement"``: for ``pruned`` and
+        ``kdtree``, the fraction of queries whose selection (clip, start frame) differs
+        from the exhaustive optimum and the mean / max relative excess of ``d``; plus the
+        fallback counts of the pruned search.  ``"exact"`` (the branch and bound,
+        :meth:`MotionRetriever.search_exact`) should differ in 0 queries (``n_differs``).
+
+    Raises
+    ------
+    repro.errors.RetrievalError
+        ``n_queries`` not an int in 1..:data:`repro.motion.search.retrieval.MAX_QUERIES`, ``repeats`` not an int >= 1, an unknown or no method, a
+        ``retriever`` of another database, and the errors of :func:`make_queries`.
+    """
+    if not isinstance(db, MotionDatabase):
+        raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
+    n_queries = as_int(n_queries, "n_queries", 1, MAX_QUERIES, error=RetrievalError)
+    repeats = as_int(repeats, "repeats", 1, MAX_REPEATS, error=RetrievalError)
+    if isinstance(methods, str):
+        methods = (methods,)
+    try:
+        methods = tuple(methods)
+    except TypeError:
+        raise RetrievalError(f"methods must be a sequence of {list(METHODS)}, got {methods!r}") from None
+    bad = [m for m in methods if not isinstance(m, str) or m not in METHODS]
+    if bad or not methods:
+        raise RetrievalError(f"methods must be a non-empty sequence of {list(METHODS)}, got {list(methods)}")
+    if retriever is not None and (not isinstance(retriever, MotionRetriever) or retriever.db is not db):
+        raise RetrievalError("retriever must be a MotionRetriever built on this database")
+    t0 = time.perf_counter()
+    r = retriever if retriever is not None else MotionRetriever(db, **retriever_kw)
+    precompute = time.perf_counter() - t0
+    queries = make_queries(db, n_queries, seed, noise=noise)
+    prep_t, prepared = [], []
+    for c, pose, ch, sem in queries:
+        best_t = np.inf
+        for _ in range(repeats):  # fastest of ``repeats``, as the searches (nothing is cached per pose)
+            t = time.perf_counter()
+            qq = r.prepare(pose, ch)
+            best_t = min(best_t, time.perf_counter() - t)
+        prep_t.append(best_t)
+        prepared.append((c, qq, sem))
+    fns = {"pruned": r.search, "exact": r.search_exact, "exhaustive": r.search_exhaustive, "kdtree": r.search_kdtree}
+    lat, results = {}, {}
+    for mth in methods:
+        fn = fns[mth]
+        for c, qq, sem in prepared[: min(20, len(prepared))]:  # warm-up (and the lazy kd-tree build)
+            fn(c, qq, None, sem)
+        ts, res = [], []
+        for c, qq, sem in prepared:
+            best = np.inf
+            for _ in range(repeats):
+                t = time.perf_counter()
+                out = fn(c, qq, None, sem)
+                best = min(best, time.perf_counter() - t)
+            res.append(out)
+            ts.append(best)
+        ts = np.array(ts) * 1e3
+        lat[mth] = {"p50_ms": float(np.percentile(ts, 50)), "p99_ms": float(np.percentile(ts, 99)),
+                    "mean_ms": float(ts.mean())}
+        results[mth] = res
+    agreement = {}
+    if "exhaustive" in results:
+        ex = results["exhaustive"]
+        for mth in results:
+            if mth == "exhaustive":
+                continue
+            diff = [(a.clip, a.start_frame) != (b.clip, b.start_frame) for a, b in zip(results[mth], ex)]
+            excess = np.array([(a.d - b.d) / max(b.d, 1e-12) for a, b in zip(results[mth], ex)])
+            agreement[mth] = {"differs": float(np.mean(diff)), "n_differs": int(np.sum(diff)),
+                              "mean_excess": float(excess.mean()),
+                              "max_excess": float(excess.max()), "same_clip": float(np.mean(
+                                  [a.clip == b.clip for a, b in zip(results[mth], ex)]))}
+    fb = {}
+    for res in results.get("pruned", []):
+        fb[res.fallback] = fb.get(res.fallback, 0) + 1
+    pt = np.array(prep_t) * 1e3
+    return {"n_clips": db.n_clips, "n_poses": db.n_poses, "k": r.k, "n_queries": n_queries, "seed": seed,
+            "repeats": repeats, "noise_m": noise, "precompute_s": precompute if retriever is None else None,
+            "prepare_ms": {"p50_ms": float(np.percentile(pt, 50)), "p99_ms": float(np.percentile(pt, 99))},
+            "latency": lat, "agreement": agreement, "pruned_fallbacks": fb}
+
+
 def _default_databases() -> list:
     """The base databases benched when none is named: synthetic, and cmu when its data is present."""
     from repro import data
@@ -129,7 +235,7 @@ def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_quer
     from :data:`~repro.bench.index_build.FLOAT32_FROM` = 1,000x the pose clouds are float32, whose
     rounding, 6e-8 relative, is far below the noise of the variants, and, unless ``n_queries``
     is given, at most :data:`LARGE_N_QUERIES` queries are timed once each),
-    :func:`repro.motion.search.retrieval.time_search` times all four methods on the same
+    :func:`time_search` times all four methods on the same
     ``n_queries`` random queries (default :data:`DEFAULT_N_QUERIES`, 100 with ``quick``; a
     given number is honoured at every size), in one process.  One row per (database, factor,
     method) with the columns ``n_clips, n_poses, method, p50_ms, p99_ms`` (the
@@ -148,10 +254,8 @@ def bench_retrieval(*, quick: bool = False, databases=None, factors=None, n_quer
 
     from repro.motion.database.augment import augment
     from repro.motion.database.sources import default_database
-    from repro.motion.search.retrieval import time_search
 
-    from repro.checks import as_bool, as_int, describe
-    from repro.errors import RetrievalError
+    from repro.checks import as_bool, describe
 
     quick = as_bool(quick, "quick", error=RetrievalError)
     progress = as_bool(progress, "progress", error=RetrievalError)

@@ -97,11 +97,7 @@ from repro.motion.database.annotation import Hit, detect_hits, hit_point_traject
 from repro.motion.database.augment import augment  # noqa: E402
 from repro.motion.database.clips import Clip, MotionDatabase  # noqa: E402
 from repro.motion.database.sources import build_cmu_database, build_database  # noqa: E402
-from repro.motion.search.retrieval import (  # noqa: E402
-    MotionRetriever,
-    RetrievalResult,
-    time_search,
-)
+from repro.motion.search.retrieval import MotionRetriever, RetrievalResult  # noqa: E402
 
 __all__ += [
     "aligned_distance",
@@ -117,7 +113,6 @@ __all__ += [
     "augment",
     "MotionRetriever",
     "RetrievalResult",
-    "time_search",
 ]
 
 # Section 3.4.2: the constraints solver (d(t), limb IK, CCD, feet kept planted).

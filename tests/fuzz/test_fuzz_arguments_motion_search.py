@@ -237,7 +237,7 @@ def _make_queries():
 
 
 def _time_search():
-    from repro.motion.search.retrieval import time_search
+    from repro.bench.retrieval import time_search
 
     return time_search, dict(db=_db(), n_queries=2, seed=0, retriever=_retriever(), methods=("pruned",), repeats=1,
                              noise=0.05)

@@ -85,14 +85,15 @@ def k_sweep(databases=None, k_values=K_VALUES_QUICK, *, n_queries: int = 100, se
             progress: bool = False) -> pd.DataFrame:
     """The pruned search on each base database for several numbers of clusters ``k``.
 
-    For every ``k`` (and the default one), :func:`repro.motion.search.retrieval.time_search` times
+    For every ``k`` (and the default one), :func:`repro.bench.retrieval.time_search` times
     the pruned and the exhaustive search on the same ``n_queries`` queries; then the
     pruned search is run once more per query (untimed) to count the poses it scored and
     the fallbacks it took.
     """
     from repro.motion.search.kmeans import default_k
     from repro.motion.database.sources import default_database
-    from repro.motion.search.retrieval import MotionRetriever, make_queries, time_search
+    from repro.bench.retrieval import time_search
+    from repro.motion.search.retrieval import MotionRetriever, make_queries
 
     rows = []
     for name in databases or base_databases():

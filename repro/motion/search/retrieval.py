@@ -71,7 +71,7 @@ optimum of ``d``); :meth:`MotionRetriever.search_kdtree` queries a
 :class:`scipy.spatial.cKDTree` over a feature vector (the pose cloud in its canonical
 frame and the hit position at the hit frame, both in units of the actor's size,
 weighted by ``w_q`` and ``w_c``) for its nearest neighbours and rescores them with
-``d``.  :func:`time_search` measures the latency of the three.
+``d``.  :func:`repro.bench.retrieval.time_search` measures the latency of the three.
 
 Arguments are checked, never silently cut or coerced (a
 :class:`~repro.errors.RetrievalError` names the value and what is allowed):
@@ -94,21 +94,20 @@ Arguments are checked, never silently cut or coerced (a
 from __future__ import annotations
 
 import dataclasses
-import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from repro.checks import as_choice, as_int, as_real, describe
+from repro.checks import as_int, as_real, describe
 from repro.errors import MotionError, RetrievalError
 from repro.motion.database.annotation import SEMANTICS
 from repro.motion.body.pose_frames import pose_points, root_frames, rotate_y
 from repro.motion.search.distance import AlignedPoseIndex
 from repro.motion.database.clips import MotionDatabase
 from repro.motion.search.index_build import block_order, build_pose_index
-from repro.motion.retargeting.morphology import RetargetPlan, retarget
+from repro.motion.retargeting.morphology import RetargetPlan
 from repro.motion.core.motion import LEVEL_LOOP_MAX_DEPTH as _FK_LEVEL_LOOP_MAX
 from repro.motion.core.motion import Motion, finite_vector3
 from repro.motion.core.ops import resample
@@ -128,9 +127,7 @@ __all__ = [
     "Query",
     "RetrievalResult",
     "make_queries",
-    "scoring_frame_miss",
     "search",
-    "time_search",
 ]
 
 #: Values of :attr:`RetrievalResult.fallback`.
@@ -139,7 +136,7 @@ FALLBACKS: tuple[str, ...] = ("none", "neighbour_clusters", "no_box", "disabled"
 MAX_TARGET_M: float = 1e6
 #: Largest accepted ``w_q`` / ``w_c`` (only their ratio matters).
 MAX_WEIGHT: float = 1e6
-#: The search methods of :func:`time_search` (and ``method=`` of :meth:`MotionRetriever.search`).
+#: The search methods (``method=`` of :meth:`MotionRetriever.search`).
 METHODS: tuple[str, ...] = ("pruned", "exact", "exhaustive", "kdtree")
 #: Frames in which ``d_cr`` is scored (``scoring=`` of the searches): ``"first"`` the paper's (the
 #: clip's hit trajectory in the root frame of its first frame), ``"start"`` the frame in which the
@@ -1121,7 +1118,7 @@ def search(db: MotionDatabase, target, current_pose, character, semantics: str, 
     return r.search(target, current_pose, character, semantics, **kw)
 
 
-# ------------------------------------------------------------------ benchmark
+# ------------------------------------------------------------------ random queries
 def _pose_motion(m: Motion, f: int) -> Motion:
     return dataclasses.replace(m, rotations=m.rotations[f:f + 1], positions=m.positions[f:f + 1])
 
@@ -1130,18 +1127,13 @@ def _check_noise(noise) -> float:
     return as_real(noise, "noise (metres)", lo=0.0, hi=MAX_TARGET_M, error=RetrievalError)
 
 
-#: Most queries :func:`make_queries` / :func:`time_search` make: each holds a pose and a skeleton, and
+#: Most queries :func:`make_queries` makes: each holds a pose and a skeleton, and
 #: ``n = 10**12`` ran until killed (issue 23); the figures use 200, the benchmark up to a few thousand.
 MAX_QUERIES: int = 100_000
-#: Most repeats of each timed search in :func:`time_search` (the figures use 3).
-MAX_REPEATS: int = 1000
-
-#: Largest grid side of :func:`scoring_frame_miss` (the figure's is 9 x 9: a search per point).
-MAX_GRID: int = 100
 
 
 def make_queries(db: MotionDatabase, n: int, seed: int = 0, *, noise: float = 0.05):
-    """Random queries for :func:`time_search`: (target, current pose, character, semantics).
+    """Random queries for :func:`repro.bench.retrieval.time_search`: (target, current pose, character, semantics).
 
     The current pose is a random frame of a random original clip (on its actor, which is
     the character); the target is a random point of a random clip's hit trajectory near
@@ -1174,214 +1166,4 @@ def make_queries(db: MotionDatabase, n: int, seed: int = 0, *, noise: float = 0.
         tf = int(np.clip(h + rng.integers(-3, 4), 0, db.n_frames[j] - 1))
         c = db.trajectory(j)[tf] * (character.size / db.size_a[j]) + rng.normal(0, noise, 3)
         out.append((c, pose, character, str(db.semantics[j])))
-    return out
-
-
-def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retriever: MotionRetriever | None = None,
-                methods: Sequence[str] = ("pruned", "exact", "exhaustive", "kdtree"), repeats: int = 3, noise: float = 0.05,
-                **retriever_kw) -> dict:
-    """Latency of the three searches on random queries (no assertion; for the figures).
-
-    Times, per query, the search proper given the prepared query (Eq. 1, cluster
-    selection, pruning, scoring, alignment) for each method, and separately
-    :meth:`MotionRetriever.prepare` (retargeting the current pose to the actor), which is
-    the same for every method.  Every method sees the same queries (:func:`make_queries`
-    with ``noise``), after a warm-up on the first 20.  Each query (and its preparation) is run
-    ``repeats`` times and its fastest time kept (the machine is shared: this removes most of the
-    scheduler noise, not the cache effects).
-
-    Returns
-    -------
-    dict
-        ``n_clips``, ``n_poses``, ``k``, ``precompute_s`` (building the retriever),
-        ``prepare_ms`` (p50, p99), per method ``{method: {"p50_ms", "p99_ms",
-        "mean_ms"}}`` under ``"latency"``, and ``"agreement"``: for ``pruned`` and
-        ``kdtree``, the fraction of queries whose selection (clip, start frame) differs
-        from the exhaustive optimum and the mean / max relative excess of ``d``; plus the
-        fallback counts of the pruned search.  ``"exact"`` (the branch and bound,
-        :meth:`MotionRetriever.search_exact`) should differ in 0 queries (``n_differs``).
-
-    Raises
-    ------
-    repro.errors.RetrievalError
-        ``n_queries`` not an int in 1..:data:`MAX_QUERIES`, ``repeats`` not an int >= 1, an unknown or no method, a
-        ``retriever`` of another database, and the errors of :func:`make_queries`.
-    """
-    if not isinstance(db, MotionDatabase):
-        raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
-    n_queries = as_int(n_queries, "n_queries", 1, MAX_QUERIES, error=RetrievalError)
-    repeats = as_int(repeats, "repeats", 1, MAX_REPEATS, error=RetrievalError)
-    if isinstance(methods, str):
-        methods = (methods,)
-    try:
-        methods = tuple(methods)
-    except TypeError:
-        raise RetrievalError(f"methods must be a sequence of {list(METHODS)}, got {methods!r}") from None
-    bad = [m for m in methods if not isinstance(m, str) or m not in METHODS]
-    if bad or not methods:
-        raise RetrievalError(f"methods must be a non-empty sequence of {list(METHODS)}, got {list(methods)}")
-    if retriever is not None and (not isinstance(retriever, MotionRetriever) or retriever.db is not db):
-        raise RetrievalError("retriever must be a MotionRetriever built on this database")
-    t0 = time.perf_counter()
-    r = retriever if retriever is not None else MotionRetriever(db, **retriever_kw)
-    precompute = time.perf_counter() - t0
-    queries = make_queries(db, n_queries, seed, noise=noise)
-    prep_t, prepared = [], []
-    for c, pose, ch, sem in queries:
-        best_t = np.inf
-        for _ in range(repeats):  # fastest of ``repeats``, as the searches (nothing is cached per pose)
-            t = time.perf_counter()
-            qq = r.prepare(pose, ch)
-            best_t = min(best_t, time.perf_counter() - t)
-        prep_t.append(best_t)
-        prepared.append((c, qq, sem))
-    fns = {"pruned": r.search, "exact": r.search_exact, "exhaustive": r.search_exhaustive, "kdtree": r.search_kdtree}
-    lat, results = {}, {}
-    for mth in methods:
-        fn = fns[mth]
-        for c, qq, sem in prepared[: min(20, len(prepared))]:  # warm-up (and the lazy kd-tree build)
-            fn(c, qq, None, sem)
-        ts, res = [], []
-        for c, qq, sem in prepared:
-            best = np.inf
-            for _ in range(repeats):
-                t = time.perf_counter()
-                out = fn(c, qq, None, sem)
-                best = min(best, time.perf_counter() - t)
-            res.append(out)
-            ts.append(best)
-        ts = np.array(ts) * 1e3
-        lat[mth] = {"p50_ms": float(np.percentile(ts, 50)), "p99_ms": float(np.percentile(ts, 99)),
-                    "mean_ms": float(ts.mean())}
-        results[mth] = res
-    agreement = {}
-    if "exhaustive" in results:
-        ex = results["exhaustive"]
-        for mth in results:
-            if mth == "exhaustive":
-                continue
-            diff = [(a.clip, a.start_frame) != (b.clip, b.start_frame) for a, b in zip(results[mth], ex)]
-            excess = np.array([(a.d - b.d) / max(b.d, 1e-12) for a, b in zip(results[mth], ex)])
-            agreement[mth] = {"differs": float(np.mean(diff)), "n_differs": int(np.sum(diff)),
-                              "mean_excess": float(excess.mean()),
-                              "max_excess": float(excess.max()), "same_clip": float(np.mean(
-                                  [a.clip == b.clip for a, b in zip(results[mth], ex)]))}
-    fb = {}
-    for res in results.get("pruned", []):
-        fb[res.fallback] = fb.get(res.fallback, 0) + 1
-    pt = np.array(prep_t) * 1e3
-    return {"n_clips": db.n_clips, "n_poses": db.n_poses, "k": r.k, "n_queries": n_queries, "seed": seed,
-            "repeats": repeats, "noise_m": noise, "precompute_s": precompute if retriever is None else None,
-            "prepare_ms": {"p50_ms": float(np.percentile(pt, 50)), "p99_ms": float(np.percentile(pt, 99))},
-            "latency": lat, "agreement": agreement, "pruned_fallbacks": fb}
-
-
-# ------------------------------------------------------------ frames of scoring, measured
-#: The fighter, stance and grid of ``repro.experiments.pronost.database_vs_adaptation`` (a 1.8 m
-#: fighter in the stance of this clip's first frame; targets x in [-0.3, 0.3] H, y in [0.2, 1.0] H,
-#: depth z = 0.5 H).
-GRID_HEIGHT_M: float = 1.8
-GRID_STANCE_CLIP: str = "actor2_punch_left_high"
-
-
-def _hit_points(motion: Motion, joint: str, where: str) -> np.ndarray:
-    j = motion.joint_index(joint)
-    if where == "joint":
-        return motion.global_positions()[:, j]
-    site = int(np.flatnonzero(np.asarray(motion.end_site_parents) == j)[0])
-    return motion.end_site_positions()[:, site]
-
-
-#: Tallest fighter :func:`scoring_frame_miss` accepts (metres).
-MAX_HEIGHT_M: float = 100.0
-
-
-def _semantics_list(semantics) -> list[str]:
-    """``semantics`` as a non-empty list of :data:`SEMANTICS` (a single name accepted)."""
-    if isinstance(semantics, str):
-        semantics = (semantics,)
-    try:
-        out = [str(as_choice(s, "semantics", SEMANTICS, error=RetrievalError)) for s in semantics]
-    except TypeError:
-        raise RetrievalError(f"semantics must be a sequence of {list(SEMANTICS)}, got {describe(semantics)}") from None
-    if not out:
-        raise RetrievalError(f"semantics must name at least one of {list(SEMANTICS)}")
-    return out
-
-
-def scoring_frame_miss(db: MotionDatabase | None = None, *, semantics: Sequence[str] = ("punch",),
-                       grid: tuple[int, int] = (9, 9), height: float = GRID_HEIGHT_M,
-                       configs: Sequence[tuple[str, str]] = (("pruned", "first"), ("exact", "first"),
-                                                             ("exact", "start"))) -> dict:
-    """Before-adaptation miss of the played clip, per (method, scoring), on the adaptation grid.
-
-    The grid of ``database_vs_adaptation`` (full database): a fighter of ``height``
-    metres (the first actor scaled uniformly) in the stance of :data:`GRID_STANCE_CLIP`'s
-    first frame, ordered to strike targets on a ``grid`` of its root frame.  For every
-    target and configuration the clip is retrieved, retargeted to the fighter
-    (``fix_feet=True``), placed where it is played (aligned on the current pose,
-    :meth:`RetrievalResult.place` without the current pose's own frame), and measured:
-    ``before`` the distance of its hit point at the hit frame to the target, ``closest``
-    the closest approach of the hit point after the start frame.  No assertion: a
-    measurement (for the notes and the claims ledger).
-
-    Returns
-    -------
-    dict
-        ``{"method/scoring": {"before_mean_m", "before_median_m", "closest_mean_m",
-        "d_cr_mean_m" (what the retrieval scored, actor metres), "n_targets"}}``.
-    """
-    from repro.motion.body.skeleton import scale_skeleton
-    from repro.motion.database.sources import default_database
-
-    if db is not None and not isinstance(db, MotionDatabase):
-        raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
-    semantics = _semantics_list(semantics)
-    try:
-        gx, gy = grid
-    except (TypeError, ValueError):
-        raise RetrievalError(f"grid must be two integers (points along x and y), got {describe(grid)}") from None
-    grid = (as_int(gx, "grid[0]", 1, MAX_GRID, error=RetrievalError), as_int(gy, "grid[1]", 1, MAX_GRID,
-                                                                            error=RetrievalError))
-    height = as_real(height, "height (m)", lo=0.0, lo_open=True, hi=MAX_HEIGHT_M, error=RetrievalError)
-    try:
-        configs = [(str(as_choice(m, "configs method", METHODS, error=RetrievalError)),
-                    str(as_choice(sc, "configs scoring", SCORINGS, error=RetrievalError))) for m, sc in configs]
-    except (TypeError, ValueError):
-        raise RetrievalError(f"configs must be (method, scoring) pairs, got {describe(configs)}") from None
-    db = default_database("synthetic") if db is None else db
-    ch = scale_skeleton(db.actors[0], height=height)
-    names = [str(x) for x in db.names]
-    if GRID_STANCE_CLIP not in names:
-        raise RetrievalError(f"the database has no clip {GRID_STANCE_CLIP!r} for the stance")
-    stance = _pose_motion(retarget(db.motion(names.index(GRID_STANCE_CLIP)), ch), 0)
-    H = ch.size
-    xs = np.linspace(-0.3, 0.3, grid[0]) * H
-    ys = np.linspace(0.2, 1.0, grid[1]) * H
-    z = 0.5 * H
-    r = MotionRetriever(db, seed=0)
-    q = r.prepare(stance, ch)
-    played: dict = {}
-    out = {}
-    for method, scoring in configs:
-        before, closest, dcr = [], [], []
-        for sem in semantics:
-            for x in xs:
-                for y in ys:
-                    c = np.array([x, y, z])
-                    res = r.search(c, q, semantics=sem, method=method, scoring=scoring)
-                    i = res.clip
-                    if i not in played:
-                        m = retarget(db.motion(i), ch, fix_feet=True)
-                        played[i] = _hit_points(m, str(db.hit_joints[i]), str(db.hit_wheres[i]))
-                    hp = played[i]
-                    k = ch.size / res.size_a
-                    X = rotate_y(c - k * np.asarray(res.translation), -res.rotation_y)  # target in the clip's world
-                    before.append(float(np.linalg.norm(hp[res.hit_frame] - X)))
-                    closest.append(float(np.linalg.norm(hp[res.start_frame:] - X, axis=1).min()))
-                    dcr.append(res.d_cr)
-        out[f"{method}/{scoring}"] = {"before_mean_m": float(np.mean(before)),
-                                      "before_median_m": float(np.median(before)),
-                                      "closest_mean_m": float(np.mean(closest)), "d_cr_mean_m": float(np.mean(dcr)),
-                                      "n_targets": len(before)}
     return out

@@ -31,7 +31,8 @@ from repro.motion.body.pose_frames import rotate_y
 from repro.motion.search.distance import aligned_distance
 from repro.motion.database.clips import MotionDatabase
 from repro.motion.retargeting.morphology import retarget
-from repro.motion.search.retrieval import MotionRetriever, Query, search, time_search
+from repro.bench.retrieval import time_search
+from repro.motion.search.retrieval import MotionRetriever, Query, search
 from repro.motion.body.skeleton import Skeleton, rescale_constraint, scale_skeleton
 
 

@@ -3,10 +3,7 @@
 What is asserted: ``make_queries(db, 10**12)`` and ``time_search(db, 10**12)`` (which ran
 until killed) are a :class:`RetrievalError` naming the count and its bound
 :data:`MAX_QUERIES`; ``retarget_to_tree`` given a motion or target that is not a Motion
-is a :class:`MotionError` (was an ``AttributeError``); ``scoring_frame_miss`` with a grid,
-height, semantics or (method, scoring) pairs that are not what it takes is a
-:class:`RetrievalError` raised before any search (a 10**6 x 10**6 grid would search
-10**12 targets).
+is a :class:`MotionError` (was an ``AttributeError``).
 """
 
 from __future__ import annotations
@@ -16,13 +13,8 @@ import pytest
 
 from repro.errors import MotionError, RetrievalError
 from repro.motion.retargeting.dispatch import retarget_to_tree
-from repro.motion.search.retrieval import (
-    MAX_QUERIES,
-    MotionRetriever,
-    make_queries,
-    scoring_frame_miss,
-    time_search,
-)
+from repro.bench.retrieval import time_search
+from repro.motion.search.retrieval import MAX_QUERIES, MotionRetriever, make_queries
 
 
 @pytest.fixture(scope="module")
@@ -53,37 +45,6 @@ def test_retarget_to_tree_motion(small, v):
     if v is not None:
         with pytest.raises(MotionError, match="^target must be"):
             retarget_to_tree(small.motion(0), ch, target=v)
-
-
-BAD_MISS = {
-    "grid huge": dict(grid=(10**6, 10**6)),
-    "grid 0": dict(grid=(0, 3)),
-    "grid float": dict(grid=(2.5, 3)),
-    "grid scalar": dict(grid=9),
-    "grid three": dict(grid=(1, 2, 3)),
-    "grid str": dict(grid="ab"),
-    "height nan": dict(height=float("nan")),
-    "height 0": dict(height=0.0),
-    "height huge": dict(height=1e300),
-    "height str": dict(height="1.7"),
-    "semantics unknown": dict(semantics=("headbutt",)),
-    "semantics empty": dict(semantics=()),
-    "semantics None": dict(semantics=None),
-    "semantics number": dict(semantics=(1,)),
-    "configs method": dict(configs=(("fast", "first"),)),
-    "configs scoring": dict(configs=(("exact", "last"),)),
-    "configs shape": dict(configs=(("exact",),)),
-    "configs None": dict(configs=None),
-    "db": dict(db="synthetic"),
-}
-
-
-@pytest.mark.parametrize("kw", BAD_MISS.values(), ids=BAD_MISS.keys())
-def test_scoring_frame_miss_arguments(synthetic_db, kw):
-    name = next(iter(kw))
-    want = "expected a MotionDatabase" if name == "db" else rf"^{name}"
-    with pytest.raises(RetrievalError, match=want):  # the full database: it has the stance clip
-        scoring_frame_miss(**{"db": synthetic_db, **kw})
 
 
 @pytest.mark.parametrize("stats", ["x", 1, [], (), np.zeros(2)], ids=repr)

@@ -30,8 +30,8 @@ from repro.motion.search.retrieval import (
     Query,
     make_queries,
     search,
-    time_search,
 )
+from repro.bench.retrieval import time_search
 from tests.helpers import refusal_failures
 
 
