@@ -213,14 +213,59 @@ def adapt(
     ``t0 > tc``, frames out of range or bad options.
     """
     t_total = time.perf_counter()
+    e = _edit_of(motion, effector, target, t0, tc, options, roles, contacts, foot_offsets)
+    _shift_root(e, root_offsets)
+    _offset_goals(e, frames)
+    if not _solve(e):
+        return None
+    return _result(e, t_total)
+
+
+@dataclass(eq=False)
+class _Edit:
+    """One :func:`adapt` call: its checked inputs, then ``d(t)`` and the goals, then the solve's state."""
+
+    o: AdaptOptions
+    motion: Motion  # the motion solved: the input, its root moved by root_offsets
+    rig: Rig
+    ch: Chain
+    effector: str
+    X: np.ndarray
+    t0: int
+    tc: int
+    contacts: np.ndarray
+    foot_offsets: np.ndarray | None
+    n_release: int | None
+    tol: float
+    spec: list
+    p: np.ndarray  # the input's hit trajectory p(t)
+    ref_gp: np.ndarray  # the input's joint positions: the feet's anchors
+    shifted: np.ndarray | None = None
+    off: np.ndarray | None = None
+    t_start: int = 0
+    d: np.ndarray | None = None
+    goals: np.ndarray | None = None
+    edit: np.ndarray | None = None
+    stop: int = 0
+    only: np.ndarray | None = None
+    rot: np.ndarray | None = None
+    solver: np.ndarray | None = None
+    iters: np.ndarray | None = None
+    timings: dict = dataclasses.field(default_factory=lambda: {"limb": 0.0, "ccd": 0.0, "feet": 0.0})
+    pinned: np.ndarray | None = None
+    anchors: list = dataclasses.field(default_factory=list)  # (side, first pinned frame, stop)
+    foot_err: float = 0.0
+    n_feet: int = 0
+    independent: bool = False
+
+
+def _edit_of(motion, effector, target, t0, tc, options, roles, contacts, foot_offsets) -> _Edit:
+    """The checked arguments and the input's hit trajectory ``p(t)``."""
     o = AdaptOptions() if options is None else options
     if not isinstance(o, AdaptOptions):
         raise MotionError(f"options must be an AdaptOptions or None, got {type(o).__name__}")
-    kind, feet, foot_blend, floor, max_iter = o.kind, o.feet, o.foot_blend, o.floor, o.max_iter
-    max_foot_error = o.max_foot_error
     rig = rig_of(motion, roles)
     ch = rig.chain(effector, o.hit_point)
-    hit_point = o.hit_point
     F = motion.n_frames
     X = vec3("target", target)
     t0 = as_int(t0, "t0", 0, F - 1, error=MotionError)
@@ -232,126 +277,155 @@ def adapt(
         foot_offsets = _check_offsets(foot_offsets, F, (F, 2, 3), "foot_offsets")
     n_release = _release_frames(o.release, motion.frame_time)
     tol = default_tol(rig, ch) if o.tol is None else o.tol
-    ext = o.max_extension
     spec = ccd_spec(rig, ch, o.chain, o.limits, o.hinge_range_deg)
-
     gq, gp = rig.globals
     p = gp[:, ch.hit] + qrot(gq[:, ch.hit], ch.hit_offset)
-    ref_gp = gp
-    shifted = np.zeros(F, dtype=bool)
-    if root_offsets is not None:  # solve on the shifted motion; goals and foot anchors from the input
-        off = _check_offsets(root_offsets, F, (F, 3), "root_offsets")
-        shifted = np.any(off != 0.0, axis=1)
-        shifted[: t0 + 1] = False
-        off[~shifted] = 0.0
-        pos = np.array(motion.positions)
-        pos[:, 0] += off
-        motion = dataclasses.replace(motion, positions=pos)
-        rig = rig.moved(motion)  # skeleton, roles and chains shared with the input's rig
-        ch = rig.chain(effector, hit_point)
-        gq, gp = rig.globals
-    t_start = _start_frame(contacts, ch, t0, tc)
-    d = offset_curve(t_start, tc, X - p[tc], F, kind=kind, release=n_release)
-    if feet == "plant":
-        d += _liftoff_offset(rig, ch, contacts, ref_gp, t0, t_start, tc, floor, kind)
-    goals = p + d
-    edit = np.flatnonzero(np.any(d != 0.0, axis=1))
-    edit = edit[edit > t0] if tc > t0 else edit[edit >= t0]
-    stop = int(edit.max()) + 1 if edit.size else t_start + 1
-    only = None
+    return _Edit(o, motion, rig, ch, effector, X, t0, tc, contacts, foot_offsets, n_release, tol, spec, p, gp)
+
+
+def _shift_root(e: _Edit, root_offsets) -> None:
+    """The root moved by ``root_offsets`` after ``t0``: the motion solved; goals and foot anchors stay the input's."""
+    F = e.motion.n_frames
+    e.shifted = np.zeros(F, dtype=bool)
+    if root_offsets is None:
+        return
+    off = _check_offsets(root_offsets, F, (F, 3), "root_offsets")
+    e.shifted = np.any(off != 0.0, axis=1)
+    e.shifted[: e.t0 + 1] = False
+    off[~e.shifted] = 0.0
+    pos = np.array(e.motion.positions)
+    pos[:, 0] += off
+    e.off = off
+    e.motion = dataclasses.replace(e.motion, positions=pos)
+    e.rig = e.rig.moved(e.motion)  # skeleton, roles and chains shared with the input's rig
+    e.ch = e.rig.chain(e.effector, e.o.hit_point)
+
+
+def _offset_goals(e: _Edit, frames) -> None:
+    """``d(t)`` from ``t_start`` (the kicking foot's pin eased out with ``"plant"``), the goals, the frames to edit."""
+    F = e.motion.n_frames
+    e.t_start = _start_frame(e.contacts, e.ch, e.t0, e.tc)
+    e.d = offset_curve(e.t_start, e.tc, e.X - e.p[e.tc], F, kind=e.o.kind, release=e.n_release)
+    if e.o.feet == "plant":
+        e.d += _liftoff_offset(e.rig, e.ch, e.contacts, e.ref_gp, e.t0, e.t_start, e.tc, e.o.floor, e.o.kind)
+    e.goals = e.p + e.d
+    edit = np.flatnonzero(np.any(e.d != 0.0, axis=1))
+    edit = edit[edit > e.t0] if e.tc > e.t0 else edit[edit >= e.t0]
+    e.stop = int(edit.max()) + 1 if edit.size else e.t_start + 1
     if frames is not None:  # a streamed solve: these frames only (each frame is solved on its own)
-        only = np.zeros(F, dtype=bool)
-        only[check_frames(frames, F)[0]] = True
-        edit = edit[only[edit]]
+        e.only = np.zeros(F, dtype=bool)
+        e.only[check_frames(frames, F)[0]] = True
+        edit = edit[e.only[edit]]
+    e.edit = edit
 
-    rot = np.array(motion.rotations)
-    solver = np.full(F, "", dtype="<U4")
-    iters = np.zeros(F, dtype=np.intp)
-    timings = {"limb": 0.0, "ccd": 0.0, "feet": 0.0}
-    pinned = np.zeros((F, 2), dtype=bool)
-    anchors: list[tuple[int, int, int]] = []  # (side, first pinned frame, stop)
-    foot_err, n_feet = 0.0, 0
 
-    def solve_feet():
-        t1 = time.perf_counter()
-        out = _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors, contacts=contacts,
-                          ref_gp=ref_gp, shifted=shifted, floor=floor, t_start=t_start,
-                          only=None if independent else only, foot_offsets=foot_offsets)
-        timings["feet"] = time.perf_counter() - t1
-        return out
+def _feet_of(e: _Edit, rot: np.ndarray, pinned: np.ndarray, anchors: list, only) -> tuple[float, int]:
+    return _solve_feet(e.rig, e.ch, e.motion, rot, e.o.feet, e.o.foot_blend, e.t0, e.stop, pinned, anchors,
+                       contacts=e.contacts, ref_gp=e.ref_gp, shifted=e.shifted, floor=e.o.floor,
+                       t_start=e.t_start, only=only, foot_offsets=e.foot_offsets)
 
-    # the feet first when they cannot depend on the hit solve: the two passes then read and
-    # write disjoint joints, so the order does not change a number, and a bounded trial
-    # whose support foot no longer follows stops before the (costly) hit solve
-    independent = _feet_independent(rig, ch, spec)
-    feet_first = max_foot_error is not None and feet is not None and independent
+
+def _solve(e: _Edit) -> bool:
+    """The hit solve and the feet (in ``e``); False when a bounded trial's support foot misses its bound.
+
+    The feet go first when they cannot depend on the hit solve: the two passes then read and
+    write disjoint joints, so the order does not change a number, and a bounded trial whose
+    support foot no longer follows stops before the (costly) hit solve.
+    """
+    F = e.motion.n_frames
+    e.rot = np.array(e.motion.rotations)
+    e.solver = np.full(F, "", dtype="<U4")
+    e.iters = np.zeros(F, dtype=np.intp)
+    e.pinned = np.zeros((F, 2), dtype=bool)
+    e.independent = _feet_independent(e.rig, e.ch, e.spec)
+    bounded = e.o.max_foot_error is not None and e.o.feet is not None
+    feet_first = bounded and e.independent
     if feet_first:
-        foot_err, n_feet = solve_feet()
-        if foot_err > float(max_foot_error):
-            return None
-    elif max_foot_error is not None and feet is not None and edit.size:
-        # a leg effector: CCD turns the pelvis, which moves the support leg, but only on the
-        # frames the limb step cannot reach; on every other frame the feet are independent
-        # of the hit solve, and a foot error above the bound there is one of the result
-        r = rot[edit].copy()
-        trans = rig.trans[edit]
-        _, res = solve_limb(ch, r, trans, goals[edit], dmax=limb_dmax(ch, r, trans, ext))
-        safe = np.ones(F, dtype=bool)
-        safe[edit[res > tol]] = False
-        probe, _ = _solve_feet(rig, ch, motion, rot.copy(), feet, foot_blend, t0, stop, np.zeros((F, 2), dtype=bool),
-                               [], contacts=contacts, ref_gp=ref_gp, shifted=shifted, floor=floor, t_start=t_start,
-                               only=safe, foot_offsets=foot_offsets)
-        if probe > float(max_foot_error) * (1.0 + 1e-9):  # a margin far above any rounding
-            return None
-    if edit.size:
-        _solve_hit(rig, ch, motion, rot, edit, goals, spec, max_iter, tol, ext, solver, iters, timings)
-    if feet is not None and not feet_first:
-        foot_err, n_feet = solve_feet()
+        _solve_feet_timed(e)
+        if e.foot_err > float(e.o.max_foot_error):
+            return False
+    elif bounded and e.edit.size and _leg_trial_fails(e):
+        return False
+    if e.edit.size:
+        _solve_hit(e.rig, e.ch, e.motion, e.rot, e.edit, e.goals, e.spec, e.o.max_iter, e.tol, e.o.max_extension,
+                   e.solver, e.iters, e.timings)
+    if e.o.feet is not None and not feet_first:
+        _solve_feet_timed(e)
+    return True
 
-    changed = np.any(rot != np.asarray(motion.rotations), axis=(1, 2)) | shifted
+
+def _solve_feet_timed(e: _Edit) -> None:
+    t1 = time.perf_counter()
+    e.foot_err, e.n_feet = _feet_of(e, e.rot, e.pinned, e.anchors, None if e.independent else e.only)
+    e.timings["feet"] = time.perf_counter() - t1
+
+
+def _leg_trial_fails(e: _Edit) -> bool:
+    """A leg effector's bounded trial: whether its feet miss the bound on the frames CCD will not touch.
+
+    CCD turns the pelvis, which moves the support leg, but only on the frames the limb step
+    cannot reach; on every other frame the feet are independent of the hit solve, and a foot
+    error above the bound there is one of the result.
+    """
+    F = e.motion.n_frames
+    r = e.rot[e.edit].copy()
+    trans = e.rig.trans[e.edit]
+    _, res = solve_limb(e.ch, r, trans, e.goals[e.edit], dmax=limb_dmax(e.ch, r, trans, e.o.max_extension))
+    safe = np.ones(F, dtype=bool)
+    safe[e.edit[res > e.tol]] = False
+    probe, _ = _feet_of(e, e.rot.copy(), np.zeros((F, 2), dtype=bool), [], safe)
+    return probe > float(e.o.max_foot_error) * (1.0 + 1e-9)  # a margin far above any rounding
+
+
+def _result(e: _Edit, t_total: float) -> Adaptation:
+    """The adapted motion and its measures: forward kinematics only where the pose changed."""
+    rig, ch, motion, rot = e.rig, e.ch, e.motion, e.rot
+    gq, gp = rig.globals
+    changed = np.any(rot != np.asarray(motion.rotations), axis=(1, 2)) | e.shifted
     out = _adapted_motion(motion, rot, changed)
     cf = np.flatnonzero(changed)
-    gq2, gp2 = gq.copy(), gp.copy()  # forward kinematics only where the pose changed
+    gq2, gp2 = gq.copy(), gp.copy()
     if cf.size:
         gq2[cf], gp2[cf] = fk_arrays(rig.levels, rot[cf], rig.trans[cf])
-    hit_new = p.copy()
+    hit_new = e.p.copy()
     hit_new[cf] = gp2[cf, ch.hit] + qrot(gq2[cf, ch.hit], ch.hit_offset)
-    err = np.linalg.norm(hit_new - goals, axis=-1)
+    err = np.linalg.norm(hit_new - e.goals, axis=-1)
     bone_err = float(
         np.max(np.abs(_bone_lengths(gp2[cf], motion.parents) - _bone_lengths(gp[cf], motion.parents)), initial=0.0)
     )
-    slide, slide_o = _foot_slides(rig, anchors, gp2, ref_gp)
+    slide, slide_o = _foot_slides(rig, e.anchors, gp2, e.ref_gp)
+    timings = e.timings
     timings["total"] = time.perf_counter() - t_total
-    timings.update(frames_limb=int(edit.size), frames_ccd=int(np.sum(solver == "ccd")), frames_feet=int(n_feet))
+    timings.update(frames_limb=int(e.edit.size), frames_ccd=int(np.sum(e.solver == "ccd")), frames_feet=int(e.n_feet))
     return Adaptation(
         motion=out,
-        effector=effector,
+        effector=e.effector,
         hit_joint=rig.sk.joint_names[ch.hit],
-        target=X,
-        t0=t0,
-        tc=tc,
-        t_start=t_start,
-        stop=stop,
-        offsets=d,
-        original_hit=p,
-        goals=goals,
+        target=e.X,
+        t0=e.t0,
+        tc=e.tc,
+        t_start=e.t_start,
+        stop=e.stop,
+        offsets=e.d,
+        original_hit=e.p,
+        goals=e.goals,
         hit_positions=hit_new,
         hit_error=err,
-        solver=solver,
-        ccd_iterations=iters,
-        reached=bool(err[tc] <= tol),
-        residual=float(err[tc]),
-        foot_pinned=pinned,
+        solver=e.solver,
+        ccd_iterations=e.iters,
+        reached=bool(err[e.tc] <= e.tol),
+        residual=float(err[e.tc]),
+        foot_pinned=e.pinned,
         foot_slide=slide,
         foot_slide_original=slide_o,
-        foot_error=foot_err,
+        foot_error=e.foot_err,
         bone_length_error=bone_err,
         changed=changed,
         timings=timings,
-        tol=tol,
-        root_offsets=None if root_offsets is None else np.where(shifted[:, None], off, 0.0),
-        contacts=contacts,
-        feet_independent=independent,
+        tol=e.tol,
+        root_offsets=None if e.off is None else np.where(e.shifted[:, None], e.off, 0.0),
+        contacts=e.contacts,
+        feet_independent=e.independent,
     )
 
 
