@@ -389,6 +389,11 @@ class Motion:
     def _depth_levels(self) -> list[tuple[np.ndarray, np.ndarray]]:
         return depth_levels(self.parents)
 
+    @property
+    def n_depth_levels(self) -> int:
+        """Depth levels of the joint tree (forward kinematics runs one step per level)."""
+        return len(self._depth_levels)
+
     # ---------------------------------------------------------- kinematics
     def local_translations(self) -> np.ndarray:
         """(F, J, 3) local translation of every joint: offsets, with position channels replacing components."""

@@ -108,6 +108,7 @@ from repro.motion.search.distance import AlignedPoseIndex
 from repro.motion.database.clips import MotionDatabase
 from repro.motion.search.index_build import block_order, build_pose_index
 from repro.motion.retargeting.morphology import RetargetPlan
+from repro.motion.core.cache import LRUCache
 from repro.motion.core.motion import LEVEL_LOOP_MAX_DEPTH as _FK_LEVEL_LOOP_MAX
 from repro.motion.core.motion import Motion, finite_vector3
 from repro.motion.core.ops import resample
@@ -484,7 +485,7 @@ class MotionRetriever(ExactSearch, StartScoring):
                     refused[a] = str(e)
                     self._prep_cache[(id(ch), a)] = (ch, None, str(e))  # not again for this character
                     continue
-                src = (gq_c, gc) if len(m._depth_levels) <= _FK_LEVEL_LOOP_MAX else None
+                src = (gq_c, gc) if m.n_depth_levels <= _FK_LEVEL_LOOP_MAX else None
                 g = plan.positions(m.rotations, m.local_translations(), source=src)
                 idx = [actor.index(r) for r in db.pose_roles]
                 pts = pose_points(g, idx, actor.index("pelvis"), actor.index("left_hip"), actor.index("right_hip"),
@@ -1097,24 +1098,21 @@ class MotionRetriever(ExactSearch, StartScoring):
         return self._result(q, best, c_r, cluster=-1, fallback="disabled", rank=-1, method="kdtree")
 
 
-_RETRIEVERS: dict = {}
+#: The retriever :func:`search` built last, by its database's ``id()``: one (an index weighs about
+#: as much as its database's arrays).  The retriever holds its database, so that id is not reused
+#: while the entry is kept.
+_RETRIEVERS: LRUCache[MotionRetriever] = LRUCache(1)
 
 
 def search(db: MotionDatabase, target, current_pose, character, semantics: str, **kw) -> RetrievalResult:
     """``MotionRetriever(db).search(target, current_pose, character, semantics)``.
 
     The retriever (clusters, indices) is built on the first call for ``db`` and kept
-    (keyed by the database object); keyword arguments go to
-    :meth:`MotionRetriever.search`.
+    (:data:`_RETRIEVERS`); keyword arguments go to :meth:`MotionRetriever.search`.
     """
     if not isinstance(db, MotionDatabase):
         raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
-    key = id(db)
-    r = _RETRIEVERS.get(key)
-    if r is None or r.db is not db:
-        r = MotionRetriever(db)
-        _RETRIEVERS.clear()
-        _RETRIEVERS[key] = r
+    r = _RETRIEVERS.get(id(db), lambda: MotionRetriever(db))
     return r.search(target, current_pose, character, semantics, **kw)
 
 
