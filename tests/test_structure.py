@@ -20,7 +20,6 @@ MAX_FUNCTION_LINES = 80
 
 #: functions allowed over MAX_FUNCTION_LINES, by "module:qualname", with why
 LONG_FUNCTIONS: dict[str, str] = {
-    "repro.motion.adaptation.ccd_solver:ccd_sweeps": "to split into named steps (issue 24; 94 lines)",
     "repro.motion.body.rest_pose:match_rest_pose": "to split into named steps (issue 24; 122 lines)",
     "repro.motion.body.roles:_roles_from_structure": "to split into named steps (issue 24; 87 lines)",
     "repro.motion.body.roles:_structure": "to split into named steps (issue 24; 95 lines)",

@@ -260,14 +260,9 @@ def ccd_sweeps(
     iters = np.zeros(n, dtype=np.intp)
     best_err = np.full(n, np.inf)
     best_ql = ql.copy()
-    h_loc = ch.hinge_loc
     # with the analytic finish, the limb's own joints are left to the limb step: only
     # the joints above the limb change how far the goal is out of the limb's reach
     sweep = [s for s in spec if not (finish and s[0] >= kp)]
-
-    def hitpos():
-        return pw[:, -1] + matvec(rw[:, -1], ch.hit_offset)
-
     for it in range(max_iter + 1):
         if finish:
             # objective: how far the goal is out of the limb's reach (the analytic limb
@@ -276,7 +271,7 @@ def ccd_sweeps(
             err = np.maximum(np.maximum(dW - reach_max, np.abs(l1 - l2) - dW), 0.0)
             done = err <= 0.0
         else:
-            err = vector_norm(hitpos() - goal)
+            err = vector_norm(_hit(ch, rw, pw) - goal)
             done = err <= tol
         better = err < best_err
         worse = active & ~better
@@ -294,33 +289,49 @@ def ccd_sweeps(
             break
         iters += active
         for k, kind, lim in sweep:
-            pj = pw[:, k]
-            if finish and k < kp:
-                # above the limb: bring the proximal joint (shoulder / hip) to the nearest
-                # point from which the limb reaches the goal
-                S = pw[:, kp]
-                sw = S - Wg_fixed
-                dist = vector_norm(sw)
-                want = np.clip(dist, np.abs(l1 - l2), np.maximum(reach_max, np.abs(l1 - l2)))
-                e = S - pj
-                g = Wg_fixed + (want / np.maximum(dist, 1e-300))[:, None] * sw - pj
-            else:
-                e = hitpos() - pj
-                g = goal - pj
-            if kind == "hinge":
-                qn = _hinge_step(e, g, rw[:, k - 1], ml[:, k], tl[:, k], tl[:, k + 1], h_loc, lim, active, ql[:, k])
-            else:
-                qn = _ball_step(e, g, None if k == 0 else rw[:, k - 1], ql[:, k], q0[:, k], lim, active)
-            # only the active frames change (not even by the normalisation's ulp): a frame's
-            # solution does not depend on which other frames are solved with it
-            qn = np.where(active[:, None], qn / vector_norm(qn, keepdims=True), ql[:, k])
-            ql[:, k] = qn
-            ml[:, k] = quat_to_matrix(qn)
-            path_fk_from(ml, tl, rw, pw, k)
+            _turn_joint(ch, k, kind, lim, goal, Wg_fixed if finish else None, (l1, l2, reach_max), q0, ql, ml, tl,
+                        rw, pw, active)
     rot[:, P] = ql
     if finish:  # the hit point of the turned trunk, the limb as it was
         rw, pw = path_fk(quat_to_matrix(rot[:, ch.path]), trans[:, ch.path])
-    return iters, hitpos()
+    return iters, _hit(ch, rw, pw)
+
+
+def _hit(ch: Chain, rw: np.ndarray, pw: np.ndarray) -> np.ndarray:
+    """The hit point of the chain's last joint (world rotations ``rw``, positions ``pw``)."""
+    return pw[:, -1] + matvec(rw[:, -1], ch.hit_offset)
+
+
+def _turn_joint(ch, k, kind, lim, goal, Wg_fixed, reach, q0, ql, ml, tl, rw, pw, active) -> None:
+    """One CCD step of path joint ``k`` on the active frames; ``ql``, ``ml``, ``rw``, ``pw`` updated in place.
+
+    ``Wg_fixed`` (the analytic finish's fixed distal goal) set: a joint above the limb brings
+    the proximal joint (shoulder / hip) to the nearest point from which the limb reaches the
+    goal; otherwise the hit point turns towards ``goal``.
+    """
+    pj = pw[:, k]
+    kp = ch.k_prox
+    if Wg_fixed is not None and k < kp:
+        l1, l2, reach_max = reach
+        S = pw[:, kp]
+        sw = S - Wg_fixed
+        dist = vector_norm(sw)
+        want = np.clip(dist, np.abs(l1 - l2), np.maximum(reach_max, np.abs(l1 - l2)))
+        e = S - pj
+        g = Wg_fixed + (want / np.maximum(dist, 1e-300))[:, None] * sw - pj
+    else:
+        e = _hit(ch, rw, pw) - pj
+        g = goal - pj
+    if kind == "hinge":
+        qn = _hinge_step(e, g, rw[:, k - 1], ml[:, k], tl[:, k], tl[:, k + 1], ch.hinge_loc, lim, active, ql[:, k])
+    else:
+        qn = _ball_step(e, g, None if k == 0 else rw[:, k - 1], ql[:, k], q0[:, k], lim, active)
+    # only the active frames change (not even by the normalisation's ulp): a frame's
+    # solution does not depend on which other frames are solved with it
+    qn = np.where(active[:, None], qn / vector_norm(qn, keepdims=True), ql[:, k])
+    ql[:, k] = qn
+    ml[:, k] = quat_to_matrix(qn)
+    path_fk_from(ml, tl, rw, pw, k)
 
 
 def _hinge_step(e, g, r_parent, m_joint, up, low, h_loc, lim, active, q):
