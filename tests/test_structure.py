@@ -34,7 +34,6 @@ LONG_FUNCTIONS: dict[str, str] = {
     "repro.motion.search.exact:ExactSearch._search_exact": "to split into named steps (issue 24; 180 lines)",
     "repro.motion.search.kernel:search_first": "a numba-compiled kernel: one loop, no Python calls inside (splitting costs a call per candidate)",
     "repro.motion.search.retrieval:MotionRetriever.prepare": "to split into named steps (issue 24; 104 lines)",
-    "repro.bench.retrieval:time_search": "to split into named steps (issue 24; 97 lines)",
     "repro.ui.fighter_panel:FighterPanel.__init__": "to split into named steps (issue 24; 88 lines)",
 }
 

@@ -154,6 +154,30 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
         raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
     n_queries = as_int(n_queries, "n_queries", 1, MAX_QUERIES, error=RetrievalError)
     repeats = as_int(repeats, "repeats", 1, MAX_REPEATS, error=RetrievalError)
+    methods = _check_methods(methods)
+    if retriever is not None and (not isinstance(retriever, MotionRetriever) or retriever.db is not db):
+        raise RetrievalError("retriever must be a MotionRetriever built on this database")
+    t0 = time.perf_counter()
+    r = retriever if retriever is not None else MotionRetriever(db, **retriever_kw)
+    precompute = time.perf_counter() - t0
+    queries = make_queries(db, n_queries, seed, noise=noise)
+    prep_t, prepared = _time_preparation(r, queries, repeats)
+    fns = {"pruned": r.search, "exact": r.search_exact, "exhaustive": r.search_exhaustive, "kdtree": r.search_kdtree}
+    lat, results = {}, {}
+    for mth in methods:
+        lat[mth], results[mth] = _time_method(fns[mth], prepared, repeats)
+    fb = {}
+    for res in results.get("pruned", []):
+        fb[res.fallback] = fb.get(res.fallback, 0) + 1
+    pt = np.array(prep_t) * 1e3
+    return {"n_clips": db.n_clips, "n_poses": db.n_poses, "k": r.k, "n_queries": n_queries, "seed": seed,
+            "repeats": repeats, "noise_m": noise, "precompute_s": precompute if retriever is None else None,
+            "prepare_ms": {"p50_ms": float(np.percentile(pt, 50)), "p99_ms": float(np.percentile(pt, 99))},
+            "latency": lat, "agreement": _agreement(results), "pruned_fallbacks": fb}
+
+
+def _check_methods(methods) -> tuple[str, ...]:
+    """``methods`` of :func:`time_search` as a non-empty tuple of :data:`METHODS` (one name accepted)."""
     if isinstance(methods, str):
         methods = (methods,)
     try:
@@ -163,12 +187,11 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
     bad = [m for m in methods if not isinstance(m, str) or m not in METHODS]
     if bad or not methods:
         raise RetrievalError(f"methods must be a non-empty sequence of {list(METHODS)}, got {list(methods)}")
-    if retriever is not None and (not isinstance(retriever, MotionRetriever) or retriever.db is not db):
-        raise RetrievalError("retriever must be a MotionRetriever built on this database")
-    t0 = time.perf_counter()
-    r = retriever if retriever is not None else MotionRetriever(db, **retriever_kw)
-    precompute = time.perf_counter() - t0
-    queries = make_queries(db, n_queries, seed, noise=noise)
+    return methods
+
+
+def _time_preparation(r: MotionRetriever, queries: list, repeats: int) -> tuple[list, list]:
+    """Each query's :meth:`MotionRetriever.prepare`, timed: (fastest seconds, (c, prepared query, semantics))."""
     prep_t, prepared = [], []
     for c, pose, ch, sem in queries:
         best_t = np.inf
@@ -178,25 +201,29 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
             best_t = min(best_t, time.perf_counter() - t)
         prep_t.append(best_t)
         prepared.append((c, qq, sem))
-    fns = {"pruned": r.search, "exact": r.search_exact, "exhaustive": r.search_exhaustive, "kdtree": r.search_kdtree}
-    lat, results = {}, {}
-    for mth in methods:
-        fn = fns[mth]
-        for c, qq, sem in prepared[: min(20, len(prepared))]:  # warm-up (and the lazy kd-tree build)
-            fn(c, qq, None, sem)
-        ts, res = [], []
-        for c, qq, sem in prepared:
-            best = np.inf
-            for _ in range(repeats):
-                t = time.perf_counter()
-                out = fn(c, qq, None, sem)
-                best = min(best, time.perf_counter() - t)
-            res.append(out)
-            ts.append(best)
-        ts = np.array(ts) * 1e3
-        lat[mth] = {"p50_ms": float(np.percentile(ts, 50)), "p99_ms": float(np.percentile(ts, 99)),
-                    "mean_ms": float(ts.mean())}
-        results[mth] = res
+    return prep_t, prepared
+
+
+def _time_method(fn, prepared: list, repeats: int) -> tuple[dict, list]:
+    """One search method on every prepared query after a warm-up: its latency (ms) and its results."""
+    for c, qq, sem in prepared[: min(20, len(prepared))]:  # warm-up (and the lazy kd-tree build)
+        fn(c, qq, None, sem)
+    ts, res = [], []
+    for c, qq, sem in prepared:
+        best = np.inf
+        for _ in range(repeats):
+            t = time.perf_counter()
+            out = fn(c, qq, None, sem)
+            best = min(best, time.perf_counter() - t)
+        res.append(out)
+        ts.append(best)
+    ts = np.array(ts) * 1e3
+    return {"p50_ms": float(np.percentile(ts, 50)), "p99_ms": float(np.percentile(ts, 99)),
+            "mean_ms": float(ts.mean())}, res
+
+
+def _agreement(results: dict) -> dict:
+    """Per method, how its selections differ from the exhaustive optimum's (empty without it)."""
     agreement = {}
     if "exhaustive" in results:
         ex = results["exhaustive"]
@@ -209,14 +236,7 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
                               "mean_excess": float(excess.mean()),
                               "max_excess": float(excess.max()), "same_clip": float(np.mean(
                                   [a.clip == b.clip for a, b in zip(results[mth], ex)]))}
-    fb = {}
-    for res in results.get("pruned", []):
-        fb[res.fallback] = fb.get(res.fallback, 0) + 1
-    pt = np.array(prep_t) * 1e3
-    return {"n_clips": db.n_clips, "n_poses": db.n_poses, "k": r.k, "n_queries": n_queries, "seed": seed,
-            "repeats": repeats, "noise_m": noise, "precompute_s": precompute if retriever is None else None,
-            "prepare_ms": {"p50_ms": float(np.percentile(pt, 50)), "p99_ms": float(np.percentile(pt, 99))},
-            "latency": lat, "agreement": agreement, "pruned_fallbacks": fb}
+    return agreement
 
 
 def _default_databases() -> list:
