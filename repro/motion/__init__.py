@@ -125,7 +125,6 @@ from repro.motion.adaptation import (  # noqa: E402
     ccd,
     offset_curve,
     reach_limb,
-    time_adaptation,
 )
 
 __all__ += [
@@ -137,7 +136,6 @@ __all__ += [
     "Adaptation",
     "LimbSolution",
     "CCDSolution",
-    "time_adaptation",
 ]
 
 # One order carried out (Sections 3.3-3.4): the Strike of repro.motion.runtime.strike.strike (the

@@ -134,8 +134,6 @@ def test_check_bench_arguments_checks_the_memory_the_factors_ask_before_building
 @pytest.mark.parametrize("entry, kw", [
     ("attenuation.bench_attenuation", dict(seed=-1)), ("attenuation.bench_attenuation", dict(quick="yes")),
     ("attenuation.bench_attenuation_scaling", dict(progress=None)), ("adaptation.bench_adaptation", dict(quick=1)),
-    ("adaptation.bench_order_latency", dict(n_orders=0)), ("adaptation.bench_order_latency", dict(repeats="3")),
-    ("adaptation.bench_order_latency", dict(database="nope")), ("adaptation.bench_order_latency", dict(seed=-1)),
     ("prepare.bench_prepare", dict(n_queries=10**12)), ("prepare.bench_prepare", dict(n_queries=0)),
     ("prepare.bench_prepare", dict(seed="x")), ("index_build.bench_index_build", dict(factors=(2, 10**9))),
     ("index_build.bench_index_build", dict(factors=(0,))), ("index_build.bench_index_build", dict(factors=(10**400,))), ("index_build.bench_index_build", dict(database="nope")),

@@ -435,7 +435,7 @@ def _motion_with():
 
 
 def _time_adaptation():
-    from repro.motion.adaptation import time_adaptation
+    from repro.bench.adaptation import time_adaptation
 
     return time_adaptation, dict(motion=_clip(), effector="right_fist", frames=[1, 2], offset=(0.0, 0.0, 0.05),
                                  repeats=1)

@@ -32,9 +32,10 @@ tells its part of the method):
 * :mod:`.cost` -- what an adaptation costs against the clip (rotation change, added
   acceleration, bone lengths, joint limits).
 
-:mod:`.rig` holds what the solvers share (the per-motion :class:`~.rig.Rig` and its
-effector :class:`~.rig.Chain`, argument checks); :mod:`.timing` the wall-clock measure
-(:func:`time_adaptation`).  (The modules are not named ``ccd`` / ``adapt``: a submodule
+:mod:`.options` holds :func:`adapt`'s options (:class:`AdaptOptions`, the library's defaults);
+:mod:`.rig` what the solvers share (the per-motion :class:`~.rig.Rig` and its effector
+:class:`~.rig.Chain`, argument checks).  The solvers' wall-clock measure is
+:func:`repro.bench.adaptation.time_adaptation`.  (The modules are not named ``ccd`` / ``adapt``: a submodule
 named like the function it exports would be shadowed by it on the package.)
 
 Targets beyond reach (even with CCD at its joint limits) are not an error: the result is
@@ -74,7 +75,6 @@ from repro.motion.adaptation.limb import LimbSolution, reach_limb
 from repro.motion.adaptation.offset import offset_curve
 from repro.motion.adaptation.options import AdaptOptions
 from repro.motion.adaptation.rig import EFFECTOR_STEMS
-from repro.motion.adaptation.timing import time_adaptation
 
 __all__ = [
     "EFFECTOR_STEMS",
@@ -89,5 +89,4 @@ __all__ = [
     "LimbSolution",
     "CCDSolution",
     "Adaptation",
-    "time_adaptation",
 ]

@@ -449,7 +449,7 @@ def strike(
         A root-shift trial whose support foot fails is stopped before its hit solve when
         the feet do not depend on it (a punch; ``AdaptOptions.max_foot_error``).  False
         solves every trial in full: the slow path, with the same results (kept for
-        :func:`repro.bench.adaptation.bench_order_latency` and the tests).
+        the tests).
     stream : bool, default True
         Decide the level on ``tc`` and frame ``t0 + 1`` before solving the rest of the clip
         (module docstring; a kick planted at ``t0 + 1``: that frame first, then the level);

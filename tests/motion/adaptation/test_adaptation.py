@@ -16,7 +16,7 @@ contact; at each frame the wrist / foot is brought to p(t) + d(t), by the limb f
   unchanged, planted feet do not slide more than 2 cm; a target 1 m beyond reach gives
   reached=False with a residual of the order of the excess; bad inputs raise MotionError.
 
-No timing is asserted (see ``time_adaptation`` for the numbers).
+No timing is asserted (see ``repro.bench.adaptation.time_adaptation`` for the numbers).
 """
 
 from __future__ import annotations
@@ -40,7 +40,6 @@ from repro.motion.adaptation import (
     default_chain,
     offset_curve,
     reach_limb,
-    time_adaptation,
 )
 from repro.motion.core.quaternion import euler_to_quat, quat_multiply, quat_rotate
 from tests.motion_fixtures import MIXAMO, MIXAMO_NAMES
@@ -527,14 +526,6 @@ def test_real_scalar_equals_batch_and_feet_modes(punch, kick):
     np.testing.assert_allclose(b.motion.global_positions()[:, la], gk[:, la], atol=1e-9)
 
 
-@pytest.mark.data("cmu-bvh")
-def test_time_adaptation_reports(punch):
-    t = time_adaptation(punch, "right_fist", frames=np.arange(290, 320), repeats=1)
-    for k in ("limb_batch_per_frame", "limb_single_frame", "ccd_batch_per_frame"):
-        assert np.isfinite(t[k]) and t[k] > 0
-    assert t["frames"] == 30
-
-
 def test_synthetic_punch_end_site_hit_point():
     from repro.motion.database import synthetic
     m, ann = synthetic.synthetic_clip("punch", "right", "middle", seed=1)
@@ -593,7 +584,6 @@ def test_adapt_refuses_bad_options_with_motion_errors(kw, match):
 
 
 def test_the_solvers_refuse_bad_tolerances_rotations_and_repeats():
-    from repro.motion.adaptation import time_adaptation
     from repro.motion.adaptation.cost import adaptation_cost
 
     m = _fixture_motion()
@@ -613,8 +603,6 @@ def test_the_solvers_refuse_bad_tolerances_rotations_and_repeats():
         adaptation_cost(m, m, frames=[1, 2])
     with pytest.raises(MotionError, match="skeleton"):
         adaptation_cost(m, m, "sk")
-    with pytest.raises(MotionError, match="repeats"):
-        time_adaptation(m, "right_wrist", repeats=10**9)
 
 
 def test_effector_of_any_type_and_huge_offset_curves_are_motion_errors():
