@@ -40,13 +40,13 @@ from repro.motion.search.exact import _ball_radius
 
 
 @pytest.fixture(scope="module")
-def db(synthetic_db):
-    return synthetic_db
+def db(synthetic_retriever):
+    return synthetic_retriever.db
 
 
 @pytest.fixture(scope="module")
-def retriever(db):
-    return MotionRetriever(db, seed=0)
+def retriever(synthetic_retriever):
+    return synthetic_retriever
 
 
 @pytest.fixture(scope="module")

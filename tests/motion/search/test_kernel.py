@@ -24,19 +24,19 @@ import pytest
 
 from repro.errors import MotionError
 from repro.motion.search.distance import AlignedPoseIndex, aligned_distance
-from repro.motion.search.retrieval import MotionRetriever, make_queries
+from repro.motion.search.retrieval import make_queries
 from repro.motion.search.exact import sample_grid
 from repro.motion.search.kernel import _argsort, _cloud_distance, _nearest_samples, compile_search, search_first
 
 
 @pytest.fixture(scope="module")
-def db(synthetic_db):
-    return synthetic_db
+def db(synthetic_retriever):
+    return synthetic_retriever.db
 
 
 @pytest.fixture(scope="module")
-def retriever(db):
-    return MotionRetriever(db, seed=0)
+def retriever(synthetic_retriever):
+    return synthetic_retriever
 
 
 def test_argsort_is_numpys_stable_order():

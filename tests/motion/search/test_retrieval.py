@@ -37,13 +37,13 @@ from repro.motion.body.skeleton import Skeleton, rescale_constraint, scale_skele
 
 
 @pytest.fixture(scope="module")
-def db(synthetic_db):
-    return synthetic_db  # the session's synthetic database (tests/conftest.py), this module's copy
+def db(synthetic_retriever):
+    return synthetic_retriever.db
 
 
 @pytest.fixture(scope="module")
-def retriever(db):
-    return MotionRetriever(db, seed=0)
+def retriever(synthetic_retriever):
+    return synthetic_retriever
 
 
 def frame_of(m, f):
