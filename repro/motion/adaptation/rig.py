@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from repro.checks import as_int, as_real, as_real_array
+from repro.checks import as_real, as_real_array
 from repro.errors import MotionError
 from repro.motion.body.feet import foot_contacts
 from repro.motion.core.kinematics import depth_levels, matvec
@@ -251,6 +251,9 @@ class Rig:
         return h, bend / np.linalg.norm(bend)
 
 
+#: one :class:`Rig` per live motion (:func:`rig_of` without ``roles``), bounded by the motions' lifetime:
+#: weak keys, and a rig holds its motion weakly, so an entry (its translations, globals, contacts: a few
+#: arrays of the motion's own size) goes when the motion is freed, and never outlives it
 _RIGS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
