@@ -1,20 +1,13 @@
-"""Constraints solver of Section 3.4.2 (repro.motion.adaptation).
+"""The whole Section 3.4.2 edit (repro.motion.adaptation.adapt_clip.adapt, AdaptOptions).
 
 Pronost et al.: d(t) grows from 0 at the current frame t0 to d(tc) = X - M(tc) at the
 contact; at each frame the wrist / foot is brought to p(t) + d(t), by the limb first
 (analytic) and by CCD over a longer chain when the limb cannot reach.  What is asserted:
-
-* d(t): 0 up to t0, d(tc) at tc, monotone in between (smoothstep: zero slope at both
-  ends), released back to 0 after tc when asked;
-* limb step: reachable targets reached to rounding, hand orientation kept, bone lengths
-  unchanged, elbow kept in its plane, one-frame scalar path == numpy batch path;
-  unreachable targets give the exact excess distance, not an exception;
-* CCD: reduces the error when the limb alone cannot reach, respects its joint limits
-  (cone limits, elbow hinge never hyperextends), terminates on impossible targets;
-* adapt on the real CMU clips 135_09 (lunge punches) and 135_04 (front kicks): the fist /
-  foot moved 10 cm is reached within 1 cm at tc, frames <= t0 are untouched, bone lengths
-  unchanged, planted feet do not slide more than 2 cm; a target 1 m beyond reach gives
-  reached=False with a residual of the order of the excess; bad inputs raise MotionError.
+adapt on the real CMU clips 135_09 (lunge punches) and 135_04 (front kicks): the fist /
+foot moved 10 cm is reached within 1 cm at tc, frames <= t0 are untouched, bone lengths
+unchanged, planted feet do not slide more than 2 cm; a target 1 m beyond reach gives
+reached=False with a residual of the order of the excess; bad inputs and options raise
+MotionError.
 
 No timing is asserted (see ``repro.bench.adaptation.time_adaptation`` for the numbers).
 """
@@ -25,14 +18,11 @@ import dataclasses
 
 import numpy as np
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
 
 from repro import data
 from repro.errors import MotionError
-from repro.motion import CMU_UNIT_M, Motion, read_bvh
+from repro.motion import CMU_UNIT_M, read_bvh
 from repro.motion.adaptation import (
-    DEFAULT_LIMITS_DEG,
     AdaptOptions,
     Adaptation,
     adapt,
@@ -41,13 +31,8 @@ from repro.motion.adaptation import (
     offset_curve,
     reach_limb,
 )
-from repro.motion.core.quaternion import euler_to_quat, quat_multiply, quat_rotate
-from tests.motion_fixtures import MIXAMO, MIXAMO_NAMES
-
-PARENTS = np.array([-1 if p is None else MIXAMO_NAMES.index(p) for _, p, _ in MIXAMO])
-OFFSETS = np.array([o for _, _, o in MIXAMO], dtype=float)
-IDX = {n: i for i, n in enumerate(MIXAMO_NAMES)}
-
+from repro.motion.core.quaternion import quat_multiply
+from tests.motion.adaptation.fixture import IDX, fixture_motion, quat_angle
 
 OPTION_NAMES = {f.name for f in dataclasses.fields(AdaptOptions)}
 
@@ -58,265 +43,6 @@ def _adapt(motion, effector, target, t0, tc, **kw):
     return adapt(motion, effector, target, t0, tc, options=options, **kw)
 
 
-def _fixture_motion(n_frames: int = 12, seed: int = 0) -> Motion:
-    """The shared Mixamo skeleton (metres, T-pose along X) with the arms bent forward."""
-    rng = np.random.default_rng(seed)
-    J = len(MIXAMO_NAMES)
-    eul = np.zeros((n_frames, J, 3))
-    for side, s in (("Right", -1.0), ("Left", 1.0)):
-        # upper arm swung forward (about Y), elbow bent about Y (hinge), small noise
-        eul[:, IDX[f"{side}Arm"], 1] = -s * (60 + 10 * rng.standard_normal(n_frames))
-        eul[:, IDX[f"{side}Arm"], 2] = -s * 20
-        eul[:, IDX[f"{side}ForeArm"], 1] = -s * (70 + 20 * rng.random(n_frames))
-        eul[:, IDX[f"{side}UpLeg"], 0] = -10
-        eul[:, IDX[f"{side}Leg"], 0] = 20
-        eul[:, IDX[f"{side}Foot"], 0] = -10
-    eul[:, IDX["Spine"], 0] = 5 * rng.standard_normal(n_frames)
-    rot = euler_to_quat("ZXY", eul[..., [2, 0, 1]])
-    pos = np.broadcast_to(OFFSETS, (n_frames, J, 3)).copy()
-    rot_ch = ("Zrotation", "Xrotation", "Yrotation")
-    channels = [("Xposition", "Yposition", "Zposition") + rot_ch] + [rot_ch] * (J - 1)
-    return Motion(
-        joint_names=MIXAMO_NAMES,
-        parents=PARENTS,
-        offsets=OFFSETS,
-        channels=channels,
-        frame_time=1 / 30,
-        rotations=rot,
-        positions=pos,
-        end_site_parents=np.array([IDX["RightHand"], IDX["LeftHand"]]),
-        end_site_offsets=np.array([[-0.08, 0.0, 0.0], [0.08, 0.0, 0.0]]),
-        unit_m=1.0,
-    )
-
-
-def _with_rotations(m: Motion, frames, rotations) -> Motion:
-    rot = np.array(m.rotations)
-    rot[frames] = rotations
-    return dataclasses.replace(m, rotations=rot)
-
-
-def _quat_angle(a, b):
-    """Angle of the rotation between unit quaternions (precise near 0)."""
-    d = quat_multiply(np.asarray(a) * np.array([-1, -1, -1, 1.0]), np.asarray(b))
-    return 2 * np.arctan2(np.linalg.norm(d[..., :3], axis=-1), np.abs(d[..., 3]))
-
-
-# ------------------------------------------------------------------- d(t)
-def test_offset_curve_endpoints_monotone_smooth():
-    d_tc = np.array([0.1, -0.05, 0.02])
-    d = offset_curve(10, 40, d_tc, 60)
-    assert d.shape == (60, 3)
-    assert np.all(d[:11] == 0.0)
-    np.testing.assert_allclose(d[40], d_tc, atol=0)
-    np.testing.assert_allclose(d[40:], np.broadcast_to(d_tc, (20, 3)))  # held by default
-    # every d(t) is a multiple s(t) d_tc with s increasing from 0 to 1
-    s = d[:, 0] / d_tc[0]
-    np.testing.assert_allclose(d, s[:, None] * d_tc[None], atol=1e-15)
-    assert np.all(np.diff(s[10:41]) > 0)
-    # smoothstep: slope vanishes at both ends (first/last steps are the smallest)
-    steps = np.diff(s[10:41])
-    assert steps[0] < steps[15] / 10 and steps[-1] < steps[15] / 10
-    assert steps.max() <= 1.5 / 30 + 1e-12  # max slope of 3u^2 - 2u^3 is 1.5
-
-
-def test_offset_curve_linear_release_and_degenerate():
-    d = offset_curve(0, 4, [1.0, 0, 0], 12, kind="linear", release=4)
-    np.testing.assert_allclose(d[:, 0], [0, 0.25, 0.5, 0.75, 1, 0.75, 0.5, 0.25, 0, 0, 0, 0])
-    d = offset_curve(3, 3, [0, 1.0, 0], 6)  # t0 == tc: a step at tc
-    np.testing.assert_array_equal(d[:, 1], [0, 0, 0, 1, 1, 1])
-    d = offset_curve(1, 3, [0, 0, 2.0], 6, release=0)
-    np.testing.assert_array_equal(d[4:, 2], [0, 0])
-    d = offset_curve(0, 10, [1.0, 0, 0], 11, kind="smootherstep")
-    assert np.all(np.diff(d[:, 0]) > 0) and d[10, 0] == 1.0
-
-
-@given(
-    F=st.integers(2, 200),
-    a=st.floats(0, 1),
-    b=st.floats(0, 1),
-    d=st.lists(st.floats(-2, 2), min_size=3, max_size=3),
-    kind=st.sampled_from(["linear", "smoothstep", "smootherstep"]),
-    rel=st.one_of(st.none(), st.integers(0, 30)),
-)
-def test_offset_curve_properties(F, a, b, d, kind, rel):
-    t0, tc = sorted((int(a * (F - 1)), int(b * (F - 1))))
-    out = offset_curve(t0, tc, d, F, kind=kind, release=rel)
-    assert np.all(out[: t0 + (tc > t0)] == 0.0) if tc > t0 else np.all(out[:tc] == 0.0)
-    np.testing.assert_array_equal(out[tc], np.asarray(d, dtype=float))
-    w = np.linalg.norm(out, axis=1)
-    assert np.all(np.diff(w[t0: tc + 1]) >= -1e-12)  # grows monotonically to |d(tc)|
-    assert np.all(w <= np.linalg.norm(d) + 1e-12)
-    if rel is not None:
-        assert np.all(np.diff(w[tc:]) <= 1e-12)  # then decreases back
-        assert np.all(out[tc + rel + 1:] == 0.0) if rel > 0 else np.all(out[tc + 1:] == 0.0)
-
-
-@pytest.mark.parametrize(
-    "args, kw, match",
-    [
-        ((5, 3, [0, 0, 0], 10), {}, "after the contact"),
-        ((0, 10, [0, 0, 0], 10), {}, "out of range"),
-        ((-1, 3, [0, 0, 0], 10), {}, "out of range"),
-        ((0, 3, [np.nan, 0, 0], 10), {}, "NaN"),
-        ((0, 3, [0, 0], 10), {}, "3-vector"),
-        ((0, 3, [0, 0, 0], 10), {"kind": "cubic"}, "kind"),
-        ((0, 3, [0, 0, 0], 10), {"release": -1}, "release"),
-        ((0.5, 3, [0, 0, 0], 10), {}, "integer"),
-    ],
-)
-def test_offset_curve_bad_inputs(args, kw, match):
-    with pytest.raises(MotionError, match=match):
-        offset_curve(*args, **kw)
-
-
-# ------------------------------------------------------------- limb step
-def test_reach_limb_reaches_keeps_hand_and_bone_lengths():
-    m = _fixture_motion()
-    gq, gp = m.global_transforms()
-    w = IDX["RightHand"]
-    goal = gp[:, w] + np.array([0.05, -0.08, 0.03])
-    sol = reach_limb(m, np.arange(m.n_frames), "right_wrist", goal)
-    assert sol.reached.all() and sol.residual.max() < 1e-12
-    m2 = _with_rotations(m, slice(None), sol.rotations)
-    gq2, gp2 = m2.global_transforms()
-    np.testing.assert_allclose(gp2[:, w], goal, atol=1e-12)
-    np.testing.assert_allclose(sol.hit_positions, goal, atol=1e-12)
-    assert _quat_angle(gq2[:, w], gq[:, w]).max() < 1e-9  # hand keeps its world orientation
-    # only the arm's three joints changed, bone lengths are the offsets'
-    changed = np.any(np.abs(sol.rotations - m.rotations) > 1e-12, axis=(0, 2))
-    assert set(np.flatnonzero(changed)) <= {IDX["RightArm"], IDX["RightForeArm"], IDX["RightHand"]}
-    lengths = np.linalg.norm(gp2[:, 1:] - gp2[:, PARENTS[1:]], axis=-1)
-    np.testing.assert_allclose(lengths, np.broadcast_to(np.linalg.norm(OFFSETS[1:], axis=1), lengths.shape), atol=1e-12)
-
-
-def test_reach_limb_identity_and_swivel_plane_kept():
-    m = _fixture_motion()
-    gq, gp = m.global_transforms()
-    s, e, w = IDX["RightArm"], IDX["RightForeArm"], IDX["RightHand"]
-    same = reach_limb(m, np.arange(m.n_frames), "right_wrist", gp[:, w])
-    assert _quat_angle(same.rotations, np.asarray(m.rotations)).max() < 1e-7
-    # moving the wrist within the arm's plane keeps the elbow in that plane
-    n = np.cross(gp[:, e] - gp[:, s], gp[:, w] - gp[:, s])
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    toward = gp[:, s] - gp[:, w]
-    goal = gp[:, w] + 0.2 * toward
-    sol = reach_limb(m, np.arange(m.n_frames), "right_wrist", goal)
-    gp2 = _with_rotations(m, slice(None), sol.rotations).global_positions()
-    assert np.abs(np.sum((gp2[:, e] - gp[:, s]) * n, axis=1)).max() < 1e-9
-    # and on the same side of the shoulder->wrist axis (the elbow bends the same way)
-    side0 = np.sum(np.cross(gp[:, w] - gp[:, s], gp[:, e] - gp[:, s]) * n, axis=1)
-    side1 = np.sum(np.cross(gp2[:, w] - gp[:, s], gp2[:, e] - gp[:, s]) * n, axis=1)
-    assert np.all(np.sign(side0) == np.sign(side1))
-
-
-def test_reach_limb_scalar_path_equals_batch():
-    m = _fixture_motion(n_frames=8, seed=3)
-    gp = m.global_positions()
-    goal = gp[:, IDX["LeftHand"]] + np.array([-0.1, 0.12, 0.2])  # partly out of reach
-    batch = reach_limb(m, np.arange(8), "left_fist", goal, hit_point="end_site")
-    assert not batch.reached.all()
-    for f in range(8):
-        one = reach_limb(m, f, "left_fist", goal[f], hit_point="end_site")
-        # 1e-7 rad, not rounding: a fully extended arm is the singular pose of two-bone IK
-        # (sin of the elbow angle ~ sqrt(rounding)), where both paths are equally right
-        assert _quat_angle(one.rotations[0], batch.rotations[f]).max() < 1e-7
-        g1 = _with_rotations(m, [f], one.rotations).global_positions()[f]
-        g2 = _with_rotations(m, [f], batch.rotations[[f]]).global_positions()[f]
-        np.testing.assert_allclose(g1, g2, atol=1e-8)
-        np.testing.assert_allclose(one.residual[0], batch.residual[f], atol=1e-12)
-        np.testing.assert_allclose(one.hit_positions[0], batch.hit_positions[f], atol=1e-12)
-    for ext in (1.0, 0.9):  # also with a reach limit
-        b = reach_limb(m, np.arange(8), "left_fist", goal, max_extension=ext)
-        o = reach_limb(m, 5, "left_fist", goal[5], max_extension=ext)
-        assert _quat_angle(o.rotations[0], b.rotations[5]).max() < 1e-9
-
-
-def test_reach_limb_unreachable_gives_excess_distance():
-    m = _fixture_motion()
-    gp = m.global_positions()
-    s, w = IDX["RightArm"], IDX["RightHand"]
-    L = np.linalg.norm(OFFSETS[IDX["RightForeArm"]]) + np.linalg.norm(OFFSETS[w])
-    direction = np.array([-0.3, 0.2, 1.0]) / np.linalg.norm([-0.3, 0.2, 1.0])
-    goal = gp[:, s] + (L + 0.25) * direction
-    sol = reach_limb(m, np.arange(m.n_frames), "right_wrist", goal)
-    assert not sol.reached.any()
-    np.testing.assert_allclose(sol.residual, 0.25, atol=1e-9)
-    gp2 = _with_rotations(m, slice(None), sol.rotations).global_positions()
-    np.testing.assert_allclose(gp2[:, w], gp[:, s] + L * direction, atol=1e-9)  # fully extended towards it
-    # too close (closer than |upper - forearm|): folded as far as it goes, no NaN
-    close = reach_limb(m, 0, "right_wrist", gp[0, s] + 1e-3 * direction)
-    assert np.all(np.isfinite(close.rotations)) and not close.reached[0]
-
-
-# ------------------------------------------------------------------- CCD
-def test_ccd_reduces_error_and_respects_limits():
-    m = _fixture_motion()
-    gp = m.global_positions()
-    s, w = IDX["RightArm"], IDX["RightHand"]
-    L = np.linalg.norm(OFFSETS[IDX["RightForeArm"]]) + np.linalg.norm(OFFSETS[w])
-    d = (gp[:, w] - gp[:, s]) / np.linalg.norm(gp[:, w] - gp[:, s], axis=1, keepdims=True)
-    goal = gp[:, s] + (L + 0.08) * d  # 8 cm beyond the arm's reach
-    frames = np.arange(m.n_frames)
-    limb = reach_limb(m, frames, "right_wrist", goal)
-    sol = ccd(m, frames, "right_wrist", goal, rotations=limb.rotations)
-    assert limb.residual.min() > 0.079
-    assert np.all(sol.residual < limb.residual)
-    assert sol.reached.all() and sol.residual.max() < 1e-4  # default tol: 1e-4 of the arm
-    assert sol.chain == ["RightForeArm", "RightArm", "RightShoulder", "Spine1", "Spine"]
-    # cone limits around the original local rotations
-    for name, kind in (("RightShoulder", "clavicle"), ("Spine1", "spine"), ("Spine", "spine")):
-        j = IDX[name]
-        ang = np.degrees(_quat_angle(sol.rotations[:, j], np.asarray(m.rotations)[:, j]))
-        assert ang.max() <= DEFAULT_LIMITS_DEG[kind] + 1e-6
-    # the pelvis is not in an arm's chain
-    assert np.all(sol.rotations[:, IDX["Hips"]] == np.asarray(m.rotations)[:, IDX["Hips"]])
-
-
-def test_ccd_alone_hinge_never_hyperextends_and_terminates():
-    m = _fixture_motion()
-    gp = m.global_positions()
-    s, e, w = IDX["LeftArm"], IDX["LeftForeArm"], IDX["LeftHand"]
-    frames = np.arange(m.n_frames)
-    # pure CCD (no analytic finish) on a reachable goal: elbow kept within [0, 160] degrees
-    goal = gp[:, w] + np.array([0.05, 0.1, 0.05])
-    sol = ccd(m, frames, "left_wrist", goal, finish_with_limb=False, max_iter=200, tol=1e-3)
-    assert sol.residual.max() < 0.01
-    gp2 = _with_rotations(m, frames, sol.rotations).global_positions()
-    n0 = np.cross(gp[:, e] - gp[:, s], gp[:, w] - gp[:, e])
-    n1 = np.cross(gp2[:, e] - gp2[:, s], gp2[:, w] - gp2[:, e])
-    # the bend keeps its direction relative to the upper arm's frame: same sign of the
-    # (rotated) hinge normal, i.e. no hyperextension through the straight pose
-    gq = m.global_transforms()[0]
-    gq2 = _with_rotations(m, frames, sol.rotations).global_transforms()[0]
-    inv = np.array([-1, -1, -1, 1.0])
-    n0_local = quat_rotate(gq[:, s] * inv, n0)
-    n1_local = quat_rotate(gq2[:, s] * inv, n1)
-    assert np.all(np.sum(n0_local * n1_local, axis=1) >= -1e-12)
-    # an impossible goal: best effort, bounded sweeps, no exception
-    far = gp[:, s] + np.array([3.0, 0, 0])
-    bad = ccd(m, frames, "left_wrist", far, finish_with_limb=False, max_iter=40)
-    assert not bad.reached.any() and np.all(bad.iterations <= 40)
-    assert np.all(bad.residual > 2.0)
-
-
-def test_ccd_chain_validation():
-    m = _fixture_motion()
-    with pytest.raises(MotionError, match="not an ancestor"):
-        ccd(m, 0, "right_wrist", [0, 1, 0.5], chain=["LeftArm"])
-    with pytest.raises(MotionError, match="no joint or role"):
-        ccd(m, 0, "right_wrist", [0, 1, 0.5], chain=["Nope"])
-    with pytest.raises(MotionError, match="string"):
-        ccd(m, 0, "right_wrist", [0, 1, 0.5], chain="RightArm")
-    with pytest.raises(MotionError, match="limits"):
-        ccd(m, 0, "right_wrist", [0, 1, 0.5], limits={"elbw": 10})
-    with pytest.raises(MotionError, match="hinge_range_deg"):
-        ccd(m, 0, "right_wrist", [0, 1, 0.5], hinge_range_deg=(30, 10))
-    assert default_chain(m, "left_foot") == ["LeftLeg", "LeftUpLeg", "Hips"]
-    assert default_chain(m, "left_foot", include_pelvis=False) == ["LeftLeg", "LeftUpLeg"]
-
-
-# ------------------------------------------------------------ bad inputs
 @pytest.mark.parametrize(
     "kw, match",
     [
@@ -337,31 +63,15 @@ def test_ccd_chain_validation():
     ],
 )
 def test_adapt_bad_inputs_raise_motion_error(kw, match):
-    m = _fixture_motion()
+    m = fixture_motion()
     args = {"effector": "right_fist", "target": [-0.3, 1.4, 0.4], "t0": 2, "tc": 6}
     args.update(kw)
     with pytest.raises(MotionError, match=match):
         _adapt(m, args.pop("effector"), args.pop("target"), args.pop("t0"), args.pop("tc"), **args)
 
 
-def test_reach_limb_bad_inputs():
-    m = _fixture_motion()
-    with pytest.raises(MotionError, match="out of range"):
-        reach_limb(m, [0, 12], "right_fist", [0, 1, 0])
-    with pytest.raises(MotionError, match="NaN"):
-        reach_limb(m, [0, 1], "right_fist", [[0, 1, 0], [np.inf, 0, 0]])
-    with pytest.raises(MotionError, match="targets must be"):
-        reach_limb(m, [0, 1, 2], "right_fist", np.zeros((2, 3)))
-    with pytest.raises(MotionError, match="End Site"):
-        reach_limb(m, 0, "right_foot", [0, 0, 0], hit_point="end_site")
-    with pytest.raises(MotionError, match="rotations must be"):
-        reach_limb(m, [0, 1], "right_fist", [0, 1, 0], rotations=np.zeros((3, len(MIXAMO), 4)))
-    with pytest.raises(MotionError, match="Motion"):
-        reach_limb("not a motion", 0, "right_fist", [0, 1, 0])
-
-
 def test_adapt_on_fixture_is_continuous_and_exact():
-    m = _fixture_motion(n_frames=12)
+    m = fixture_motion(n_frames=12)
     gp = m.global_positions()
     hit = gp[8, IDX["RightHand"]]
     a = adapt(m, "right_fist", hit + [0.0, 0.05, 0.05], 2, 8, options=AdaptOptions(release=None, feet=None, floor=None))
@@ -510,7 +220,7 @@ def test_real_scalar_equals_batch_and_feet_modes(punch, kick):
     batch = reach_limb(punch, frames, "right_fist", goal)
     for i in (0, 17, 39):
         one = reach_limb(punch, int(frames[i]), "right_fist", goal[i])
-        assert _quat_angle(one.rotations[0], batch.rotations[i]).max() < 1e-9
+        assert quat_angle(one.rotations[0], batch.rotations[i]).max() < 1e-9
     # feet=None: a punch edit leaves the legs alone
     target = gp[PUNCH_TC, punch.joint_index("rhand")] + [0, -0.05, 0]
     a = adapt(punch, "right_fist", target, PUNCH_TC - 40, PUNCH_TC, options=AdaptOptions(feet=None, floor=None))
@@ -578,7 +288,7 @@ def test_quat_multiply_and_cross_fill_in_place_with_the_same_numbers():
 )
 def test_adapt_refuses_bad_options_with_motion_errors(kw, match):
     """Strings, None, booleans and non-finite values used to reach float() (bare ValueError / TypeError)."""
-    m = _fixture_motion()
+    m = fixture_motion()
     with pytest.raises(MotionError, match=match):
         _adapt(m, "right_wrist", [0.0, 1.0, 0.5], 0, 5, **kw)
 
@@ -586,7 +296,7 @@ def test_adapt_refuses_bad_options_with_motion_errors(kw, match):
 def test_the_solvers_refuse_bad_tolerances_rotations_and_repeats():
     from repro.motion.adaptation.cost import adaptation_cost
 
-    m = _fixture_motion()
+    m = fixture_motion()
     with pytest.raises(MotionError, match="tol"):
         reach_limb(m, 0, "right_wrist", [0.0, 1.0, 0.5], tol="x")
     with pytest.raises(MotionError, match="tol"):
@@ -606,7 +316,7 @@ def test_the_solvers_refuse_bad_tolerances_rotations_and_repeats():
 
 
 def test_effector_of_any_type_and_huge_offset_curves_are_motion_errors():
-    m = _fixture_motion()
+    m = fixture_motion()
     for eff in (["right_wrist"], np.zeros(2)):  # unhashable: used to fail in the chain cache
         with pytest.raises(MotionError, match="effector"):
             reach_limb(m, 0, eff, [0.0, 1.0, 0.5])
@@ -629,7 +339,7 @@ def test_effector_of_any_type_and_huge_offset_curves_are_motion_errors():
     ],
 )
 def test_adapt_refuses_what_the_argument_fuzzer_found(kw, match):
-    m = _fixture_motion()
+    m = fixture_motion()
     args = dict(motion=m, effector="right_wrist", target=[0.0, 1.0, 0.5], t0=0, tc=5)
     args.update(kw)
     with pytest.raises(MotionError, match=match):
@@ -637,7 +347,7 @@ def test_adapt_refuses_what_the_argument_fuzzer_found(kw, match):
 
 
 def test_solvers_refuse_far_targets_and_huge_frame_ranges():
-    m = _fixture_motion()
+    m = fixture_motion()
     with pytest.raises(MotionError, match="targets"):
         reach_limb(m, [1, 2], "right_wrist", np.full(3, 1e300))
     with pytest.raises(MotionError, match="frames"):
