@@ -29,6 +29,8 @@ tells its part of the method):
   limits, for frames the limb alone cannot reach;
 * :mod:`.adapt_clip`, :func:`adapt` -- the whole edit of a clip: ``d(t)``, per frame the limb
   step and CCD where needed, the feet kept planted; returns an :class:`Adaptation`;
+* :mod:`.foot_pins` -- the other feet during the edit: pinned where planted, above the
+  floor, their slide measured;
 * :mod:`.cost` -- what an adaptation costs against the clip (rotation change, added
   acceleration, bone lengths, joint limits).
 

@@ -46,6 +46,7 @@ import numpy as np
 from repro.checks import as_int, as_real_array
 from repro.errors import MotionError
 from repro.motion.adaptation.ccd_solver import ccd_spec, ccd_sweeps
+from repro.motion.adaptation.foot_pins import feet_independent, foot_slides, liftoff_offset, solve_feet, start_frame
 from repro.motion.adaptation.limb import limb_dmax, solve_limb
 from repro.motion.adaptation.offset import offset_curve
 from repro.motion.adaptation.options import AdaptOptions
@@ -173,12 +174,6 @@ class Adaptation:
         }
 
 
-def _phases(c: np.ndarray) -> list[tuple[int, int]]:
-    m = np.concatenate([[0], c.astype(int), [0]])
-    d = np.diff(m)
-    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
-
-
 def _bone_lengths(gp: np.ndarray, parents: np.ndarray) -> np.ndarray:
     return np.linalg.norm(gp[:, 1:] - gp[:, parents[1:]], axis=-1)
 
@@ -304,10 +299,10 @@ def _shift_root(e: _Edit, root_offsets) -> None:
 def _offset_goals(e: _Edit, frames) -> None:
     """``d(t)`` from ``t_start`` (the kicking foot's pin eased out with ``"plant"``), the goals, the frames to edit."""
     F = e.motion.n_frames
-    e.t_start = _start_frame(e.contacts, e.ch, e.t0, e.tc)
+    e.t_start = start_frame(e.contacts, e.ch, e.t0, e.tc)
     e.d = offset_curve(e.t_start, e.tc, e.X - e.p[e.tc], F, kind=e.o.kind, release=e.n_release)
     if e.o.feet == "plant":
-        e.d += _liftoff_offset(e.rig, e.ch, e.contacts, e.ref_gp, e.t0, e.t_start, e.tc, e.o.floor, e.o.kind)
+        e.d += liftoff_offset(e.rig, e.ch, e.contacts, e.ref_gp, e.t0, e.t_start, e.tc, e.o.floor, e.o.kind)
     e.goals = e.p + e.d
     edit = np.flatnonzero(np.any(e.d != 0.0, axis=1))
     edit = edit[edit > e.t0] if e.tc > e.t0 else edit[edit >= e.t0]
@@ -320,7 +315,7 @@ def _offset_goals(e: _Edit, frames) -> None:
 
 
 def _feet_of(e: _Edit, rot: np.ndarray, pinned: np.ndarray, anchors: list, only) -> tuple[float, int]:
-    return _solve_feet(e.rig, e.ch, e.motion, rot, e.o.feet, e.o.foot_blend, e.t0, e.stop, pinned, anchors,
+    return solve_feet(e.rig, e.ch, e.motion, rot, e.o.feet, e.o.foot_blend, e.t0, e.stop, pinned, anchors,
                        contacts=e.contacts, ref_gp=e.ref_gp, shifted=e.shifted, floor=e.o.floor,
                        t_start=e.t_start, only=only, foot_offsets=e.foot_offsets)
 
@@ -337,7 +332,7 @@ def _solve(e: _Edit) -> bool:
     e.solver = np.full(F, "", dtype="<U4")
     e.iters = np.zeros(F, dtype=np.intp)
     e.pinned = np.zeros((F, 2), dtype=bool)
-    e.independent = _feet_independent(e.rig, e.ch, e.spec)
+    e.independent = feet_independent(e.rig, e.ch, e.spec)
     bounded = e.o.max_foot_error is not None and e.o.feet is not None
     feet_first = bounded and e.independent
     if feet_first:
@@ -393,7 +388,7 @@ def _result(e: _Edit, t_total: float) -> Adaptation:
     bone_err = float(
         np.max(np.abs(_bone_lengths(gp2[cf], motion.parents) - _bone_lengths(gp[cf], motion.parents)), initial=0.0)
     )
-    slide, slide_o = _foot_slides(rig, e.anchors, gp2, e.ref_gp)
+    slide, slide_o = foot_slides(rig, e.anchors, gp2, e.ref_gp)
     timings = e.timings
     timings["total"] = time.perf_counter() - t_total
     timings.update(frames_limb=int(e.edit.size), frames_ccd=int(np.sum(e.solver == "ccd")), frames_feet=int(e.n_feet))
@@ -429,53 +424,11 @@ def _result(e: _Edit, t_total: float) -> Adaptation:
     )
 
 
-_SIDE_INDEX = {"left": 0, "right": 1}
-
-
 def _release_frames(release: float | None, frame_time: float) -> int | None:
     if release is None:
         return None
     # a release longer than any clip is a release that never ends within it: bounded, not overflowed
     return int(round(min(release / frame_time, 2.0**62)))
-
-
-def _start_frame(contacts: np.ndarray, ch: Chain, t0: int, tc: int) -> int:
-    """``t0``, or for a foot effector planted in ``[t0, tc)`` its last planted frame (lift-off)."""
-    if ch.kind == "leg":
-        planted = np.flatnonzero(contacts[t0:tc, _SIDE_INDEX[ch.side]]) + t0
-        if planted.size:
-            return int(planted.max())
-    return t0
-
-
-def _liftoff_offset(rig, ch, contacts, gp, t0: int, t_start: int, tc: int, floor, kind: str) -> np.ndarray:
-    """(F, 3) the kicking foot's pin at its lift-off, eased out by ``tc``: no jump when the pin lets go.
-
-    The planted kicking foot is pinned up to its lift-off ``t_start`` where it was at the
-    start of the phase (:func:`_solve_feet`); the input's foot has moved meanwhile (the
-    blend with the current pose), so the hit goal starts from the pinned place and eases
-    (``kind``) to the input's by ``tc``, where ``d(tc)`` takes over.  0 for an arm, an
-    unpinned foot or ``t_start == t0``.
-    """
-    F = gp.shape[0]
-    out = np.zeros((F, 3))
-    if ch.kind != "leg" or t_start <= t0:
-        return out
-    s = _SIDE_INDEX[ch.side]
-    phase = [(a, b) for a, b in _phases(contacts[:, s]) if b == t_start + 1 and b > t0 + 1]
-    if not phase:
-        return out
-    ank = ch.dist
-    goal = np.repeat(gp[max(phase[0][0], t0), ank][None], F, axis=0)
-    if floor is not None:  # the pin's own floor lift (as _solve_feet lifts it)
-        on = np.zeros(F, dtype=bool)
-        on[t_start] = True
-        _lift_to_floor(rig, ch.side, ank, gp, goal, on, floor)
-    delta = goal[t_start] - gp[t_start, ank]  # the foot keeps its world orientation: the hit point moves with the ankle
-    w = offset_curve(t_start, tc, np.ones(3), F, kind=kind, release=None)[:, 0]
-    r = np.zeros(F)
-    r[t_start + 1: tc + 1] = 1.0 - w[t_start + 1: tc + 1]
-    return r[:, None] * delta[None, :]
 
 
 def _solve_hit(rig, ch, motion, rot, edit, goals, spec, max_iter, tol, ext, solver, iters, timings) -> None:
@@ -511,26 +464,6 @@ def _solve_hit(rig, ch, motion, rot, edit, goals, spec, max_iter, tol, ext, solv
     rot[edit] = r
 
 
-def _feet_independent(rig: Rig, ch: Chain, spec) -> bool:
-    """Whether the foot pass cannot depend on the hit solve (nor the hit solve on it).
-
-    True for an arm effector when no joint the hit solve may turn (the CCD chain, the
-    limb's three joints) lies on either leg's path root .. ankle: the passes then read and
-    write disjoint joints (both only read the root).
-    """
-    if ch.kind != "arm":
-        return False
-    turned = {int(ch.path[k]) for k, _, _ in spec} | {ch.prox, ch.mid, ch.dist}
-    for side in ("left", "right"):
-        try:
-            leg = rig.chain(f"{side}_ankle")
-        except MotionError:
-            return False
-        if turned & {int(j) for j in leg.path[: leg.k_dist + 1]}:
-            return False
-    return True
-
-
 def _check_contacts(contacts, F: int) -> np.ndarray:
     try:
         c = np.asarray(contacts)
@@ -553,87 +486,6 @@ def _check_offsets(offsets, F: int, shape: tuple, name: str) -> np.ndarray:
     return o
 
 
-def _solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors, *, contacts, ref_gp,
-                shifted, floor, t_start, only=None, foot_offsets=None) -> tuple[float, int]:
-    """Keep the other feet planted (``"pin"``, ``"plant"``) or on their trajectories (in place).
-
-    Goals come from ``ref_gp`` (the input's joint positions, before a root shift).
-    ``only`` (F,) bool: solve on those frames alone (a probe of :func:`adapt`'s bound).
-    Returns the largest ankle error and the number of solved frames.
-    """
-    gq = rig.globals[0]
-    gp = ref_gp
-    F = motion.n_frames
-    foot_err = 0.0
-    n_feet = 0
-    n_blend = int(round(foot_blend / motion.frame_time))
-    for side in ("left", "right"):
-        striking = ch.kind == "leg" and side == ch.side
-        if striking and feet != "plant":
-            continue
-        s = _SIDE_INDEX[side]
-        leg = rig.chain(f"{side}_ankle")
-        ank = leg.dist
-        anc = [int(j) for j in leg.path[: leg.k_prox]]  # root .. hip's parent
-        orig = gp[:, ank]
-        goal = orig.copy()
-        w = np.zeros(F)
-        need = np.zeros(F, dtype=bool)
-        if feet in ("pin", "plant"):
-            for a, b in _phases(contacts[:, s]):
-                if b <= t0 + 1 or (a >= stop and feet == "pin") or (striking and b - 1 > t_start and a < stop):
-                    continue  # the striking foot: up to its lift-off and after the edit (it lands)
-                a = max(a, t0)
-                anchors.append((s, a, b))
-                goal[a:b] = orig[a]
-                pinned[a:b, s] = True
-                w[a:b] = 1.0
-                delta = orig[a] - orig[b - 1]
-                for k in range(1, n_blend + 1):
-                    f = b - 1 + k
-                    if f >= F or pinned[f, s] or (striking and t_start < f < stop):
-                        break
-                    wk = 1.0 - k / (n_blend + 1.0)
-                    goal[f] = orig[f] + wk * delta
-                    w[f] = max(w[f], wk)
-            if foot_offsets is not None:  # a step: the goals move with the stepping foot
-                goal += foot_offsets[:, s]
-                w = np.maximum(w, np.any(foot_offsets[:, s] != 0.0, axis=1))
-            if floor is not None:
-                _lift_to_floor(rig, side, ank, gp, goal, w > 0, floor)
-            need |= w > 0
-        if striking:  # never over the strike itself
-            need[t_start + 1:stop] = False
-        else:
-            need |= shifted
-            need |= np.any(rot[:, anc] != np.asarray(motion.rotations)[:, anc], axis=(1, 2))
-        need[: t0 + 1] = False
-        if only is not None:
-            need &= only
-        fr = np.flatnonzero(need)
-        if fr.size:
-            n_feet += fr.size
-            rf = rot[fr]
-            hit, res = solve_limb(leg, rf, rig.trans[fr], goal[fr], distal_world=gq[fr, ank])
-            rot[fr] = rf
-            foot_err = max(foot_err, float(res.max(initial=0.0)))
-    return foot_err, n_feet
-
-
-def _lift_to_floor(rig, side: str, ank: int, gp: np.ndarray, goal: np.ndarray, on: np.ndarray, floor: float) -> None:
-    """Raise the ankle goals on ``on`` frames so that the toe (same foot orientation) is not below ``floor``."""
-    try:
-        toe = rig.sk.index(f"{side}_foot")
-    except MotionError:
-        return
-    if toe == ank:
-        return
-    rel = gp[:, toe, 1] - gp[:, ank, 1]  # the foot keeps its world orientation
-    low = np.minimum(goal[:, 1] + rel, goal[:, 1]) - floor
-    lift = np.where(on, np.maximum(0.0, -low), 0.0)
-    goal[:, 1] += lift
-
-
 def _adapted_motion(motion: Motion, rot: np.ndarray, changed: np.ndarray) -> Motion:
     # re-normalise the changed frames only: the constructor would move unchanged frames
     # by one ulp; they keep the input's exact values (frames <= t0 are bit-identical)
@@ -641,15 +493,3 @@ def _adapted_motion(motion: Motion, rot: np.ndarray, changed: np.ndarray) -> Mot
     return motion.with_unit_rotations(np.where(changed[:, None, None], unit, motion.rotations))
 
 
-def _foot_slides(rig: Rig, anchors, gp2: np.ndarray, gp: np.ndarray) -> tuple[dict, dict]:
-    """Largest horizontal ankle distance from its anchor over the pinned frames: adapted, original."""
-    slide = {"left": 0.0, "right": 0.0}
-    slide_o = {"left": 0.0, "right": 0.0}
-    horiz = [0, 2]
-    for s, a, b in anchors:
-        side = ("left", "right")[s]
-        ank = rig.sk.index(f"{side}_ankle")
-        for g, dct in ((gp2, slide), (gp, slide_o)):
-            dd = np.linalg.norm(g[a:b, ank][:, horiz] - g[a, ank][horiz], axis=-1).max()
-            dct[side] = max(dct[side], float(dd))
-    return slide, slide_o
