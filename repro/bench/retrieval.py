@@ -85,14 +85,7 @@ def check_bench_arguments(databases, factors, n_queries, *, bases=None):
     from repro.checks import check_alloc
 
     if databases is not None:
-        databases = [databases] if isinstance(databases, str) else databases
-        try:
-            databases = list(databases)
-        except TypeError:
-            raise RetrievalError(f"databases must be a non-empty list of {list(DATABASES)}, got {databases!r}") from None
-        bad = [d for d in databases if not isinstance(d, str) or d not in DATABASES]
-        if bad or not databases:
-            raise RetrievalError(f"databases must be a non-empty list of {list(DATABASES)}, got {databases!r}")
+        databases = _names(databases, "databases", DATABASES)
     if factors is not None:
         if isinstance(factors, (str, bytes)):
             raise RetrievalError(f"factors must be a sequence of ints >= 1, got {factors!r}")
@@ -154,7 +147,7 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
         raise RetrievalError(f"expected a MotionDatabase, got {type(db).__name__}")
     n_queries = as_int(n_queries, "n_queries", 1, MAX_QUERIES, error=RetrievalError)
     repeats = as_int(repeats, "repeats", 1, MAX_REPEATS, error=RetrievalError)
-    methods = _check_methods(methods)
+    methods = tuple(_names(methods, "methods", METHODS))
     if retriever is not None and (not isinstance(retriever, MotionRetriever) or retriever.db is not db):
         raise RetrievalError("retriever must be a MotionRetriever built on this database")
     t0 = time.perf_counter()
@@ -176,18 +169,16 @@ def time_search(db: MotionDatabase, n_queries: int = 200, seed: int = 0, *, retr
             "latency": lat, "agreement": _agreement(results), "pruned_fallbacks": fb}
 
 
-def _check_methods(methods) -> tuple[str, ...]:
-    """``methods`` of :func:`time_search` as a non-empty tuple of :data:`METHODS` (one name accepted)."""
-    if isinstance(methods, str):
-        methods = (methods,)
+def _names(values, what: str, allowed: tuple[str, ...]) -> list[str]:
+    """``values`` (one name or a sequence of them) as a non-empty list of names in ``allowed``."""
+    values = [values] if isinstance(values, str) else values
     try:
-        methods = tuple(methods)
+        values = list(values)
     except TypeError:
-        raise RetrievalError(f"methods must be a sequence of {list(METHODS)}, got {methods!r}") from None
-    bad = [m for m in methods if not isinstance(m, str) or m not in METHODS]
-    if bad or not methods:
-        raise RetrievalError(f"methods must be a non-empty sequence of {list(METHODS)}, got {list(methods)}")
-    return methods
+        raise RetrievalError(f"{what} must be a non-empty list of {list(allowed)}, got {values!r}") from None
+    if not values or any(not isinstance(v, str) or v not in allowed for v in values):
+        raise RetrievalError(f"{what} must be a non-empty list of {list(allowed)}, got {values!r}")
+    return values
 
 
 def _time_preparation(r: MotionRetriever, queries: list, repeats: int) -> tuple[list, list]:
