@@ -35,12 +35,14 @@ def test_the_full_feet_table_covers_every_clip_and_keeps_the_limits():
 
 def test_the_measure_fails_when_the_feet_are_not_planted(monkeypatch):
     """The measure can fail: the old pin mode (no floor) lets toes dip through the floor."""
+    import dataclasses
+
     from repro.motion import adaptation
 
     real = adaptation.adapt
 
     def pin(*a, **k):
-        k.update(feet="pin", floor=None)
+        k["options"] = dataclasses.replace(k.get("options") or adaptation.AdaptOptions(), feet="pin", floor=None)
         return real(*a, **k)
 
     monkeypatch.setattr(adaptation, "adapt", pin)
