@@ -33,7 +33,6 @@ LONG_FUNCTIONS: dict[str, str] = {
     "repro.motion.runtime.strike:strike": "to split into named steps (issue 24; 227 lines)",
     "repro.motion.search.exact:ExactSearch._search_exact": "to split into named steps (issue 24; 180 lines)",
     "repro.motion.search.kernel:search_first": "a numba-compiled kernel: one loop, no Python calls inside (splitting costs a call per candidate)",
-    "repro.motion.search.retrieval:MotionRetriever.prepare": "to split into named steps (issue 24; 104 lines)",
     "repro.ui.fighter_panel:FighterPanel.__init__": "to split into named steps (issue 24; 88 lines)",
 }
 

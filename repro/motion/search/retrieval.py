@@ -95,6 +95,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
+from typing import NoReturn
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -447,6 +448,21 @@ class MotionRetriever(ExactSearch, StartScoring):
             raise RetrievalError(f"bad character: {e}") from None
         if not ch.is_compatible(current_pose):
             raise RetrievalError("current_pose is not on the character's skeleton (joint names / parents differ)")
+        m = self._pose_window(current_pose, ch, frame)
+        gq_c, gc = m.global_transforms()
+        q_n = {}
+        refused: dict[int, str] = {}
+        for a in self.actors_present.tolist():
+            pts = self._actor_pose(m, ch, a, (gq_c, gc), refused)
+            if pts is not None:
+                q_n[a] = pts
+        if not q_n:
+            self._refuse(ch, refused)
+        th, o = root_frames(gc[-1:], ch.index("pelvis"), ch.index("left_hip"), ch.index("right_hip"))
+        return Query(q_n=q_n, size_c=float(size_c), heading=float(th[0]), origin=o[0], actors=tuple(q_n))
+
+    def _pose_window(self, current_pose: Motion, ch: Skeleton, frame: int | None) -> Motion:
+        """The frames of the pose window ending at ``frame`` (at the database's rate), in metres."""
         db = self.db
         F = current_pose.n_frames
         f = F - 1 if frame is None else as_int(frame, "frame", None, None, error=RetrievalError)
@@ -469,54 +485,53 @@ class MotionRetriever(ExactSearch, StartScoring):
             raise RetrievalError("the current pose's length unit is unknown; read it with unit_m=... (metres expected)")
         if unit != 1.0:
             m = m.to_metres(unit)
-        q_n = {}
-        gq_c, gc = m.global_transforms()
-        refused: dict[int, str] = {}
-        for a in self.actors_present.tolist():
-            actor = db.actors[a]
-            mode = self._compatible(ch, a)
-            if mode is None:
-                continue
-            if mode == "across":
-                try:  # q on the character -> the actor's tree, through the roles (character's own table):
-                    # retarget_to_tree(m, actor, ...).global_positions(), what depends only on the skeletons cached
-                    plan = self.tree_plan(m, a, ch.roles)
-                except MotionError as e:
-                    refused[a] = str(e)
-                    self._prep_cache[(id(ch), a)] = (ch, None, str(e))  # not again for this character
-                    continue
-                src = (gq_c, gc) if m.n_depth_levels <= _FK_LEVEL_LOOP_MAX else None
-                g = plan.positions(m.rotations, m.local_translations(), source=src)
-                idx = [actor.index(r) for r in db.pose_roles]
-                pts = pose_points(g, idx, actor.index("pelvis"), actor.index("left_hip"), actor.index("right_hip"),
-                                  window=db.window, step=db.step)[-1]
-                q_n[a] = pts / actor.size
-                continue
-            k = self._scaling_of(m, a)
-            if k is not None:  # a uniform scaling of the actor: q_r is the pose scaled, no retargeting needed
-                idx = [actor.index(r) for r in db.pose_roles]
-                pts = pose_points(gc, idx, actor.index("pelvis"), actor.index("left_hip"), actor.index("right_hip"),
-                                  window=db.window, step=db.step)[-1]
-                q_n[a] = pts / (k * actor.size)
-                continue
-            try:  # retarget(m, actor).global_positions(), with what depends only on the skeletons cached
-                g = self.retarget_plan(m, a).positions(m.rotations, m.local_translations(), source=(gq_c, gc))
+        return m
+
+    def _actor_pose(self, m: Motion, ch: Skeleton, a: int, source: tuple, refused: dict) -> np.ndarray | None:
+        """``q_r`` on actor ``a`` in units of its size (Section 3.3), or None when the pose does not reach it
+        (a refused retargeting across trees is noted in ``refused``).  ``source``: ``m``'s global transforms."""
+        gq_c, gc = source
+        actor = self.db.actors[a]
+        mode = self._compatible(ch, a)
+        if mode is None:
+            return None
+        if mode == "across":
+            try:  # q on the character -> the actor's tree, through the roles (character's own table):
+                # retarget_to_tree(m, actor, ...).global_positions(), what depends only on the skeletons cached
+                plan = self.tree_plan(m, a, ch.roles)
             except MotionError as e:
-                raise RetrievalError(f"cannot retarget the current pose to actor {a}: {e}") from None
-            idx = [actor.index(r) for r in db.pose_roles]
-            pts = pose_points(g, idx, actor.index("pelvis"), actor.index("left_hip"), actor.index("right_hip"),
-                              window=db.window, step=db.step)[-1]
-            q_n[a] = pts / actor.size
-        if not q_n and (refused or self._refusals(ch)):
-            why = refused or self._refusals(ch)
+                refused[a] = str(e)
+                self._prep_cache[(id(ch), a)] = (ch, None, str(e))  # not again for this character
+                return None
+            src = (gq_c, gc) if m.n_depth_levels <= _FK_LEVEL_LOOP_MAX else None
+            g = plan.positions(m.rotations, m.local_translations(), source=src)
+            return self._pose_cloud(g, actor, actor.size)
+        k = self._scaling_of(m, a)
+        if k is not None:  # a uniform scaling of the actor: q_r is the pose scaled, no retargeting needed
+            return self._pose_cloud(gc, actor, k * actor.size)
+        try:  # retarget(m, actor).global_positions(), with what depends only on the skeletons cached
+            g = self.retarget_plan(m, a).positions(m.rotations, m.local_translations(), source=(gq_c, gc))
+        except MotionError as e:
+            raise RetrievalError(f"cannot retarget the current pose to actor {a}: {e}") from None
+        return self._pose_cloud(g, actor, actor.size)
+
+    def _pose_cloud(self, g: np.ndarray, actor: Skeleton, size: float) -> np.ndarray:
+        """The last pose cloud of the global positions ``g`` on ``actor``, divided by ``size``."""
+        db = self.db
+        idx = [actor.index(r) for r in db.pose_roles]
+        pts = pose_points(g, idx, actor.index("pelvis"), actor.index("left_hip"), actor.index("right_hip"),
+                          window=db.window, step=db.step)[-1]
+        return pts / size
+
+    def _refuse(self, ch: Skeleton, refused: dict) -> NoReturn:
+        """Why the pose reaches no actor: the refused retargetings, or no shared joint tree."""
+        why = refused or self._refusals(ch)
+        if why:
             raise RetrievalError("the current pose cannot be retargeted to any actor of the database: "
                                  + "; ".join(f"actor {a}: {e}" for a, e in sorted(why.items())))
-        if not q_n:
-            raise RetrievalError(
-                "the character shares no joint tree with the database's actors; make it from an actor "
-                "with repro.motion.scale_skeleton (joints: " + ", ".join(ch.joint_names[:5]) + ", ...)")
-        th, o = root_frames(gc[-1:], ch.index("pelvis"), ch.index("left_hip"), ch.index("right_hip"))
-        return Query(q_n=q_n, size_c=float(size_c), heading=float(th[0]), origin=o[0], actors=tuple(q_n))
+        raise RetrievalError(
+            "the character shares no joint tree with the database's actors; make it from an actor "
+            "with repro.motion.scale_skeleton (joints: " + ", ".join(ch.joint_names[:5]) + ", ...)")
 
     def _compatible(self, ch: Skeleton, a: int) -> bool | str | None:
         """How the pose reaches actor ``a``; cached per (character, actor).
