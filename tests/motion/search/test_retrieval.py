@@ -16,7 +16,6 @@ What is asserted:
 * the alignment puts the selected start pose onto the current pose, wherever the
   character stands and whichever way it faces;
 * bad input raises RetrievalError / MotionError with clear messages;
-* :func:`time_search` returns latencies for the three methods (no timing assertion).
 """
 
 from __future__ import annotations
@@ -31,7 +30,6 @@ from repro.motion.body.pose_frames import rotate_y
 from repro.motion.search.distance import aligned_distance
 from repro.motion.database.clips import MotionDatabase
 from repro.motion.retargeting.morphology import retarget
-from repro.bench.retrieval import time_search
 from repro.motion.search.retrieval import MotionRetriever, Query, search
 from repro.motion.body.skeleton import Skeleton, rescale_constraint, scale_skeleton
 
@@ -238,18 +236,6 @@ def test_bad_inputs(db, retriever):
         retriever.search(c, odd_pose, ch, "punch")
     with pytest.raises(RetrievalError):
         MotionRetriever(db, w_q=-1.0)
-
-
-def test_time_search_reports_latencies(db):
-    small = db.select(np.arange(0, db.n_clips, 3))
-    res = time_search(small, n_queries=8, seed=0, repeats=1, k=4)
-    assert res["n_clips"] == small.n_clips and res["k"] <= 4
-    for m in ("pruned", "exhaustive", "kdtree"):
-        assert res["latency"][m]["p50_ms"] > 0
-        assert res["latency"][m]["p99_ms"] >= res["latency"][m]["p50_ms"]
-    assert 0.0 <= res["agreement"]["pruned"]["differs"] <= 1.0
-    assert res["agreement"]["pruned"]["mean_excess"] >= -1e-12
-    assert sum(res["pruned_fallbacks"].values()) == 8
 
 
 @pytest.mark.data("cmu-bvh")

@@ -1,8 +1,7 @@
 """The retrieval's helpers check their arguments at the entry (issue 23, sections 3, 6).
 
-What is asserted: ``make_queries(db, 10**12)`` and ``time_search(db, 10**12)`` (which ran
-until killed) are a :class:`RetrievalError` naming the count and its bound
-:data:`MAX_QUERIES`; ``retarget_to_tree`` given a motion or target that is not a Motion
+What is asserted: ``make_queries(db, 10**12)`` (which ran until killed) is a
+:class:`RetrievalError` naming the count and its bound :data:`MAX_QUERIES`; ``retarget_to_tree`` given a motion or target that is not a Motion
 is a :class:`MotionError` (was an ``AttributeError``).
 """
 
@@ -13,7 +12,6 @@ import pytest
 
 from repro.errors import MotionError, RetrievalError
 from repro.motion.retargeting.dispatch import retarget_to_tree
-from repro.bench.retrieval import time_search
 from repro.motion.search.retrieval import MAX_QUERIES, MotionRetriever, make_queries
 
 
@@ -26,8 +24,6 @@ def small(synthetic_db):
 def test_query_counts_are_bounded(small, n):
     with pytest.raises(RetrievalError, match=rf"^n \(number of queries\) must be an integer in 0\.\.{MAX_QUERIES}"):
         make_queries(small, n)
-    with pytest.raises(RetrievalError, match=rf"^n_queries must be an integer in 1\.\.{MAX_QUERIES}"):
-        time_search(small, n, retriever=MotionRetriever(small, seed=0))
 
 
 def test_query_counts_in_range(small):

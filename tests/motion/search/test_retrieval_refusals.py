@@ -31,7 +31,6 @@ from repro.motion.search.retrieval import (
     make_queries,
     search,
 )
-from repro.bench.retrieval import time_search
 from tests.helpers import refusal_failures
 
 
@@ -153,11 +152,6 @@ def search_calls(r, query):
         ("make_queries noise", lambda: make_queries(r.db, 2, noise=np.nan)),
         ("make_queries noise text", lambda: make_queries(r.db, 2, noise="0.1")),
         ("make_queries db", lambda: make_queries("db", 2)),
-        ("time_search n", lambda: time_search(r.db, 0, retriever=r)),
-        ("time_search repeats", lambda: time_search(r.db, 2, retriever=r, repeats=0)),
-        ("time_search methods", lambda: time_search(r.db, 2, retriever=r, methods=("fast",))),
-        ("time_search no methods", lambda: time_search(r.db, 2, retriever=r, methods=())),
-        ("time_search retriever", lambda: time_search(r.db, 2, retriever="r")),
     ]
     return calls
 
