@@ -39,7 +39,8 @@ def bench_adaptation(*, quick: bool = False, progress: bool = False):
 
     from repro import data
     from repro.motion import read_bvh
-    from repro.motion.retargeting.morphology import encode, time_retarget
+    from repro.bench.retarget import time_retarget
+    from repro.motion.retargeting.morphology import encode
     from repro.motion.body.skeleton import scale_skeleton, skeleton_of
 
     from repro.checks import as_bool

@@ -423,7 +423,7 @@ def _cone_limits():
 
 
 def _time_retarget():
-    from repro.motion.retargeting.morphology import time_retarget
+    from repro.bench.retarget import time_retarget
 
     return time_retarget, dict(motion=_clip(), target=_character(), repeats=1)
 

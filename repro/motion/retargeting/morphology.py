@@ -89,12 +89,11 @@ the round trip reproduces the motion to rounding error.
 from __future__ import annotations
 
 import dataclasses
-import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from repro.checks import as_bool, as_int, as_real, describe
+from repro.checks import as_bool, as_real, describe
 from repro.errors import MotionError
 from repro.motion.io.channels import POSITION_CHANNELS
 from repro.motion.body.feet import UP_AXIS, foot_contacts, foot_goals, foot_scale
@@ -125,7 +124,6 @@ __all__ = [
     "encode",
     "naive_retarget",
     "retarget",
-    "time_retarget",
 ]
 
 LIMB_NAMES: tuple[str, ...] = tuple(LIMBS)  # left_arm, right_arm, left_leg, right_leg
@@ -859,32 +857,4 @@ def naive_retarget(motion: Motion, target, *, scale_root: bool = False) -> Motio
     t[:, rp] = motion.local_translations()[:, rp] * k
     return tgt.motion_with(motion.rotations, np.where(mask[None], t, tgt.offsets[None]),
                            frame_time=motion.frame_time, channels=channels)
-
-
-def time_retarget(motion: Motion, target, *, repeats: int = 5) -> dict[str, float]:
-    """Best-of-``repeats`` wall time of :func:`encode` and :func:`decode`, per frame (seconds).
-
-    For reports only (the paper: "motion retargetting and adaptation is very fast (only
-    spends 88 us)" per frame); the tests never assert on time.
-    """
-    _check_motion(motion)
-    _check_target(target)
-    repeats = as_int(repeats, "repeats", 1, 1000, error=MotionError)
-    tgt = skeleton_of(target)
-    enc, dec = [], []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        mi = encode(motion)
-        t1 = time.perf_counter()
-        decode(mi, tgt)
-        t2 = time.perf_counter()
-        enc.append(t1 - t0)
-        dec.append(t2 - t1)
-    F = max(motion.n_frames, 1)
-    return {
-        "frames": float(motion.n_frames),
-        "encode_per_frame": min(enc) / F,
-        "decode_per_frame": min(dec) / F,
-        "total_per_frame": (min(enc) + min(dec)) / F,
-    }
 
