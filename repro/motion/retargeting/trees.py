@@ -268,40 +268,11 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
     def _delta(a, b):
         return _bone_delta(src, tgt, Ps, Pt, ax_s, ax_t, C, a, b)
 
-    def oriented(role, a, b):
-        return quat_multiply(mapped(role), delta(a, b)[None])
-
     J = tgt.n_joints
     fixed: dict[int, np.ndarray] = {}  # joint -> global rotation (F, 4)
-    fixed[ti("pelvis")] = oriented("pelvis", "pelvis", "chest")
-    fixed[ti("chest")] = oriented("chest", "chest", "head")
-    fixed[ti("head")] = oriented("head", "chest", "head")
-    for side in ("left", "right"):
-        for a, b in (("clavicle", "shoulder"), ("wrist", "hand"), ("ankle", "toe"), ("toe", "toe")):
-            ra, rb = f"{side}_{a}", f"{side}_{b}"
-            if ra in rt and ra in rs:
-                if a == "toe":
-                    fixed[ti(ra)] = oriented(ra, f"{side}_ankle", ra)
-                elif rb in rt and rb in rs:
-                    fixed[ti(ra)] = oriented(ra, ra, rb)
-                elif a == "wrist":
-                    fixed[ti(ra)] = oriented(ra, f"{side}_elbow", ra)
-                elif a == "ankle":
-                    fixed[ti(ra)] = oriented(ra, f"{side}_knee", ra)
-    # chains whose joints share a bend (pelvis -> chest, chest -> head): each character bone
-    # takes the source's world rotation at the same fraction of the chain's length
-    for a, b in (("pelvis", "chest"), ("chest", "head")):
-        T = [ti(a)] + tgt.path(rt[a], rt[b])
-        Sj = [si(a)] + src.path(rs[a], rs[b])
-        ut, us = _arc(Pt, T), _arc(Ps, Sj)
-        for i in range(1, len(T) - 1):
-            mid = 0.5 * (ut[i] + ut[i + 1])
-            k = int(np.clip(np.searchsorted(us, mid, side="right") - 1, 0, len(Sj) - 2))
-            dt = Pt[T[i + 1]] - Pt[T[i]]
-            ds = C @ (Ps[Sj[k + 1]] - Ps[Sj[k]])
-            d = min_rotation(dt, ds) if np.linalg.norm(dt) > 0 and np.linalg.norm(ds) > 0 else np.array([0, 0, 0, 1.0])
-            G_role = quat_multiply(quat_multiply(c[None], gq_s[:, Sj[k]]), ci[None])
-            fixed[T[i]] = quat_multiply(G_role, d[None])
+    for j, (sj, d) in _fixed_rotations(src, tgt, Ps, Pt, C, si, ti, delta).items():
+        G_role = quat_multiply(quat_multiply(c[None], gq_s[:, sj]), ci[None])
+        fixed[j] = quat_multiply(G_role, d[None])
     limbs = {}
     for side in ("left", "right"):
         for kind, (p_, m_, d_) in (("arm", ("shoulder", "elbow", "wrist")), ("leg", ("hip", "knee", "ankle"))):
@@ -406,34 +377,7 @@ class TreePlan:
                 deltas[(a, b)] = _bone_delta(src, tgt, Ps, Pt, pair["ax_s"], pair["ax_t"], C, a, b)
             return deltas[(a, b)]
 
-        # fixed global rotations, as retarget_across: joint -> (source joint mapped, right factor)
-        fixed: dict[int, tuple[int, np.ndarray]] = {}
-        fixed[ti["pelvis"]] = (si["pelvis"], delta("pelvis", "chest"))
-        fixed[ti["chest"]] = (si["chest"], delta("chest", "head"))
-        fixed[ti["head"]] = (si["head"], delta("chest", "head"))
-        for side in ("left", "right"):
-            for a, b in (("clavicle", "shoulder"), ("wrist", "hand"), ("ankle", "toe"), ("toe", "toe")):
-                ra, rb = f"{side}_{a}", f"{side}_{b}"
-                if ra in rt and ra in rs:
-                    if a == "toe":
-                        fixed[ti[ra]] = (si[ra], delta(f"{side}_ankle", ra))
-                    elif rb in rt and rb in rs:
-                        fixed[ti[ra]] = (si[ra], delta(ra, rb))
-                    elif a == "wrist":
-                        fixed[ti[ra]] = (si[ra], delta(f"{side}_elbow", ra))
-                    elif a == "ankle":
-                        fixed[ti[ra]] = (si[ra], delta(f"{side}_knee", ra))
-        for a, b in (("pelvis", "chest"), ("chest", "head")):
-            T = [ti[a]] + tgt.path(rt[a], rt[b])
-            Sj = [si[a]] + src.path(rs[a], rs[b])
-            ut, us = _arc(Pt, T), _arc(Ps, Sj)
-            for i in range(1, len(T) - 1):
-                mid = 0.5 * (ut[i] + ut[i + 1])
-                k = int(np.clip(np.searchsorted(us, mid, side="right") - 1, 0, len(Sj) - 2))
-                dt = Pt[T[i + 1]] - Pt[T[i]]
-                ds = C @ (Ps[Sj[k + 1]] - Ps[Sj[k]])
-                d = min_rotation(dt, ds) if np.linalg.norm(dt) > 0 and np.linalg.norm(ds) > 0 else np.array([0, 0, 0, 1.0])
-                fixed[T[i]] = (Sj[k], d)
+        fixed = _fixed_rotations(src, tgt, Ps, Pt, C, si.__getitem__, ti.__getitem__, delta)
         limbs = {}
         for side in ("left", "right"):
             for p_, m_, d_ in (("shoulder", "elbow", "wrist"), ("hip", "knee", "ankle")):
@@ -614,6 +558,46 @@ class TreePlan:
             return normalize(b - np.sum(b * a, axis=-1, keepdims=True) * a)[0]
         ref = np.broadcast_to(self.C @ np.array([0.0, 0.0, 1.0]), a.shape)
         return normalize(cross(a, cross(ref, a)) + 1e-12)[0]
+
+
+def _fixed_rotations(src, tgt, Ps, Pt, C, si, ti, delta) -> dict[int, tuple[int, np.ndarray]]:
+    """The joints whose world rotation is fixed: joint -> (source joint, right factor).
+
+    A fixed joint's world rotation is ``C G_s C^-1`` of its source joint times the factor:
+    the pelvis, chest, head, clavicles, wrists, ankles and toes by their bone's rest
+    difference (``delta``), and the chains whose joints share a bend (pelvis -> chest,
+    chest -> head), where each character bone takes the source's world rotation at the
+    same fraction of the chain's length.  ``si`` / ``ti`` give a role's joint index.
+    """
+    rs, rt = src.roles, tgt.roles
+    fixed: dict[int, tuple[int, np.ndarray]] = {}
+    fixed[ti("pelvis")] = (si("pelvis"), delta("pelvis", "chest"))
+    fixed[ti("chest")] = (si("chest"), delta("chest", "head"))
+    fixed[ti("head")] = (si("head"), delta("chest", "head"))
+    for side in ("left", "right"):
+        for a, b in (("clavicle", "shoulder"), ("wrist", "hand"), ("ankle", "toe"), ("toe", "toe")):
+            ra, rb = f"{side}_{a}", f"{side}_{b}"
+            if ra in rt and ra in rs:
+                if a == "toe":
+                    fixed[ti(ra)] = (si(ra), delta(f"{side}_ankle", ra))
+                elif rb in rt and rb in rs:
+                    fixed[ti(ra)] = (si(ra), delta(ra, rb))
+                elif a == "wrist":
+                    fixed[ti(ra)] = (si(ra), delta(f"{side}_elbow", ra))
+                elif a == "ankle":
+                    fixed[ti(ra)] = (si(ra), delta(f"{side}_knee", ra))
+    for a, b in (("pelvis", "chest"), ("chest", "head")):
+        T = [ti(a)] + tgt.path(rt[a], rt[b])
+        Sj = [si(a)] + src.path(rs[a], rs[b])
+        ut, us = _arc(Pt, T), _arc(Ps, Sj)
+        for i in range(1, len(T) - 1):
+            mid = 0.5 * (ut[i] + ut[i + 1])
+            k = int(np.clip(np.searchsorted(us, mid, side="right") - 1, 0, len(Sj) - 2))
+            dt = Pt[T[i + 1]] - Pt[T[i]]
+            ds = C @ (Ps[Sj[k + 1]] - Ps[Sj[k]])
+            d = min_rotation(dt, ds) if np.linalg.norm(dt) > 0 and np.linalg.norm(ds) > 0 else np.array([0, 0, 0, 1.0])
+            fixed[T[i]] = (Sj[k], d)
+    return fixed
 
 
 def _ref_dir(P, roles_, names, a, b):
