@@ -52,7 +52,6 @@ wrist; the toe joint (ball of the foot) when present, else the ankle.
 from __future__ import annotations
 
 import re
-from collections import OrderedDict
 from collections.abc import Mapping, Sequence
 from functools import lru_cache
 
@@ -60,6 +59,7 @@ import numpy as np
 
 from repro.checks import as_real_array, describe
 from repro.errors import MotionError
+from repro.motion.core.cache import LRUCache
 from repro.motion.core.kinematics import check_joint_names
 
 __all__ = ["LIMBS", "REQUIRED_ROLES", "ROLES", "ROLES_FOR", "SIDE_ROLES", "bone_lengths_of", "check_roles",
@@ -281,23 +281,10 @@ def find_roles(
         hash(key)
     except (TypeError, ValueError):
         key = None
-    if key is not None:
-        try:  # (another thread may evict the entry meanwhile)
-            hit = _CACHE[key]
-            _CACHE.move_to_end(key)
-            return dict(hit)
-        except KeyError:
-            pass
     es_set = None if end_site_parents is None else {int(e) for e in np.asarray(end_site_parents).reshape(-1)}
-    roles = _find_roles(names, par, overrides, required, offsets, es_set)
-    if key is not None:
-        _CACHE[key] = dict(roles)
-        while len(_CACHE) > 256:
-            try:
-                _CACHE.popitem(last=False)
-            except KeyError:
-                break
-    return roles
+    if key is None:
+        return _find_roles(names, par, overrides, required, offsets, es_set)
+    return dict(_CACHE.get(key, lambda: _find_roles(names, par, overrides, required, offsets, es_set)))
 
 
 #: Largest / smallest sum of a skeleton's bone lengths (its units): beyond them squared lengths
@@ -333,8 +320,8 @@ def bone_lengths_of(offsets: np.ndarray) -> np.ndarray:
     return lengths
 
 
-#: Role tables of recent skeletons (the same skeleton is encoded once per clip).
-_CACHE: OrderedDict = OrderedDict()
+#: Role tables of the 256 most recent skeletons (the same skeleton is encoded once per clip).
+_CACHE: LRUCache[dict[str, str]] = LRUCache(256)
 
 
 def _find_roles(names, par, overrides, required, offsets, end_sites=None) -> dict[str, str]:
