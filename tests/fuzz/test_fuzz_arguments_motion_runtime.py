@@ -397,13 +397,6 @@ def _infer_unit():
     return infer_unit, dict(stature=1.75)
 
 
-def _rest_up_axis():
-    from repro.motion.body.roles import rest_up_axis
-
-    sk = _skeleton()
-    return rest_up_axis, dict(names=list(sk.joint_names), parents=sk.parents, offsets=sk.offsets)
-
-
 def _is_helper_name():
     from repro.motion.body.roles import is_helper_name
 
@@ -551,7 +544,6 @@ CASES = [
          {"rotations": "array", "positions": "array", "frame_time": "real", "channels": "any", "up": "choice",
           "source": "str"}),
     Case("infer_unit", _infer_unit, {"stature": "real"}),
-    Case("rest_up_axis", _rest_up_axis, {"names": "array", "parents": "index_array", "offsets": "array"}),
     Case("is_helper_name", _is_helper_name, {"name": "str"}),
     Case("rest_axes", _rest_axes, {"sk": "any"}),
     Case("cone_limits", _cone_limits, {"motion": "any", "limits": "mapping", "roles": "mapping"}),

@@ -572,22 +572,6 @@ def _rest_positions(parents: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     return p
 
 
-def rest_up_axis(names: Sequence[str], parents, offsets) -> np.ndarray | None:
-    """Unit up direction of a rest pose (mean of the upper-body tips minus the leg tips), or None."""
-    names = check_joint_names(names)
-    J = len(names)
-    par = as_real_array(parents, "parents", error=MotionError, integer=True, shape=(J,)).astype(np.intp)
-    if J == 0 or par[0] != -1 or np.any(par[1:] < 0) or np.any(par[1:] >= np.arange(1, J)):
-        raise MotionError("parents must be -1 for joint 0 and parents[j] < j for the others")
-    off = as_real_array(offsets, "offsets", error=MotionError, shape=(J, 3))
-    bone_lengths_of(off)
-    try:
-        st = _structure([str(n) for n in names], par, off)
-    except MotionError:
-        return None
-    return st["up"]
-
-
 def _structure(names: list[str], par: np.ndarray, off: np.ndarray) -> dict:
     """Legs, arms and head chains from the tree and the rest pose (see :func:`find_roles`)."""
     J = len(names)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from repro.errors import MotionError
-from repro.motion.body.roles import REQUIRED_ROLES, ROLES, check_roles, effector_role, find_roles, is_helper_name, rest_up_axis
+from repro.motion.body.roles import REQUIRED_ROLES, ROLES, check_roles, effector_role, find_roles, is_helper_name
 from tests.motion.body.role_tables import (
     BANDAI_EXPECTED,
     BANDAI_NAMES,
@@ -112,9 +112,6 @@ def test_find_roles_refuses_bad_arguments(kw, match):
         (lambda: effector_role({}, "right_fist", None), "hit_joint"),
         (lambda: check_roles(0, "a punch"), "roles"),
         (lambda: check_roles({}, ["a punch"]), "purpose"),
-        (lambda: rest_up_axis(["a", "b"], [-1, 0], "x"), "offsets"),
-        (lambda: rest_up_axis(["a", "b"], None, [[0, 0, 0], [0, 1, 0]]), "parents"),
-        (lambda: rest_up_axis("ab", [-1, 0], [[0, 0, 0], [0, 1, 0]]), "names"),
     ],
 )
 def test_role_helpers_refuse_bad_arguments(call, match):
