@@ -443,19 +443,25 @@ def _parse_values(data: bytes, start: int, stop: int, first: int, n_frames: int,
     return values
 
 
+def _header_line(data: bytes, pos: int, lineno: int, pattern, missing: str, expected: str):
+    """The next line matched by ``pattern`` (a MOTION header): (match, position after it, its line number)."""
+    line, k, pos = _next_line(data, pos)
+    lineno += k
+    if not line:
+        raise BVHError(f"line {lineno}: missing {missing} (truncated file?)")
+    m = pattern.match(line)
+    if m is None:
+        raise BVHError(f"line {lineno}: expected {expected}, got {line[:80]!r}")
+    return m, pos, lineno
+
+
 def _parse_motion_block(data: bytes, pos: int, lineno: int, n_channels: int, n_joints: int = 1, strict: bool = False):
     """Parse ``Frames:``, ``Frame Time:`` and the frame lines after MOTION.
 
     ``lineno`` is the number of the MOTION line.  Returns (values (F, C), frame time,
     line number of the first frame line, trailing content or None).
     """
-    line, k, pos = _next_line(data, pos)
-    lineno += k
-    if not line:
-        raise BVHError(f"line {lineno}: missing 'Frames:' after MOTION (truncated file?)")
-    m = _FRAMES_RE.match(line)
-    if m is None:
-        raise BVHError(f"line {lineno}: expected 'Frames: <count>', got {line[:80]!r}")
+    m, pos, lineno = _header_line(data, pos, lineno, _FRAMES_RE, "'Frames:' after MOTION", "'Frames: <count>'")
     count = m.group(1)
     if not _INT_RE.fullmatch(count):
         raise BVHError(f"line {lineno}: frame count {count[:40]!r} is not an integer")
@@ -466,13 +472,7 @@ def _parse_motion_block(data: bytes, pos: int, lineno: int, n_channels: int, n_j
     if n_frames < 0 or n_frames > MAX_FRAMES:
         raise BVHError(f"line {lineno}: frame count {n_frames} is out of range 0..{MAX_FRAMES}")
     frames_line = lineno
-    line, k, pos = _next_line(data, pos)
-    lineno += k
-    if not line:
-        raise BVHError(f"line {lineno}: missing 'Frame Time:' (truncated file?)")
-    m = _FRAME_TIME_RE.match(line)
-    if m is None:
-        raise BVHError(f"line {lineno}: expected 'Frame Time: <seconds>', got {line[:80]!r}")
+    m, pos, lineno = _header_line(data, pos, lineno, _FRAME_TIME_RE, "'Frame Time:'", "'Frame Time: <seconds>'")
     try:
         frame_time = float(m.group(1))
     except ValueError:
