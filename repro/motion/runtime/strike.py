@@ -30,7 +30,7 @@ character's current motion it
    changes are played ``t_start / fps`` seconds later).  The early frame is counted only
    when it is the played one (compared, number for number).
 
-Whole-body reach (``reach``, :data:`LEVELS`): ``"limb"`` is the two-bone IK alone,
+Whole-body reach (``reach``, :data:`REACH_LEVELS`): ``"limb"`` is the two-bone IK alone,
 ``"spine"`` adds the paper's CCD (elbow, shoulder, clavicle and the spine for a punch;
 knee, hip and pelvis for a kick, within joint limits), ``"root"`` (default) adds a root
 shift when CCD cannot reach either: the root follows ``d(t)`` by the remaining miss
@@ -83,8 +83,8 @@ from repro.motion.body.skeleton import Skeleton, rescale_constraint
 __all__ = [
     "BLEND_S",
     "BODY_RADIUS",
-    "LEVELS",
     "MAX_ROOT_SHIFT",
+    "REACH_LEVELS",
     "STAGES",
     "Strike",
     "blend_into",
@@ -99,7 +99,7 @@ __all__ = [
 BLEND_S: float = 0.2
 #: Levels of whole-body reach, in order: two-bone limb IK, + CCD over the spine / pelvis, + a root shift,
 #: + a step of the front foot (punches).
-LEVELS: tuple[str, ...] = ("limb", "spine", "root", "step")
+REACH_LEVELS: tuple[str, ...] = ("limb", "spine", "root", "step")
 #: Longest step of the ``"step"`` level, per metre of leg length; its duration (s) and foot lift (per metre of leg).
 MAX_STEP: float = 0.6
 STEP_S: float = 0.3
@@ -227,7 +227,7 @@ class Strike:
         ``order`` (the whole call), ``adapt_per_frame``, ``retarget_adapt_per_frame``
         (the paper's 88 µs).
     level : str
-        The reach level the contact frame needed (:data:`LEVELS`); for an unreachable
+        The reach level the contact frame needed (:data:`REACH_LEVELS`); for an unreachable
         target the highest level tried.
     levels_tried : tuple of str
     contacts : (F, 2) bool
@@ -467,7 +467,7 @@ def strike(
     # every argument checked here, at the entry: a later level (the root shift, the step) never sees a bad one
     t_order = now if t_order is None else as_real(t_order, "t_order (a time.perf_counter() value)",
                                                    error=MotionError, hi=now)
-    reach = as_choice(reach, "reach", LEVELS, error=MotionError)
+    reach = as_choice(reach, "reach", REACH_LEVELS, error=MotionError)
     frame = as_choice(frame, "frame", ("world", "root"), error=MotionError)
     semantics = as_choice(semantics, "semantics", SEMANTICS, error=RetrievalError)
     blend_s = as_real(blend_s, "blend_s (seconds)", error=MotionError, lo=0.0)
@@ -625,7 +625,7 @@ def strike(
 def reach_by_distance(distances, reached, levels, bins=5) -> list[dict]:
     """Whole-body reach per target distance: reached fraction and the level each target needed.
 
-    ``distances`` (n,) metres, ``reached`` (n,) bool, ``levels`` (n,) str of :data:`LEVELS`
+    ``distances`` (n,) metres, ``reached`` (n,) bool, ``levels`` (n,) str of :data:`REACH_LEVELS`
     (:attr:`Strike.level`, one per strike); ``bins`` an int (equal-count bins) or the bin
     edges.  One dict per non-empty bin: ``distance_min_m``, ``distance_max_m``, ``n``,
     ``reached_fraction``, and ``limb_fraction`` / ``spine_fraction`` / ``root_fraction`` /
@@ -640,14 +640,14 @@ def reach_by_distance(distances, reached, levels, bins=5) -> list[dict]:
     if ok.dtype.kind != "b" and ok.size:
         raise MotionError(f"reached must hold booleans, got dtype {ok.dtype}")
     if lv.dtype.kind not in "UO" and lv.size:
-        raise MotionError(f"levels must hold level names ({list(LEVELS)}), got dtype {lv.dtype}")
+        raise MotionError(f"levels must hold level names ({list(REACH_LEVELS)}), got dtype {lv.dtype}")
     ok = ok.astype(bool).reshape(-1)
     lv = lv.astype(str).reshape(-1)
     if not (d.shape == ok.shape == lv.shape):
         raise MotionError("distances, reached and levels must be equal-length 1-D arrays of finite distances")
-    bad = set(lv.tolist()) - set(LEVELS)
+    bad = set(lv.tolist()) - set(REACH_LEVELS)
     if bad:
-        raise MotionError(f"unknown levels {sorted(bad)}; expected {list(LEVELS)}")
+        raise MotionError(f"unknown levels {sorted(bad)}; expected {list(REACH_LEVELS)}")
     if d.size == 0:
         return []
     if isinstance(bins, (int, np.integer)) and not isinstance(bins, (bool, np.bool_)):
@@ -665,7 +665,7 @@ def reach_by_distance(distances, reached, levels, bins=5) -> list[dict]:
             continue
         row = {"distance_min_m": float(d[sel].min()), "distance_max_m": float(d[sel].max()), "n": int(sel.sum()),
                "reached_fraction": float(ok[sel].mean())}
-        for name in LEVELS:
+        for name in REACH_LEVELS:
             row[f"{name}_fraction"] = float(np.mean(ok[sel] & (lv[sel] == name)))
         row["unreached_fraction"] = float(np.mean(~ok[sel]))
         out.append(row)

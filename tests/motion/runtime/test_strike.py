@@ -10,7 +10,7 @@ from repro.motion.adaptation import AdaptOptions, adapt
 from repro.motion.adaptation.cost import COST_KEYS, adaptation_cost
 from repro.motion.body.feet import foot_contacts, max_foot_slide, min_toe_height
 from repro.motion.runtime.strike import (
-    LEVELS,
+    REACH_LEVELS,
     Strike,
     blend_into,
     clip_effector,
@@ -67,7 +67,7 @@ def test_root_level_reaches_what_the_spine_cannot(setup, sem):
     assert not spine.reached and spine.level == "spine" and spine.hit_error > 0.05
     assert spine.levels_tried == ("limb", "spine") and spine.cost["root_shift_max_m"] == 0.0
     root = run(setup, c, sem)
-    assert root.reached and root.level == "root" and root.levels_tried == LEVELS[:3]
+    assert root.reached and root.level == "root" and root.levels_tried == REACH_LEVELS[:3]
     leg = setup[1].leg_length
     assert 0.0 < root.cost["root_shift_max_m"] <= 0.35 * leg + 1e-9
     assert root.foot_slide < 0.01  # the support foot stays put while the root moves
@@ -76,7 +76,7 @@ def test_root_level_reaches_what_the_spine_cannot(setup, sem):
 
 def test_unreachable_target_is_a_documented_best_effort(setup):
     s = run(setup, [0.0, 1.4, 3.0], "punch")
-    assert not s.reached and s.level == "root" and s.levels_tried == LEVELS[:3]
+    assert not s.reached and s.level == "root" and s.levels_tried == REACH_LEVELS[:3]
     assert s.hit_error == pytest.approx(s.adaptation.residual) and s.hit_error > 1.0
     limb = run(setup, [0.0, 1.4, 3.0], "punch", reach="limb")
     assert not limb.reached and limb.level == "limb" and limb.levels_tried == ("limb",)
