@@ -46,7 +46,7 @@ import numpy as np
 
 from repro.checks import as_real, as_real_array, describe, read_only
 from repro.errors import BVHError, MotionError
-from repro.motion.io.channels import channel_layout, channel_table
+from repro.motion.core.channels import channel_layout, channel_table
 from repro.motion.core.kinematics import MAX_COORDINATE, check_joint_names, depth_levels, fk_arrays
 from repro.motion.core.quaternion import quat_multiply, quat_rotate
 

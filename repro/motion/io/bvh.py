@@ -63,7 +63,7 @@ import numpy as np
 from repro.checks import as_bool, as_int, as_real, describe
 from repro.errors import BVHError, BVHWarning
 from repro.io import atomic_path, read_bytes
-from repro.motion.io.channels import POSITION_CHANNELS, ROTATION_CHANNELS, joint_columns
+from repro.motion.core.channels import POSITION_CHANNELS, ROTATION_CHANNELS, joint_columns
 from repro.motion.core.motion import Motion
 from repro.motion.core.quaternion import euler_to_quat
 from repro.motion.io.tokens import finite_float

@@ -95,7 +95,7 @@ import numpy as np
 
 from repro.checks import as_bool, as_real, describe
 from repro.errors import MotionError
-from repro.motion.io.channels import POSITION_CHANNELS
+from repro.motion.core.channels import POSITION_CHANNELS
 from repro.motion.body.feet import UP_AXIS, foot_contacts, foot_goals, foot_scale
 from repro.motion.core.kinematics import (
     chain_positions,

@@ -842,9 +842,9 @@ class MotionRetriever(ExactSearch, StartScoring):
             :meth:`RetrievalResult.place` does), from the start frame on, so that
             ``d_cr`` is the closest approach of the played hit point to ``c_r``.
             ``"start"`` needs ``method="exact"`` or ``"exhaustive"`` (the paper's pruning
-            tests one first-frame box per clip).  The default stays the paper's, which
-            is what the figures reproduce; the strike pipeline asks for
-            ``method="exact", scoring="start"``.
+            tests one first-frame box per clip).  The default is the paper's, which
+            is what the figures reproduce; no figure, panel or benchmark asks for
+            ``"start"`` yet.
 
         Returns
         -------

@@ -1,9 +1,8 @@
-"""BVH channels: their names, a joint's channel layout, and the channel table of a motion.
+"""Channels: their names, a joint's channel layout, and the channel table of a motion.
 
-The one place that knows how rotations map to BVH channel values and back, shared by
-:class:`~repro.motion.core.motion.Motion` (``channel_values``) and :mod:`~repro.motion.io.bvh`
-(the writer); it imports nothing above :mod:`repro.errors`, so neither depends on the
-other.
+Part of the motion's representation (a :class:`~repro.motion.core.motion.Motion` keeps each
+joint's channels, as BVH files name them): the one place that knows how rotations map to channel
+values and back, shared by ``Motion.channel_values`` and the BVH writer (:mod:`~repro.motion.io.bvh`).
 """
 
 from __future__ import annotations
