@@ -40,16 +40,6 @@ from repro.motion.search.exact import _ball_radius
 
 
 @pytest.fixture(scope="module")
-def db(synthetic_retriever):
-    return synthetic_retriever.db
-
-
-@pytest.fixture(scope="module")
-def retriever(synthetic_retriever):
-    return synthetic_retriever
-
-
-@pytest.fixture(scope="module")
 def prepared(db, retriever):
     return [(c, retriever.prepare(pose, ch), sem) for c, pose, ch, sem in make_queries(db, 300, seed=7)]
 

@@ -29,16 +29,6 @@ from repro.motion.search.exact import sample_grid
 from repro.motion.search.kernel import _argsort, _cloud_distance, _nearest_samples, compile_search, search_first
 
 
-@pytest.fixture(scope="module")
-def db(synthetic_retriever):
-    return synthetic_retriever.db
-
-
-@pytest.fixture(scope="module")
-def retriever(synthetic_retriever):
-    return synthetic_retriever
-
-
 def test_argsort_is_numpys_stable_order():
     rng = np.random.default_rng(0)
     for n in (0, 1, 2, 3, 7, 64, 1000):

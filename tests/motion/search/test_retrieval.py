@@ -34,16 +34,6 @@ from repro.motion.search.retrieval import MotionRetriever, Query, search
 from repro.motion.body.skeleton import Skeleton, rescale_constraint, scale_skeleton
 
 
-@pytest.fixture(scope="module")
-def db(synthetic_retriever):
-    return synthetic_retriever.db
-
-
-@pytest.fixture(scope="module")
-def retriever(synthetic_retriever):
-    return synthetic_retriever
-
-
 def frame_of(m, f):
     return dataclasses.replace(m, rotations=m.rotations[f:f + 1], positions=m.positions[f:f + 1])
 
