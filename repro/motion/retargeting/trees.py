@@ -34,6 +34,7 @@ import numpy as np
 
 from repro.checks import as_bool, as_choice, as_real, describe
 from repro.errors import MotionError
+from repro.motion.core.cache import LRUCache
 from repro.motion.core.kinematics import check_pose_arrays, depth_levels, fk_arrays, normalize, world_of
 from repro.motion.core.motion import Motion
 from repro.motion.core.quaternion import cross, min_rotation, quat_multiply
@@ -162,8 +163,9 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / n if n > 0 else v
 
 
-#: retarget_across's constants per pair of skeletons (body frames, rest axes, bone-frame rotations)
-_PAIRS: dict = {}
+#: retarget_across's constants per pair of skeletons (body frames, rest axes, bone-frame rotations); a few
+#: pairs are in play at once (the database's actors by the characters on screen): the 32 most recent are kept
+_PAIRS: LRUCache = LRUCache(32)
 
 
 def _skeleton_key(sk: Skeleton) -> tuple:
@@ -191,19 +193,15 @@ def _checked_pair(motion, character, roles, character_roles):
 
 def _pair(src: Skeleton, tgt: Skeleton, up_s: str, up_t: str) -> dict:
     """What :func:`retarget_across` reads of two skeletons only (body frames, rest axes), cached."""
-    key = (_skeleton_key(src), _skeleton_key(tgt), up_s, up_t)
-    pair = _PAIRS.get(key)
-    if pair is None:  # what depends only on the two skeletons (the same numbers every call)
+    def make() -> dict:  # what depends only on the two skeletons (the same numbers every call)
         Bs = body_frame(src, up_s)
         Bt = body_frame(tgt, up_t)
         C = Bt @ Bs.T
         c = _mat_to_quat(C)
-        pair = dict(C=C, c=c, ci=qinv(c), Ps=src.rest_positions(), Pt=tgt.rest_positions(), ax_s=rest_axes(src),
+        return dict(C=C, c=c, ci=qinv(c), Ps=src.rest_positions(), Pt=tgt.rest_positions(), ax_s=rest_axes(src),
                     ax_t=rest_axes(tgt), delta={})
-        if len(_PAIRS) >= 32:
-            _PAIRS.clear()
-        _PAIRS[key] = pair
-    return pair
+
+    return _PAIRS.get((_skeleton_key(src), _skeleton_key(tgt), up_s, up_t), make)
 
 
 def retarget_across(motion: Motion, character, *, roles=None, character_roles=None, fix_feet: bool = False,

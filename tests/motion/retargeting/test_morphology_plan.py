@@ -27,6 +27,7 @@ import pytest
 from repro.errors import MotionError
 from repro.motion.body.pose_frames import pose_points
 from repro.motion.retargeting.morphology import RetargetPlan, retarget
+from repro.motion.core.cache import LRUCache
 from repro.motion.retargeting.dispatch import rest_motion_y_up, retarget_to_tree
 from repro.motion.search.retrieval import MotionRetriever
 from repro.motion.body.skeleton import Skeleton, scale_skeleton
@@ -133,13 +134,13 @@ def test_retarget_across_constants_cached_per_pair(synthetic_db, monkeypatch):
     rig = build("mixamo")[0].motion(unit_m=1.0)
     m = db.motion(2)
     other = scale_skeleton(Skeleton.from_motion(rig), scale=1.2, bone_scales={"mixamorig:LeftForeArm": 1.4})
-    monkeypatch.setattr(rt, "_PAIRS", {})
+    monkeypatch.setattr(rt, "_PAIRS", LRUCache(32))
     first = rt.retarget_across(m, rig).global_positions()
     assert len(rt._PAIRS) == 1
     again = rt.retarget_across(m, rig).global_positions()
     o = rt.retarget_across(m, other).global_positions()
     assert len(rt._PAIRS) == 2
-    monkeypatch.setattr(rt, "_PAIRS", {})
+    monkeypatch.setattr(rt, "_PAIRS", LRUCache(32))
     fresh = rt.retarget_across(m, other).global_positions()
     assert np.array_equal(first, again) and np.array_equal(o, fresh)
     assert not np.allclose(o, first)
