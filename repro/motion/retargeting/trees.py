@@ -204,6 +204,22 @@ def _pair(src: Skeleton, tgt: Skeleton, up_s: str, up_t: str) -> dict:
     return _PAIRS.get((_skeleton_key(src), _skeleton_key(tgt), up_s, up_t), make)
 
 
+def straight_bend(a: np.ndarray, b: np.ndarray, valid: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """The bend plane (F, 3) of a limb with straight frames (``valid`` False): the last defined
+    bend plane (the first one backward at the start), made orthogonal to the limb axis ``a``; with
+    no defined frame at all, any plane through ``a`` (the character's forward axis ``C z``)."""
+    F = a.shape[0]
+    idx = np.where(valid, np.arange(F), -1)
+    idx = np.maximum.accumulate(idx)
+    first = int(np.argmax(valid)) if valid.any() else -1
+    if first >= 0:
+        idx = np.where(idx < 0, first, idx)
+        b = b[idx]
+        return normalize(b - np.sum(b * a, axis=-1, keepdims=True) * a)[0]
+    ref = np.broadcast_to(C @ np.array([0.0, 0.0, 1.0]), a.shape)
+    return normalize(cross(a, cross(ref, a)) + 1e-12)[0]
+
+
 def retarget_across(motion: Motion, character, *, roles=None, character_roles=None, fix_feet: bool = False,
                     blend_time: float = 0.1) -> Motion:
     """``motion`` played by ``character``, whose joint tree may differ (see the module docstring).
@@ -546,16 +562,7 @@ class TreePlan:
 
     def _straight(self, a, b, valid):
         """``_solve_limb``'s bend plane of one limb with straight frames (F, 3)."""
-        F = a.shape[0]
-        idx = np.where(valid, np.arange(F), -1)
-        idx = np.maximum.accumulate(idx)
-        first = int(np.argmax(valid)) if valid.any() else -1
-        if first >= 0:
-            idx = np.where(idx < 0, first, idx)
-            b = b[idx]
-            return normalize(b - np.sum(b * a, axis=-1, keepdims=True) * a)[0]
-        ref = np.broadcast_to(self.C @ np.array([0.0, 0.0, 1.0]), a.shape)
-        return normalize(cross(a, cross(ref, a)) + 1e-12)[0]
+        return straight_bend(a, b, valid, self.C)
 
 
 def _fixed_rotations(src, tgt, Ps, Pt, C, si, ti, delta) -> dict[int, tuple[int, np.ndarray]]:
@@ -666,17 +673,7 @@ def _solve_limb(src, tgt, gp_s, gq_s, C, mapped, delta, S, roles3, si, ti, goal=
     b, bn = normalize(bend)
     valid = bn > 1e-9 * src.bone_lengths[si(rm)]
     if not valid.all():
-        # straight limb: keep the last defined bend plane (first one backward), else any
-        idx = np.where(valid, np.arange(F), -1)
-        idx = np.maximum.accumulate(idx)
-        first = int(np.argmax(valid)) if valid.any() else -1
-        if first >= 0:
-            idx = np.where(idx < 0, first, idx)
-            b = b[idx]
-            b = normalize(b - np.sum(b * a, axis=-1, keepdims=True) * a)[0]
-        else:
-            ref = np.broadcast_to(C @ np.array([0.0, 0.0, 1.0]), a.shape)
-            b = normalize(cross(a, cross(ref, a)) + 1e-12)[0]
+        b = straight_bend(a, b, valid, C)
     d = np.clip(dn, abs(l1 - l2), l1 + l2)
     cosb = np.clip((l1**2 + d**2 - l2**2) / (2 * l1 * np.maximum(d, 1e-300)), -1.0, 1.0)
     sinb = np.sqrt(1.0 - cosb**2)
