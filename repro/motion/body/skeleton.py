@@ -33,7 +33,7 @@ import numpy as np
 
 from repro.checks import as_int, as_real, as_real_array, check_alloc, describe, read_only
 from repro.errors import MotionError, UnitWarning
-from repro.motion.core.kinematics import check_indices, check_joint_names
+from repro.motion.core.kinematics import check_indices, check_joint_names, rest_positions
 from repro.motion.core.motion import CMU_UNIT_M, Motion
 from repro.motion.body.roles import LIMBS, REQUIRED_ROLES, bone_lengths_of, find_roles
 
@@ -284,10 +284,7 @@ class Skeleton:
 
     @cached_property
     def _rest_positions(self) -> np.ndarray:
-        p = self.offsets.copy()
-        for j in range(1, self.n_joints):
-            p[j] = p[self.parents[j]] + self.offsets[j]
-        return p
+        return rest_positions(self.parents, self.offsets)
 
     def path(self, ancestor: str, descendant: str) -> list[int]:
         """Joint indices from ``ancestor`` (excluded) down to ``descendant`` (included)."""

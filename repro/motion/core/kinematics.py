@@ -21,6 +21,7 @@ __all__ = [
     "normalize",
     "transport",
     "fk_arrays",
+    "rest_positions",
     "chain_positions",
     "depth_levels",
     "world_of",
@@ -96,6 +97,31 @@ def fk_arrays(levels, rotations: np.ndarray, translations: np.ndarray, *,
     for idx, par in levels:
         gq[:, idx] = quat_multiply(gq[:, par], rotations[:, idx])
     return gq, chain_positions(levels, gq, gp)
+
+
+def rest_positions(parents, offsets) -> np.ndarray:
+    """(J, 3) joint positions of the rest pose: forward kinematics with every rotation identity.
+
+    ``p[j] = p[parent(j)] + offsets[j]`` (``p[0] = offsets[0]``), one vectorised step per
+    :func:`depth_levels` level: element for element the sums of a joint-by-joint loop, for
+    any tree the library takes (``parents[j] < j``), chains of any depth included.
+
+    Parameters
+    ----------
+    parents : (J,) int array
+        Parent of each joint, -1 for the root.
+    offsets : (J, 3) array
+        Rest offset of each joint from its parent (the root's: its rest position).
+    """
+    levels = depth_levels(parents)
+    off = np.asarray(offsets, dtype=float)
+    J = 1 + sum(i.size for i, _ in levels)
+    if off.shape != (J, 3):
+        raise MotionError(f"offsets must be a ({J}, 3) array for {J} joints, got {off.shape}")
+    p = off.copy()
+    for idx, par in levels:
+        p[idx] = p[par] + off[idx]
+    return p
 
 
 #: Largest coordinate of a point or vector the motion library takes (targets, offsets, floors,

@@ -89,3 +89,35 @@ def test_fk_arrays_refuses_mismatched_shapes():
         fk_arrays(lv, np.zeros((2, 3, 4)), np.zeros((2, 2, 3)))
     with pytest.raises(MotionError, match="fk_arrays"):
         fk_arrays(lv, "q", np.zeros((2, 3, 3)))
+
+
+# ------------------------------------------------------------------ rest pose (issue 24)
+def _random_tree(n: int, seed: int) -> np.ndarray:
+    r = np.random.default_rng(seed)
+    return np.array([-1] + [int(r.integers(0, j)) for j in range(1, n)])
+
+
+def _rest_by_joint(parents, offsets):
+    p = np.array(offsets, dtype=float)
+    for j in range(1, len(p)):
+        p[j] = p[parents[j]] + offsets[j]
+    return p
+
+
+@pytest.mark.parametrize("parents", [np.array([-1]), _random_tree(40, 3), _random_tree(300, 4),
+                                     np.arange(-1, 2999)], ids=["root", "tree40", "tree300", "chain3000"])
+def test_rest_positions_is_the_joint_by_joint_sum_and_fk_with_identity_rotations(parents):
+    J = parents.size
+    off = np.random.default_rng(J).normal(size=(J, 3))
+    p = K.rest_positions(parents, off)
+    np.testing.assert_array_equal(p, _rest_by_joint(parents, off))  # bit for bit
+    ident = np.zeros((1, J, 4))
+    ident[..., 3] = 1.0
+    np.testing.assert_array_equal(p, K.fk_arrays(depth_levels(parents), ident, off[None])[1][0])
+
+
+def test_rest_positions_refuses_what_is_not_a_tree_with_offsets():
+    with pytest.raises(MotionError, match="parents"):
+        K.rest_positions([-1, 2, 0], np.zeros((3, 3)))
+    with pytest.raises(MotionError, match="offsets"):
+        K.rest_positions([-1, 0, 1], np.zeros((2, 3)))
