@@ -200,12 +200,12 @@ def _retriever_ctor():
 
 def _search():
     return _retriever().search, dict(target=TARGET, current_pose=_pose(), character=_character(), semantics="punch",
-                                     prune=True, scale_target=True, frame=None, method="pruned", scoring="first")
+                                     prune=True, scale_target=True, frame=None, method="pruned")
 
 
 def _search_exhaustive():
     return _retriever().search_exhaustive, dict(target=TARGET, current_pose=_pose(), character=_character(),
-                                                semantics="kick", scale_target=True, frame=None, scoring="first")
+                                                semantics="kick", scale_target=True, frame=None)
 
 
 def _search_kdtree():
@@ -417,10 +417,10 @@ CASES = [
           "kd_neighbours": "int", "across_trees": "bool"}, time_limit=SLOW),
     Case("MotionRetriever.search", _search,
          {"target": "array", "current_pose": "any", "character": "any", "semantics": "choice", "prune": "bool",
-          "scale_target": "bool", "frame": "index", "method": "choice", "scoring": "choice"}, time_limit=SLOW),
+          "scale_target": "bool", "frame": "index", "method": "choice"}, time_limit=SLOW),
     Case("MotionRetriever.search_exhaustive", _search_exhaustive,
          {"target": "array", "current_pose": "any", "character": "any", "semantics": "choice",
-          "scale_target": "bool", "frame": "index", "scoring": "choice"}, time_limit=SLOW),
+          "scale_target": "bool", "frame": "index"}, time_limit=SLOW),
     Case("MotionRetriever.search_kdtree", _search_kdtree,
          {"target": "array", "current_pose": "any", "character": "any", "semantics": "choice", "frame": "index"},
          time_limit=SLOW),
@@ -474,8 +474,6 @@ CASES = [
     Case("default_k", _clustering("default_k", n_poses=100), {"n_poses": "int"}),
     Case("sample_grid", _exact("sample_grid", pts=lambda: _points()[:, 0], per_cell=8, max_cells=1 << 21),
          {"pts": "array", "per_cell": "int", "max_cells": "int"}),
-    Case("invariant_features", _exact("invariant_features", points=_points, weights=np.ones(6)),
-         {"points": "array", "weights": "array"}),
     # synthetic data, BVH writing
     Case("synthetic_clip", _synthetic_clip,
          {"kind": "choice", "side": "choice", "level": "choice", "actor_height": "real", "seed": "int", "fps": "real"},

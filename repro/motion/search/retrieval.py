@@ -61,9 +61,8 @@ Choices the paper leaves open (documented here, all parameters):
   retargets the selected clip to the character across trees as well).
 
 The exact search (``method="exact"``, the fighter's default: the exhaustive optimum through
-bounds over the same clusters and boxes) lives in :mod:`repro.motion.search.exact`, the
-scoring of ``d_cr`` in the frame of the start pose (``scoring="start"``) in
-:mod:`repro.motion.search.start`; both are mixins of :class:`MotionRetriever`.
+bounds over the same clusters and boxes) lives in :mod:`repro.motion.search.exact`, a mixin of
+:class:`MotionRetriever`.
 
 Baselines (for the figures): :meth:`MotionRetriever.search_exhaustive` scores every
 startable pose of the semantics with the same ``d`` (no clusters, no boxes: the exact
@@ -115,7 +114,6 @@ from repro.motion.core.motion import Motion, finite_vector3
 from repro.motion.core.ops import resample
 from repro.motion.retargeting.trees import TreePlan
 from repro.motion.search.exact import ExactSearch
-from repro.motion.search.start import StartScoring
 from repro.motion.retargeting.dispatch import rest_motion_y_up
 from repro.motion.body.skeleton import Skeleton, rescale_constraint, skeleton_of
 
@@ -124,7 +122,6 @@ __all__ = [
     "MAX_TARGET_M",
     "MAX_WEIGHT",
     "METHODS",
-    "SCORINGS",
     "MotionRetriever",
     "Query",
     "RetrievalResult",
@@ -140,10 +137,6 @@ MAX_TARGET_M: float = 1e6
 MAX_WEIGHT: float = 1e6
 #: The search methods (``method=`` of :meth:`MotionRetriever.search`).
 METHODS: tuple[str, ...] = ("pruned", "exact", "exhaustive", "kdtree")
-#: Frames in which ``d_cr`` is scored (``scoring=`` of the searches): ``"first"`` the paper's (the
-#: clip's hit trajectory in the root frame of its first frame), ``"start"`` the frame in which the
-#: candidate is played from its start pose (see :meth:`MotionRetriever.search`).
-SCORINGS: tuple[str, ...] = ("first", "start")
 #: Ties: candidates whose ``d`` is within ``TIE_RTOL * d + TIE_ATOL`` of the best are tied, and the
 #: lowest pose index wins (shared by the exact and exhaustive searches, so that both return the same
 #: pose even when two evaluations of ``d`` differ in the last bits).
@@ -324,7 +317,7 @@ def _check_flag(name: str, v) -> bool:
     return bool(v)
 
 
-class MotionRetriever(ExactSearch, StartScoring):
+class MotionRetriever(ExactSearch):
     """The database organised for the search: clusters, indices, per-clip arrays.
 
     Everything that does not depend on the query is computed here once (Section 3.2.2:
@@ -401,7 +394,6 @@ class MotionRetriever(ExactSearch, StartScoring):
         self._actor_rest: dict = {}  # actor -> its rest pose, Y up (retargeting across trees)
         self._plans: dict = {}  # (actor, pose skeleton) -> RetargetPlan (same tree, other proportions)
         self._tree_plans: dict = {}  # (actor, pose skeleton, roles) -> TreePlan (another joint tree)
-        self._start: dict | None = None
         self._qm_cache = None
         self._ratio_cache = None
         self._cterms = None  # the centroids' index terms (the compiled exact search reads them)
@@ -772,7 +764,7 @@ class MotionRetriever(ExactSearch, StartScoring):
         if n < valid.size:
             d[~valid] = np.inf
         if tie:
-            return self._select(q, b.rows, d, c_r, "first", n)
+            return self._select(q, b.rows, d, c_r, n)
         j = int(np.argmin(d))
         return int(b.rows[j]), float(d[j]), float(dq[j]), float(dcr_u[b.inv[j]]), n
 
@@ -804,8 +796,7 @@ class MotionRetriever(ExactSearch, StartScoring):
 
     # ------------------------------------------------------------- searches
     def search(self, target, current_pose, character=None, semantics: str = "punch", *, prune: bool = True,
-               scale_target: bool = True, frame: int | None = None, method: str = "pruned",
-               scoring: str = "first") -> RetrievalResult:
+               scale_target: bool = True, frame: int | None = None, method: str = "pruned") -> RetrievalResult:
         """The paper's retrieval (Section 3.3): cluster, box pruning, weighted distance.
 
         Clips whose hit-trajectory box does not contain ``c_r`` are pruned (the paper's
@@ -835,16 +826,6 @@ class MotionRetriever(ExactSearch, StartScoring):
             bound over the same clusters and boxes (:meth:`search_exact`), the exhaustive
             optimum at a fraction of its cost.  ``"exhaustive"`` / ``"kdtree"``: the
             baselines (:meth:`search_exhaustive`, :meth:`search_kdtree`).
-        scoring : {"first", "start"}, default "first"
-            Frame of ``d_cr``.  ``"first"``: the paper's, the clip's hit trajectory in the
-            root frame of its first frame (one box per clip).  ``"start"``: the frame in
-            which the candidate is played from that start pose (aligned on ``q_r`` as
-            :meth:`RetrievalResult.place` does), from the start frame on, so that
-            ``d_cr`` is the closest approach of the played hit point to ``c_r``.
-            ``"start"`` needs ``method="exact"`` or ``"exhaustive"`` (the paper's pruning
-            tests one first-frame box per clip).  The default is the paper's, which
-            is what the figures reproduce; no figure, panel or benchmark asks for
-            ``"start"`` yet.
 
         Returns
         -------
@@ -853,27 +834,27 @@ class MotionRetriever(ExactSearch, StartScoring):
         Raises
         ------
         repro.errors.RetrievalError
-            Unknown semantics, method or scoring, a database without clips of it, a
+            Unknown semantics or method, a database without clips of it, a
             target that is not a finite 3-vector, a character that cannot be retargeted to.
         """
-        c, q, sem, method, scoring, scale_target, prune = self.arguments(
-            target, current_pose, character, semantics, method=method, scoring=scoring, scale_target=scale_target,
-            frame=frame, prune=prune)
+        c, q, sem, method, scale_target, prune = self.arguments(
+            target, current_pose, character, semantics, method=method, scale_target=scale_target, frame=frame,
+            prune=prune)
         if method == "exact":
-            return self._search_exact(c, q, sem, scoring, scale_target)
+            return self._search_exact(c, q, sem, scale_target)
         if method == "exhaustive":
-            return self._search_exhaustive(c, q, sem, scoring, scale_target)
+            return self._search_exhaustive(c, q, sem, scale_target)
         if method == "kdtree":
             return self.search_kdtree(c, q, None, sem)
         return self._search_pruned(c, q, sem, prune=prune, scale_target=scale_target)
 
-    def arguments(self, target, current_pose, character, semantics, *, method: str, scoring: str = "first",
-                  scale_target: bool = True, frame: int | None = None, prune: bool = True):
-        """The checked arguments of every search: ``(c, q, semantics, method, scoring, scale_target, prune)``.
+    def arguments(self, target, current_pose, character, semantics, *, method: str, scale_target: bool = True,
+                  frame: int | None = None, prune: bool = True):
+        """The checked arguments of every search: ``(c, q, semantics, method, scale_target, prune)``.
 
         One preamble for :meth:`search`, :meth:`search_exact`, :meth:`search_exhaustive`
         and :meth:`search_kdtree`: the target (:data:`MAX_TARGET_M`), the semantics, the
-        flags, the (method, scoring) pair (:meth:`check_method`), then the prepared query
+        flags, the method (:meth:`check_method`), then the prepared query
         (:meth:`prepare`, or a :class:`Query` checked), in that order (the cheap checks
         before the retargeting).
 
@@ -885,53 +866,40 @@ class MotionRetriever(ExactSearch, StartScoring):
         c = _check_target(target)
         sem = self._semantics(semantics)
         prune, scale_target = _check_flag("prune", prune), _check_flag("scale_target", scale_target)
-        method, scoring = self.check_method(method, scoring, scale_target)
+        method = self.check_method(method)
         q = self._query(current_pose, character, frame)
-        return c, q, sem, method, scoring, scale_target, prune
+        return c, q, sem, method, scale_target, prune
 
-    def check_method(self, method, scoring, scale_target: bool = True) -> tuple[str, str]:
-        """``(method, scoring)`` checked: one of :data:`METHODS`, one of :data:`SCORINGS`, a valid pair, and
-        ``scoring="start"`` only with ``scale_target`` (Eq. 1)."""
+    @staticmethod
+    def check_method(method) -> str:
+        """``method`` checked: one of :data:`METHODS`."""
         if not isinstance(method, str) or method not in METHODS:
             raise RetrievalError(f"unknown method {method!r}; expected one of {list(METHODS)}")
-        if not isinstance(scoring, str) or scoring not in SCORINGS:
-            raise RetrievalError(f"unknown scoring {scoring!r}; expected one of {list(SCORINGS)}")
-        if scoring == "start" and method in ("pruned", "kdtree"):
-            raise RetrievalError(f"scoring='start' is for method 'exact' or 'exhaustive', not {method!r} "
-                                 "(the paper's pruning tests one first-frame box per clip)")
-        if scoring == "start" and not scale_target:
-            raise RetrievalError("scoring='start' needs scale_target=True (Eq. 1)")
-        return method, scoring
+        return method
 
     def search_exact(self, target, current_pose, character=None, semantics: str = "punch", *,
-                     scoring: str = "first", scale_target: bool = True, frame: int | None = None,
-                     stats: dict | None = None) -> RetrievalResult:
+                     scale_target: bool = True, frame: int | None = None, stats: dict | None = None) -> RetrievalResult:
         """Exact search: the exhaustive optimum of ``d``, by bounds over clusters, clip runs and clips.
 
         Kovar et al.'s aligned distance ``D`` minimises over an isometry group (rotations
         about the vertical, horizontal translations) applied to a whole cloud, under a
         weighted Euclidean seminorm (non-negative weights): it is a pseudometric, so for
         a cluster of centroid ``m`` and radius ``r`` (largest ``D(m, p)`` of its poses of
-        the semantics) every pose has ``D(q_r, p) >= D(q_r, m) - r``.  With
-        ``scoring="first"`` ``d_cr >= dist(c_r, box)`` and then the exact ``d_cr`` of every
-        clip within reach (compiled: :mod:`repro.motion.search.kernel`); with
-        ``scoring="start"`` the bound is alignment-invariant: the range of horizontal
-        distances of the played trajectory from the pose's centroid, and of its heights
-        (see :meth:`_start_geometry`).  The cascade (cheap bounds first, a first best
-        ``d`` from the most promising clip runs, exact ``d`` only for the poses whose
-        bound can beat it) is :meth:`repro.motion.search.exact.ExactSearch._search_exact`.
+        the semantics) every pose has ``D(q_r, p) >= D(q_r, m) - r``; ``d_cr >= dist(c_r, box)``
+        and then the exact ``d_cr`` of every clip within reach.  The cascade (cheap bounds first,
+        a first best ``d`` from the most promising clip runs, exact ``d`` only for the poses whose
+        bound can beat it) is compiled: :mod:`repro.motion.search.kernel`.
         Candidates within rounding of the best are re-scored one by one and ties (within
         :data:`TIE_RTOL`) go to the lowest pose index, as in :meth:`search_exhaustive`:
         both return the same pose with the same numbers.  ``stats`` (a dict), when given,
         receives ``clusters_visited``, ``groups_scored`` and ``poses_scored`` (the clusters of
         the clip runs scored, those runs, their poses).
         """
-        c, q, sem, _, scoring, scale_target, _ = self.arguments(
-            target, current_pose, character, semantics, method="exact", scoring=scoring, scale_target=scale_target,
-            frame=frame)
+        c, q, sem, _, scale_target, _ = self.arguments(
+            target, current_pose, character, semantics, method="exact", scale_target=scale_target, frame=frame)
         if stats is not None and not isinstance(stats, dict):  # filled in after the search: checked before it
             raise RetrievalError(f"stats must be a dict to fill or None, got {describe(stats)}")
-        return self._search_exact(c, q, sem, scoring, scale_target, stats=stats)
+        return self._search_exact(c, q, sem, scale_target, stats=stats)
 
     def _search_pruned(self, c, q: Query, sem: str, *, prune: bool = True, scale_target: bool = True):
         c_r = self._c_r(c, q.size_c, scale_target)
@@ -964,16 +932,14 @@ class MotionRetriever(ExactSearch, StartScoring):
         return self._result(q, best, c_r, cluster=int(order[0]), fallback="no_box", rank=-1, method="pruned")
 
     def search_exhaustive(self, target, current_pose, character=None, semantics: str = "punch", *,
-                          scale_target: bool = True, frame: int | None = None, scoring: str = "first") -> RetrievalResult:
+                          scale_target: bool = True, frame: int | None = None) -> RetrievalResult:
         """Baseline: score every startable pose of the semantics with the same ``d``.
 
         Ties (``d`` within :data:`TIE_RTOL` of the minimum) go to the lowest pose index.
-        ``scoring``: as in :meth:`search`.
         """
-        c, q, sem, _, scoring, scale_target, _ = self.arguments(
-            target, current_pose, character, semantics, method="exhaustive", scoring=scoring,
-            scale_target=scale_target, frame=frame)
-        return self._search_exhaustive(c, q, sem, scoring, scale_target)
+        c, q, sem, _, scale_target, _ = self.arguments(
+            target, current_pose, character, semantics, method="exhaustive", scale_target=scale_target, frame=frame)
+        return self._search_exhaustive(c, q, sem, scale_target)
 
     @staticmethod
     def _tie_threshold(best: float) -> float:
@@ -988,26 +954,20 @@ class MotionRetriever(ExactSearch, StartScoring):
         """``(rtol, atol)`` of :meth:`_near_threshold`: ``best + rtol |best| + atol``."""
         return NEAR_RTOL, NEAR_ATOL * self.w_q * self._size_max
 
-    def _canonical(self, q: Query, row: int, c_r: np.ndarray, scoring: str, c_hat, cq) -> tuple:
+    def _canonical(self, q: Query, row: int, c_r: np.ndarray) -> tuple:
         """``(d, d_qr, d_cr, (theta, x0, z0))`` of one pose, always by the same one-row evaluation (so that
         every search reports the same numbers for the same pose, whatever batch it was first scored in),
         and its transform onto ``q_r``."""
         db = self.db
         i = int(db.pose_clip[row])
-        a = int(db.actor[i])
-        qn = q.q_n[a]
-        r = np.array([row])
+        qn = q.q_n[int(db.actor[i])]
         # the pose distance summed directly: the closed form cancels to ~1e-8 near a match
         D, alpha, x0, z0 = self.index.direct_distance(qn, row)
-        if scoring == "first":
-            dcr = float(self._d_cr(np.array([i]), c_r)[0])
-        else:
-            dcr = float(self._d_cr_start(r, np.array([alpha]), c_hat, cq[a])[0])
+        dcr = float(self._d_cr(np.array([i]), c_r)[0])
         dqr = D * float(self.pose_size[row])
         return self.w_q * dqr + self.w_c * dcr, dqr, dcr, (alpha, x0, z0)
 
-    def _select(self, q: Query, rows: np.ndarray, d: np.ndarray, c_r: np.ndarray, scoring: str, n: int,
-                c_hat=None, cq=None) -> tuple:
+    def _select(self, q: Query, rows: np.ndarray, d: np.ndarray, c_r: np.ndarray, n: int) -> tuple:
         """The selection among scored poses: ``(row, d, d_qr, d_cr, n)``.
 
         The poses within :meth:`_near_threshold` of the lowest ``d`` (above the rounding of
@@ -1020,54 +980,26 @@ class MotionRetriever(ExactSearch, StartScoring):
         near = near[np.argsort(rows[near], kind="stable")]
         if near.size > MAX_NEAR:  # degenerate databases (many copies of one pose): the lowest indices
             near = np.concatenate([near[:MAX_NEAR], [int(np.argmin(d))]])
-        scored = [(self._canonical(q, int(rows[j]), c_r, scoring, c_hat, cq), int(rows[j])) for j in near]
+        scored = [(self._canonical(q, int(rows[j]), c_r), int(rows[j])) for j in near]
         m2 = min(v[0][0] for v in scored)
         (dd, dqr, dcr, tf), row = min((v for v in scored if v[0][0] <= self._tie_threshold(m2)), key=lambda v: v[1])
         return row, float(dd), float(dqr), float(dcr), int(n), tf
 
-    def _score_all_start(self, b: _Block, q: Query, c_hat: np.ndarray, cq: dict):
-        """Every pose of block ``b`` scored in its start frame: ``(rows, d, d_qr, d_cr, n)`` (None if no
-        pose of an actor of the query)."""
-        prep = self._prepared(q)
-        dq = np.full(b.rows.size, np.inf)
-        alpha = np.zeros(b.rows.size)
-        for a, qn in q.q_n.items():
-            sel = np.flatnonzero(b.actor == a)
-            if sel.size:
-                dq[sel], alpha[sel] = b.index.distances(qn, sel, return_transform=True, prepared=prep[a])[:2]
-        keep = np.flatnonzero(np.isfinite(dq))
-        if keep.size == 0:
-            return None
-        rows = b.rows[keep]
-        dqr = dq[keep] * b.size[keep]
-        dcr = self._d_cr_start_per_actor(q, rows, alpha[keep], b.actor[keep], c_hat, cq)
-        return rows, self.w_q * dqr + self.w_c * dcr, dqr, dcr, keep.size
-
-    def _finish(self, q: Query, parts: list, c_r: np.ndarray, *, method: str, n: int, scoring: str,
-                c_hat=None, cq=None):
+    def _finish(self, q: Query, parts: list, c_r: np.ndarray, *, method: str, n: int):
         if not parts:
             raise RetrievalError("no clip of an actor compatible with the character for this semantics")
         rows = np.concatenate([p[0] for p in parts])
         d = np.concatenate([p[1] for p in parts])
-        best = self._select(q, rows, d, c_r, scoring, n, c_hat, cq)
+        best = self._select(q, rows, d, c_r, n)
         return self._result(q, best, c_r, cluster=-1, fallback="disabled", rank=-1, method=method)
 
-    def _search_exhaustive(self, c, q: Query, sem: str, scoring: str, scale_target: bool = True, *,
+    def _search_exhaustive(self, c, q: Query, sem: str, scale_target: bool = True, *,
                            method: str = "exhaustive") -> RetrievalResult:
         c_r = self._c_r(c, q.size_c, scale_target)
-        b = self.sem_block[sem]
-        if scoring == "first":
-            best = self._score_block(b, q, c_r, tie=True)
-            if best is None:
-                raise RetrievalError(f"no {sem!r} clip of an actor compatible with the character")
-            return self._result(q, best, c_r, cluster=-1, fallback="disabled", rank=-1, method=method)
-        if not scale_target:
-            raise RetrievalError("scoring='start' needs scale_target=True (Eq. 1)")
-        c_hat, cq = self._c_hat(c, q), self._cq(q)
-        out = self._score_all_start(b, q, c_hat, cq)
-        if out is None:
+        best = self._score_block(self.sem_block[sem], q, c_r, tie=True)
+        if best is None:
             raise RetrievalError(f"no {sem!r} clip of an actor compatible with the character")
-        return self._finish(q, [out[:4]], c_r, method=method, n=out[4], scoring=scoring, c_hat=c_hat, cq=cq)
+        return self._result(q, best, c_r, cluster=-1, fallback="disabled", rank=-1, method=method)
 
     def _kdtree(self, sem: str):
         if sem not in self._kd:

@@ -1,4 +1,4 @@
-"""Exact retrieval (branch and bound) and scoring in the start frame (repro.motion.search.retrieval).
+"""Exact retrieval (branch and bound) (repro.motion.search.exact).
 
 What is asserted:
 
@@ -7,19 +7,13 @@ What is asserted:
   weights), and the cluster / clip-run radii bound every pose's distance from below
   (``D(q, p) >= D(q, m) - r``), the bounds the exact search prunes with;
 * ``method="exact"`` returns the exhaustive optimum (same pose, same ``d``) on hundreds
-  of seeded queries, in both scoring frames, on the 72-clip database and on an augmented
+  of seeded queries, on the 72-clip database and on an augmented
   one, while scoring fewer poses than the exhaustive scan (counted, not timed);
 * ties go to the lowest pose index in both searches (a database holding a clip twice);
-* ``scoring="start"``: ``d_cr`` is the closest approach, from the start frame on, of the
-  hit trajectory *as played* (placed by the result's own alignment), recomputed here
-  from the world trajectory; the paper's ``scoring="first"`` is unchanged;
-* bad ``method`` / ``scoring`` values are refused, naming the value;
-* the alignment-invariant features (item 5) bound the aligned distance from below (random
-  pairs of real and synthetic clouds), and the exact search with that bound on still returns
-  the exhaustive optimum, with the very same ``d``, ``d_qr``, ``d_cr`` (both re-score the
-  near-best candidates one by one);
-* the k-d tree of trajectory samples gives each clip's exact ``d_cr`` (nearest samples, small
-  and large balls);
+* the paper's ``d_cr`` is the first-frame trajectory's distance to ``c_r``, whole clip;
+* bad ``method`` values are refused, naming the value;
+* the exact search returns the exhaustive optimum with the very same ``d``, ``d_qr``, ``d_cr``
+  (both re-score the near-best candidates one by one);
 * a database without clips of a semantics is refused by every method, naming the semantics.
 """
 
@@ -32,11 +26,10 @@ import pytest
 
 from repro.errors import RetrievalError
 from repro.motion.database.augment import augment
-from repro.motion.body.pose_frames import root_frames, rotate_y
+from repro.motion.body.pose_frames import rotate_y
 from repro.motion.search.distance import aligned_distance
 from repro.motion.database.clips import MotionDatabase
 from repro.motion.search.retrieval import MotionRetriever, make_queries
-from repro.motion.search.exact import _ball_radius
 
 
 @pytest.fixture(scope="module")
@@ -79,15 +72,13 @@ def test_radii_bound_every_pose(db, retriever, prepared):
             assert np.all(d >= (dg - b.gradius)[b.inv] - 1e-9)
 
 
-@pytest.mark.parametrize("scoring", ["first", "start"])
-def test_exact_is_the_exhaustive_optimum(db, retriever, prepared, scoring):
-    n = len(prepared) if scoring == "first" else 120
+def test_exact_is_the_exhaustive_optimum(db, retriever, prepared):
     scored, total = 0, 0
-    for c, q, sem in prepared[:n]:
+    for c, q, sem in prepared:
         st = {}
-        a = retriever.search(c, q, semantics=sem, method="exact", scoring=scoring)
-        b = retriever.search_exhaustive(c, q, semantics=sem, scoring=scoring)
-        e = retriever.search_exact(c, q, semantics=sem, scoring=scoring, stats=st)
+        a = retriever.search(c, q, semantics=sem, method="exact")
+        b = retriever.search_exhaustive(c, q, semantics=sem)
+        e = retriever.search_exact(c, q, semantics=sem, stats=st)
         assert (a.pose, a.clip, a.start_frame) == (b.pose, b.clip, b.start_frame) == (e.pose, e.clip, e.start_frame)
         assert a.d == pytest.approx(b.d, rel=1e-12, abs=1e-15)
         assert a.method == "exact" and b.method == "exhaustive"
@@ -102,14 +93,12 @@ def test_exact_on_an_augmented_database(db):
     scored = total = 0
     for c, pose, ch, sem in make_queries(big, 150, seed=3):
         q = r.prepare(pose, ch)
-        for scoring in ("first", "start"):
-            st = {}
-            a = r.search_exact(c, q, semantics=sem, scoring=scoring, stats=st)
-            b = r.search_exhaustive(c, q, semantics=sem, scoring=scoring)
-            assert a.pose == b.pose and a.d == pytest.approx(b.d, rel=1e-12, abs=1e-15)
-            if scoring == "first":
-                scored += st["poses_scored"]
-                total += r.sem_rows[sem].size
+        st = {}
+        a = r.search_exact(c, q, semantics=sem, stats=st)
+        b = r.search_exhaustive(c, q, semantics=sem)
+        assert a.pose == b.pose and a.d == pytest.approx(b.d, rel=1e-12, abs=1e-15)
+        scored += st["poses_scored"]
+        total += r.sem_rows[sem].size
     assert scored < 0.3 * total
 
 
@@ -123,56 +112,28 @@ def test_ties_go_to_the_lowest_pose(db):
     for f in (0, 3, 6):
         pose = dataclasses.replace(m, rotations=m.rotations[f:f + 1], positions=m.positions[f:f + 1])
         c = twice.hit_position[0] + np.array([0.05, -0.02, 0.03])
-        for scoring in ("first", "start"):
-            a = r.search(c, pose, twice.actor_skeleton(0), "punch", method="exact", scoring=scoring)
-            b = r.search(c, pose, twice.actor_skeleton(0), "punch", method="exhaustive", scoring=scoring)
-            assert a.pose == b.pose and a.clip == 0  # the first copy
+        a = r.search(c, pose, twice.actor_skeleton(0), "punch", method="exact")
+        b = r.search(c, pose, twice.actor_skeleton(0), "punch", method="exhaustive")
+        assert a.pose == b.pose and a.clip == 0  # the first copy
 
 
-def test_start_scoring_is_the_played_closest_approach(db, retriever, prepared):
+def test_paper_d_cr_is_the_first_frame_trajectory(db, retriever, prepared):
     for c, q, sem in prepared[:60]:
-        r = retriever.search(c, q, semantics=sem, method="exact", scoring="start")
-        i = r.clip
-        g = db.motion(i).global_positions()
-        sk = db.actor_skeleton(i)
-        th, o = root_frames(g[:1], sk.index("pelvis"), sk.index("left_hip"), sk.index("right_hip"))
-        world = rotate_y(db.trajectory(i), th[0]) + o[0]  # the stored trajectory back in the clip's world
-        played = r.align(world)[r.start_frame:]
-        assert r.d_cr == pytest.approx(np.min(np.linalg.norm(played - r.c_r, axis=1)), rel=1e-7, abs=1e-9)
-        assert r.d == pytest.approx(r.w_q * r.d_qr + r.w_c * r.d_cr, rel=1e-12)
-        # the paper's scoring is what it was: the first-frame trajectory, whole clip
+        # the paper's scoring: the first-frame trajectory, whole clip
         p = retriever.search(c, q, semantics=sem)
         assert p.d_cr == pytest.approx(np.min(np.linalg.norm(db.trajectory(p.clip) - p.c_r, axis=1)), rel=1e-9)
 
 
-def test_start_scoring_lowers_the_played_miss(db, retriever, prepared):
-    """Scored in the frame it is played in, the chosen clip passes closer to the target as played."""
-    first, start = [], []
-    for c, q, sem in prepared[:80]:
-        for scoring, acc in (("first", first), ("start", start)):
-            r = retriever.search(c, q, semantics=sem, method="exact", scoring=scoring)
-            i = r.clip
-            g = db.motion(i).global_positions()
-            sk = db.actor_skeleton(i)
-            th, o = root_frames(g[:1], sk.index("pelvis"), sk.index("left_hip"), sk.index("right_hip"))
-            played = r.align(rotate_y(db.trajectory(i), th[0]) + o[0])[r.start_frame:]
-            acc.append(np.min(np.linalg.norm(played - r.c_r, axis=1)))
-    assert np.mean(start) < np.mean(first)
-
-
-@pytest.mark.parametrize("kw", [{"method": "fast"}, {"method": 1}, {"scoring": "last"}, {"scoring": None},
-                                {"method": "pruned", "scoring": "start"}, {"method": "kdtree", "scoring": "start"}])
-def test_bad_method_or_scoring(retriever, prepared, kw):
+@pytest.mark.parametrize("kw", [{"method": "fast"}, {"method": 1}])
+def test_bad_method(retriever, prepared, kw):
     c, q, sem = prepared[0]
-    with pytest.raises(RetrievalError, match="method|scoring"):
+    with pytest.raises(RetrievalError, match="method"):
         retriever.search(c, q, semantics=sem, **kw)
 
 
-def test_start_scoring_needs_eq1(retriever, prepared):
+def test_exact_without_eq1(retriever, prepared):
     c, q, sem = prepared[0]
-    with pytest.raises(RetrievalError, match="scale_target"):
-        retriever.search_exhaustive(c, q, semantics=sem, scoring="start", scale_target=False)
-    # exact without Eq. 1 (first frame) is still the exhaustive optimum
+    # exact without Eq. 1 is still the exhaustive optimum
     a = retriever.search(c, q, semantics=sem, method="exact", scale_target=False)
     b = retriever.search_exhaustive(c, q, semantics=sem, scale_target=False)
     assert a.pose == b.pose
@@ -190,10 +151,9 @@ def test_cmu_triangle_inequality_and_exact_search():
     r = MotionRetriever(cmu, seed=0)
     for c, pose, ch, sem in make_queries(cmu, 200, seed=5):
         q = r.prepare(pose, ch)
-        for scoring in ("first", "start"):
-            a = r.search(c, q, semantics=sem, method="exact", scoring=scoring)
-            b = r.search_exhaustive(c, q, semantics=sem, scoring=scoring)
-            assert a.pose == b.pose and a.d == pytest.approx(b.d, rel=1e-12, abs=1e-15)
+        a = r.search(c, q, semantics=sem, method="exact")
+        b = r.search_exhaustive(c, q, semantics=sem)
+        assert a.pose == b.pose and a.d == pytest.approx(b.d, rel=1e-12, abs=1e-15)
 
 
 def test_prepare_fast_path_equals_retargeting(db, retriever):
@@ -214,59 +174,12 @@ def test_prepare_fast_path_equals_retargeting(db, retriever):
         assert q.size_c == pytest.approx(ch.size)
 
 
-@pytest.mark.parametrize("weighted", [False, True])
-def test_invariant_features_bound_the_aligned_distance(db, weighted):
-    """Issue 13 item 5: the distance between alignment-invariant features never exceeds D, and is not vacuous."""
-    from repro.motion.body.pose_frames import pose_weights
-    from repro.motion.search.exact import invariant_features
-
-    rng = np.random.default_rng(2)
-    P = db.pose_points.shape[1]
-    w = pose_weights(P, rng.uniform(0.0, 3.0, P) if weighted else None)
-    real = db.pose_points[rng.integers(0, db.n_poses, (3000, 2))]
-    synth = rng.normal(0, 0.5, (3000, 2, P, 3))
-    synth[:, 1] = rotate_y(synth[:, 0], rng.uniform(-np.pi, np.pi, (3000, 1))) + rng.normal(0, 0.05, (3000, P, 3))
-    synth[:, 1] += np.array([1.0, 0.0, 1.0]) * rng.normal(0, 2.0, (3000, 1, 3))  # moved on the floor
-    for t in (real, synth):
-        d = aligned_distance(t[:, 0], t[:, 1], w)
-        f = np.linalg.norm(invariant_features(t[:, 0], w) - invariant_features(t[:, 1], w), axis=-1)
-        assert np.all(f <= d + 1e-9)
-        assert np.median(f / np.maximum(d, 1e-12)) > 0.3  # tight enough to mean something
-
-
-def test_trajectory_samples_give_the_exact_d_cr(db, retriever, prepared):
-    """The k-d tree of trajectory samples (nearest samples, ball) returns each clip's exact d_cr."""
-    r = retriever
-    for c, q, sem in prepared[:40]:
-        ex = r._ex[sem]
-        c_r = r._c_r(c, q.size_c, True)
-        c_hat = c / q.size_c
-        ref = r._d_cr(ex["uclip"], c_r)
-        near = np.full(ex["uclip"].size, np.nan)
-        u, dh, far = r._nearest_clips(ex, near, c_hat, 64)
-        np.testing.assert_allclose(near[u], ref[u], rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(dh * ex["usize"][u], ref[u], rtol=1e-12, atol=1e-12)
-        for radius in (0.05, 0.2, 10.0, 0.5 * far):  # small and large balls (two code paths), and one the
-            ball = np.full(ex["uclip"].size, np.nan)  # nearest samples hold (the search's shortcut)
-            uin = r._ball_dcr(ex, ball, c_hat, radius)
-            assert np.array_equal(uin, np.flatnonzero(np.isfinite(ball)))  # the clips within the ball
-            if radius == 0.5 * far:
-                assert np.array_equal(uin, u[dh <= _ball_radius(radius)])
-            inside = ref <= radius * ex["usize"] * (1 - 1e-9)
-            np.testing.assert_allclose(ball[inside], ref[inside], rtol=1e-12, atol=1e-12)
-            known = np.isfinite(ball)  # the clips inside the ball (on both paths): exact
-            np.testing.assert_allclose(ball[known], ref[known], rtol=1e-12, atol=1e-12)
-            assert np.all(known | (ref > radius * ex["usize"] * (1 - 1e-9)))  # unknown only outside
-
-
-@pytest.mark.parametrize("scoring", ["first", "start"])
-def test_exact_with_the_feature_bound_and_identical_numbers(db, retriever, prepared, scoring):
-    """The optional feature bound keeps the optimum; exact and exhaustive report the very same numbers."""
+def test_exact_and_exhaustive_report_identical_numbers(db, retriever, prepared):
+    """Exact and exhaustive report the very same numbers."""
     for c, q, sem in prepared[:80]:
-        b = retriever.search_exhaustive(c, q, semantics=sem, scoring=scoring)
-        for features in (False, True):
-            a = retriever._search_exact(c, q, sem, scoring, True, features=features)
-            assert (a.pose, a.d, a.d_qr, a.d_cr) == (b.pose, b.d, b.d_qr, b.d_cr)
+        b = retriever.search_exhaustive(c, q, semantics=sem)
+        a = retriever.search_exact(c, q, semantics=sem)
+        assert (a.pose, a.d, a.d_qr, a.d_cr) == (b.pose, b.d, b.d_qr, b.d_cr)
 
 
 def test_exact_on_a_database_without_the_semantics(db):

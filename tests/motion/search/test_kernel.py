@@ -3,7 +3,7 @@
 What is asserted:
 
 * its stable argsort gives numpy's stable order (random keys with ties and infinities);
-* the exact search (compiled for ``scoring="first"``) returns the exhaustive optimum with the
+* the exact search (compiled) returns the exhaustive optimum with the
   very same numbers with one seed, or as many seeds as clip runs or more (several actors, some
   of them not the query's: tests/motion/database/test_clips_mixed_trees.py);
 * :func:`compile_search` compiles the very specialisation a real search calls (one signature
@@ -85,7 +85,7 @@ def test_exact_with_more_seeds_than_clip_runs(db, retriever):
         q = r.prepare(pose, ch)
         G = r._ex[sem]["gsize"].size
         for batch in (1, G, G + 5):
-            got = r._search_exact(c, q, sem, "first", True, batch=batch)
+            got = r._search_exact(c, q, sem, True, batch=batch)
             ref = r.search_exhaustive(c, q, semantics=sem)
             assert (got.pose, got.d) == (ref.pose, ref.d)
 
