@@ -3,8 +3,9 @@
 A :class:`Rig` caches, per :class:`~repro.motion.core.motion.Motion` (weakly), the skeleton
 roles, local translations, global transforms, foot contacts and one :class:`Chain` per
 effector (the path root -> hit point, the limb's proximal / middle / distal joints and
-the clip-wide bending axis of the middle joint).  :func:`path_fk` is forward kinematics
-along such a path with rotation matrices.
+the clip-wide bending axis of the middle joint).  Forward kinematics along such a path is
+:func:`repro.motion.core.kinematics.chain_fk` / :func:`~repro.motion.core.kinematics.chain_fk_from`
+(the limb and CCD solvers still import them from here as ``path_fk`` / ``path_fk_from``).
 """
 
 from __future__ import annotations
@@ -17,7 +18,9 @@ import numpy as np
 from repro.checks import as_real, as_real_array
 from repro.errors import MotionError
 from repro.motion.body.feet import foot_contacts
-from repro.motion.core.kinematics import depth_levels, matvec
+from repro.motion.core.kinematics import chain_fk as path_fk
+from repro.motion.core.kinematics import chain_fk_from as path_fk_from
+from repro.motion.core.kinematics import depth_levels
 from repro.motion.core.quaternion import cross
 from repro.motion.core.quaternion import quat_rotate as qrot
 from repro.motion.core.motion import MAX_COORDINATE, Motion, finite_vector3
@@ -51,27 +54,6 @@ EFFECTOR_STEMS: dict[str, str] = {
 
 def vec3(name: str, v) -> np.ndarray:
     return finite_vector3(v, name, MotionError)
-
-
-def path_fk(ml: np.ndarray, tl: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """World rotations (n, P, 3, 3) and positions (n, P, 3) along a root->joint chain."""
-    rw = np.empty_like(ml)
-    pw = np.empty_like(tl)
-    rw[:, 0] = ml[:, 0]
-    pw[:, 0] = tl[:, 0]
-    path_fk_from(ml, tl, rw, pw, 1)
-    return rw, pw
-
-
-def path_fk_from(ml, tl, rw, pw, k: int) -> None:
-    """Recompute world transforms of chain positions ``>= k`` in place."""
-    if k == 0:
-        rw[:, 0] = ml[:, 0]
-        pw[:, 0] = tl[:, 0]
-        k = 1
-    for i in range(k, ml.shape[1]):
-        pw[:, i] = pw[:, i - 1] + matvec(rw[:, i - 1], tl[:, i])
-        rw[:, i] = rw[:, i - 1] @ ml[:, i]
 
 
 # --------------------------------------------------------------- the rig

@@ -1,11 +1,21 @@
-"""Vector helpers and forward kinematics on raw arrays, shared by the motion library.
+"""Vector helpers and **the** forward kinematics of the motion library, on raw arrays.
 
 Quaternion maths lives in :mod:`repro.motion.core.quaternion`; this module adds the vector
 operations the solvers use (:func:`dot`, :func:`normalize`, :func:`transport`,
-:func:`matvec`) and **the** forward kinematics, :func:`fk_arrays` over the
-:func:`depth_levels` of a joint tree, which :meth:`repro.motion.core.motion.Motion.global_transforms`
-and the retargeting and adaptation solvers all run.  Checked against
-:class:`scipy.spatial.transform.Rotation` in ``tests/motion/core/test_kinematics.py``.
+:func:`matvec`) and every form of forward kinematics ``G_j = G_parent(j) T(t_j) R(q_j)``
+(the world transform of each joint of a BVH/ASF hierarchy, Kovar et al. 2002, Sec. 2):
+
+* :func:`forward_kinematics`, the entry point for a whole tree (what
+  :meth:`repro.motion.core.motion.Motion.global_transforms` runs): :func:`fk_arrays`, one
+  vectorised step per :func:`depth_levels` level, for trees up to
+  :data:`LEVEL_LOOP_MAX_DEPTH` deep (every real skeleton), else :func:`fk_doubling`,
+  pointer doubling in ``ceil(log2(depth))`` rounds (deep chains from files);
+* :func:`rest_positions`, the rest pose (all rotations identity): sums of offsets by levels;
+* :func:`chain_fk` / :func:`chain_fk_from`, rotation matrices along one root -> joint
+  path, recomputed in place from a changed joint on: the IK solvers' inner loop.
+
+Checked against :class:`scipy.spatial.transform.Rotation` and against each other in
+``tests/motion/core/test_kinematics.py``.
 """
 
 from __future__ import annotations
@@ -20,10 +30,15 @@ __all__ = [
     "dot",
     "normalize",
     "transport",
+    "forward_kinematics",
     "fk_arrays",
+    "fk_doubling",
     "rest_positions",
+    "chain_fk",
+    "chain_fk_from",
     "chain_positions",
     "depth_levels",
+    "LEVEL_LOOP_MAX_DEPTH",
     "world_of",
     "check_pose_arrays",
     "check_joint_names",
@@ -65,63 +80,14 @@ def transport(a0: np.ndarray, r0: np.ndarray, a: np.ndarray) -> np.ndarray:
     return normalize(r)[0]
 
 
-def fk_arrays(levels, rotations: np.ndarray, translations: np.ndarray, *,
-              copy: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """Forward kinematics ``G_j = G_parent(j) T(t_j) R(q_j)`` on raw arrays.
-
-    Parameters
-    ----------
-    levels : list of (joints, parents) index arrays
-        :func:`depth_levels` of the tree (depth 1, 2, ...).
-    rotations : (F, J, 4) array
-        Local rotations (unit quaternions).
-    translations : (F, J, 3) array
-        Local translations.
-    copy : bool, default True
-        False: fill ``translations`` in place with the world positions (a fresh array
-        the caller owns).
-
-    Returns
-    -------
-    (F, J, 4) world rotations, (F, J, 3) world positions
-    """
-    # shapes only (this runs in every solver): what fails here would fail as a bare numpy error below
-    if not (isinstance(rotations, np.ndarray) and isinstance(translations, np.ndarray)) or rotations.ndim != 3 or \
-            rotations.shape[2:] != (4,) or translations.shape != rotations.shape[:2] + (3,):
-        raise MotionError(f"fk_arrays needs (F, J, 4) rotations and (F, J, 3) translations arrays, got "
-                          f"{getattr(rotations, 'shape', describe(rotations))} and "
-                          f"{getattr(translations, 'shape', describe(translations))}")
-    gq = np.empty_like(rotations)
-    gp = translations.copy() if copy else translations
-    gq[:, 0] = rotations[:, 0]
-    for idx, par in levels:
-        gq[:, idx] = quat_multiply(gq[:, par], rotations[:, idx])
-    return gq, chain_positions(levels, gq, gp)
+def matvec(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Matrix-vector product ``m v`` broadcast over leading axes."""
+    return np.matmul(m, v[..., None])[..., 0]
 
 
-def rest_positions(parents, offsets) -> np.ndarray:
-    """(J, 3) joint positions of the rest pose: forward kinematics with every rotation identity.
-
-    ``p[j] = p[parent(j)] + offsets[j]`` (``p[0] = offsets[0]``), one vectorised step per
-    :func:`depth_levels` level: element for element the sums of a joint-by-joint loop, for
-    any tree the library takes (``parents[j] < j``), chains of any depth included.
-
-    Parameters
-    ----------
-    parents : (J,) int array
-        Parent of each joint, -1 for the root.
-    offsets : (J, 3) array
-        Rest offset of each joint from its parent (the root's: its rest position).
-    """
-    levels = depth_levels(parents)
-    off = np.asarray(offsets, dtype=float)
-    J = 1 + sum(i.size for i, _ in levels)
-    if off.shape != (J, 3):
-        raise MotionError(f"offsets must be a ({J}, 3) array for {J} joints, got {off.shape}")
-    p = off.copy()
-    for idx, par in levels:
-        p[idx] = p[par] + off[idx]
-    return p
+def matvec_t(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Transposed-matrix-vector product ``m^T v`` broadcast over leading axes."""
+    return np.matmul(v[..., None, :], m)[..., 0, :]
 
 
 #: Largest coordinate of a point or vector the motion library takes (targets, offsets, floors,
@@ -176,20 +142,103 @@ def check_pose_arrays(rotations, translations, n_joints: int) -> tuple[np.ndarra
     return rot, tr
 
 
-def world_of(levels, rotations, translations, source=None) -> tuple[np.ndarray, np.ndarray]:
-    """``source`` = world ``(rotations (F, J, 4), positions (F, J, 3))`` checked against ``levels``' J joints,
-    or :func:`fk_arrays` of ``rotations`` and ``translations`` when it is None (a plan's ``source=`` argument)."""
-    if source is None:
-        return fk_arrays(levels, rotations, translations)
-    J = 1 + sum(len(i) for i, _ in levels)
-    ok = isinstance(source, tuple) and len(source) == 2 and all(isinstance(a, np.ndarray) for a in source)
-    if ok:
-        gq, gp = source
-        ok = gq.ndim == 3 and gq.shape[1:] == (J, 4) and gp.shape == gq.shape[:2] + (3,)
-    if not ok:
-        raise MotionError(f"source must be a pair of world (F, {J}, 4) rotations and (F, {J}, 3) positions "
-                          f"arrays (Motion.global_transforms()), got {describe(source)}")
-    return source
+# ------------------------------------------------------------------ forward kinematics
+def depth_levels(parents) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``(joints, their parents)`` per depth 1, 2, ... of a tree (``parents[j] < j``), index order within a level.
+
+    Linear in the number of joints (a scan per depth level would be quadratic for chains).
+    """
+    parents = _tree_parents(parents)
+    par = parents.tolist()
+    depth = [0] * len(par)
+    for j in range(1, len(par)):
+        depth[j] = depth[par[j]] + 1
+    depth = np.array(depth, dtype=np.intp)
+    order = np.argsort(depth, kind="stable")  # joints by depth, index order within a level
+    bounds = np.cumsum(np.bincount(depth))
+    p = parents[order]
+    return [(order[a:b], p[a:b]) for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def _tree_parents(parents) -> np.ndarray:
+    """``parents`` as a 1-D intp array of a joint tree (-1 for joint 0, ``parents[j] < j``), or MotionError."""
+    parents = as_real_array(parents, "parents", error=MotionError, integer=True, ndim=1).astype(np.intp)
+    if parents.size == 0 or parents[0] != -1 or np.any(parents[1:] < 0) or \
+            np.any(parents[1:] >= np.arange(1, parents.size)):
+        raise MotionError("parents must be -1 for joint 0 and parents[j] < j for the others")
+    return parents
+
+
+#: Trees deeper than this use pointer doubling in forward kinematics (log(depth)
+#: vectorised rounds) instead of one round per depth level; real skeletons are far
+#: shallower and keep the level loop (and its exact arithmetic).
+LEVEL_LOOP_MAX_DEPTH = 64
+
+
+def forward_kinematics(parents, rotations: np.ndarray, translations: np.ndarray, *, levels=None,
+                       copy: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """World rotations and positions of every joint of a tree: :func:`fk_arrays` or :func:`fk_doubling` by depth.
+
+    The level loop (:func:`fk_arrays`) for trees up to :data:`LEVEL_LOOP_MAX_DEPTH` levels
+    deep, pointer doubling (:func:`fk_doubling`) beyond: the same transforms, the level
+    loop's numbers exactly on every real skeleton.
+
+    Parameters
+    ----------
+    parents : (J,) int array
+        Parent of each joint (-1 for joint 0, ``parents[j] < j``).
+    rotations : (F, J, 4) array
+        Local rotations (unit quaternions).
+    translations : (F, J, 3) array
+        Local translations.
+    levels : list of (joints, parents) index arrays, optional
+        :func:`depth_levels` of ``parents``, when the caller has them cached.
+    copy : bool, default True
+        False: fill ``translations`` in place with the world positions (a fresh array
+        the caller owns).
+
+    Returns
+    -------
+    (F, J, 4) world rotations, (F, J, 3) world positions
+    """
+    if levels is None:
+        levels = depth_levels(parents)
+    if len(levels) > LEVEL_LOOP_MAX_DEPTH:
+        return fk_doubling(parents, rotations, translations, copy=copy)
+    return fk_arrays(levels, rotations, translations, copy=copy)
+
+
+def fk_arrays(levels, rotations: np.ndarray, translations: np.ndarray, *,
+              copy: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Forward kinematics ``G_j = G_parent(j) T(t_j) R(q_j)`` level by level: one vectorised step per depth.
+
+    The form for real skeletons (a few dozen levels at most): the retargeting and
+    adaptation solvers call it with their cached levels; :func:`forward_kinematics`
+    chooses it for trees up to :data:`LEVEL_LOOP_MAX_DEPTH` deep.
+
+    Parameters
+    ----------
+    levels : list of (joints, parents) index arrays
+        :func:`depth_levels` of the tree (depth 1, 2, ...).
+    rotations : (F, J, 4) array
+        Local rotations (unit quaternions).
+    translations : (F, J, 3) array
+        Local translations.
+    copy : bool, default True
+        False: fill ``translations`` in place with the world positions (a fresh array
+        the caller owns).
+
+    Returns
+    -------
+    (F, J, 4) world rotations, (F, J, 3) world positions
+    """
+    _check_pose_shapes("fk_arrays", rotations, translations)
+    gq = np.empty_like(rotations)
+    gp = translations.copy() if copy else translations
+    gq[:, 0] = rotations[:, 0]
+    for idx, par in levels:
+        gq[:, idx] = quat_multiply(gq[:, par], rotations[:, idx])
+    return gq, chain_positions(levels, gq, gp)
 
 
 def chain_positions(levels, gq: np.ndarray, gp: np.ndarray) -> np.ndarray:
@@ -212,31 +261,124 @@ def chain_positions(levels, gq: np.ndarray, gp: np.ndarray) -> np.ndarray:
     return gp
 
 
-def depth_levels(parents) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``(joints, their parents)`` per depth 1, 2, ... of a tree (``parents[j] < j``), index order within a level.
+def fk_doubling(parents, rotations: np.ndarray, translations: np.ndarray, *,
+                copy: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Forward kinematics by pointer doubling: ``ceil(log2(depth))`` vectorised rounds, no loop over levels.
 
-    Linear in the number of joints (a scan per depth level would be quadratic for chains).
+    The form for deep trees (a 20,000-joint chain read from a file takes 15 rounds, where
+    :func:`fk_arrays` would take 20,000 steps).  Each joint holds the transform from an
+    ancestor ``anc[j]`` to itself (at first its local one, from its parent); every round
+    composes it with the transform held by ``anc[j]`` and jumps to that joint's ancestor,
+    so after the last round every joint holds its world transform.  The products are
+    grouped differently from the level loop's, so the numbers agree with it to rounding.
+
+    Parameters and returns as :func:`forward_kinematics` (without ``levels``).
     """
-    parents = as_real_array(parents, "parents", error=MotionError, integer=True, ndim=1).astype(np.intp)
-    if parents.size == 0 or parents[0] != -1 or np.any(parents[1:] < 0) or \
-            np.any(parents[1:] >= np.arange(1, parents.size)):
-        raise MotionError("parents must be -1 for joint 0 and parents[j] < j for the others")
-    par = parents.tolist()
-    depth = [0] * len(par)
-    for j in range(1, len(par)):
-        depth[j] = depth[par[j]] + 1
-    depth = np.array(depth, dtype=np.intp)
-    order = np.argsort(depth, kind="stable")  # joints by depth, index order within a level
-    bounds = np.cumsum(np.bincount(depth))
-    p = parents[order]
-    return [(order[a:b], p[a:b]) for a, b in zip(bounds[:-1], bounds[1:])]
+    parents = _tree_parents(parents)
+    _check_pose_shapes("fk_doubling", rotations, translations)
+    if rotations.shape[1] != parents.size:
+        raise MotionError(f"fk_doubling: {parents.size} parents for {rotations.shape[1]} joints")
+    gq = rotations.copy()
+    gp = translations.copy() if copy else translations
+    anc = parents.copy()
+    while True:
+        live = np.flatnonzero(anc >= 0)
+        if not live.size:
+            return gq, gp
+        a = anc[live]
+        pq = gq[:, a]
+        gp[:, live] = gp[:, a] + quat_rotate(pq, gp[:, live])
+        gq[:, live] = quat_multiply(pq, gq[:, live])
+        anc[live] = anc[a]
 
 
-def matvec(m: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Matrix-vector product ``m v`` broadcast over leading axes."""
-    return np.matmul(m, v[..., None])[..., 0]
+def _check_pose_shapes(who: str, rotations, translations) -> None:
+    """MotionError unless (F, J, 4) rotations and (F, J, 3) translations arrays.
+
+    Shapes only (forward kinematics runs in every solver): what fails here would fail as a
+    bare numpy error in the arithmetic.
+    """
+    if not (isinstance(rotations, np.ndarray) and isinstance(translations, np.ndarray)) or rotations.ndim != 3 or \
+            rotations.shape[2:] != (4,) or translations.shape != rotations.shape[:2] + (3,):
+        raise MotionError(f"{who} needs (F, J, 4) rotations and (F, J, 3) translations arrays, got "
+                          f"{getattr(rotations, 'shape', describe(rotations))} and "
+                          f"{getattr(translations, 'shape', describe(translations))}")
 
 
-def matvec_t(m: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Transposed-matrix-vector product ``m^T v`` broadcast over leading axes."""
-    return np.matmul(v[..., None, :], m)[..., 0, :]
+def world_of(levels, rotations, translations, source=None) -> tuple[np.ndarray, np.ndarray]:
+    """``source`` = world ``(rotations (F, J, 4), positions (F, J, 3))`` checked against ``levels``' J joints,
+    or :func:`fk_arrays` of ``rotations`` and ``translations`` when it is None (a plan's ``source=`` argument)."""
+    if source is None:
+        return fk_arrays(levels, rotations, translations)
+    J = 1 + sum(len(i) for i, _ in levels)
+    ok = isinstance(source, tuple) and len(source) == 2 and all(isinstance(a, np.ndarray) for a in source)
+    if ok:
+        gq, gp = source
+        ok = gq.ndim == 3 and gq.shape[1:] == (J, 4) and gp.shape == gq.shape[:2] + (3,)
+    if not ok:
+        raise MotionError(f"source must be a pair of world (F, {J}, 4) rotations and (F, {J}, 3) positions "
+                          f"arrays (Motion.global_transforms()), got {describe(source)}")
+    return source
+
+
+def rest_positions(parents, offsets) -> np.ndarray:
+    """(J, 3) joint positions of the rest pose: forward kinematics with every rotation identity.
+
+    ``p[j] = p[parent(j)] + offsets[j]`` (``p[0] = offsets[0]``), one vectorised step per
+    :func:`depth_levels` level: element for element the sums of a joint-by-joint loop, for
+    any tree the library takes (``parents[j] < j``), chains of any depth included.
+
+    Parameters
+    ----------
+    parents : (J,) int array
+        Parent of each joint, -1 for the root.
+    offsets : (J, 3) array
+        Rest offset of each joint from its parent (the root's: its rest position).
+    """
+    levels = depth_levels(parents)
+    off = np.asarray(offsets, dtype=float)
+    J = 1 + sum(i.size for i, _ in levels)
+    if off.shape != (J, 3):
+        raise MotionError(f"offsets must be a ({J}, 3) array for {J} joints, got {off.shape}")
+    p = off.copy()
+    for idx, par in levels:
+        p[idx] = p[par] + off[idx]
+    return p
+
+
+def chain_fk(ml: np.ndarray, tl: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World rotations (n, P, 3, 3) and positions (n, P, 3) along one root -> joint path.
+
+    Forward kinematics on just the P joints of a path (an effector chain of
+    :mod:`repro.motion.adaptation.rig`), with rotation matrices: the form of the IK
+    solvers, which change one joint of the path at a time and recompute the joints below
+    it with :func:`chain_fk_from`.  Same transforms as :func:`fk_arrays` on those joints.
+
+    Parameters
+    ----------
+    ml : (n, P, 3, 3) array
+        Local rotation matrices of the path's joints, root first.
+    tl : (n, P, 3) array
+        Their local translations.
+    """
+    rw = np.empty_like(ml)
+    pw = np.empty_like(tl)
+    rw[:, 0] = ml[:, 0]
+    pw[:, 0] = tl[:, 0]
+    chain_fk_from(ml, tl, rw, pw, 1)
+    return rw, pw
+
+
+def chain_fk_from(ml, tl, rw, pw, k: int) -> None:
+    """Recompute the world transforms ``rw``, ``pw`` of :func:`chain_fk` at path positions ``>= k`` in place.
+
+    What a solver runs after changing the local rotation ``ml[:, k]`` (and any below it):
+    the joints above ``k`` keep their world transforms.
+    """
+    if k == 0:
+        rw[:, 0] = ml[:, 0]
+        pw[:, 0] = tl[:, 0]
+        k = 1
+    for i in range(k, ml.shape[1]):
+        pw[:, i] = pw[:, i - 1] + matvec(rw[:, i - 1], tl[:, i])
+        rw[:, i] = rw[:, i - 1] @ ml[:, i]

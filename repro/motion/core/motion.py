@@ -47,8 +47,9 @@ import numpy as np
 from repro.checks import as_real, as_real_array, describe, read_only
 from repro.errors import BVHError, MotionError
 from repro.motion.core.channels import channel_layout, channel_table
-from repro.motion.core.kinematics import MAX_COORDINATE, check_joint_names, depth_levels, fk_arrays
-from repro.motion.core.quaternion import quat_multiply, quat_rotate
+from repro.motion.core.kinematics import (LEVEL_LOOP_MAX_DEPTH, MAX_COORDINATE, check_joint_names, depth_levels,
+                                          forward_kinematics)
+from repro.motion.core.quaternion import quat_rotate
 
 __all__ = [
     "Motion",
@@ -56,6 +57,7 @@ __all__ = [
     "BANDAI_UNIT_M",
     "finite_vector3",
     "MAX_COORDINATE",
+    "LEVEL_LOOP_MAX_DEPTH",
     "UnknownJointError",
 ]
 
@@ -71,10 +73,6 @@ BANDAI_UNIT_M: float = 0.01
 #: Below this sum of all local translation lengths, world positions cannot overflow
 #: (a rotated vector's intermediate terms stay under 5 times its length).
 _SAFE_LENGTH_SUM = 1e300
-#: Trees deeper than this use pointer doubling in forward kinematics (log(depth)
-#: vectorised rounds) instead of one round per depth level; real skeletons are far
-#: shallower and keep the level loop (and its exact arithmetic).
-LEVEL_LOOP_MAX_DEPTH = 64
 
 
 def finite_vector3(value, name: str, error=None) -> np.ndarray:
@@ -415,31 +413,10 @@ class Motion:
         positions : (F, J, 3) array
             World position of each joint, file units, in :attr:`joint_names` order.
         """
-        if len(self._depth_levels) > LEVEL_LOOP_MAX_DEPTH:
-            return self._global_transforms_doubling()
-        # local_translations() is a fresh array: filled level by level in place
-        return fk_arrays(self._depth_levels, self.rotations, self.local_translations(), copy=False)
-
-    def _global_transforms_doubling(self) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`global_transforms` for deep trees, by pointer doubling (no loop over levels).
-
-        Each joint holds the transform from an ancestor ``anc[j]`` to itself (at first
-        its local one, from its parent); every round composes it with the transform held
-        by ``anc[j]`` and jumps to that joint's ancestor, so after ``ceil(log2(depth))``
-        vectorised rounds every joint holds its world transform.
-        """
-        gq = self.rotations.copy()
-        gp = self.local_translations()
-        anc = self.parents.copy()
-        while True:
-            live = np.flatnonzero(anc >= 0)
-            if not live.size:
-                return gq, gp
-            a = anc[live]
-            pq = gq[:, a]
-            gp[:, live] = gp[:, a] + quat_rotate(pq, gp[:, live])
-            gq[:, live] = quat_multiply(pq, gq[:, live])
-            anc[live] = anc[a]
+        # core.kinematics.forward_kinematics: the level loop, or pointer doubling beyond
+        # LEVEL_LOOP_MAX_DEPTH levels; local_translations() is a fresh array, filled in place
+        return forward_kinematics(self.parents, self.rotations, self.local_translations(),
+                                  levels=self._depth_levels, copy=False)
 
     def global_positions(self) -> np.ndarray:
         """(F, J, 3) world positions of the joints, file units, in :attr:`joint_names` order."""

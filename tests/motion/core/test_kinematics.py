@@ -5,6 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
 from repro.errors import MotionError
+from repro.motion import Motion
 from repro.motion.core import kinematics as K
 from repro.motion.core.kinematics import depth_levels, fk_arrays
 from repro.motion.core import quaternion as Q4
@@ -121,3 +122,83 @@ def test_rest_positions_refuses_what_is_not_a_tree_with_offsets():
         K.rest_positions([-1, 2, 0], np.zeros((3, 3)))
     with pytest.raises(MotionError, match="offsets"):
         K.rest_positions([-1, 0, 1], np.zeros((2, 3)))
+
+
+# ------------------------------------------------------------------ the forms of forward kinematics agree (issue 24)
+def _random_pose(parents, F: int, seed: int):
+    J = parents.size
+    rot = Rotation.random(F * J, random_state=seed).as_quat().reshape(F, J, 4)
+    tr = np.random.default_rng(seed).normal(size=(F, J, 3))
+    return rot, tr
+
+
+@pytest.mark.parametrize("parents", [np.array([-1]), _random_tree(40, 5), _random_tree(300, 6),
+                                     np.arange(-1, 999)], ids=["root", "tree40", "tree300", "chain1000"])
+def test_level_loop_and_pointer_doubling_agree(parents):
+    rot, tr = _random_pose(parents, 3, parents.size)
+    lq, lp = K.fk_arrays(depth_levels(parents), rot, tr)
+    dq, dp = K.fk_doubling(parents, rot, tr)
+    scale = 1.0 + np.abs(lp).max()
+    np.testing.assert_allclose(dp, lp, rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(Q4.quat_rotate(dq, V[:3, None]), Q4.quat_rotate(lq, V[:3, None]), rtol=0, atol=1e-9)
+    # the entry point: the level loop's numbers up to LEVEL_LOOP_MAX_DEPTH levels, doubling's beyond
+    fq, fp = K.forward_kinematics(parents, rot, tr)
+    deep = len(depth_levels(parents)) > K.LEVEL_LOOP_MAX_DEPTH
+    assert deep == (parents.size == 1000)
+    assert np.array_equal(fq, dq if deep else lq) and np.array_equal(fp, dp if deep else lp)
+    assert np.array_equal(tr, _random_pose(parents, 3, parents.size)[1])  # copy=True left the input alone
+
+
+def test_motion_global_transforms_is_forward_kinematics_on_a_deep_chain():
+    J = 200
+    parents = np.arange(-1, J - 1)
+    rot, tr = _random_pose(parents, 2, 7)
+    m = Motion(joint_names=[f"j{i}" for i in range(J)], parents=parents, offsets=tr[0],
+               channels=[["Zrotation", "Yrotation", "Xrotation"]] * J, rotations=rot,
+               positions=np.zeros((2, J, 3)), frame_time=0.01)
+    assert m.n_depth_levels > K.LEVEL_LOOP_MAX_DEPTH
+    gq, gp = m.global_transforms()
+    dq, dp = K.fk_doubling(m.parents, m.rotations, m.local_translations())
+    assert np.array_equal(gq, dq) and np.array_equal(gp, dp)
+
+
+def test_chain_fk_is_the_full_fk_on_the_path_joints():
+    parents = _random_tree(60, 8)
+    rot, tr = _random_pose(parents, 4, 9)
+    gq, gp = K.fk_arrays(depth_levels(parents), rot, tr)
+    path = [59]
+    while parents[path[-1]] >= 0:
+        path.append(int(parents[path[-1]]))
+    path = np.array(path[::-1])
+    assert path.size >= 3
+    ml = Q4.quat_to_matrix(rot[:, path])
+    rw, pw = K.chain_fk(ml, tr[:, path])
+    np.testing.assert_allclose(pw, gp[:, path], rtol=0, atol=1e-12 * (1 + np.abs(gp).max()))
+    np.testing.assert_allclose(rw, Q4.quat_to_matrix(gq[:, path]), rtol=0, atol=1e-12)
+    # a solver's step: change one joint of the path, recompute from it on, in place
+    for k in (0, 1, path.size - 1):
+        ml2 = ml.copy()
+        ml2[:, k] = Q4.quat_to_matrix(Rotation.random(4, random_state=k).as_quat())
+        rw2, pw2 = rw.copy(), pw.copy()
+        K.chain_fk_from(ml2, tr[:, path], rw2, pw2, k)
+        fresh = K.chain_fk(ml2, tr[:, path])
+        assert np.array_equal(rw2, fresh[0]) and np.array_equal(pw2, fresh[1])
+
+
+def test_fk_doubling_refuses_what_is_not_a_tree_or_a_pose_of_it():
+    with pytest.raises(MotionError, match="parents"):
+        K.fk_doubling([-1, 2, 0], np.zeros((1, 3, 4)), np.zeros((1, 3, 3)))
+    with pytest.raises(MotionError, match="fk_doubling"):
+        K.fk_doubling([-1, 0, 1], np.zeros((1, 3, 4)), np.zeros((1, 2, 3)))
+    with pytest.raises(MotionError, match="3 parents for 2 joints"):
+        K.fk_doubling([-1, 0, 1], np.zeros((1, 2, 4)), np.zeros((1, 2, 3)))
+
+
+def test_forward_kinematics_of_a_deep_chain_takes_log_depth_rounds(monkeypatch):
+    J = 5000
+    parents = np.arange(-1, J - 1)
+    rot, tr = _random_pose(parents, 2, 10)
+    calls, real = [], K.quat_multiply
+    monkeypatch.setattr(K, "quat_multiply", lambda a, b: calls.append(1) or real(a, b))
+    K.forward_kinematics(parents, rot, tr)
+    assert len(calls) == int(np.ceil(np.log2(J)))  # pointer doubling, not one step per level
