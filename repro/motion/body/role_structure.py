@@ -38,6 +38,7 @@ import numpy as np
 
 from repro.errors import MotionError
 from repro.motion.body.role_names import is_head_name, is_helper_name, name_side, stem_votes
+from repro.motion.core.kinematics import rest_positions
 
 __all__ = ["AmbiguousLimbs", "roles_from_structure", "trunk_from_tree"]
 
@@ -80,17 +81,10 @@ def _lca(a: int, b: int, parents: np.ndarray) -> int:
     return 0  # unreachable for a tree with one root
 
 
-def _rest_positions(parents: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    p = np.array(offsets, dtype=float)
-    for j in range(1, len(p)):
-        p[j] = p[parents[j]] + offsets[j]
-    return p
-
-
 # ---------------------------------------------------------------- the chains' ends in the tree
 def _rest_pose(par: np.ndarray, off: np.ndarray) -> tuple[np.ndarray, float]:
     """Rest positions and their extent (MotionError when the rest pose has none)."""
-    P = _rest_positions(par, off)
+    P = rest_positions(par, off)
     scale = float(np.ptp(P, axis=0).max()) if len(P) > 1 else 0.0
     if scale <= 0 or not np.isfinite(scale):
         raise MotionError("the rest pose has no extent; cannot find body parts from the structure")
