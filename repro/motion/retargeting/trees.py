@@ -35,11 +35,19 @@ import numpy as np
 from repro.checks import as_bool, as_choice, as_real, describe
 from repro.errors import MotionError
 from repro.motion.core.cache import LRUCache
-from repro.motion.core.kinematics import check_pose_arrays, depth_levels, fk_arrays, normalize, world_of
+from repro.motion.core.kinematics import (
+    chain_positions,
+    check_pose_arrays,
+    depth_levels,
+    fk_arrays,
+    normalize,
+    world_of,
+)
 from repro.motion.core.motion import Motion
-from repro.motion.core.quaternion import cross, min_rotation, quat_multiply
+from repro.motion.core.quaternion import cross, matrix_to_quat, min_rotation, quat_multiply
 from repro.motion.core.quaternion import quat_conjugate as qinv
 from repro.motion.core.quaternion import quat_rotate as qrot
+from repro.motion.body.feet import foot_contacts, foot_goals
 from repro.motion.body.roles import check_roles
 from repro.motion.body.skeleton import Skeleton, check_role_table, skeleton_of
 from repro.motion.body.units import infer_up
@@ -124,26 +132,6 @@ def _frame(d: np.ndarray, ref: np.ndarray) -> np.ndarray:
     return out
 
 
-def _mat_to_quat(m: np.ndarray) -> np.ndarray:
-    """(x, y, z, w) of a rotation matrix (Shepperd's method: the largest of w, x, y, z first;
-    written out because scipy's Rotation.from_matrix costs ~1 ms per call here)."""
-    t = np.trace(m)
-    i = int(np.argmax([t, m[0, 0], m[1, 1], m[2, 2]]))
-    if i == 0:
-        w = 0.5 * np.sqrt(1.0 + t)
-        q = np.array([(m[2, 1] - m[1, 2]) / (4 * w), (m[0, 2] - m[2, 0]) / (4 * w), (m[1, 0] - m[0, 1]) / (4 * w), w])
-    else:
-        a = i - 1
-        b, c = (a + 1) % 3, (a + 2) % 3
-        s = 2.0 * np.sqrt(1.0 + m[a, a] - m[b, b] - m[c, c])
-        q = np.empty(4)
-        q[a] = 0.25 * s
-        q[b] = (m[b, a] + m[a, b]) / s
-        q[c] = (m[c, a] + m[a, c]) / s
-        q[3] = (m[c, b] - m[b, c]) / s
-    return q / np.linalg.norm(q)
-
-
 def _up_of(x, sk: Skeleton) -> str:
     up = getattr(x, "up", None)
     if up is not None:
@@ -163,13 +151,13 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / n if n > 0 else v
 
 
-#: retarget_across's constants per pair of skeletons (body frames, rest axes, bone-frame rotations); a few
+#: TreePlan's constants per pair of skeletons (body frames, rest axes, bone-frame rotations); a few
 #: pairs are in play at once (the database's actors by the characters on screen): the 32 most recent are kept
 _PAIRS: LRUCache = LRUCache(32)
 
 
 def _skeleton_key(sk: Skeleton) -> tuple:
-    """Everything of a skeleton the constants of :func:`retarget_across` read (its cache key)."""
+    """Everything of a skeleton the constants of :func:`_pair` read (its cache key)."""
     return (tuple(sk.joint_names), np.asarray(sk.parents).tobytes(), np.asarray(sk.offsets, dtype=float).tobytes(),
             np.asarray(sk.end_site_parents).tobytes(), np.asarray(sk.end_site_offsets, dtype=float).tobytes(),
             tuple(sorted(sk.roles.items())), None if sk.channels is None else tuple(map(tuple, sk.channels)),
@@ -177,8 +165,8 @@ def _skeleton_key(sk: Skeleton) -> tuple:
 
 
 def _checked_pair(motion, character, roles, character_roles):
-    """``(src, tgt, up_t, pair)`` of :func:`retarget_across` and :class:`TreePlan`: both skeletons with their
-    roles checked for retargeting, the character's up axis, and :func:`_pair` of the two."""
+    """``(src, tgt, up_s, up_t, pair)`` of :class:`TreePlan`: both skeletons with their roles checked for
+    retargeting, their up axes, and :func:`_pair` of the two."""
     if not isinstance(motion, Motion):
         raise MotionError(f"motion must be a Motion, got {type(motion).__name__}")
     roles = check_role_table(roles, "roles")
@@ -187,19 +175,26 @@ def _checked_pair(motion, character, roles, character_roles):
     tgt = skeleton_of(character, roles=character_roles)
     check_roles(src.roles, "retargeting", src.joint_names)
     check_roles(tgt.roles, "retargeting", tgt.joint_names)
-    up_t = _up_of(character, tgt)
-    return src, tgt, up_t, _pair(src, tgt, _up_of(motion, src), up_t)
+    up_s, up_t = _up_of(motion, src), _up_of(character, tgt)
+    return src, tgt, up_s, up_t, _pair(src, tgt, up_s, up_t)
+
+
+#: the bones (role -> role) whose rest frames turn the fixed joints and the limbs (:func:`_bone_frames`)
+_DELTA_BONES: tuple[tuple[str, str], ...] = (("pelvis", "chest"), ("chest", "head")) + tuple(
+    (f"{side}_{a}", f"{side}_{b}") for side in ("left", "right")
+    for a, b in (("clavicle", "shoulder"), ("shoulder", "elbow"), ("elbow", "wrist"), ("wrist", "hand"),
+                 ("hip", "knee"), ("knee", "ankle"), ("ankle", "toe")))
 
 
 def _pair(src: Skeleton, tgt: Skeleton, up_s: str, up_t: str) -> dict:
-    """What :func:`retarget_across` reads of two skeletons only (body frames, rest axes), cached."""
+    """What :class:`TreePlan` reads of two skeletons only (body frames, rest axes, bone-frame rotations), cached."""
     def make() -> dict:  # what depends only on the two skeletons (the same numbers every call)
-        Bs = body_frame(src, up_s)
-        Bt = body_frame(tgt, up_t)
-        C = Bt @ Bs.T
-        c = _mat_to_quat(C)
-        return dict(C=C, c=c, ci=qinv(c), Ps=src.rest_positions(), Pt=tgt.rest_positions(), ax_s=rest_axes(src),
-                    ax_t=rest_axes(tgt), delta={})
+        C = body_frame(tgt, up_t) @ body_frame(src, up_s).T
+        Ps, Pt, ax_s, ax_t = src.rest_positions(), tgt.rest_positions(), rest_axes(src), rest_axes(tgt)
+        bones = [(a, b) for a, b in _DELTA_BONES if all(r in src.roles and r in tgt.roles for r in (a, b))]
+        frames = [_bone_frames(src, tgt, Ps, Pt, ax_s, ax_t, C, a, b) for a, b in bones]
+        q = matrix_to_quat(np.stack([C] + frames))  # the map's quaternion and every bone's, in one call
+        return dict(C=C, c=q[0], ci=qinv(q[0]), Ps=Ps, Pt=Pt, delta=dict(zip(bones, q[1:])))
 
     return _PAIRS.get((_skeleton_key(src), _skeleton_key(tgt), up_s, up_t), make)
 
@@ -223,6 +218,8 @@ def straight_bend(a: np.ndarray, b: np.ndarray, valid: np.ndarray, C: np.ndarray
 def retarget_across(motion: Motion, character, *, roles=None, character_roles=None, fix_feet: bool = False,
                     blend_time: float = 0.1) -> Motion:
     """``motion`` played by ``character``, whose joint tree may differ (see the module docstring).
+
+    ``TreePlan(motion, character, ...).apply(motion, ...)``: the plan of the two skeletons, applied.
 
     Parameters
     ----------
@@ -254,114 +251,21 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
     """
     fix_feet = as_bool(fix_feet, "fix_feet", error=MotionError)
     blend_time = as_real(blend_time, "blend_time (seconds)", error=MotionError, lo=0.0)
-    src, tgt, up_t, pair = _checked_pair(motion, character, roles, character_roles)
-    C, c, ci = pair["C"], pair["c"], pair["ci"]
-    F = motion.n_frames
-    gq_s, gp_s = fk_arrays(depth_levels(src.parents), motion.rotations, motion.local_translations())
-    Ps, Pt = pair["Ps"], pair["Pt"]
-    rs, rt = src.roles, tgt.roles
-
-    def si(role):
-        return src.joint_names.index(rs[role])
-
-    def ti(role):
-        return tgt.joint_names.index(rt[role])
-
-    def mapped(role):
-        """C G_s C^-1 of a role: (F, 4)."""
-        return quat_multiply(quat_multiply(c[None], gq_s[:, si(role)]), ci[None])
-
-    ax_s, ax_t = pair["ax_s"], pair["ax_t"]
-    deltas = pair["delta"]
-
-    def delta(a, b):
-        if (a, b) not in deltas:
-            deltas[(a, b)] = _delta(a, b)
-        return deltas[(a, b)]
-
-    def _delta(a, b):
-        return _bone_delta(src, tgt, Ps, Pt, ax_s, ax_t, C, a, b)
-
-    J = tgt.n_joints
-    fixed: dict[int, np.ndarray] = {}  # joint -> global rotation (F, 4)
-    for j, (sj, d) in _fixed_rotations(src, tgt, Ps, Pt, C, si, ti, delta).items():
-        G_role = quat_multiply(quat_multiply(c[None], gq_s[:, sj]), ci[None])
-        fixed[j] = quat_multiply(G_role, d[None])
-    limbs = {}
-    for side in ("left", "right"):
-        for kind, (p_, m_, d_) in (("arm", ("shoulder", "elbow", "wrist")), ("leg", ("hip", "knee", "ankle"))):
-            roles3 = tuple(f"{side}_{r}" for r in (p_, m_, d_))
-            limbs[ti(roles3[0])] = (kind, roles3)
-    # root path: pelvis position scaled by hip heights, mapped into the character's world
-    k = tgt.hip_height / src.hip_height
-    pel_goal = qrot(np.broadcast_to(c, (F, 4)), gp_s[:, si("pelvis")] * k)
-    root_path = [0] + tgt.path(tgt.joint_names[0], rt["pelvis"])
-    if tgt.channels is not None and not all(ch in tgt.channels[0] for ch in _POS):
-        raise MotionError(
-            f"character root {tgt.joint_names[0]!r} has no position channels (channels "
-            f"{list(tgt.channels[0])}); the retargeted motion needs to move it"
-        )
-    root_t = pel_goal - sum(tgt.offsets[j] for j in root_path[1:]) if len(root_path) > 1 else pel_goal
-    def solve(root_t, goals):
-        """Global rotations and positions of every character joint; ``goals``: ankle joint ->
-        (F, 3) world position overriding the representation's (``fix_feet``)."""
-        G = np.zeros((F, J, 4))
-        G[..., 3] = 1.0
-        P = np.zeros((F, J, 3))
-        pending: dict[int, np.ndarray] = {}  # middle / distal joint -> world target position
-        for j in range(J):
-            p = tgt.parents[j]
-            if p < 0:
-                P[:, j] = root_t
-                Gp = np.zeros((F, 4))
-                Gp[:, 3] = 1.0
-            else:
-                Gp = G[:, p]
-                P[:, j] = P[:, p] + qrot(Gp, np.broadcast_to(tgt.offsets[j], (F, 3)))
-            if j in fixed:
-                G[:, j] = fixed[j]
-            elif j in limbs:
-                _, (rp, rm, rd) = limbs[j]
-                G[:, j], pending[ti(rm)], pending[ti(rd)] = _solve_limb(
-                    src, tgt, gp_s, gq_s, C, mapped, delta, P[:, j], (rp, rm, rd), si, ti, goal=goals.get(ti(rd))
-                )
-            elif j in pending and tgt.parents[j] >= 0 and any(j == ti(lm[1][1]) for lm in limbs.values()):
-                # middle joint: its forearm/shin to the distal goal
-                _, (rp, rm, rd) = next(v for v in limbs.values() if ti(v[1][1]) == j)
-                G0 = quat_multiply(mapped(rm), delta(rm, rd)[None])
-                cur = qrot(G0, np.broadcast_to(Pt[ti(rd)] - Pt[j], (F, 3)))
-                G[:, j] = quat_multiply(min_rotation(cur, pending[ti(rd)] - P[:, j]), G0)
-            else:
-                G[:, j] = Gp  # no role: rest rotation relative to the parent
-        return G, P
-
-    G, P = solve(root_t, {})
-    if fix_feet:
-        root_t, G, P = _fix_feet(motion, src, tgt, gp_s, up_t, _up_of(motion, src), root_t, G, P, solve, blend_time)
-    # local rotations
-    loc = np.empty_like(G)
-    loc[:, 0] = G[:, 0]
-    nz = tgt.parents[1:]
-    loc[:, 1:] = quat_multiply(qinv(G[:, nz]), G[:, 1:])
-    channels = tgt.channels if tgt.channels is not None else [_POS + _ROT] + [_ROT] * (J - 1)
-    positions = np.broadcast_to(tgt.offsets, (F, J, 3)).copy()
-    positions[:, 0] = root_t
-    return tgt.motion_with(loc, positions, frame_time=motion.frame_time, channels=channels, up=up_t)
+    plan = TreePlan(motion, character, roles=roles, character_roles=character_roles)
+    return plan.apply(motion, fix_feet=fix_feet, blend_time=blend_time)
 
 
 class TreePlan:
-    """:func:`retarget_across` between two fixed skeletons, positions only, for few frames at a time.
+    """:func:`retarget_across` between two fixed skeletons: what does not depend on the pose, computed once.
 
-    Everything of :func:`retarget_across` that does not depend on the pose (the role
-    tables and their checks, the body frames and the rotation ``C`` between them, the
-    bone-frame rotations, the spine chains' shares, the limbs' joints and lengths, the
-    root path, the depth levels) is computed once here; :meth:`positions` runs only the
-    per-frame arithmetic, the like operations of the joints stacked into one call each
-    (the fixed orientations, the four limbs), and returns what
-    ``retarget_across(motion, character, ...).global_positions()`` returns (``fix_feet``
-    False) without making the Motion.  Used by
-    :meth:`repro.motion.search.retrieval.MotionRetriever.prepare` for characters of another joint
-    tree (one pose per query).
+    The constructor reads the two skeletons only (the role tables and their checks, the body
+    frames and the rotation ``C`` between them, the bone-frame rotations, the spine chains'
+    shares, the limbs' joints and lengths, the root path, the depth levels); the per-frame
+    arithmetic runs in :meth:`apply` (a Motion: what :func:`retarget_across` returns, which
+    is this plan applied) and :meth:`positions` (the world positions only, without making
+    the Motion: :meth:`repro.motion.search.retrieval.MotionRetriever.prepare`'s step for
+    characters of another joint tree, one pose per query), both through one solve, the like
+    operations of the joints stacked into one call each (the fixed orientations, the limbs).
 
     Parameters
     ----------
@@ -374,29 +278,41 @@ class TreePlan:
     Raises
     ------
     repro.errors.MotionError
-        What :func:`retarget_across` raises for these skeletons, with its messages.
+        Missing roles on either side (named), a character root without position channels,
+        a rest pose whose facing cannot be told.
     """
 
     def __init__(self, motion: Motion, character, *, roles=None, character_roles=None):
-        src, tgt, up_t, pair = _checked_pair(motion, character, roles, character_roles)
-        C, c, ci = pair["C"], pair["c"], pair["ci"]
-        Ps, Pt = pair["Ps"], pair["Pt"]
-        rs, rt = src.roles, tgt.roles
-        si = {role: src.joint_names.index(j) for role, j in rs.items() if j in src.joint_names}
-        ti = {role: tgt.joint_names.index(j) for role, j in rt.items() if j in tgt.joint_names}
+        src, tgt, up_s, up_t, pair = _checked_pair(motion, character, roles, character_roles)
+        si = {role: src.joint_names.index(j) for role, j in src.roles.items() if j in src.joint_names}
+        ti = {role: tgt.joint_names.index(j) for role, j in tgt.roles.items() if j in tgt.joint_names}
         deltas = pair["delta"]
 
         def delta(a, b):
-            if (a, b) not in deltas:
-                deltas[(a, b)] = _bone_delta(src, tgt, Ps, Pt, pair["ax_s"], pair["ax_t"], C, a, b)
             return deltas[(a, b)]
 
-        fixed = _fixed_rotations(src, tgt, Ps, Pt, C, si.__getitem__, ti.__getitem__, delta)
-        limbs = {}
-        for side in ("left", "right"):
-            for p_, m_, d_ in (("shoulder", "elbow", "wrist"), ("hip", "knee", "ankle")):
-                roles3 = tuple(f"{side}_{r}" for r in (p_, m_, d_))
-                limbs[ti[roles3[0]]] = roles3
+        fixed = _fixed_rotations(src, tgt, pair["Ps"], pair["Pt"], pair["C"], si.__getitem__, ti.__getitem__, delta)
+        limbs = _limb_roles(ti)
+        self.source, self.target, self.up_source, self.up = src, tgt, up_s, up_t
+        self.C, self.c, self.ci = pair["C"], pair["c"], pair["ci"]
+        self.CT = np.ascontiguousarray(self.C.T)
+        self._root(src, tgt)
+        self.parents = np.asarray(tgt.parents)
+        self.offsets = np.asarray(tgt.offsets, dtype=float)
+        self.n_joints = tgt.n_joints
+        self.levels_s = depth_levels(src.parents)
+        self.levels_t = depth_levels(tgt.parents)
+        self.deep = len(self.levels_t) > 64
+        # the limbs solved (a proximal joint without a fixed rotation), the middle joints after them
+        act = [j for j in limbs if j not in fixed]
+        self._limbs(src, tgt, pair["Pt"], si, ti, delta, act, [limbs[j] for j in act])
+        self._middles(pair["Pt"], si, ti, delta, fixed, limbs, [limbs[j] for j in act])
+        self._fixed(fixed)
+        self._inheritance()
+
+    def _root(self, src: Skeleton, tgt: Skeleton) -> None:
+        """The root path: the pelvis position scaled by the hip heights, the offsets above the pelvis."""
+        rt = tgt.roles
         self.k = tgt.hip_height / src.hip_height
         root_path = [0] + tgt.path(tgt.joint_names[0], rt["pelvis"])
         if tgt.channels is not None and not all(ch in tgt.channels[0] for ch in _POS):
@@ -405,11 +321,10 @@ class TreePlan:
                 f"{list(tgt.channels[0])}); the retargeted motion needs to move it"
             )
         self.root_off = sum(tgt.offsets[j] for j in root_path[1:]) if len(root_path) > 1 else None
-        J = tgt.n_joints
-        parents = np.asarray(tgt.parents)
-        # the limbs solve_limb runs (a proximal joint without a fixed rotation), the middle joints after them
-        act = [j for j in limbs if j not in fixed]
-        rp = [limbs[j] for j in act]
+        self.s_pelvis = src.joint_names.index(src.roles["pelvis"])
+
+    def _limbs(self, src, tgt, Pt, si, ti, delta, act, rp) -> None:
+        """The limbs' joints (source and character), lengths, rest middle offsets and bone-frame rotations."""
         self.l_prox = np.array(act, dtype=np.intp)
         self.l_src = np.array([[si[r] for r in roles3] for roles3 in rp], dtype=np.intp).reshape(-1, 3)
         bl_s, bl_t = src.bone_lengths, tgt.bone_lengths
@@ -419,10 +334,19 @@ class TreePlan:
         self.bl_src_mid = np.array([bl_s[si[m]] for _, m, _d in rp])
         self.cur_p = np.array([Pt[ti[m]] - Pt[ti[p]] for p, m, _d in rp]).reshape(-1, 3)
         self.D_pm = np.array([delta(p, m) for p, m, _d in rp]).reshape(-1, 4)
-        mids = []  # (limb number, middle joint) in joint order; a middle joint with a fixed rotation keeps it
+        # fix_feet's ankle goals: the limbs (rows) ending at the left / right ankle (columns of the goals)
+        ends = [d for _p, _m, d in rp]
+        sides = [s for s in ("left_ankle", "right_ankle") if s in ends]
+        self.leg_rows = np.array([ends.index(s) for s in sides], dtype=np.intp)
+        self.leg_cols = np.array([("left_ankle", "right_ankle").index(s) for s in sides], dtype=np.intp)
+        self.path_prox = _levels_below(self.parents, [0], self.l_prox)
+
+    def _middles(self, Pt, si, ti, delta, fixed, limbs, rp) -> None:
+        """The middle joints turned to their distal goal (in joint order; one with a fixed rotation keeps it)."""
+        mids = []
         for n, (_, m, _d) in enumerate(rp):
             j = ti[m]
-            if j not in fixed and j not in limbs and parents[j] >= 0:
+            if j not in fixed and j not in limbs and self.parents[j] >= 0:
                 first = next(v for v in limbs.values() if ti[v[1]] == j)
                 if first == rp[n]:
                     mids.append((n, j))
@@ -431,10 +355,23 @@ class TreePlan:
         self.m_src = np.array([si[rp[n][1]] for n, _ in mids], dtype=np.intp)
         self.D_md = np.array([delta(rp[n][1], rp[n][2]) for n, _ in mids]).reshape(-1, 4)
         self.cur_m = np.array([Pt[ti[rp[n][2]]] - Pt[j] for n, j in mids]).reshape(-1, 3)
+        self.path_mid = _levels_below(self.parents, self.l_prox.tolist(), self.m_joint)
+
+    def _fixed(self, fixed: dict) -> None:
+        """The fixed joints, and one stacked product for every "C G_s C^-1 times a factor": the fixed
+        joints', then the limbs' proximal and middle starting rotations."""
         self.f_joint = np.array(list(fixed), dtype=np.intp)
         self.f_src = np.array([v[0] for v in fixed.values()], dtype=np.intp)
         self.D_f = np.array([v[1] for v in fixed.values()]).reshape(-1, 4)
-        # every other joint: the rotation of its nearest ancestor that has one of its own (J: identity)
+        self.map_src = np.concatenate([self.f_src, self.l_src[:, 0], self.m_src]).astype(np.intp)
+        self.map_D = np.concatenate([self.D_f, self.D_pm, self.D_md])
+        nf, nl = len(self.f_src), len(self.l_prox)
+        self.sl_f, self.sl_p, self.sl_m = slice(0, nf), slice(nf, nf + nl), slice(nf + nl, None)
+
+    def _inheritance(self) -> None:
+        """Every other joint (no role: fingers, face, twist bones, props) takes the world rotation of its
+        nearest ancestor that has one of its own (index J: the identity), i.e. keeps its rest rotation."""
+        J = self.n_joints
         own = np.zeros(J, dtype=bool)
         own[self.f_joint] = True
         own[self.l_prox] = True
@@ -443,51 +380,10 @@ class TreePlan:
         for j in range(J):
             if own[j]:
                 anchor[j] = j
-            elif parents[j] >= 0:
-                anchor[j] = anchor[parents[j]]
+            elif self.parents[j] >= 0:
+                anchor[j] = anchor[self.parents[j]]
         self.inherit = np.flatnonzero(~own)
         self.anchor = anchor[self.inherit]
-        # positions solve reads: the proximal joints', from the root down; the middle joints', from them
-        self.path_prox = self._paths(parents, [0], self.l_prox)
-        self.path_mid = self._paths(parents, self.l_prox.tolist(), self.m_joint)
-        # one stacked product for every "C G_s C^-1 times a fixed factor": the fixed joints', then the
-        # limbs' proximal and middle starting rotations
-        self.map_src = np.concatenate([self.f_src, self.l_src[:, 0], self.m_src]).astype(np.intp)
-        self.map_D = np.concatenate([self.D_f, self.D_pm, self.D_md])
-        nf, nl = len(self.f_src), len(self.l_prox)
-        self.sl_f, self.sl_p, self.sl_m = slice(0, nf), slice(nf, nf + nl), slice(nf + nl, None)
-        self.C, self.c, self.ci = C, c, ci
-        self.CT = np.ascontiguousarray(C.T)
-        self.s_pelvis = si["pelvis"]
-        self.levels_s = depth_levels(src.parents)
-        self.levels_t = depth_levels(tgt.parents)
-        self.parents = parents
-        self.offsets = np.asarray(tgt.offsets, dtype=float)
-        self.n_joints = J
-        self.deep = len(self.levels_t) > 64
-        self.target = tgt
-        self.up = up_t
-
-    @staticmethod
-    def _paths(parents, tops, ends):
-        """Joints strictly below ``tops`` down to ``ends`` (included), each after its parent."""
-        out: set[int] = set()
-        for e in ends:
-            j = int(e)
-            while j not in tops and j >= 0:
-                out.add(j)
-                j = int(parents[j])
-        return np.array(sorted(out), dtype=np.intp)
-
-    def _chain(self, G, P, path):
-        """``P[j] = P[parent] + R(G[parent]) offset[j]`` along ``path`` (in place, in its order): the
-        rotations in one call, the sums joint by joint (the numbers of retarget_across's loop)."""
-        if not len(path):
-            return
-        par = self.parents[path]
-        w = qrot(G[:, par], np.broadcast_to(self.offsets[path], (G.shape[0], len(path), 3)))
-        for i, (j, p) in enumerate(zip(path.tolist(), par.tolist())):
-            P[:, j] = P[:, p] + w[:, i]
 
     def positions(self, rotations: np.ndarray, translations: np.ndarray, *, source=None) -> np.ndarray:
         """(F, J, 3) world positions of the character's joints (its units, ``up``).
@@ -496,50 +392,72 @@ class TreePlan:
         translations (:meth:`~repro.motion.core.motion.Motion.local_translations`) of the
         motion's frames: ``retarget_across(...).global_positions()`` of them.  ``source``:
         their world ``(rotations, positions)`` when already made by forward kinematics
-        over :func:`~repro.motion.core.kinematics.depth_levels` (what ``retarget_across`` runs, and
+        over :func:`~repro.motion.core.kinematics.depth_levels` (what :meth:`apply` runs, and
         :meth:`~repro.motion.core.motion.Motion.global_transforms` on trees up to 64 levels deep).
         """
         rotations, translations = check_pose_arrays(rotations, translations, 1 + sum(len(i) for i, _ in self.levels_s))
         gq_s, gp_s = world_of(self.levels_s, rotations, translations, source)
-        F = gq_s.shape[0]
-        J = self.n_joints
-        c = self.c
+        root_t = self._root_translation(gp_s)
+        loc = self._local(self._solve(gq_s, gp_s, root_t))
+        loc = loc / np.linalg.norm(loc, axis=-1, keepdims=True)  # as a new Motion renormalises
+        t = self._translations(root_t)
+        if self.deep:  # Motion.global_transforms' other path
+            return self._motion(loc, t, 1.0).global_positions()
+        return fk_arrays(self.levels_t, loc, t, copy=False)[1]
+
+    def apply(self, motion: Motion, *, fix_feet: bool = False, blend_time: float = 0.1) -> Motion:
+        """``motion`` (on the plan's source skeleton) played by the character: :func:`retarget_across`.
+
+        ``fix_feet`` and ``blend_time`` as :func:`retarget_across`'s (checked there)."""
+        if not isinstance(motion, Motion) or list(motion.joint_names) != list(self.source.joint_names):
+            raise MotionError(f"TreePlan.apply: the motion must be on the plan's source skeleton, got {describe(motion)}")
+        gq_s, gp_s = fk_arrays(self.levels_s, motion.rotations, motion.local_translations())
+        root_t = self._root_translation(gp_s)
+        G = self._solve(gq_s, gp_s, root_t)
+        if fix_feet:
+            root_t, G = self._fix_feet(motion, gq_s, gp_s, root_t, G, blend_time)
+        return self._motion(self._local(G), self._translations(root_t), motion.frame_time)
+
+    def _root_translation(self, gp_s: np.ndarray) -> np.ndarray:
+        """(F, 3) the character's root: the source pelvis scaled by the hip heights, mapped into its world."""
+        pel_goal = qrot(np.broadcast_to(self.c, (gp_s.shape[0], 4)), gp_s[:, self.s_pelvis] * self.k)
+        return pel_goal - self.root_off if self.root_off is not None else pel_goal
+
+    def _translations(self, root_t: np.ndarray) -> np.ndarray:
+        """(F, J, 3) the character's local translations: its offsets, the root at ``root_t``."""
+        t = np.broadcast_to(self.offsets, (root_t.shape[0], self.n_joints, 3)).copy()
+        t[:, 0] = root_t
+        return t
+
+    def _local(self, G: np.ndarray) -> np.ndarray:
+        """(F, J, 4) local rotations of world rotations ``G``."""
+        loc = np.empty_like(G)
+        loc[:, 0] = G[:, 0]
+        loc[:, 1:] = quat_multiply(qinv(G[:, self.parents[1:]]), G[:, 1:])
+        return loc
+
+    def _motion(self, loc: np.ndarray, t: np.ndarray, frame_time: float) -> Motion:
+        tgt = self.target
+        channels = tgt.channels if tgt.channels is not None else [_POS + _ROT] + [_ROT] * (self.n_joints - 1)
+        return tgt.motion_with(loc, t, frame_time=frame_time, channels=channels, up=self.up)
+
+    def _solve(self, gq_s: np.ndarray, gp_s: np.ndarray, root_t: np.ndarray, goals=None) -> np.ndarray:
+        """(F, J, 4) world rotations of the character's joints; ``goals``: (F, 2, 3) world positions of
+        the left / right ankle overriding the representation's (``fix_feet``)."""
+        F, J = gq_s.shape[0], self.n_joints
         G = np.zeros((F, J + 1, 4))
         G[..., 3] = 1.0
-        mapped = quat_multiply(quat_multiply(c[None, None], gq_s[:, self.map_src]), self.ci[None, None])
+        mapped = quat_multiply(quat_multiply(self.c[None, None], gq_s[:, self.map_src]), self.ci[None, None])
         G0 = quat_multiply(mapped, self.map_D[None])
         G[:, self.f_joint] = G0[:, self.sl_f]
         G[:, self.inherit] = G[:, self.anchor]
-        pel_goal = qrot(np.broadcast_to(c, (F, 4)), gp_s[:, self.s_pelvis] * self.k)
-        root_t = pel_goal - self.root_off if self.root_off is not None else pel_goal
-        P = np.zeros((F, J, 3))
-        P[:, 0] = root_t
-        self._chain(G, P, self.path_prox)
         if len(self.l_prox):
-            S = P[:, self.l_prox]
-            g3 = gp_s[:, self.l_src]  # (F, L, 3, 3): proximal, middle, distal
-            we = g3[:, :, 2:0:-1] - g3[:, :, :1]  # (F, L, 2, 3): distal - proximal, middle - proximal
-            nl = len(self.l_prox)
-            CT = self.CT
-            n = np.stack([we[:, i, 0] @ CT / self.Ls[i] for i in range(nl)], axis=1)
-            e = np.stack([we[:, i, 1] @ CT for i in range(nl)], axis=1)
-            l1, l2 = self.l1[None], self.l2[None]
-            a, dn = normalize(n * (l1 + l2)[..., None])
-            bend = e - np.sum(e * a, axis=-1, keepdims=True) * a
-            b, bn = normalize(bend)
-            valid = bn > 1e-9 * self.bl_src_mid[None]
-            if not valid.all():
-                b = b.copy()
-                for i in np.flatnonzero(~valid.all(axis=0)).tolist():
-                    b[:, i] = self._straight(a[:, i], b[:, i], valid[:, i])
-            d = np.clip(dn, np.abs(l1 - l2), l1 + l2)
-            cosb = np.clip((l1**2 + d**2 - l2**2) / (2 * l1 * np.maximum(d, 1e-300)), -1.0, 1.0)
-            sinb = np.sqrt(1.0 - cosb**2)
-            E = S + a * (l1 * cosb)[..., None] + b * (l1 * sinb)[..., None]
-            W = S + a * d[..., None]
-            Gp = G0[:, self.sl_p]
-            cur = qrot(Gp, np.broadcast_to(self.cur_p, (F,) + self.cur_p.shape))
-            G[:, self.l_prox] = quat_multiply(min_rotation(cur, E - S), Gp)
+            P = np.empty((F, J, 3))
+            P[:, 0] = root_t
+            S = self._chain(G, P, self.path_prox)[:, self.l_prox]
+            E, W = self._limb_goals(gp_s, S, goals)
+            cur = qrot(G0[:, self.sl_p], np.broadcast_to(self.cur_p, (F,) + self.cur_p.shape))
+            G[:, self.l_prox] = quat_multiply(min_rotation(cur, E - S), G0[:, self.sl_p])
             if len(self.m_joint):
                 G[:, self.inherit] = G[:, self.anchor]
                 self._chain(G, P, self.path_mid)
@@ -547,22 +465,101 @@ class TreePlan:
                 cur = qrot(Gm, np.broadcast_to(self.cur_m, (F,) + self.cur_m.shape))
                 G[:, self.m_joint] = quat_multiply(min_rotation(cur, W[:, self.m_limb] - P[:, self.m_joint]), Gm)
             G[:, self.inherit] = G[:, self.anchor]
-        G = G[:, :J]
-        loc = np.empty_like(G)
-        loc[:, 0] = G[:, 0]
-        loc[:, 1:] = quat_multiply(qinv(G[:, self.parents[1:]]), G[:, 1:])
-        loc = loc / np.linalg.norm(loc, axis=-1, keepdims=True)  # as a new Motion renormalises
-        t = np.broadcast_to(self.offsets, (F, J, 3)).copy()
-        t[:, 0] = root_t
-        if self.deep:  # Motion.global_transforms' other path
-            tgt = self.target
-            channels = tgt.channels if tgt.channels is not None else [_POS + _ROT] + [_ROT] * (J - 1)
-            return tgt.motion_with(loc, t, frame_time=1.0, channels=channels, up=self.up).global_positions()
-        return fk_arrays(self.levels_t, loc, t, copy=False)[1]
+        return G[:, :J]
 
-    def _straight(self, a, b, valid):
-        """``_solve_limb``'s bend plane of one limb with straight frames (F, 3)."""
-        return straight_bend(a, b, valid, self.C)
+    def _chain(self, G: np.ndarray, P: np.ndarray, levels) -> np.ndarray:
+        """``P`` with the world positions of ``levels``' joints (their parents' already in it), in place."""
+        for idx, _ in levels:
+            P[:, idx] = self.offsets[idx]
+        return chain_positions(levels, G, P)
+
+    def _limb_goals(self, gp_s: np.ndarray, S: np.ndarray, goals) -> tuple[np.ndarray, np.ndarray]:
+        """(F, L, 3) world goals of the limbs' middle and distal joints from proximal positions ``S``
+        (Kulpa: normalised distal vector x limb length, the middle joint in the source's bend plane)."""
+        g3 = gp_s[:, self.l_src]  # (F, L, 3, 3): proximal, middle, distal
+        we = g3[:, :, 2:0:-1] - g3[:, :, :1]  # (F, L, 2, 3): distal - proximal, middle - proximal
+        nl = len(self.l_prox)
+        CT = self.CT
+        n = np.stack([we[:, i, 0] @ CT / self.Ls[i] for i in range(nl)], axis=1)
+        e = np.stack([we[:, i, 1] @ CT for i in range(nl)], axis=1)
+        l1, l2 = self.l1[None], self.l2[None]
+        want = n * (l1 + l2)[..., None]
+        if goals is not None:
+            want[:, self.leg_rows] = goals[:, self.leg_cols] - S[:, self.leg_rows]
+        a, dn = normalize(want)
+        bend = e - np.sum(e * a, axis=-1, keepdims=True) * a
+        b, bn = normalize(bend)
+        valid = bn > 1e-9 * self.bl_src_mid[None]
+        if not valid.all():
+            b = b.copy()
+            for i in np.flatnonzero(~valid.all(axis=0)).tolist():
+                b[:, i] = straight_bend(a[:, i], b[:, i], valid[:, i], self.C)
+        d = np.clip(dn, np.abs(l1 - l2), l1 + l2)
+        cosb = np.clip((l1**2 + d**2 - l2**2) / (2 * l1 * np.maximum(d, 1e-300)), -1.0, 1.0)
+        sinb = np.sqrt(1.0 - cosb**2)
+        E = S + a * (l1 * cosb)[..., None] + b * (l1 * sinb)[..., None]
+        W = S + a * d[..., None]
+        return E, W
+
+    def _fix_feet(self, motion, gq_s, gp_s, root_t, G, blend_time) -> tuple[np.ndarray, np.ndarray]:
+        """``fix_feet`` of :func:`retarget_across`: planted ankles pinned, the root lowered where one is
+        out of the leg's reach, ankles raised where the ankle or toe would be below the floor."""
+        tgt = self.target
+        kt = 2 if self.up == "z" else 1
+        e_up = _AXIS[self.up]
+        ank = [tgt.index("left_ankle"), tgt.index("right_ankle")]
+        hips = [tgt.index("left_hip"), tgt.index("right_hip")]
+        L = np.array([tgt.limb_lengths[f"{s}_leg"] for s in ("left", "right")])
+        contacts = foot_contacts(motion, skeleton=self.source, global_positions=gp_s,
+                                 up_axis=2 if self.up_source == "z" else 1)
+        P = self._world(G, root_t)
+        A = P[:, ank]
+        n_blend = round(min(blend_time / motion.frame_time, 2.0**53))  # longer than any clip: no overflow
+        goal, w = foot_goals(A, contacts, A[..., 1], n_blend)  # every coordinate: the phase mean
+        goal = A + w[..., None] * (goal - A)
+        r = goal - P[:, hips]
+        ry = r[..., kt]
+        rh2 = np.sum(r * r, axis=-1) - ry**2
+        drop = np.maximum(0.0, -ry - np.sqrt(np.maximum(L[None] ** 2 - rh2, 0.0))).max(axis=1)
+        root_t = root_t - drop[:, None] * e_up
+        G = self._solve(gq_s, gp_s, root_t, goal)
+        P = self._world(G, root_t)
+        # no ankle / toe below the floor: raise the ankle goal by the depth
+        feet = [[tgt.index(f"{s}_ankle")] + ([tgt.index(f"{s}_toe")] if f"{s}_toe" in tgt.roles else [])
+                for s in ("left", "right")]
+        depth = np.stack([np.maximum(0.0, -P[:, pts, kt].min(axis=1)) for pts in feet], axis=1)
+        if np.any(depth > 0):
+            G = self._solve(gq_s, gp_s, root_t, P[:, ank] + (depth * (1 + 1e-9))[..., None] * e_up)
+        return root_t, G
+
+    def _world(self, G: np.ndarray, root_t: np.ndarray) -> np.ndarray:
+        """(F, J, 3) world positions of the character's joints for world rotations ``G``."""
+        return chain_positions(self.levels_t, G, self._translations(root_t))
+
+
+def _limb_roles(ti) -> dict[int, tuple[str, str, str]]:
+    """The character's four limbs by proximal joint: (proximal, middle, distal) roles."""
+    limbs = {}
+    for side in ("left", "right"):
+        for p_, m_, d_ in (("shoulder", "elbow", "wrist"), ("hip", "knee", "ankle")):
+            roles3 = tuple(f"{side}_{r}" for r in (p_, m_, d_))
+            limbs[ti[roles3[0]]] = roles3
+    return limbs
+
+
+def _levels_below(parents, tops, ends) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The joints strictly below ``tops`` down to ``ends`` (included), as (joints, parents) by depth."""
+    out: set[int] = set()
+    for e in ends:
+        j = int(e)
+        while j not in tops and j >= 0:
+            out.add(j)
+            j = int(parents[j])
+    depth: dict[int, int] = {}
+    for j in sorted(out):  # parents before children (parents[j] < j)
+        depth[j] = depth.get(int(parents[j]), -1) + 1
+    by = [sorted(j for j, d in depth.items() if d == k) for k in range(max(depth.values(), default=-1) + 1)]
+    return [(np.array(js, dtype=np.intp), np.asarray(parents)[js]) for js in by]
 
 
 def _fixed_rotations(src, tgt, Ps, Pt, C, si, ti, delta) -> dict[int, tuple[int, np.ndarray]]:
@@ -609,8 +606,8 @@ def _ref_dir(P, roles_, names, a, b):
     return _unit(P[names.index(roles_[b])] - P[names.index(roles_[a])])
 
 
-def _bone_delta(src, tgt, Ps, Pt, ax_s, ax_t, C, a, b):
-    """Rotation taking the character's rest frame of bone a->b to the mapped source one.
+def _bone_frames(src, tgt, Ps, Pt, ax_s, ax_t, C, a, b) -> np.ndarray:
+    """(3, 3) rotation taking the character's rest frame of bone a->b to the mapped source one.
 
     The frame: the bone direction and the part's rest axis (left, up or forward of
     :func:`rest_axes`) least aligned with the bone on both skeletons, so the twist
@@ -621,65 +618,4 @@ def _bone_delta(src, tgt, Ps, Pt, ax_s, ax_t, C, a, b):
     part = "leg" if any(x in a for x in ("pelvis", "hip", "knee", "ankle", "toe")) else "arm"
     at, as_ = ax_t[part], ax_s[part] @ C.T
     k = int(np.argmin(np.maximum(np.abs(at @ dt), np.abs(as_ @ ds))))
-    return _mat_to_quat(_frame(ds, as_[k]) @ _frame(dt, at[k]).T)
-
-
-def _fix_feet(motion, src, tgt, gp_s, up_t, up_s, root_t, G, P, solve, blend_time):
-    """``fix_feet`` of :func:`retarget_across`: planted ankles pinned, root lowered, feet above the floor."""
-    from repro.motion.body.feet import foot_contacts, foot_goals
-
-    kt = 2 if up_t == "z" else 1
-    e_up = _AXIS[up_t]
-    ank = [tgt.index("left_ankle"), tgt.index("right_ankle")]
-    hips = [tgt.index("left_hip"), tgt.index("right_hip")]
-    L = np.array([tgt.limb_lengths[f"{s}_leg"] for s in ("left", "right")])
-    contacts = foot_contacts(motion, skeleton=src, global_positions=gp_s, up_axis=2 if up_s == "z" else 1)
-    A = P[:, ank]
-    n_blend = round(min(blend_time / motion.frame_time, 2.0**53))  # longer than any clip: no overflow
-    goal, w = foot_goals(A, contacts, A[..., 1], n_blend)  # every coordinate: the phase mean
-    goal = A + w[..., None] * (goal - A)
-    r = goal - P[:, hips]
-    ry = r[..., kt]
-    rh2 = np.sum(r * r, axis=-1) - ry**2
-    drop = np.maximum(0.0, -ry - np.sqrt(np.maximum(L[None] ** 2 - rh2, 0.0))).max(axis=1)
-    root_t = root_t - drop[:, None] * e_up
-    goals = {ank[0]: goal[:, 0], ank[1]: goal[:, 1]}
-    G, P = solve(root_t, goals)
-    # no ankle / toe below the floor: raise the ankle goal by the depth
-    feet = []
-    for s in ("left", "right"):
-        pts = [tgt.index(f"{s}_ankle")] + ([tgt.index(f"{s}_toe")] if f"{s}_toe" in tgt.roles else [])
-        feet.append(pts)
-    depth = np.stack([np.maximum(0.0, -P[:, pts, kt].min(axis=1)) for pts in feet], axis=1)
-    if np.any(depth > 0):
-        goals = {ank[i]: P[:, ank[i]] + (depth[:, i] * (1 + 1e-9))[:, None] * e_up for i in range(2)}
-        G, P = solve(root_t, goals)
-    return root_t, G, P
-
-
-def _solve_limb(src, tgt, gp_s, gq_s, C, mapped, delta, S, roles3, si, ti, goal=None):
-    """Proximal global rotation and the middle / distal goals of one limb (Kulpa: normalised
-    distal vector x limb length, middle joint in the source's bend plane); ``goal``: the
-    distal joint's world position instead (``fix_feet``)."""
-    rp, rm, rd = roles3
-    F = gp_s.shape[0]
-    Ss, Es, Ws = gp_s[:, si(rp)], gp_s[:, si(rm)], gp_s[:, si(rd)]
-    Ls = src.bone_lengths[si(rm)] + src.bone_lengths[si(rd)]
-    l1, l2 = tgt.bone_lengths[ti(rm)], tgt.bone_lengths[ti(rd)]
-    n = (Ws - Ss) @ C.T / Ls  # normalised limb vector, character world
-    a, dn = normalize(n * (l1 + l2) if goal is None else goal - S)
-    e = (Es - Ss) @ C.T
-    bend = e - np.sum(e * a, axis=-1, keepdims=True) * a
-    b, bn = normalize(bend)
-    valid = bn > 1e-9 * src.bone_lengths[si(rm)]
-    if not valid.all():
-        b = straight_bend(a, b, valid, C)
-    d = np.clip(dn, abs(l1 - l2), l1 + l2)
-    cosb = np.clip((l1**2 + d**2 - l2**2) / (2 * l1 * np.maximum(d, 1e-300)), -1.0, 1.0)
-    sinb = np.sqrt(1.0 - cosb**2)
-    E = S + a * (l1 * cosb)[:, None] + b * (l1 * sinb)[:, None]
-    W = S + a * d[:, None]
-    G0 = quat_multiply(mapped(rp), delta(rp, rm)[None])
-    Pt = tgt.rest_positions()
-    cur = qrot(G0, np.broadcast_to(Pt[ti(rm)] - Pt[ti(rp)], (F, 3)))
-    return quat_multiply(min_rotation(cur, E - S), G0), E, W
+    return _frame(ds, as_[k]) @ _frame(dt, at[k]).T
