@@ -30,10 +30,8 @@ LONG_FUNCTIONS: dict[str, str] = {
     "repro.motion.io.bvh:_parse_hierarchy": "to split into named steps (issue 24; 139 lines)",
     "repro.motion.retargeting.trees:TreePlan.__init__": "to split into named steps (issue 24; 90 lines)",
     "repro.motion.retargeting.trees:retarget_across": "to split into named steps (issue 24; 127 lines)",
-    "repro.motion.runtime.strike:strike": "to split into named steps (issue 24; 227 lines)",
     "repro.motion.search.exact:ExactSearch._search_exact": "to split into named steps (issue 24; 180 lines)",
     "repro.motion.search.kernel:search_first": "a numba-compiled kernel: one loop, no Python calls inside (splitting costs a call per candidate)",
-    "repro.ui.fighter_panel:FighterPanel.__init__": "to split into named steps (issue 24; 88 lines)",
 }
 
 #: repro.motion's stages in pipeline order; a stage may import its own and earlier stages only

@@ -87,6 +87,8 @@ from repro.motion.adaptation import (
 
 # runtime (Sections 3.3-3.4): one order carried out.  The function strike stays on its module
 # (repro.motion.runtime.strike.strike): a package attribute named like the submodule would shadow it.
+from repro.motion.runtime.options import StrikeOptions
+from repro.motion.runtime.paper import PAPER
 from repro.motion.runtime.strike import Strike
 
 __all__ = [
@@ -112,5 +114,5 @@ __all__ = [
     "AdaptOptions", "adapt", "Adaptation", "offset_curve", "reach_limb", "LimbSolution", "ccd",
     "CCDSolution",
     # runtime
-    "Strike",
+    "Strike", "StrikeOptions", "PAPER",
 ]

@@ -199,6 +199,15 @@ class FighterPanel(PanelCallbacks):
         self._numbers_text = "press kick or punch"
         self._batch_depth = 0
         self._pending_character = False
+        self._make_sliders(target)
+        self._make_controls(follow)
+        self._connect()
+        self.widget = self._layout()
+        self._show()
+
+    # ------------------------------------------------------------- the widgets
+    def _make_sliders(self, target) -> None:
+        """The target (the user's head) and the fighter's morphology (the supervisor's choice)."""
         (x0, x1), (y0, y1), (z0, z1) = AREA
         style = {"description_width": "90px"}
         lay = widgets.Layout(width="330px")
@@ -218,6 +227,9 @@ class FighterPanel(PanelCallbacks):
         }
         for k in ("x", "y", "z"):
             self.sliders[k].add_class(f"repro-fighter-target-{k}")
+
+    def _make_controls(self, follow: bool) -> None:
+        """The order buttons, the simulated user's controls, the pictures and the readouts."""
         self.kick_button = widgets.Button(description="kick", tooltip="order a kick at the target")
         self.kick_button.add_class("repro-fighter-kick")
         self.punch_button = widgets.Button(description="punch", tooltip="order a punch at the target")
@@ -241,6 +253,7 @@ class FighterPanel(PanelCallbacks):
         self.status_html = widgets.HTML()
         self.status_html.add_class("repro-fighter-status")
 
+    def _connect(self) -> None:
         for k in ("x", "y", "z"):
             self.sliders[k].observe(self._guarded(self._on_target), names="value")
         for k in ("height", "arm_scale", "leg_scale"):
@@ -251,7 +264,8 @@ class FighterPanel(PanelCallbacks):
         self.play.observe(self._guarded(self._on_play), names="value")
         self.step_button.on_click(self._guarded(lambda _b: self.step_user(30)))
 
-        self.widget = widgets.VBox([
+    def _layout(self) -> widgets.VBox:
+        box = widgets.VBox([
             widgets.HBox([
                 widgets.VBox([widgets.HTML("<b>target (the user's head)</b>"),
                               self.sliders["x"], self.sliders["y"], self.sliders["z"], self.follow_box]),
@@ -267,8 +281,8 @@ class FighterPanel(PanelCallbacks):
             self.image,
             widgets.HTML(PANEL_CSS),
         ])
-        self.widget.add_class("repro-fighter-panel")
-        self._show()
+        box.add_class("repro-fighter-panel")
+        return box
 
     # ------------------------------------------------------------- helpers
     def _flush(self) -> None:

@@ -9,7 +9,7 @@ result, never another exception, a hang or an allocation past the budget).
 
 The database, its retriever and the characters are built once per child
 (:func:`functools.cache`); the fighter cases share the retriever and search with
-``method="pruned"`` (no numba compile in the child).  The strike's valid target is one the
+``StrikeOptions(method="pruned")`` (no numba compile in the child).  The strike's valid target is one the
 spine cannot reach, so the root level runs on the valid call and on every hostile value
 the entry lets through.  The raw-array helpers of :mod:`repro.motion.core.kinematics` (``dot``,
 ``normalize``, ``matvec``...) are the solvers' inner arithmetic on arrays the checked entries
@@ -87,25 +87,41 @@ def _skeleton():
 def _fighter():
     from repro.motion.runtime.fighter import KungFuFighter
 
-    return KungFuFighter(_db(), retriever=_retriever(), method="pruned")  # a fresh one: methods change it
+    return KungFuFighter(_db(), retriever=_retriever(), options=_pruned())  # a fresh one: methods change it
 
 
 # ------------------------------------------------------------------ the order pipeline
+def _pruned():
+    from repro.motion.runtime.options import StrikeOptions
+
+    return StrikeOptions(method="pruned")
+
+
 def _strike():
     from repro.motion.runtime.strike import strike
 
     return strike, dict(source=_retriever(), character=_character(), current_motion=_stance(),
-                        target=[0.0, 0.9, 1.2], semantics="punch", frame="root", query=None, method="pruned",
-                        scoring="first", blend_s=0.2, fix_feet=False, reach="root", max_root_shift=0.35,
-                        feet="plant", floor=0.0, kind="smoothstep", release=0.25, seed=0, t_order=None,
-                        early_stop=True, stream=True)
+                        target=[0.0, 0.9, 1.2], semantics="punch", frame="root", query=None, options=_pruned(),
+                        seed=0, t_order=None)
 
 
 STRIKE_PARAMS = {
     "source": "any", "character": "any", "current_motion": "any", "target": "array", "semantics": "choice",
-    "frame": "choice", "query": "any", "method": "choice", "scoring": "choice", "blend_s": "real",
-    "fix_feet": "bool", "reach": "choice", "max_root_shift": "real", "feet": "choice", "floor": "real",
-    "kind": "choice", "release": "real", "seed": "int", "t_order": "real", "early_stop": "bool", "stream": "bool",
+    "frame": "choice", "query": "any", "options": "any", "seed": "int", "t_order": "real",
+}
+
+
+def _strike_options():
+    from repro.motion.adaptation import AdaptOptions
+    from repro.motion.runtime.options import StrikeOptions
+
+    return StrikeOptions, dict(method="pruned", blend_s=0.2, fix_feet=False, reach="root", max_root_shift=0.35,
+                               adapt=AdaptOptions(), early_stop=True, stream=True)
+
+
+STRIKE_OPTIONS_PARAMS = {
+    "method": "choice", "blend_s": "real", "fix_feet": "bool", "reach": "choice", "max_root_shift": "real",
+    "adapt": "any", "early_stop": "bool", "stream": "bool",
 }
 
 
@@ -151,9 +167,9 @@ def _method(attr, /, **kw):
 def _fighter_ctor():
     from repro.motion.runtime.fighter import KungFuFighter
 
-    return (lambda **kw: KungFuFighter(_db(), retriever=_retriever(), method="pruned", **kw),
+    return (lambda **kw: KungFuFighter(_db(), retriever=_retriever(), **kw),
             dict(character=None, height=1.75, arm_scale=1.0, leg_scale=1.0, seed=0, position=(0.0, -0.8),
-                 heading=0.0, scoring="first", across_trees=None))
+                 heading=0.0, options=_pruned(), across_trees=None))
 
 
 def _simulated_user():
@@ -453,6 +469,7 @@ def _strike_summary():
 CASES = [
     # the order pipeline
     Case("strike", _strike, STRIKE_PARAMS, time_limit=SLOW),
+    Case("StrikeOptions", _strike_options, STRIKE_OPTIONS_PARAMS),
     Case("one_frame", _one_frame, {"motion": "any", "f": "int"}),
     Case("turn_and_move", _turn_and_move, {"motion": "any", "theta": "real", "translation": "array"}),
     Case("blend_into", _blend_into, {"pose": "any", "placed": "any", "n_blend": "int"}),
@@ -462,7 +479,7 @@ CASES = [
     # the fighter
     Case("KungFuFighter", _fighter_ctor,
          {"character": "any", "height": "real", "arm_scale": "real", "leg_scale": "real", "seed": "int",
-          "position": "array", "heading": "real", "scoring": "choice", "across_trees": "bool"}, time_limit=SLOW),
+          "position": "array", "heading": "real", "options": "any", "across_trees": "bool"}, time_limit=SLOW),
     Case("KungFuFighter.place", _method("place", position=(0.3, -0.5), heading=0.2),
          {"position": "array", "heading": "real"}, time_limit=SLOW),
     Case("KungFuFighter.current_pose", _method("current_pose", frames=3), {"frames": "int"}, time_limit=SLOW),

@@ -74,6 +74,7 @@ def _compute(quick: bool, progress: bool = False):
     from repro.motion.retargeting.morphology import retarget
     from repro.motion.search.retrieval import MotionRetriever
     from repro.motion.body.skeleton import scale_skeleton
+    from repro.motion.runtime.paper import PAPER
     from repro.motion.runtime.strike import one_frame, strike
 
     db = default_database("synthetic")
@@ -86,7 +87,7 @@ def _compute(quick: bool, progress: bool = False):
         q = retriever.prepare(stance, ch)
         for label, sem, x, y, zf in (TARGETS_QUICK if quick else TARGETS):
             c = np.array([x, y, zf * ch.size])
-            s = strike(retriever, ch, stance, c, sem, frame="root", query=q, fix_feet=True)
+            s = strike(retriever, ch, stance, c, sem, frame="root", query=q, options=PAPER)
             r, a = s.retrieval, s.adaptation
             rows.append({
                 "height_m": H, "order": label, "semantics": sem, "target_x_m": x, "target_y_m": y,

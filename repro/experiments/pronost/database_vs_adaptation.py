@@ -118,16 +118,17 @@ class _Strikes:
         self.ch, self.stance, self.rows = ch, stance, {}
 
     def __call__(self, retriever, q, c: np.ndarray, sem: str) -> dict:
+        from repro.motion.runtime.paper import PAPER
         from repro.motion.runtime.strike import strike
 
-        res = retriever.search(c, q, semantics=sem)  # the search strike() makes (pruned, first-frame scoring)
+        res = retriever.search(c, q, semantics=sem, method=PAPER.method)  # the search strike() makes
         key = (sem, c.tobytes(), float(q.heading), np.asarray(q.origin).tobytes(), res.name, res.start_frame,
                res.hit_frame, res.lead_frames, float(res.heading), float(res.rotation_y),
                np.asarray(res.translation).tobytes(), np.asarray(res.origin).tobytes(), float(res.size_a),
                float(res.size_c))
         row = self.rows.get(key)
         if row is None:
-            s = strike(retriever, self.ch, self.stance, c, sem, frame="root", query=q, fix_feet=True)
+            s = strike(retriever, self.ch, self.stance, c, sem, frame="root", query=q, options=PAPER)
             if (s.retrieval.name, s.retrieval.start_frame) != (res.name, res.start_frame):  # pragma: no cover
                 raise AssertionError(f"strike() retrieved {s.retrieval.name} where search() gave {res.name}")
             row = self.rows[key] = _row(s, self.ch)

@@ -56,7 +56,7 @@ Choices the paper leaves open (all documented, all parameters)
   :data:`MAX_SPEED` m/s).  This is a kinematic root translation / rotation of the
   stance loop (no stepping animation; the paper does not describe one).
 * **Blend.** The placed clip is blended into the current pose over
-  :data:`BLEND_S` seconds (at most up to the contact frame): joint rotations by slerp,
+  :data:`~repro.motion.runtime.options.BLEND_S` seconds (at most up to the contact frame): joint rotations by slerp,
   the root position by an offset that decays to 0 (smoothstep).  Frame 0 of the strike
   *is* the current pose, so the motion is continuous.
 * **Contact.** ``t0`` = frame 0 (now), ``tc`` = the clip's hit frame minus the selected
@@ -99,7 +99,7 @@ from repro.motion.database.clips import MotionDatabase
 from repro.motion.retargeting.morphology import retarget
 from repro.motion.core.motion import Motion, finite_vector3
 from repro.motion.core.ops import ease
-from repro.motion.retargeting.dispatch import character_skeleton, retarget_to_tree
+from repro.motion.retargeting.dispatch import character_skeleton, retarget_to
 from repro.motion.search.retrieval import MotionRetriever
 from repro.motion.body.units import y_up_metres
 from repro.motion.body.skeleton import (
@@ -107,8 +107,8 @@ from repro.motion.body.skeleton import (
     scale_skeleton,
     skeleton_of,
 )
+from repro.motion.runtime.options import StrikeOptions
 from repro.motion.runtime.strike import (
-    BLEND_S,
     STAGES,
     Strike,
     one_frame,
@@ -118,7 +118,6 @@ from repro.motion.runtime.strike import (
 
 __all__ = [
     "AREA",
-    "BLEND_S",
     "MAX_SPEED",
     "MAX_TURN_RATE",
     "ORDER_KINDS",
@@ -319,6 +318,10 @@ class KungFuFighter:
         A prepared retriever of ``database`` to share (its construction is the one-time
         cost); built here otherwise.  Its ``across_trees`` decides which characters
         :meth:`set_character` accepts.
+    options : StrikeOptions, optional
+        How every order is carried out (:func:`~repro.motion.runtime.strike.strike`); default
+        ``StrikeOptions()``: the exact optimum of Eq. 1's ``d``, the library's defaults
+        (:data:`repro.motion.runtime.paper.PAPER`: the paper's pruned search).
     across_trees : bool, optional
         Build the retriever with ``across_trees`` (:class:`MotionRetriever`): characters of
         any joint tree, every clip a candidate for them.  Default: the retriever's (True);
@@ -326,6 +329,7 @@ class KungFuFighter:
 
     Attributes
     ----------
+    options : StrikeOptions
     db : MotionDatabase
     retriever : MotionRetriever
     character : Skeleton
@@ -346,13 +350,17 @@ class KungFuFighter:
 
     def __init__(self, database="synthetic", character: Skeleton | None = None, *, height: float = 1.75,
                  arm_scale: float = 1.0, leg_scale: float = 1.0, seed: int = 0, position=(0.0, -0.8),
-                 heading: float = 0.0, retriever: MotionRetriever | None = None, method: str = "exact",
-                 scoring: str = "first", across_trees: bool | None = None):
+                 heading: float = 0.0, retriever: MotionRetriever | None = None,
+                 options: StrikeOptions | None = None, across_trees: bool | None = None):
         from repro.motion.database.sources import default_database
 
         t0 = time.perf_counter()
         # every argument checked before the (slow) database and retriever are built
         seed = as_int(seed, "seed", 0, 2**63 - 1, error=MotionError)
+        if options is not None and not isinstance(options, StrikeOptions):
+            raise MotionError(f"options must be None or a StrikeOptions, got {describe(options)}")
+        #: how every order is carried out (the library's defaults: the exact optimum of Eq. 1's d)
+        self.options = StrikeOptions() if options is None else options
         if across_trees is not None:
             across_trees = as_bool(across_trees, "across_trees", error=MotionError)
         if character is None:
@@ -376,11 +384,8 @@ class KungFuFighter:
         t2 = time.perf_counter()
         self.db = db
         self.seed = seed
-        # the retrieval of every order: the exact optimum of Eq. 1's d by default (Section 3.3's
-        # pruned search is method="pruned"); checked once here, not at the first order
-        self.method, self.scoring = self.retriever.check_method(method, scoring)
         tc = time.perf_counter()
-        if self.method == "exact" and self.scoring == "first":
+        if self.options.method == "exact":
             from repro.motion.search.kernel import compile_search  # numba: imported when used
 
             compile_search()  # ready before the first order (compiling takes seconds on a fresh install)
@@ -452,8 +457,7 @@ class KungFuFighter:
             ch = skeleton_of(conv, roles=dict(ch.roles))
         self.character = ch
         # another tree: its feet kept on the floor (another foot geometry may put the toes below it)
-        self.stance = (retarget(self._stance_actor, ch) if ch.is_compatible(self._stance_actor)
-                       else retarget_to_tree(self._stance_actor, ch, fix_feet=True))
+        self.stance = retarget_to(self._stance_actor, ch, fix_feet=not ch.is_compatible(self._stance_actor))
         hp = self.db.hit_position
         punch = (self.db.semantics == "punch") & np.isin(self.db.levels, ["high", "middle"])
         sel = punch if punch.any() else (self.db.semantics == "punch")
@@ -587,8 +591,7 @@ class KungFuFighter:
                 "the playing strike keeps its stored target (the paper does not refresh it)")
         X = check_target(target)
         pose = self.current_pose((self.db.window - 1) * self.db.step + 1)
-        s = strike(self.retriever, self.character, pose, X, kind, blend_s=BLEND_S, t_order=t_order,
-                   method=self.method, scoring=self.scoring)
+        s = strike(self.retriever, self.character, pose, X, kind, t_order=t_order, options=self.options)
         if commit == "play":
             self.playing = s
             self._play_end = self.time + (s.n_frames - 1) / self.db.fps

@@ -6,7 +6,10 @@ are reference lines and ratios in the figures and the claims ledger, never pass/
 
 from __future__ import annotations
 
+from repro.motion.runtime.options import StrikeOptions
+
 __all__ = [
+    "PAPER",
     "REACTION_BUDGET_S",
     "PAPER_ORDER_TO_SEARCH_S",
     "PAPER_SEARCH_S",
@@ -27,3 +30,11 @@ PAPER_LOAD_CONVERT_S: float = 0.040
 PAPER_ADAPT_PER_FRAME_S: float = 88e-6
 #: The machine those numbers were measured on.
 PAPER_MACHINE: str = "Pentium 4 3.6 GHz, 2 GB (2008)"
+
+#: The paper's choices for an order (:func:`repro.motion.runtime.strike.strike`), which the figures
+#: that reproduce it pass explicitly: the pruned search of Section 3.3 (the nearest cluster, then
+#: "eliminating motions associated with the bounding box that does not contain" the target) and a
+#: retargeting that corrects the feet (Section 3.4: "Retargetting mainly consists of multiplying
+#: adimensional data of the skeleton by the new dimensions of the character, and correcting the feet
+#: artifacts").  The rest is the library's.
+PAPER: StrikeOptions = StrikeOptions(method="pruned", fix_feet=True)

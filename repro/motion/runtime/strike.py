@@ -15,7 +15,7 @@ character's current motion it
    through every later stage;
 4. **places** it (rotation about the vertical and translation fitting the start pose onto
    the current pose, scaled from the actor to the character) and **blends and
-   synchronises** it with the current motion over :data:`BLEND_S` seconds (Fig. 6 lists
+   synchronises** it with the current motion over ``blend_s`` seconds (Fig. 6 lists
    this first): frame 0 of the strike is the current pose;
 5. **solves the constraints** frame by frame (Section 3.4.2,
    :func:`~repro.motion.adaptation.adapt`): ``d(t)`` from ``t0`` (= frame 0, now) to
@@ -30,7 +30,10 @@ character's current motion it
    changes are played ``t_start / fps`` seconds later).  The early frame is counted only
    when it is the played one (compared, number for number).
 
-Whole-body reach (``reach``, :data:`REACH_LEVELS`): ``"limb"`` is the two-bone IK alone,
+How is :class:`~repro.motion.runtime.options.StrikeOptions` (one frozen dataclass, the
+fighter's defaults; :data:`repro.motion.runtime.paper.PAPER` the paper's choices).
+
+Whole-body reach (``reach``, :data:`~repro.motion.runtime.options.REACH_LEVELS`): ``"limb"`` is the two-bone IK alone,
 ``"spine"`` adds the paper's CCD (elbow, shoulder, clavicle and the spine for a punch;
 knee, hip and pelvis for a kick, within joint limits), ``"root"`` (default) adds a root
 shift when CCD cannot reach either: the root follows ``d(t)`` by the remaining miss
@@ -69,11 +72,12 @@ from repro.motion.adaptation.cost import adaptation_cost
 from repro.motion.adaptation.offset import offset_curve
 from repro.motion.body.pose_frames import from_root_frame, rotate_y, to_root_frame
 from repro.motion.database.clips import MotionDatabase
-from repro.motion.core.ops import EASINGS, cut, ease
+from repro.motion.core.ops import cut, ease
 from repro.motion.body.roles import effector_role
 from repro.motion.body.feet import foot_contacts, max_foot_slide
 from repro.motion.core.quaternion import slerp
-from repro.motion.core.motion import MAX_COORDINATE, Motion, finite_vector3
+from repro.motion.core.motion import Motion, finite_vector3
+from repro.motion.runtime.options import REACH_LEVELS, StrikeOptions
 from repro.motion.runtime.paper import REACTION_BUDGET_S
 from repro.motion.core.quaternion import quat_multiply
 from repro.motion.retargeting.dispatch import character_skeleton, retarget_to
@@ -81,10 +85,7 @@ from repro.motion.search.retrieval import MotionRetriever, Query, RetrievalResul
 from repro.motion.body.skeleton import Skeleton, rescale_constraint
 
 __all__ = [
-    "BLEND_S",
     "BODY_RADIUS",
-    "MAX_ROOT_SHIFT",
-    "REACH_LEVELS",
     "STAGES",
     "Strike",
     "blend_into",
@@ -95,17 +96,10 @@ __all__ = [
     "turn_and_move",
 ]
 
-#: Seconds over which a selected clip is blended into the current pose.
-BLEND_S: float = 0.2
-#: Levels of whole-body reach, in order: two-bone limb IK, + CCD over the spine / pelvis, + a root shift,
-#: + a step of the front foot (punches).
-REACH_LEVELS: tuple[str, ...] = ("limb", "spine", "root", "step")
 #: Longest step of the ``"step"`` level, per metre of leg length; its duration (s) and foot lift (per metre of leg).
 MAX_STEP: float = 0.6
 STEP_S: float = 0.3
 STEP_LIFT: float = 0.06
-#: Largest root shift of the ``"root"`` level, per metre of the character's leg length.
-MAX_ROOT_SHIFT: float = 0.35
 #: Fractions of the miss left by CCD that the root shift tries, in order (the first the support leg follows wins).
 ROOT_SHIFT_TRIALS: tuple[float, ...] = (1.15, 0.5)
 #: CCD sweeps per frame after a root shift (the shift does most of the work).
@@ -385,76 +379,30 @@ def _step(blended, effector, X, tc, ad, contacts, ch, opts, kind, release, max_r
     return best
 
 
-def strike(
-    source,
-    character,
-    current_motion: Motion,
-    target,
-    semantics: str,
-    *,
-    frame: str = "world",
-    query=None,
-    method: str = "pruned",
-    scoring: str = "first",
-    blend_s: float = BLEND_S,
-    fix_feet: bool = False,
-    reach: str = "root",
-    max_root_shift: float = MAX_ROOT_SHIFT,
-    feet: str | None = "plant",
-    floor: float | None = 0.0,
-    kind: str = "smoothstep",
-    release: float | None = 0.25,
-    seed: int = 0,
-    t_order: float | None = None,
-    early_stop: bool = True,
-    stream: bool = True,
-) -> Strike:
+def strike(source, character, current_motion: Motion, target, semantics: str, *, frame: str = "world", query=None,
+           options: StrikeOptions | None = None, seed: int = 0, t_order: float | None = None) -> Strike:
     """Carry out an order: retrieve, convert, place and blend, solve (Sections 3.3-3.4; module docstring).
 
     Parameters
     ----------
     source : MotionRetriever or MotionDatabase
-        A database is wrapped in a new retriever (k-means with ``seed``: a one-time cost;
-        pass a retriever to share it).
+        A database is wrapped in a new retriever (k-means with ``seed``, a one-time cost).
     character : Skeleton or Motion
-        The character (joint tree of the database's actor).
+        The character (any humanoid joint tree: :func:`~repro.motion.retargeting.dispatch.retarget_to`).
     current_motion : Motion
-        The character's current motion, world frame, metres; its last frame is the
-        current pose (pass the database's pose window so that ``q_r`` has it).
+        World frame, metres; its last frame is the current pose (pass the database's pose
+        window so that ``q_r`` has it).
     target : (3,) array
-        ``X``, metres: world (``frame="world"``) or the current pose's root frame
-        (``frame="root"``, i.e. ``c``).
-    semantics : str
-        ``"punch"`` or ``"kick"``.
+        ``X``, metres: world (``frame="world"``) or the current pose's root frame (``"root"``: ``c``).
+    semantics : {"punch", "kick"}
     query : Query, optional
         :meth:`MotionRetriever.prepare` of ``current_motion`` already made.
-    method, scoring : str
-        :meth:`MotionRetriever.search`'s: the paper's ``"pruned"`` search (default, what the
-        figures reproduce) or ``"exact"`` / ``"exhaustive"``; ``scoring="first"`` (the paper's
-        first-frame hit trajectories) or ``"start"`` (scored as played from the start pose).
-    blend_s : float
-        Seconds of the blend with the current pose (at most up to the contact).
-    fix_feet : bool
-        ``retarget(..., fix_feet=...)``: the decoder's own foot pass (Section 3.4.1).
-    reach : {"limb", "spine", "root", "step"}
-        Highest level of whole-body reach allowed (``"step"``: punches only; a kick's
-        foot lifts within frames of the order, so its support foot never steps).
-    max_root_shift : float
-        Cap of the root shift, per metre of leg length.
-    feet, floor, kind, release
-        :func:`repro.motion.adaptation.adapt` options.
+    options : StrikeOptions, optional
+        How (the search, the blend, the reach, the edit); default ``StrikeOptions()``, the
+        fighter's.  :data:`repro.motion.runtime.paper.PAPER` is the paper's.
+    seed : int
     t_order : float, optional
         ``time.perf_counter()`` at the order (default: now).
-    early_stop : bool, default True
-        A root-shift trial whose support foot fails is stopped before its hit solve when
-        the feet do not depend on it (a punch; ``AdaptOptions.max_foot_error``).  False
-        solves every trial in full: the slow path, with the same results (kept for
-        the tests).
-    stream : bool, default True
-        Decide the level on ``tc`` and frame ``t0 + 1`` before solving the rest of the clip
-        (module docstring; a kick planted at ``t0 + 1``: that frame first, then the level);
-        False solves every level on the whole clip first (the same strike; ``first_frame``
-        is then the whole adaptation).
 
     Raises
     ------
@@ -465,33 +413,64 @@ def strike(
     """
     now = time.perf_counter()
     # every argument checked here, at the entry: a later level (the root shift, the step) never sees a bad one
-    t_order = now if t_order is None else as_real(t_order, "t_order (a time.perf_counter() value)",
-                                                   error=MotionError, hi=now)
-    reach = as_choice(reach, "reach", REACH_LEVELS, error=MotionError)
+    marks = {"order": now if t_order is None else as_real(t_order, "t_order (a time.perf_counter() value)",
+                                                          error=MotionError, hi=now)}
+    options, frame, semantics, seed = _checked_arguments(options, frame, semantics, seed, current_motion, query)
+    retriever = _retriever_of(source, seed)
+    db = retriever.db
+    # a character of any tree: what the strike needs, named (an arm for a punch, a leg for a kick)
+    ch = character_skeleton(character, {"punch": ("a punch",), "kick": ("a kick",)}.get(semantics, ()))
+    # 1. the query: q_r, c in the root frame, Eq. 1 validated
+    X, c, q = _order_in_root_frame(retriever, current_motion, ch, target, frame, query)
+    marks["search"] = time.perf_counter()
+    # 2. the search
+    res = retriever.search(c, q, semantics=semantics, method=options.method)
+    marks["load"] = time.perf_counter()
+    # 3. load + convert; the contacts, once, on the retrieved clip
+    effector = clip_effector(db, res.clip, ch)
+    m = cut(db.motion(res.clip), res.start_frame, int(db.n_frames[res.clip]))
+    contacts = foot_contacts(m)
+    marks["retarget"] = time.perf_counter()
+    mc = retarget_to(m, ch, fix_feet=options.fix_feet)
+    marks["adapt"] = time.perf_counter()
+    # 4. place on the current pose, blend with the current motion
+    blended, tc = _place_and_blend(current_motion, mc, res, options.blend_s, db.fps)
+    marks["solver"] = time.perf_counter()
+    # 5. the constraints: the level decided on the contact frame, the next frame, the rest streamed
+    edit = _Edit(blended, effector, X, tc, dataclasses.replace(options.adapt, hit_point=str(db.hit_wheres[res.clip])),
+                 contacts)
+    ad, level, tried = _solve(edit, options, ch, marks)
+    p0 = ad.original_hit
+    return Strike(
+        kind=semantics, target=X, target_local=c, retrieval=res, effector=effector, motion=ad.motion,
+        original=blended, adaptation=ad, tc=tc, hit_error=float(ad.residual), reached=bool(ad.reached),
+        unadapted_error=float(np.linalg.norm(p0[tc] - X)),
+        foot_slide=max_foot_slide(ad.motion, edit.contacts, skeleton=ch),
+        timings=_timings(marks, ad.motion.n_frames), level=level, levels_tried=tried, contacts=edit.contacts,
+        closest_error=float(np.linalg.norm(p0 - X, axis=1).min()),
+        cost=adaptation_cost(blended, ad.motion, ch, frames=slice(1, None)),
+    )
+
+
+def _checked_arguments(options, frame, semantics, seed, current_motion, query):
+    """:func:`strike`'s arguments checked: ``(options, frame, semantics, seed)``."""
+    if options is None:
+        options = StrikeOptions()
+    elif not isinstance(options, StrikeOptions):
+        raise MotionError(f"options must be None or a StrikeOptions, got {describe(options)}")
     frame = as_choice(frame, "frame", ("world", "root"), error=MotionError)
     semantics = as_choice(semantics, "semantics", SEMANTICS, error=RetrievalError)
-    blend_s = as_real(blend_s, "blend_s (seconds)", error=MotionError, lo=0.0)
-    max_root_shift = as_real(max_root_shift, "max_root_shift (per metre of leg length)", error=MotionError, lo=0.0)
-    feet = as_choice(feet, "feet", ("pin", "plant", "track", None), error=MotionError)
-    floor = None if floor is None else as_real(floor, "floor (a height)", error=MotionError, lo=-MAX_COORDINATE,
-                                               hi=MAX_COORDINATE)
-    kind = as_choice(kind, "kind", EASINGS, error=MotionError)
-    release = None if release is None else as_real(release, "release (seconds)", error=MotionError, lo=0.0)
     seed = as_int(seed, "seed", 0, 2**63 - 1, error=MotionError)
-    fix_feet = as_bool(fix_feet, "fix_feet", error=MotionError)
-    early_stop = as_bool(early_stop, "early_stop", error=MotionError)
-    stream = as_bool(stream, "stream", error=MotionError)
     if not isinstance(current_motion, Motion):
         raise RetrievalError(f"current_motion must be a Motion (the character's current motion), got "
                              f"{describe(current_motion)}")
     if query is not None and not isinstance(query, Query):
         raise RetrievalError(f"query must be None or a Query (MotionRetriever.prepare), got {describe(query)}")
-    retriever = _retriever_of(source, seed)
-    method, scoring = retriever.check_method(method, scoring)
-    db = retriever.db
-    # a character of any tree: what the strike needs, named (an arm for a punch, a leg for a kick)
-    ch = character_skeleton(character, {"punch": ("a punch",), "kick": ("a kick",)}.get(semantics, ()))
-    # ---- 1. the query: q_r, c in the root frame, Eq. 1 validated
+    return options, frame, semantics, seed
+
+
+def _order_in_root_frame(retriever, current_motion, ch, target, frame, query):
+    """Step 1: ``(X, c, q)``, the target in the world and in the current pose's root frame, and the query."""
     v = finite_vector3(target, "target (x, y, z) in metres", RetrievalError)
     q = retriever.prepare(current_motion, ch) if query is None else query
     if frame == "world":
@@ -500,126 +479,144 @@ def strike(
         c, X = v, from_root_frame(v, q.heading, q.origin)
     rescale_constraint(c, 1.0, q.size_c)
     _check_inside_body(X, c, ch)
-    t_search = time.perf_counter()
-    # ---- 2. search
-    res = retriever.search(c, q, semantics=semantics, method=method, scoring=scoring)
-    t_load = time.perf_counter()
-    # ---- 3. load + convert; the contacts, once, on the retrieved clip
-    effector = clip_effector(db, res.clip, ch)
-    m = cut(db.motion(res.clip), res.start_frame, int(db.n_frames[res.clip]))
-    contacts = foot_contacts(m)
-    t_rt = time.perf_counter()
-    mc = retarget_to(m, ch, fix_feet=fix_feet)
-    t_adapt = time.perf_counter()
-    # ---- 4. place on the current pose, blend with the current motion
+    return X, c, q
+
+
+def _place_and_blend(current_motion, mc, res, blend_s, fps):
+    """Step 4: the converted clip placed on the current pose and blended with it; ``(blended, tc)``."""
     k = res.size_c / res.size_a
     placed = turn_and_move(mc, res.heading + res.rotation_y, rotate_y(k * res.translation, res.heading) + res.origin)
     tc = res.lead_frames
-    nb = int(round(min(blend_s * db.fps, tc, placed.n_frames - 1)))  # a long blend_s stops at the contact
-    blended = blend_into(current_motion, placed, nb) if nb >= 1 else placed
-    # ---- 5. the constraints: the level decided on the contact frame, the next frame, the rest streamed
-    t_solver = time.perf_counter()
-    hit_point = str(db.hit_wheres[res.clip])
-    base = AdaptOptions(hit_point=hit_point, feet=feet, floor=floor, kind=kind, release=release)
-    opts = dict(contacts=contacts)
-    # every frame is solved on its own (the same pose alone or with the clip): the level is
-    # decided on tc, the first frame after now is final, and the rest follows it
-    first = sorted({min(1, blended.n_frames - 1), tc})
+    nb = int(round(min(blend_s * fps, tc, placed.n_frames - 1)))  # a long blend_s stops at the contact
+    return (blend_into(current_motion, placed, nb) if nb >= 1 else placed), tc
+
+
+@dataclass(eq=False)
+class _Edit:
+    """Step 5's clip: what every reach level's :func:`adapt` call shares (the contacts change with a step)."""
+
+    blended: Motion
+    effector: str
+    X: np.ndarray
+    tc: int
+    base: AdaptOptions
+    contacts: np.ndarray
+
+    def run(self, max_iter: int, *, root_offsets=None, frames=None, **changes) -> Adaptation:
+        options = dataclasses.replace(self.base, max_iter=max_iter, **changes)
+        return adapt(self.blended, self.effector, self.X, 0, self.tc, options=options, contacts=self.contacts,
+                     root_offsets=root_offsets, frames=frames)
+
+
+def _solve(edit: _Edit, options: StrikeOptions, ch: Skeleton, marks: dict) -> tuple[Adaptation, str, tuple]:
+    """Step 5: the lowest reach level that hits, decided on ``tc``; ``(adaptation, level, levels tried)``.
+
+    Every frame is solved on its own (the same pose alone or with the clip): the level is
+    decided on ``tc``, the first frame after now is final, and the rest follows it.
+    """
+    reach, tc = options.reach, edit.tc
+    first = sorted({min(1, edit.blended.n_frames - 1), tc})
     max_iter = 0 if reach == "limb" else 50
     # a root trial reads the support foot over the whole clip: exact on two frames when the feet
     # do not depend on the hit solve (a punch); a kick's trials are solved in full (CCD's pelvis)
     whole_body = reach in ("root", "step")
-    limb = EFFECTOR_STEMS[effector.split("_", 1)[1]]  # "arm" (punch) or "leg" (kick)
-    part = stream and not (whole_body and limb == "leg")
-    early = None
-    f1 = first[0]
-    if stream and not part and f1 > 0:
-        # a kick solved whole: up to the kicking foot's lift-off t_start, d(t) = 0 and the root
-        # shift is 0 at every level, so frame t0 + 1 (feet only) is final before the level is decided
-        a1 = adapt(blended, effector, X, 0, tc, options=dataclasses.replace(base, max_iter=0), frames=[f1], **opts)
-        if f1 <= a1.t_start:
-            early = (a1.motion.rotations[f1], a1.motion.positions[f1], time.perf_counter())
-    ad = adapt(blended, effector, X, 0, tc, options=dataclasses.replace(base, max_iter=max_iter),
-               frames=first if part else None, **opts)
+    limb = EFFECTOR_STEMS[edit.effector.split("_", 1)[1]]  # "arm" (punch) or "leg" (kick)
+    part = options.stream and not (whole_body and limb == "leg")
+    early = _early_frame(edit, first[0]) if options.stream and not part and first[0] > 0 else None
+    ad = edit.run(max_iter, frames=first if part else None)
     tried = ["limb"] if reach == "limb" else ["limb", "spine"]
     off, final = None, (None if part else ad)
     if not ad.reached and whole_body:
-        if part and not ad.feet_independent:
-            part = False
-            ad = final = adapt(blended, effector, X, 0, tc, options=dataclasses.replace(base, max_iter=max_iter),
-                               **opts)
-        leg = ch.leg_length
-        n_rel = None if release is None else int(round(float(release) / blended.frame_time))
-        foot_tol = 1e-3 * leg
         tried.append("root")
-        for frac in ROOT_SHIFT_TRIALS:  # the support leg must still reach its pinned foot
-            shift = _root_shift(ad, frac, max_root_shift * leg, kind, n_rel)
-            foot_max = max(foot_tol, ad.foot_error)
-            # max_foot_error: a trial whose support foot fails stops before its hit solve when it can (None)
-            ad2 = adapt(blended, effector, X, 0, tc, root_offsets=shift,
-                        options=dataclasses.replace(base, max_iter=ROOT_MAX_ITER,
-                                                    max_foot_error=foot_max if early_stop else None),
-                        frames=first if part else None, **opts)
-            if ad2 is not None and ad2.foot_error <= foot_max and ad2.residual < ad.residual:
-                ad, off, max_iter = ad2, shift, ROOT_MAX_ITER
-                final = None if part else ad2
-                break
+        ad, off, max_iter, final = _root_level(edit, ad, final, part, first, max_iter, options, ch.leg_length)
     stepped = None
     if not ad.reached and reach == "step" and limb == "arm":
-        if final is None:  # the whole clip at the level reached so far: the step starts from it
-            final = adapt(blended, effector, X, 0, tc, root_offsets=off,
-                          options=dataclasses.replace(base, max_iter=max_iter), **opts)
-            ad = final
         tried.append("step")
-        best = _step(blended, effector, X, tc, ad, contacts, ch, dataclasses.replace(base, max_iter=ROOT_MAX_ITER),
-                     kind, release, max_root_shift)
-        if best is not None:
-            ad = final = best[0]
-            stepped, contacts = best[1], best[2]
-            opts["contacts"] = contacts
-    t_level = t_first = time.perf_counter()
+        ad, final, stepped = _step_level(edit, ad, final, off, max_iter, options, ch)
+    marks["level"] = marks["first_frame"] = time.perf_counter()
     if final is None:  # the rest of the clip, at the level decided
-        final = adapt(blended, effector, X, 0, tc, root_offsets=off,
-                      options=dataclasses.replace(base, max_iter=max_iter), **opts)
-    ad = final
-    t_end = time.perf_counter()
+        final = edit.run(max_iter, root_offsets=off)
+    marks["end"] = time.perf_counter()
     # the early frame counts only as the played one (checked: the same numbers)
-    if early is not None and np.array_equal(early[0], ad.motion.rotations[f1]) and \
-            np.array_equal(early[1], ad.motion.positions[f1]):
-        t_first = early[2]
+    f1 = first[0]
+    if early is not None and np.array_equal(early[0], final.motion.rotations[f1]) and \
+            np.array_equal(early[1], final.motion.positions[f1]):
+        marks["first_frame"] = early[2]
+    return final, _level_of(final, tried, stepped, reach), tuple(tried)
+
+
+def _early_frame(edit: _Edit, f1: int):
+    """A kick solved whole: up to the kicking foot's lift-off ``t_start``, ``d(t) = 0`` and the root
+    shift is 0 at every level, so frame ``t0 + 1`` (feet only) is final before the level is decided."""
+    a1 = edit.run(0, frames=[f1])
+    if f1 <= a1.t_start:
+        return a1.motion.rotations[f1], a1.motion.positions[f1], time.perf_counter()
+    return None
+
+
+def _root_level(edit: _Edit, ad: Adaptation, final, part: bool, first, max_iter: int, options: StrikeOptions,
+                leg: float):
+    """The ``"root"`` level: ``(adaptation, root offsets, max_iter, final)`` of the first root-shift trial
+    that the support leg follows and that gets closer, else the level below unchanged."""
+    if part and not ad.feet_independent:
+        part = False
+        ad = final = edit.run(max_iter)
+    release = edit.base.release
+    n_rel = None if release is None else int(round(float(release) / edit.blended.frame_time))
+    foot_tol = 1e-3 * leg
+    for frac in ROOT_SHIFT_TRIALS:  # the support leg must still reach its pinned foot
+        shift = _root_shift(ad, frac, options.max_root_shift * leg, edit.base.kind, n_rel)
+        foot_max = max(foot_tol, ad.foot_error)
+        # max_foot_error: a trial whose support foot fails stops before its hit solve when it can (None)
+        ad2 = edit.run(ROOT_MAX_ITER, root_offsets=shift, frames=first if part else None,
+                       max_foot_error=foot_max if options.early_stop else None)
+        if ad2 is not None and ad2.foot_error <= foot_max and ad2.residual < ad.residual:
+            return ad2, shift, ROOT_MAX_ITER, (None if part else ad2)
+    return ad, None, max_iter, final
+
+
+def _step_level(edit: _Edit, ad: Adaptation, final, off, max_iter: int, options: StrikeOptions, ch: Skeleton):
+    """The ``"step"`` level of a punch (:func:`_step`), from the whole clip at the level reached so far:
+    ``(adaptation, final, stepping side or None)``; a step changes the contacts."""
+    if final is None:
+        ad = final = edit.run(max_iter, root_offsets=off)
+    base = edit.base
+    best = _step(edit.blended, edit.effector, edit.X, edit.tc, ad, edit.contacts, ch,
+                 dataclasses.replace(base, max_iter=ROOT_MAX_ITER), base.kind, base.release, options.max_root_shift)
+    if best is None:
+        return ad, final, None
+    edit.contacts = best[2]
+    return best[0], best[0], best[1]
+
+
+def _level_of(ad: Adaptation, tried: list, stepped, reach: str) -> str:
+    """The reach level the contact frame needed (for an unreachable target, the highest tried)."""
     if not ad.reached or reach == "limb":
-        level = tried[-1]
-    elif stepped is not None:
-        level = "step"
-    elif ad.root_offsets is not None and np.any(ad.root_offsets[tc] != 0):
-        level = "root"
-    else:
-        level = "spine" if ad.solver[tc] == "ccd" else "limb"
-    F = ad.motion.n_frames
-    timings = {
-        "prepare": t_search - t_order,
-        "search": t_load - t_search,
-        "load_convert": t_adapt - t_load,
-        "retarget": t_adapt - t_rt,
-        "adapt": t_end - t_adapt,
-        "solver": t_end - t_solver,
-        "first_frame": t_first - t_order,
-        "level": t_level - t_order,
-        "rest": t_end - t_first,
-        "order": t_end - t_order,
+        return tried[-1]
+    if stepped is not None:
+        return "step"
+    if ad.root_offsets is not None and np.any(ad.root_offsets[ad.tc] != 0):
+        return "root"
+    return "spine" if ad.solver[ad.tc] == "ccd" else "limb"
+
+
+def _timings(marks: dict, n_frames: int) -> dict:
+    """:attr:`Strike.timings` from the marks of :func:`strike` (``time.perf_counter()`` values)."""
+    t = {
+        "prepare": marks["search"] - marks["order"],
+        "search": marks["load"] - marks["search"],
+        "load_convert": marks["adapt"] - marks["load"],
+        "retarget": marks["adapt"] - marks["retarget"],
+        "adapt": marks["end"] - marks["adapt"],
+        "solver": marks["end"] - marks["solver"],
+        "first_frame": marks["first_frame"] - marks["order"],
+        "level": marks["level"] - marks["order"],
+        "rest": marks["end"] - marks["first_frame"],
+        "order": marks["end"] - marks["order"],
     }
-    timings["adapt_per_frame"] = timings["adapt"] / F
-    timings["retarget_adapt_per_frame"] = (timings["retarget"] + timings["adapt"]) / F
-    p0 = ad.original_hit
-    return Strike(
-        kind=semantics, target=X, target_local=c, retrieval=res, effector=effector, motion=ad.motion,
-        original=blended, adaptation=ad, tc=tc, hit_error=float(ad.residual), reached=bool(ad.reached),
-        unadapted_error=float(np.linalg.norm(p0[tc] - X)),
-        foot_slide=max_foot_slide(ad.motion, contacts, skeleton=ch),
-        timings=timings, level=level, levels_tried=tuple(tried), contacts=contacts,
-        closest_error=float(np.linalg.norm(p0 - X, axis=1).min()),
-        cost=adaptation_cost(blended, ad.motion, ch, frames=slice(1, None)),
-    )
+    t["adapt_per_frame"] = t["adapt"] / n_frames
+    t["retarget_adapt_per_frame"] = (t["retarget"] + t["adapt"]) / n_frames
+    return t
 
 
 def reach_by_distance(distances, reached, levels, bins=5) -> list[dict]:

@@ -9,8 +9,8 @@ from repro.errors import MotionError, RetrievalError
 from repro.motion.adaptation import AdaptOptions, adapt
 from repro.motion.adaptation.cost import COST_KEYS, adaptation_cost
 from repro.motion.body.feet import foot_contacts, max_foot_slide, min_toe_height
+from repro.motion.runtime.options import REACH_LEVELS, StrikeOptions
 from repro.motion.runtime.strike import (
-    REACH_LEVELS,
     Strike,
     blend_into,
     clip_effector,
@@ -38,10 +38,19 @@ def setup():
     return db, ch, stance, retriever, retriever.prepare(stance, ch)
 
 
+#: strike()'s own arguments, and the AdaptOptions fields, among the keywords of run()
+STRIKE_ARGS = ("frame", "seed", "t_order")
+ADAPT_FIELDS = ("feet", "floor", "kind", "release")
+
+
 def run(setup, c, sem, **kw):
+    """A strike with the paper's pruned search (what these tests were measured with); ``kw`` are strike()'s
+    arguments, StrikeOptions fields and AdaptOptions fields."""
     db, ch, stance, retriever, q = setup
-    kw.setdefault("frame", "root")
-    return strike(retriever, ch, stance, c, sem, query=q, **kw)
+    args = {"frame": "root", **{k: kw.pop(k) for k in STRIKE_ARGS if k in kw}}
+    edit = AdaptOptions(**{k: kw.pop(k) for k in ADAPT_FIELDS if k in kw})
+    options = StrikeOptions(**{"method": "pruned", **kw, "adapt": edit})
+    return strike(retriever, ch, stance, c, sem, query=q, options=options, **args)
 
 
 def test_strike_starts_at_the_current_pose_and_reaches_a_near_target(setup):
@@ -54,7 +63,7 @@ def test_strike_starts_at_the_current_pose_and_reaches_a_near_target(setup):
     assert set(COST_KEYS) <= set(s.cost) and s.cost["bone_length_error_m"] < 1e-9
     assert {"prepare", "search", "load_convert", "adapt", "first_frame"} <= set(s.timings)
     # the world frame and the root frame give the same strike
-    w = strike(setup[3], ch, stance, s.target, "punch", query=setup[4])
+    w = strike(setup[3], ch, stance, s.target, "punch", query=setup[4], options=StrikeOptions(method="pruned"))
     assert w.retrieval.clip == s.retrieval.clip
     np.testing.assert_allclose(w.motion.rotations, s.motion.rotations, atol=1e-12)
 
@@ -378,7 +387,7 @@ def test_adapt_streaming_and_step_options_refuse_bad_input(setup):
         ({"reach": None}, MotionError, "reach"),
         ({"frame": ["root"]}, MotionError, "frame"),
         ({"method": 3}, RetrievalError, "method"),
-        ({"scoring": None}, RetrievalError, "scoring"),
+        ({"method": "best"}, RetrievalError, "method"),
     ],
 )
 def test_every_option_is_checked_before_any_level_runs(setup, kw, error, match):
@@ -386,6 +395,15 @@ def test_every_option_is_checked_before_any_level_runs(setup, kw, error, match):
     root level, or raise bare TypeErrors once the root level ran (a target the spine cannot reach)."""
     with pytest.raises(error, match=match):
         run(setup, [0.0, 0.9, 1.2], "punch", **kw)
+
+
+def test_options_must_be_strike_options(setup):
+    db, ch, stance, retriever, q = setup
+    for bad in ({"method": "exact"}, "exact", AdaptOptions()):
+        with pytest.raises(MotionError, match="StrikeOptions"):
+            strike(retriever, ch, stance, [0.0, 1.2, 1.0], "punch", query=q, frame="root", options=bad)
+    with pytest.raises(MotionError, match="adapt must be an AdaptOptions"):
+        StrikeOptions(adapt={"feet": "pin"})
 
 
 def test_semantics_and_the_current_motion_are_checked(setup):
