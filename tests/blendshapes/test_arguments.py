@@ -1,4 +1,4 @@
-"""Issue 9, section 2, item 5: the blendshape API checks types and does not depend on the scale of D.
+"""The blendshape API refuses bad arguments with its own errors and does not depend on the scale of D (issue 9).
 
 Two systematic tests:
 
