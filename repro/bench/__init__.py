@@ -31,6 +31,7 @@ __all__ = ["machine", "median_time"]
 #: the benchmark functions, by the module that holds them (``repro.bench.<name>`` forwards)
 _HOMES = {
     "bench_attenuation": "attenuation", "bench_attenuation_scaling": "attenuation", "format_attenuation": "attenuation",
+    "bench_bounded": "attenuation",
     "bench_retrieval": "retrieval", "retrieval_summary": "retrieval", "format_retrieval": "retrieval",
     "bench_adaptation": "adaptation", "format_adaptation": "adaptation",
     "bench_index_build": "index_build", "format_index_build": "index_build",
