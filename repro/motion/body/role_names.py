@@ -170,26 +170,28 @@ def limbs_by_name(names: list[str], index: dict[str, int], par, roles: dict[str,
 
     ``roles`` already found are kept and ``used`` joints not taken again; with parents
     ``par`` a hand joint must be the child of the wrist."""
-    readings = {n: side_and_base(n) for n in names}
+    read_as: dict[tuple[str, str], list[str]] = {}  # (side, base) -> the names read so, in joint order
+    for n in names:
+        for reading in dict.fromkeys(side_and_base(n)):
+            read_as.setdefault(reading, []).append(n)
     for side in ("left", "right"):
         for stem, bases in SIDE_BASES.items():
             role = f"{side}_{stem}"
             if role in roles:
                 continue
             for base in bases:
-                hits = [n for n in names if n not in used and (side, base) in readings[n]]
-                if hits:
-                    roles[role] = hits[0]
-                    used.add(hits[0])
+                hit = next((n for n in read_as.get((side, base), ()) if n not in used), None)
+                if hit is not None:
+                    roles[role] = hit
+                    used.add(hit)
                     break
         wrist = roles.get(f"{side}_wrist")
         if f"{side}_hand" not in roles and wrist is not None:
-            for n in names:
-                if n not in used and (side, "hand") in readings[n]:
-                    if par is None or par[index[n]] == index[wrist]:
-                        roles[f"{side}_hand"] = n
-                        used.add(n)
-                        break
+            for n in read_as.get((side, "hand"), ()):
+                if n not in used and (par is None or par[index[n]] == index[wrist]):
+                    roles[f"{side}_hand"] = n
+                    used.add(n)
+                    break
 
 
 def trunk_by_name(role: str, names: Sequence[str], exclude: set[str]) -> str | None:

@@ -181,7 +181,7 @@ def find_roles(
     names, par, offsets, end_site_parents = _checked_arguments(joint_names, parents, overrides, required,
                                                                offsets, end_site_parents)
     key = _cache_key(names, par, overrides, required, offsets, end_site_parents)
-    es_set = None if end_site_parents is None else {int(e) for e in np.asarray(end_site_parents).reshape(-1)}
+    es_set = None if end_site_parents is None else set(end_site_parents.tolist())
     if key is None:
         return _find_roles(names, par, overrides, required, offsets, es_set)
     return dict(_CACHE.get(key, lambda: _find_roles(names, par, overrides, required, offsets, es_set)))
@@ -216,7 +216,7 @@ def _cache_key(names, par, overrides, required, offsets, end_site_parents) -> tu
     """The key of a call in :data:`_CACHE`, or None when an argument cannot be hashed."""
     try:
         off_key = None if offsets is None else np.asarray(offsets, dtype=float).tobytes()
-        es = None if end_site_parents is None else tuple(int(e) for e in np.asarray(end_site_parents).reshape(-1))
+        es = None if end_site_parents is None else tuple(end_site_parents.tolist())
         key = (tuple(names), None if par is None else par.tobytes(), off_key,
                tuple(sorted((overrides or {}).items())), tuple(required), es)
         hash(key)
