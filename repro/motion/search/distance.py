@@ -300,6 +300,11 @@ class AlignedPoseIndex:
         """Number of candidate poses N."""
         return self._N
 
+    @property
+    def n_points(self) -> int:
+        """Number of points P' of a pose cloud (a query is a ``(P', 3)`` array)."""
+        return self._P
+
     def terms(self) -> tuple[np.ndarray, ...]:
         """``(M, X, Z, H, Y2, perm)``: the closed form's stored terms (views) and the stored entry of each
         candidate (``perm[i]``), for a compiled reader of :meth:`distances` (the exact retrieval's)."""

@@ -1,8 +1,8 @@
-"""Exact retrieval: branch and bound over the clusters and clip runs of :class:`MotionRetriever`.
+"""Exact retrieval: branch and bound over the clusters and clip runs of a retrieval index.
 
-The methods of :class:`ExactSearch` are those of :class:`repro.motion.search.retrieval.MotionRetriever`
-(a mixin: they read its database, clusters and per-pose arrays) that return the exhaustive
-optimum of ``d = w_q d_qr + w_c d_cr`` without scoring every pose.  Bounds (issue 13, item 1):
+:class:`ExactSearch` returns the exhaustive optimum of ``d = w_q d_qr + w_c d_cr`` (Pronost et
+al., Section 3.3) without scoring every pose, over the clusters, boxes and clip runs of a
+:class:`~repro.motion.search.index.RetrievalIndex`.  Bounds (issue 13, item 1):
 
 * Kovar et al.'s aligned distance ``D`` minimises over an isometry group (rotations about
   the vertical, horizontal translations) under a weighted Euclidean seminorm: a
@@ -12,7 +12,8 @@ optimum of ``d = w_q d_qr + w_c d_cr`` without scoring every pose.  Bounds (issu
 
 Every bound has :data:`BOUND_SLACK` subtracted (rounding of the closed form).  The search is
 a cascade over the *groups* (the poses of one clip inside one cluster), cheapest bound first,
-compiled, in one call (:mod:`repro.motion.search.kernel`, which says why).
+compiled, in one call (:mod:`repro.motion.search.kernel`, which says why); the steps are in
+:meth:`ExactSearch.search`.
 
 Scoring ``d_cr`` in the frame of the start pose (``scoring="start"``: the closest approach of the
 hit trajectory as played from the start frame on) was measured to cut the kick miss from 0.49 to
@@ -26,20 +27,18 @@ issue 24 with ``features=True``, which nothing used; commit f839872 has it too.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from repro.checks import abs_max, as_int, as_real_array, check_alloc
 from repro.errors import RetrievalError
-from repro.motion.database.annotation import SEMANTICS
 from repro.motion.core.kinematics import MAX_COORDINATE as MAX_COORD
-from repro.motion.search.distance import aligned_distance
+from repro.motion.database.annotation import SEMANTICS
+from repro.motion.database.clips import MotionDatabase
+from repro.motion.search.index import RetrievalIndex, index_dtype
+from repro.motion.search.query import Query
+from repro.motion.search.results import RetrievalResult, finish, near_terms, near_threshold
 
-if TYPE_CHECKING:  # annotations only (retrieval imports this module)
-    from repro.motion.search.retrieval import Query, RetrievalResult
-
-__all__ = ["BOUND_SLACK", "ExactSearch", "sample_grid"]
+__all__ = ["BOUND_SLACK", "ExactSearch", "sample_grid", "trajectory_samples"]
 
 #: Slack (units of the actor's size) subtracted from the lower bounds of the exact search, above the
 #: rounding error of the closed-form aligned distance (about 1e-8 near 0).
@@ -51,176 +50,94 @@ SEGMENT: int = 8
 
 
 class ExactSearch:
-    """Branch-and-bound methods of :class:`~repro.motion.search.retrieval.MotionRetriever` (see the module docstring)."""
+    """The exact search over an index: the compiled kernel's arrays, made once per semantics.
 
-    def _bounds_setup(self) -> None:
-        """Per (cluster, semantics) block: its radius, and the clips' boxes in units of their actor's size.
+    ``arrays[semantics]``: the index's groups (:attr:`RetrievalIndex.groups`) with the hit-trajectory
+    samples of their clips (:func:`trajectory_samples`) and the closed-form terms of their poses
+    (:meth:`~repro.motion.search.distance.AlignedPoseIndex.terms`), C-contiguous; None for a semantics
+    without candidates.
+    """
 
-        Radius: the largest aligned distance (units of the actor's size) from the centroid
-        to a pose of the block, so that ``D(q, p) >= D(q, m) - r`` for every pose ``p`` of
-        it (triangle inequality of the pseudometric ``D``).
-        """
-        db = self.db
-        s = db.size_a
-        self._nbox_lo = db.box_min / s[:, None]
-        self._nbox_hi = db.box_max / s[:, None]
-        k = self.clusters.k
-        self._bb = {}
+    def __init__(self, index: RetrievalIndex):
+        self.index = index
+        self.arrays = {}
         for sem in SEMANTICS:
-            rad = np.full(k, np.inf)
-            for cl in range(k):
-                b = self.cluster_block[cl][sem]
-                if b is None:
-                    continue
-                self._groups(b)
-                rad[cl] = float(b.index.distances(self.clusters.centroids[cl]).max())
-            self._bb[sem] = {"radius": rad}
+            g = index.groups[sem]
+            self.arrays[sem] = None if g is None else {**g, **trajectory_samples(index.db, g["uclip"]),
+                                                       **_index_terms(g["index"])}
+        self._cterms = tuple(np.ascontiguousarray(t) for t in index.centroid_index.terms()[:5])
+        self._slots: dict = {}  # (semantics, query actors) -> the query slot of each group's and clip's actor
 
-    def _groups(self, b) -> None:
-        """Split a block into its clips' runs of poses: offsets, radius and centroid of each (exact search).
+    def _slots_of(self, sem: str, slots: tuple) -> tuple:
+        """The query slot of each group's and each clip's actor (-1: an actor the character cannot use)."""
+        key = (sem, slots)
+        got = self._slots.get(key)
+        if got is None:
+            ex = self.arrays[sem]
+            amap = np.full(int(self.index.db.actor.max()) + 1, -1, dtype=np.intp)
+            amap[list(slots)] = np.arange(len(slots))
+            got = self._slots[key] = (amap[ex["gactor"]], amap[ex["uactor"]])
+        return got
 
-        The radius is the largest aligned distance from the run's centroid
-        (:meth:`_group_centroids`, rounded to float32 and kept, for the runs of more than one
-        pose, as ``b.gcent`` until :meth:`_exact_setup` gathers them) to its poses, so that
-        ``D(q, p) >= D(q, m) - r`` for each pose ``p`` of the run (the compiled search's bound
-        of a run, before its poses are scored).  The radius is measured from the rounded centroid, which keeps the bound exact
-        (any centre will do), in half the memory (at 1,000x the float64 terms of the centroids
-        took the build's traced peak from 3.4 to 4.3 GB, measured).
+    def search(self, q: Query, sem: str, c_r: np.ndarray, c_hat: np.ndarray, *, stats: dict | None = None,
+               batch: int = 32) -> RetrievalResult:
+        """The exhaustive optimum of ``d`` over the poses of ``sem``, by a cascade over the clip runs (groups),
+        cheapest bound first, in one compiled call (:func:`repro.motion.search.kernel.search_first`, which
+        says why); ``c_r`` the clips' targets (Eq. 1), ``c_hat = c / size_c``.
+
+        1. per cluster and actor: ``max(D(q_r, m) - r, 0)`` with ``m, r`` its centroid and radius;
+           a group's bound is ``s (w_q max(D(q_r, m) - r, 0) + w_c lc)`` with ``lc`` its clip's
+           box gap (units of size), computed only for the groups looked at; 2. a first best ``d``:
+           the ``batch`` groups of lowest bound among those of the clusters nearest ``q_r`` and of
+           the clips passing nearest ``c_r`` (the nearest trajectory samples), scored exactly;
+           3. the groups whose bound can beat it: those of the clips with a trajectory sample
+           within ``best / (w_c smin)`` of ``c_hat`` (``d >= w_c d_cr >= w_c smin d_cr / s``), by
+           their exact ``d_cr``; 4. the poses still below the best ``d`` scored exactly, lowest
+           bound first (a run of more than one pose first bounded by its own centroid and radius),
+           until the next bound exceeds the best.  Every bound has :data:`BOUND_SLACK` subtracted.
+           Candidates within rounding of the best are re-scored one by one and ties go to the lowest
+           pose index, as in the exhaustive scan (:func:`~repro.motion.search.results.select`): both
+           return the same pose with the same numbers.  ``stats`` (a dict), when given, receives
+           ``clusters_visited``, ``groups_scored`` and ``poses_scored``.
         """
-        G = b.uclips.size
-        gstart = np.concatenate([[0], np.flatnonzero(np.diff(b.inv)) + 1, [b.rows.size]])
-        if gstart.size != G + 1:  # rows sorted, so each clip's poses are contiguous
-            raise AssertionError("block rows are not grouped by clip")
-        b.gstart = gstart
-        pts = self.db.pose_points[b.rows]
-        cent = self._group_centroids(b, pts).astype(np.float32)
-        r = aligned_distance(cent[b.inv].astype(float), pts, self.weights)
-        b.gradius = np.maximum.reduceat(r, gstart[:-1])
-        b.gcent = cent[np.diff(gstart) > 1]  # a run of one pose is bounded by scoring it
-
-    def _group_centroids(self, b, pts: np.ndarray | None = None) -> np.ndarray:
-        """(G, P, 3) float64: the mean cloud of each clip run of block ``b`` (after :meth:`_groups`)."""
-        if pts is None:
-            pts = self.db.pose_points[b.rows]
-        cnt = np.diff(b.gstart).astype(float)
-        return np.add.reduceat(pts, b.gstart[:-1], axis=0) / cnt[:, None, None]
-
-
-    def _prepared(self, q: Query, actor: int | None = None):
-        """The query matrices of ``q_r`` (one per actor; that of ``actor`` alone when given), computed
-        once per query."""
-        key = id(q)
-        hit = self._qm_cache
-        if hit is None or hit[0] != key or hit[1] is not q:
-            self._qm_cache = hit = (key, q, {})
-        got = hit[2]
-        for a in (q.q_n if actor is None else (actor,)):
-            if a not in got:
-                got[a] = self.index.query_matrix(q.q_n[a])
-        return got if actor is None else got[actor]
-
-    def _exact_setup(self) -> None:
-        """Flat arrays of the groups (clip runs inside clusters) of each semantics, cluster by cluster."""
-        db = self.db
-        self._ex = {}
-        for sem in SEMANTICS:
-            blocks = [b for b in (self.cluster_block[cl][sem] for cl in range(self.clusters.k)) if b is not None]
-            gcent = np.empty((sum(b.gcent.shape[0] for b in blocks), self.weights.size, 3), dtype=np.float32)
-            nc = 0
-            rows, gstart, gcl, rad, clstart = [], [0], [], [], [0]
-            for cl in range(self.clusters.k):
-                b = self.cluster_block[cl][sem]
-                if b is not None:
-                    rows.append(b.rows)
-                    gstart.extend((b.gstart[1:] + gstart[-1] - 0).tolist())
-                    gcl.append(np.full(b.uclips.size, cl))
-                    rad.append(b.gradius)
-                    gcent[nc:nc + b.gcent.shape[0]] = b.gcent  # filled in place (memory)
-                    nc += b.gcent.shape[0]
-                    b.gcent = None
-                clstart.append(clstart[-1] + (0 if b is None else b.uclips.size))
-            if not rows:
-                self._ex[sem] = None
-                continue
-            span = self._sem_span[sem]  # the blocks' rows, concatenated: views of the gathered candidates
-            rows, psize, pactor, pclip = (self._cand[n][span] for n in ("rows", "size", "actor", "clip"))
-            gstart = np.asarray(gstart, dtype=np.intp)
-            gclip = db.pose_clip[rows[gstart[:-1]]]
-            uclip, gu = np.unique(gclip, return_inverse=True)
-            index = self.index.subset(rows)
-            self._ex[sem] = {
-                "rows": rows, "index": index, "gstart": gstart, "glen": np.diff(gstart),
-                "gclip": gclip, "gsize": db.size_a[gclip], "gactor": db.actor[gclip], "gcluster": np.concatenate(gcl),
-                "gradius": np.concatenate(rad),
-                "clstart": np.asarray(clstart, dtype=np.intp), "glen_cl": np.diff(clstart), "size": psize,
-                "actor": pactor, "clip": pclip, "sem": sem,
-                "uclip": uclip, "gu": gu, "ulo": self._nbox_lo[uclip], "uhi": self._nbox_hi[uclip],
-                "pu": np.repeat(gu, np.diff(gstart)), "ugroups": np.argsort(gu, kind="stable"),
-                "ustart": np.searchsorted(np.sort(gu), np.arange(uclip.size + 1)), "usize": db.size_a[uclip], "smin": float(db.size_a[uclip].min()),
-                **self._trajectory_samples(uclip), **_index_terms(index),
-            }
-            ex = self._ex[sem]
-            ex["gcent"] = gcent  # the centroids (float32) of the runs of more than one pose, in order
-            multi = ex["glen"] > 1
-            ex["gci"] = np.where(multi, np.cumsum(multi) - 1, -1).astype(_index_dtype(multi.size))  # row in gcent, or -1
-            ex["ucl"] = ex["gcluster"][ex["ugroups"]]  # the cluster of each clip's groups, clip by clip
-            ex["uactor"] = db.actor[uclip]  # a clip's groups are of its actor (gactor == uactor[gu])
-
-    def _trajectory_samples(self, uclip: np.ndarray) -> dict:
-        """The hit-trajectory samples of clips ``uclip`` in units of their actor's size, and the position in
-        ``uclip`` of each sample's clip (the compiled search's labels of the samples)."""
-        db = self.db
-        n = db.n_frames[uclip]
-        st = db.traj_start[uclip]
-        idx = np.repeat(st - np.concatenate([[0], np.cumsum(n)[:-1]]), n) + np.arange(int(n.sum()))
-        tclip = np.repeat(np.arange(uclip.size), n)
-        tpts = db.traj[idx] / db.size_a[uclip][tclip, None]
-        tstart = np.concatenate([[0], np.cumsum(n)[:-1]]).astype(np.intp)
-        # segments of SEGMENT samples (the compiled search's boxes): they tile each clip's samples in order
-        nseg = -(-n // SEGMENT)
-        useg = np.concatenate([[0], np.cumsum(nseg)]).astype(np.intp)
-        seg_start = np.repeat(tstart - SEGMENT * useg[:-1], nseg) + SEGMENT * np.arange(int(useg[-1]))
-        sbox = np.concatenate([np.minimum.reduceat(tpts, seg_start), np.maximum.reduceat(tpts, seg_start)], axis=1)
-        return {"tpts": tpts, "tclip": tclip, "tlen": n.astype(np.intp), "tstart": tstart,
-                "sbox": np.ascontiguousarray(sbox), "useg": useg, "grid": sample_grid(tpts)}
-
-    def _search_exact(self, c, q: Query, sem: str, scale_target: bool = True, stats: dict | None = None,
-                      batch: int = 32) -> RetrievalResult:
-        """The exact search of ``sem``: the compiled cascade (:meth:`_search_exact_compiled`)."""
-        c_r = self._c_r(c, q.size_c, scale_target)
-        if not scale_target:  # the normalised target differs per actor size: score everything (exact)
-            return self._search_exhaustive(c, q, sem, scale_target, method="exact")
-        return self._search_exact_compiled(self._ex[sem], c_r, c / q.size_c, q, stats, batch)
-
-    def _search_exact_compiled(self, ex: dict, c_r: np.ndarray, c_hat: np.ndarray, q: Query,
-                               stats: dict | None, batch: int) -> RetrievalResult:
-        """The cascade in one compiled call
-        (:func:`repro.motion.search.kernel.search_first`, which says why)."""
         from repro.motion.search.kernel import search_first  # numba: imported on first use
 
+        ex = self.arrays[sem]
+        index = self.index
         slots = tuple(q.q_n)
-        gslot = ex.setdefault("gslot", {}).get(slots)
-        if gslot is None:  # the query slot of each group's actor (-1: an actor the character cannot use)
-            amap = np.full(int(self.db.actor.max()) + 1, -1, dtype=np.intp)
-            amap[list(slots)] = np.arange(len(slots))
-            gslot = ex["gslot"][slots] = amap[ex["gactor"]]
-            ex.setdefault("uslot", {})[slots] = amap[ex["uactor"]]
+        gslot, uslot = self._slots_of(sem, slots)
         qpts = np.array([q.q_n[a].T for a in slots], dtype=float)
-        rtol, atol = self._near_terms()
-        if self._cterms is None:
-            self._cterms = tuple(np.ascontiguousarray(t) for t in self.centroid_index.terms()[:5])
+        rtol, atol = near_terms(index)
         pos, d, n_groups, n_clusters = search_first(
-            c_hat, qpts, self.weights, *self._cterms, self._bb[ex["sem"]]["radius"], gslot, ex["gcluster"],
-            ex["gsize"], ex["gstart"], ex["gu"], ex["ugroups"], ex["ustart"], ex["ucl"], ex["uslot"][slots], ex["ulo"], ex["uhi"], ex["usize"],
-            ex["tpts"], ex["tstart"], ex["tlen"], ex["sbox"], ex["useg"], SEGMENT, ex["M"], ex["perm"], ex["X"], ex["Z"], ex["H"], ex["Y2"],
-            ex["size"], ex["gcent"], ex["gci"], ex["gradius"], self.w_q, self.w_c, rtol, atol, BOUND_SLACK, ex["clstart"], *ex["grid"], ex["tclip"],
-            NEAR_SAMPLES, batch)
+            c_hat, qpts, index.weights, *self._cterms, index.radius[sem], gslot, ex["gcluster"],
+            ex["gsize"], ex["gstart"], ex["gu"], ex["ugroups"], ex["ustart"], ex["ucl"], uslot, ex["ulo"], ex["uhi"],
+            ex["usize"], ex["tpts"], ex["tstart"], ex["tlen"], ex["sbox"], ex["useg"], SEGMENT, ex["M"], ex["perm"],
+            ex["X"], ex["Z"], ex["H"], ex["Y2"], ex["size"], ex["gcent"], ex["gci"], ex["gradius"], index.w_q,
+            index.w_c, rtol, atol, BOUND_SLACK, ex["clstart"], *ex["grid"], ex["tclip"], NEAR_SAMPLES, batch)
         if pos.size == 0:
             raise RetrievalError("no clip of an actor compatible with the character for this semantics")
         if stats is not None:
             stats.update(clusters_visited=int(n_clusters), groups_scored=int(n_groups), poses_scored=int(pos.size))
-        keep = d <= self._near_threshold(float(d.min()))
-        return self._finish(q, [(ex["rows"][pos[keep]], d[keep])], c_r, method="exact", n=pos.size)
+        keep = d <= near_threshold(index, float(d.min()))
+        return finish(index, q, [(ex["rows"][pos[keep]], d[keep])], c_r, method="exact", n=pos.size)
+
+
+def trajectory_samples(db: MotionDatabase, uclip: np.ndarray) -> dict:
+    """The hit-trajectory samples of clips ``uclip`` in units of their actor's size, and the position in
+    ``uclip`` of each sample's clip (the compiled search's labels of the samples)."""
+    n = db.n_frames[uclip]
+    st = db.traj_start[uclip]
+    idx = np.repeat(st - np.concatenate([[0], np.cumsum(n)[:-1]]), n) + np.arange(int(n.sum()))
+    tclip = np.repeat(np.arange(uclip.size), n)
+    tpts = db.traj[idx] / db.size_a[uclip][tclip, None]
+    tstart = np.concatenate([[0], np.cumsum(n)[:-1]]).astype(np.intp)
+    # segments of SEGMENT samples (the compiled search's boxes): they tile each clip's samples in order
+    nseg = -(-n // SEGMENT)
+    useg = np.concatenate([[0], np.cumsum(nseg)]).astype(np.intp)
+    seg_start = np.repeat(tstart - SEGMENT * useg[:-1], nseg) + SEGMENT * np.arange(int(useg[-1]))
+    sbox = np.concatenate([np.minimum.reduceat(tpts, seg_start), np.maximum.reduceat(tpts, seg_start)], axis=1)
+    return {"tpts": tpts, "tclip": tclip, "tlen": n.astype(np.intp), "tstart": tstart,
+            "sbox": np.ascontiguousarray(sbox), "useg": useg, "grid": sample_grid(tpts)}
 
 
 def sample_grid(pts: np.ndarray, per_cell: int = 8, max_cells: int = 1 << 21) -> tuple:
@@ -248,12 +165,7 @@ def sample_grid(pts: np.ndarray, per_cell: int = 8, max_cells: int = 1 << 21) ->
     cell = (cell3[:, 2] * dims[1] + cell3[:, 1]) * dims[0] + cell3[:, 0]
     order = np.argsort(cell, kind="stable")
     start = np.concatenate([[0], np.cumsum(np.bincount(cell, minlength=int(np.prod(dims))))]).astype(np.intp)
-    return lo, h, dims, start, order.astype(_index_dtype(order.size))
-
-
-def _index_dtype(n: int):
-    """int32 for indices below ``n`` when they fit (half the memory of intp at 1,000x), else int64."""
-    return np.int32 if n < 2 ** 31 else np.int64
+    return lo, h, dims, start, order.astype(index_dtype(order.size))
 
 
 def _index_terms(index) -> dict:

@@ -27,7 +27,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-import repro.motion.search.retrieval as retrieval_mod
+import repro.motion.search.query as query_mod
 from repro.motion.retargeting import dispatch
 from repro.errors import MotionError, RetrievalError
 from repro.motion.database.clips import Clip, MotionDatabase
@@ -173,8 +173,8 @@ def test_across_trees_caches_the_actor_rest_poses(mixed, monkeypatch):
     db, _ = mixed
     r = MotionRetriever(db, seed=0, across_trees=True)
     calls = []
-    real = retrieval_mod.rest_motion_y_up
-    monkeypatch.setattr(retrieval_mod, "rest_motion_y_up", lambda sk: calls.append(sk) or real(sk))
+    real = query_mod.rest_motion_y_up
+    monkeypatch.setattr(query_mod, "rest_motion_y_up", lambda sk: calls.append(sk) or real(sk))
     pose = frame_of(db.motion(1), 0)
     ch = Skeleton.from_motion(pose)
     for f in range(3):

@@ -28,6 +28,7 @@ from repro.errors import RetrievalError
 from repro.motion.database.augment import augment
 from repro.motion.body.pose_frames import rotate_y
 from repro.motion.search.distance import aligned_distance
+from repro.motion.search.index import group_centroids
 from repro.motion.database.clips import MotionDatabase
 from repro.motion.search.retrieval import MotionRetriever, make_queries
 
@@ -67,8 +68,8 @@ def test_radii_bound_every_pose(db, retriever, prepared):
             if b is None:
                 continue
             d = b.index.distances(qn)
-            assert np.all(d >= dcent[cl] - r._bb[sem]["radius"][cl] - 1e-9)
-            dg = aligned_distance(qn, r._group_centroids(b), r.weights)
+            assert np.all(d >= dcent[cl] - r.retrieval_index.radius[sem][cl] - 1e-9)
+            dg = aligned_distance(qn, group_centroids(r.db, b), r.weights)
             assert np.all(d >= (dg - b.gradius)[b.inv] - 1e-9)
 
 

@@ -29,6 +29,7 @@ from repro.motion.search.distance import AlignedPoseIndex, aligned_distance
 from repro.motion.search.kmeans import cluster_poses
 from repro.motion.database.clips import MotionDatabase
 from repro.motion.search.index_build import block_order, build_pose_index, startable_poses
+from repro.motion.search.index import RetrievalIndex
 from repro.motion.search.retrieval import MotionRetriever, make_queries
 
 
@@ -119,7 +120,7 @@ def test_block_order_makes_blocks_consecutive(db):
 def test_retriever_blocks_share_the_index(db, monkeypatch):
     r = MotionRetriever(db, k=8)
     blocks = [b for bs in r.cluster_block for b in bs.values()] + list(r.sem_block.values())
-    blocks = [b.index for b in blocks if b is not None] + [ex["index"] for ex in r._ex.values() if ex is not None]
+    blocks = [b.index for b in blocks if b is not None] + [ex["index"] for ex in r.exact.arrays.values() if ex is not None]
     assert blocks and all(np.shares_memory(b._M, r.index._M) for b in blocks)
     assert all(np.shares_memory(t, r.index._T) for b in blocks for t in (b._X, b._Z, b._H, b._Y2))
     _, clusters = build_pose_index(db, 8)
@@ -131,7 +132,7 @@ def test_retriever_blocks_share_the_index(db, monkeypatch):
     def previous(db, k, *, weights=None, seed=0):
         return AlignedPoseIndex(db.pose_points, weights), cluster_poses(db.pose_points, k, weights=weights, seed=seed)
 
-    monkeypatch.setattr(sys.modules[MotionRetriever.__module__], "build_pose_index", previous)
+    monkeypatch.setattr(sys.modules[RetrievalIndex.__module__], "build_pose_index", previous)
     plain = MotionRetriever(db, k=8)
     b = next(b for bs in plain.cluster_block for b in bs.values() if b is not None)
     assert not np.shares_memory(b.index._M, plain.index._M)

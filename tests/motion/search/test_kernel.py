@@ -63,7 +63,7 @@ def test_clip_run_bound_is_below_each_of_its_poses(db, retriever):
     r = retriever
     rng = np.random.default_rng(4)
     for c, pose, ch, sem in make_queries(db, 8, seed=7):
-        ex = r._ex[sem]
+        ex = r.exact.arrays[sem]
         q = r.prepare(pose, ch)
         (qn,) = q.q_n.values()
         qs = np.array(r.index.query_matrix(qn)[1:])
@@ -83,9 +83,9 @@ def test_exact_with_more_seeds_than_clip_runs(db, retriever):
     r = retriever
     for c, pose, ch, sem in make_queries(db, 30, seed=5):
         q = r.prepare(pose, ch)
-        G = r._ex[sem]["gsize"].size
+        G = r.exact.arrays[sem]["gsize"].size
         for batch in (1, G, G + 5):
-            got = r._search_exact(c, q, sem, True, batch=batch)
+            got = r.exact.search(q, sem, r.targets.c_r(c, q.size_c, True), c / q.size_c, batch=batch)
             ref = r.search_exhaustive(c, q, semantics=sem)
             assert (got.pose, got.d) == (ref.pose, ref.d)
 
