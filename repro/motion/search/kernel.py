@@ -1,6 +1,6 @@
-"""The exact search's branch and bound with ``scoring="first"``, compiled (numba).
+"""The exact search's branch and bound, compiled (numba).
 
-:meth:`repro.motion.search.exact.ExactSearch._search_exact` states the bounds; this module
+:meth:`repro.motion.search.exact.ExactSearch.search`, which calls it, states the bounds; this module
 runs the same cascade over the clip runs (groups) of one semantics in one compiled call:
 
 1. the query's terms and, per cluster, ``lq = max(D(q_r, m) - r, 0)`` (centroid ``m``, radius ``r``),
@@ -14,7 +14,7 @@ runs the same cascade over the clip runs (groups) of one semantics in one compil
 3. every clip whose bound ``s (w_q min lq + w_c gap)`` can beat it gets its exact ``d_cr``,
    and its groups whose bound ``s w_q lq + w_c d_cr`` can beat it are candidates;
 4. the candidates, lowest bound first, scored pose by pose until the next bound exceeds the
-   best ``d`` (within :data:`repro.motion.search.retrieval.NEAR_RTOL`, so that every pose the
+   best ``d`` (within :data:`repro.motion.search.results.NEAR_RTOL`, so that every pose the
    exhaustive scan would re-score is scored here too); a group of more than one pose is first
    bounded by its own centroid ``m_g`` and radius ``r_g``, ``s w_q max(D(q_r, m_g) - r_g, 0) +
    w_c d_cr``, and skipped when that exceeds the best ``d`` (measured on CMU at 100x: 912 poses
@@ -33,10 +33,10 @@ them (the clips' group clusters read clip by clip, step 3; the runs' own bound, 
 for step 2), 22.9-30.0x faster than the exhaustive scan against 12.6-21.4x.  Where the rest goes, at
 the median (stage timers inside the kernel, CMU 100x): ~0.1 ms the query's terms, box gaps and
 nearest samples, ~0.2 ms the seeds, ~0.25 ms step 3 (about 690 clips pass the box bound, 600
-get their segments measured, 80 are within reach), ~0.2 ms step 4.  The arithmetic is the numpy path's
-(the closed form of :meth:`~repro.motion.search.distance.AlignedPoseIndex.distances` for ``D``); sums
+get their segments measured, 80 are within reach), ~0.2 ms step 4.  The arithmetic is that of the numpy
+scoring (the closed form of :meth:`~repro.motion.search.distance.AlignedPoseIndex.distances` for ``D``); sums
 round differently in the last bits, which the near-best re-scoring of
-:meth:`~repro.motion.search.retrieval.MotionRetriever._select` absorbs: both searches report the same
+:func:`~repro.motion.search.results.select` absorbs: both searches report the same
 pose with the same numbers.  Compiled once per machine and source (``cache=True``): about 9 s
 on a fresh install, then about 0.3 s to load in a new process, plus about 1 s to import numba,
 which only the exact search imports.
@@ -448,7 +448,7 @@ def search_first(c_hat, qpts, weights, cM, cX, cZ, cH, cY2, radius, gslot, gcl, 
 
 def compile_search() -> None:
     """Compile :func:`search_first` (or load it from numba's cache) on a one-pose problem, with the
-    argument types of :meth:`~repro.motion.search.exact.ExactSearch._search_exact_compiled`: the
+    argument types of :meth:`~repro.motion.search.exact.ExactSearch.search`: the
     first exact search of a process then costs what the others do (the fighter calls it at set-up)."""
     i1, f1, f3 = np.zeros(1, np.intp), np.zeros(1), np.zeros((1, 3))
     search_first(np.zeros(3), np.zeros((1, 3, 1)), np.ones(1), f3, f1, f1, f1, f1, f1, i1, i1, np.ones(1),

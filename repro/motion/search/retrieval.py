@@ -299,7 +299,7 @@ class MotionRetriever(QueryPreparer):
         a first best ``d`` from the most promising clip runs, exact ``d`` only for the poses whose
         bound can beat it) is compiled: :mod:`repro.motion.search.kernel`.
         Candidates within rounding of the best are re-scored one by one and ties (within
-        :data:`TIE_RTOL`) go to the lowest pose index, as in :meth:`search_exhaustive`:
+        :data:`~repro.motion.search.results.TIE_RTOL`) go to the lowest pose index, as in :meth:`search_exhaustive`:
         both return the same pose with the same numbers.  ``stats`` (a dict), when given,
         receives ``clusters_visited``, ``groups_scored`` and ``poses_scored`` (the clusters of
         the clip runs scored, those runs, their poses).
@@ -320,7 +320,7 @@ class MotionRetriever(QueryPreparer):
                           scale_target: bool = True, frame: int | None = None) -> RetrievalResult:
         """Baseline: score every startable pose of the semantics with the same ``d``.
 
-        Ties (``d`` within :data:`TIE_RTOL` of the minimum) go to the lowest pose index.
+        Ties (``d`` within :data:`~repro.motion.search.results.TIE_RTOL` of the minimum) go to the lowest pose index.
         """
         c, q, sem, _, scale_target, _ = self.arguments(
             target, current_pose, character, semantics, method="exhaustive", scale_target=scale_target, frame=frame)
