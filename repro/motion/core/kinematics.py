@@ -148,16 +148,22 @@ def depth_levels(parents) -> list[tuple[np.ndarray, np.ndarray]]:
 
     Linear in the number of joints (a scan per depth level would be quadratic for chains).
     """
+    parents, order, bounds = _depth_order(parents)
+    p = parents[order]
+    return [(order[a:b], p[a:b]) for a, b in zip(bounds[1:-1], bounds[2:])]
+
+
+def _depth_order(parents) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """``(parents, order, bounds)``: the checked parents, the joints by depth (index order within
+    a depth) and where each depth starts in ``order`` (``order[bounds[d]:bounds[d + 1]]`` at depth d)."""
     parents = _tree_parents(parents)
     par = parents.tolist()
     depth = [0] * len(par)
     for j in range(1, len(par)):
         depth[j] = depth[par[j]] + 1
     depth = np.array(depth, dtype=np.intp)
-    order = np.argsort(depth, kind="stable")  # joints by depth, index order within a level
-    bounds = np.cumsum(np.bincount(depth))
-    p = parents[order]
-    return [(order[a:b], p[a:b]) for a, b in zip(bounds[:-1], bounds[1:])]
+    order = np.argsort(depth, kind="stable")
+    return parents, order, [0] + np.cumsum(np.bincount(depth)).tolist()
 
 
 def _tree_parents(parents) -> np.ndarray:
@@ -325,8 +331,9 @@ def rest_positions(parents, offsets) -> np.ndarray:
     """(J, 3) joint positions of the rest pose: forward kinematics with every rotation identity.
 
     ``p[j] = p[parent(j)] + offsets[j]`` (``p[0] = offsets[0]``), one vectorised step per
-    :func:`depth_levels` level: element for element the sums of a joint-by-joint loop, for
-    any tree the library takes (``parents[j] < j``), chains of any depth included.
+    :func:`depth_levels` level (:func:`fk_arrays`' loop without rotations): element for element
+    the sums of a joint-by-joint loop, for any tree the library takes (``parents[j] < j``),
+    chains of any depth included.
 
     Parameters
     ----------
@@ -335,15 +342,18 @@ def rest_positions(parents, offsets) -> np.ndarray:
     offsets : (J, 3) array
         Rest offset of each joint from its parent (the root's: its rest position).
     """
-    levels = depth_levels(parents)
+    parents, order, bounds = _depth_order(parents)
     off = np.asarray(offsets, dtype=float)
-    J = 1 + sum(i.size for i, _ in levels)
-    if off.shape != (J, 3):
-        raise MotionError(f"offsets must be a ({J}, 3) array for {J} joints, got {off.shape}")
-    p = off.copy()
-    for idx, par in levels:
-        p[idx] = p[par] + off[idx]
-    return p
+    if off.shape != (parents.size, 3):
+        raise MotionError(f"offsets must be a ({parents.size}, 3) array for {parents.size} joints, got {off.shape}")
+    # in depth order each level is a slice (only the parents are gathered): the same sums, fewer copies
+    at = np.empty_like(order)
+    at[order] = np.arange(order.size)
+    p = off[order]
+    par = at[parents[order]]
+    for a, b in zip(bounds[1:-1], bounds[2:]):
+        np.add(p[par[a:b]], p[a:b], out=p[a:b])
+    return p[at]
 
 
 def chain_fk(ml: np.ndarray, tl: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
