@@ -38,9 +38,10 @@ in the tests):
   channels equal to its offset);
 * End Sites are kept (parent joint and offset) so that :func:`write_bvh` writes them back.
 
-The frame block is checked with numpy (values per line, number of lines) and then
-parsed, both in chunks of a few MB, so that memory stays proportional to the file and
-nothing is allocated for frames the file does not hold; every malformed input raises
+The HIERARCHY section is read by :mod:`repro.motion.io.bvh_hierarchy`.  The frame block
+is checked with numpy (values per line, number of lines) and then parsed, both in
+chunks of a few MB, so that memory stays proportional to the file and nothing is
+allocated for frames the file does not hold; every malformed input raises
 :class:`repro.errors.BVHError` naming the line or the field (or the joint and frame,
 for lengths so large that world positions overflow).  Text after the declared frames
 (some Second Life / QAvimator exporters append keyframe lists) is ignored with a
@@ -63,10 +64,10 @@ import numpy as np
 from repro.checks import as_bool, as_int, as_real, describe
 from repro.errors import BVHError, BVHWarning
 from repro.io import atomic_path, read_bytes
-from repro.motion.core.channels import POSITION_CHANNELS, ROTATION_CHANNELS, joint_columns
+from repro.motion.core.channels import POSITION_CHANNELS, joint_columns
 from repro.motion.core.motion import Motion
 from repro.motion.core.quaternion import euler_to_quat
-from repro.motion.io.tokens import finite_float
+from repro.motion.io.bvh_hierarchy import Hierarchy, parse_hierarchy
 
 __all__ = ["read_bvh", "write_bvh", "MAX_FRAMES"]
 
@@ -83,7 +84,6 @@ _CHUNK = 1 << 22
 #: so that the text of a deep chain grows linearly with its depth.
 _MAX_INDENT = 32
 
-_CANONICAL_CHANNEL = {c.lower(): c for c in POSITION_CHANNELS + ROTATION_CHANNELS}
 _MOTION_RE = re.compile(rb"^[ \t]*MOTION[ \t]*\r?$", re.M)
 _FRAMES_RE = re.compile(r"^Frames\s*:\s*(\S+)$")
 _FRAME_TIME_RE = re.compile(r"^Frame\s+Time\s*:\s*(\S+)$")
@@ -93,186 +93,7 @@ _NOT_SPACE = np.ones(256, dtype=bool)
 _NOT_SPACE[[9, 10, 11, 12, 13, 32]] = False  # the ASCII whitespace bytes.split() splits on
 
 
-# ---------------------------------------------------------------------- input
-# ------------------------------------------------------------------ hierarchy
-class _Hierarchy:
-    """The parsed HIERARCHY section (plain lists, turned into a Motion later)."""
-
-    def __init__(self) -> None:
-        self.names: list[str] = []
-        self.parents: list[int] = []
-        self.offsets: list[tuple[float, float, float]] = []
-        self.channels: list[tuple[str, ...]] = []
-        self.end_parents: list[int] = []
-        self.end_offsets: list[tuple[float, float, float]] = []
-
-
-def _parse_channels(tok: list[str], where: str) -> tuple[str, ...]:
-    if len(tok) < 2:
-        raise BVHError(f"{where}: CHANNELS needs a count")
-    if not _INT_RE.fullmatch(tok[1]):
-        raise BVHError(f"{where}: channel count {tok[1][:40]!r} is not an integer")
-    n = int(tok[1]) if len(tok[1]) <= 20 else 7  # no int() of thousands of digits
-    if n < 0 or n > 6:
-        raise BVHError(f"{where}: channel count {tok[1][:40]} is out of range 0..6")
-    if len(tok) - 2 != n:
-        raise BVHError(f"{where}: CHANNELS declares {n} channels but names {len(tok) - 2}")
-    out = []
-    for name in tok[2:]:
-        canon = _CANONICAL_CHANNEL.get(name.lower())
-        if canon is None:
-            raise BVHError(
-                f"{where}: unknown channel name {name!r} "
-                f"(expected one of {', '.join(POSITION_CHANNELS + ROTATION_CHANNELS)})"
-            )
-        if canon in out:
-            raise BVHError(f"{where}: channel {canon} is listed twice")
-        out.append(canon)
-    return tuple(out)
-
-
-def _parse_hierarchy(header: str, motion_found: bool) -> _Hierarchy:
-    h = _Hierarchy()
-    seen: set[str] = set()  # joint names so far (a list lookup would make deep files quadratic)
-    # lazily, one line's tokens at a time: a list of every line's tokens would keep
-    # hundreds of thousands of containers alive for the garbage collector to rescan
-    lines = ((i + 1, t) for i, ln in enumerate(header.split("\n")) if (t := ln.split()))
-    n0, t0 = next(lines, (0, None))
-    if t0 is None:
-        raise BVHError("line 1: empty file (expected HIERARCHY)")
-    if t0 != ["HIERARCHY"]:
-        raise BVHError(f"line {n0}: expected 'HIERARCHY', got {' '.join(t0)!r}")
-
-    # stack entries: [kind ('joint'|'end'), index, opened_at_line, got_offset, got_channels, got_children]
-    stack: list[list] = []
-    pending: tuple[str, int, int] | None = None  # a ROOT/JOINT/End Site waiting for '{'
-    root_done = False
-    last_line = n0
-
-    def _open(kind: str, index: int, lineno: int) -> None:
-        stack.append([kind, index, lineno, False, False, False])
-
-    def _what(entry) -> str:
-        if entry[0] == "end":
-            return f"End Site of joint {h.names[entry[1]]!r} (line {entry[2]})"
-        return f"joint {h.names[entry[1]]!r} (line {entry[2]})"
-
-    def _complete(entry, lineno: int, doing: str) -> None:
-        if not entry[3]:
-            raise BVHError(f"line {lineno}: {_what(entry)} has no OFFSET before {doing}")
-        if entry[0] == "joint" and not entry[4]:
-            raise BVHError(f"line {lineno}: {_what(entry)} has no CHANNELS before {doing}")
-
-    for lineno, tok in lines:
-        last_line = lineno
-        where = f"line {lineno}"
-        if pending is not None:
-            if tok != ["{"]:
-                raise BVHError(f"{where}: expected '{{' after line {pending[2]}, got {' '.join(tok)!r}")
-            _open(*pending)
-            pending = None
-            continue
-        head = tok[0]
-        if root_done:
-            raise BVHError(
-                f"{where}: unexpected {' '.join(tok)!r} after the root joint was closed "
-                "(expected MOTION; only one ROOT is supported; unbalanced '}'?)"
-            )
-        opens = tok[-1] == "{" and len(tok) > 1
-        body = tok[:-1] if opens else tok
-        if head in ("ROOT", "JOINT"):
-            if head == "ROOT" and h.names:
-                raise BVHError(f"{where}: second ROOT (only one ROOT is supported)")
-            if head == "JOINT":
-                if not stack or stack[-1][0] != "joint":
-                    raise BVHError(f"{where}: JOINT outside a joint (or inside an End Site)")
-                _complete(stack[-1], lineno, "its child joints")
-                stack[-1][5] = True
-            elif stack:  # pragma: no cover - unreachable (a second ROOT is caught above)
-                raise BVHError(f"{where}: ROOT inside a joint")
-            name = " ".join(body[1:])
-            if not name:
-                raise BVHError(f"{where}: {head} without a name")
-            if name in seen:
-                raise BVHError(f"{where}: duplicate joint name {name!r}")
-            seen.add(name)
-            h.names.append(name)
-            h.parents.append(stack[-1][1] if stack else -1)
-            h.offsets.append((0.0, 0.0, 0.0))
-            h.channels.append(())
-            entry = ("joint", len(h.names) - 1, lineno)
-            if opens:
-                _open(*entry)
-            else:
-                pending = entry
-        elif head == "End" and len(body) == 2 and body[1] == "Site":
-            if not stack or stack[-1][0] != "joint":
-                raise BVHError(f"{where}: End Site outside a joint (or inside an End Site)")
-            _complete(stack[-1], lineno, "its End Site")
-            stack[-1][5] = True
-            h.end_parents.append(stack[-1][1])
-            h.end_offsets.append((0.0, 0.0, 0.0))
-            entry = ("end", stack[-1][1], lineno)
-            if opens:
-                _open(*entry)
-            else:
-                pending = entry
-        elif head == "OFFSET":
-            if not stack:
-                raise BVHError(f"{where}: OFFSET outside a joint")
-            top = stack[-1]
-            if top[3]:
-                raise BVHError(f"{where}: second OFFSET in {_what(top)}")
-            if top[5]:
-                raise BVHError(f"{where}: OFFSET after the children of {_what(top)}")
-            if len(tok) != 4:
-                raise BVHError(f"{where}: OFFSET needs 3 numbers, got {len(tok) - 1}")
-            off = tuple(finite_float(t, f"{where} (OFFSET):") for t in tok[1:4])
-            if top[0] == "end":
-                h.end_offsets[-1] = off
-            else:
-                h.offsets[top[1]] = off
-            top[3] = True
-        elif head == "CHANNELS":
-            if not stack:
-                raise BVHError(f"{where}: CHANNELS outside a joint")
-            top = stack[-1]
-            if top[0] == "end":
-                raise BVHError(f"{where}: CHANNELS in an End Site")
-            if top[4]:
-                raise BVHError(f"{where}: second CHANNELS in {_what(top)}")
-            if top[5]:
-                raise BVHError(f"{where}: CHANNELS after the children of {_what(top)}")
-            h.channels[top[1]] = _parse_channels(tok, where)
-            top[4] = True
-        elif tok == ["}"]:
-            if not stack:
-                raise BVHError(f"{where}: unbalanced '}}' (no open joint)")
-            _complete(stack[-1], lineno, "its closing '}'")
-            stack.pop()
-            if not stack:
-                root_done = True
-        elif tok == ["{"]:
-            raise BVHError(f"{where}: unexpected '{{'")
-        elif head == "HIERARCHY":
-            raise BVHError(f"{where}: second HIERARCHY")
-        else:
-            raise BVHError(f"{where}: unexpected {' '.join(tok)!r} in the hierarchy")
-
-    if not h.names:
-        raise BVHError(f"line {last_line}: empty hierarchy (no ROOT joint)")
-    if pending is not None or stack:
-        what = _what(pending if pending is not None else stack[-1])
-        end = "MOTION" if motion_found else "end of file"
-        raise BVHError(
-            f"line {last_line + 1}: {end} reached inside {what}: missing '}}' (truncated or unbalanced braces)"
-        )
-    if not motion_found:
-        raise BVHError(f"line {last_line + 1}: missing MOTION section (truncated file?)")
-    return h
-
-
-# ---------------------------------------------------------------- frame block
+# ------------------------------------------------------ input: the frame block
 def _next_line(data: bytes, pos: int) -> tuple[str, int, int]:
     """Next non-empty line from ``pos``: (stripped text, lines consumed, new pos)."""
     consumed = 0
@@ -555,7 +376,7 @@ def read_bvh(src, *, unit_m: float | None = None, strict: bool = False) -> Motio
     except UnicodeDecodeError as exc:
         line = header_bytes[: exc.start].count(b"\n") + 1
         raise BVHError(f"line {line}: the hierarchy is not valid UTF-8 text") from None
-    h = _parse_hierarchy(header, motion_found=m is not None)
+    h = parse_hierarchy(header, motion_found=m is not None)
     n_channels = sum(len(c) for c in h.channels)
     motion_line = header_bytes.count(b"\n") + 1
     values, frame_time, _, trailing = _parse_motion_block(
@@ -574,7 +395,7 @@ def read_bvh(src, *, unit_m: float | None = None, strict: bool = False) -> Motio
     return motion
 
 
-def _motion_from_table(h: _Hierarchy, values: np.ndarray, frame_time: float, *, unit_m, source) -> Motion:
+def _motion_from_table(h: Hierarchy, values: np.ndarray, frame_time: float, *, unit_m, source) -> Motion:
     F = values.shape[0]
     J = len(h.names)
     offsets = np.array(h.offsets, dtype=float).reshape(J, 3)
