@@ -108,71 +108,98 @@ def match_rest_pose(motion: Motion, reference, *, return_error: bool = False):
     ref = skeleton_of(reference)
     if not ref.is_compatible(motion):
         raise MotionError("reference skeleton has another joint tree (joint names / parents) than the motion")
-    J = motion.n_joints
     par = np.asarray(motion.parents)
-    mask = motion.position_mask
     off = np.asarray(motion.offsets, dtype=float)
-    # joints below the root whose position channels carry a translation other than the
-    # OFFSET (Bandai's Hips: the root trajectory); constant ones (Bandai's other joints,
-    # equal to their OFFSET up to 1e-7 relative) are offsets and follow the new rest
-    # directions
-    scale = max(float(np.abs(off).max()), 1e-300)
-    varying = np.zeros(J, dtype=bool)
-    varying[1:] = np.any(mask[1:] & (np.abs(np.asarray(motion.positions)[:, 1:] - off[None, 1:]).max(axis=0)
-                                     > 1e-5 * scale), axis=1)
+    varying = _translated_joints(motion, off)
     roff = np.asarray(ref.offsets, dtype=float)
     esp, eso = motion.end_site_parents, np.asarray(motion.end_site_offsets, dtype=float)
-    resp, reso = ref.end_site_parents, np.asarray(ref.end_site_offsets, dtype=float)
-    same_sites = np.array_equal(esp, resp)
+    reso = np.asarray(ref.end_site_offsets, dtype=float) if np.array_equal(esp, ref.end_site_parents) else None
+    C = _rest_corrections(par, varying, off, roff, esp, eso, reso)
+    Cinv = C * np.array([-1.0, -1.0, -1.0, 1.0])
+    new_off = _new_offsets(par, varying, off, roff, Cinv)
+    new_eso = _new_end_site_offsets(esp, eso, reso, Cinv)
+    rotations, positions = _new_channels(motion, par, varying, new_off, C, Cinv)
+    out = dataclasses.replace(motion, offsets=new_off, rotations=rotations, positions=positions,
+                              end_site_offsets=new_eso, source=(motion.source or "") + " (rest pose matched)")
+    if not return_error:
+        return out
+    err = float(np.linalg.norm(out.global_positions() - motion.global_positions(), axis=-1).max())
+    return out, err
 
-    def unit(v):
-        n = np.linalg.norm(v)
-        return v / n if n > 1e-12 else None
 
-    # children (joints that are not on a translated path, and End Sites) of every joint
-    C = np.tile([0.0, 0.0, 0.0, 1.0], (J, 1))
-    for j in range(J):
+def _unit(v: np.ndarray) -> np.ndarray | None:
+    """``v / |v|``, or None for a (near) zero vector."""
+    n = np.linalg.norm(v)
+    return v / n if n > 1e-12 else None
+
+
+def _translated_joints(motion: Motion, off: np.ndarray) -> np.ndarray:
+    """(J,) bool: joints below the root whose position channels carry a translation other than the OFFSET.
+
+    Bandai's Hips (the root trajectory); constant ones (Bandai's other joints, equal to
+    their OFFSET up to 1e-7 relative) are offsets and follow the new rest directions.
+    """
+    mask = motion.position_mask
+    scale = max(float(np.abs(off).max()), 1e-300)
+    varying = np.zeros(motion.n_joints, dtype=bool)
+    varying[1:] = np.any(mask[1:] & (np.abs(np.asarray(motion.positions)[:, 1:] - off[None, 1:]).max(axis=0)
+                                     > 1e-5 * scale), axis=1)
+    return varying
+
+
+def _rest_corrections(par, varying, off, roff, esp, eso, reso) -> np.ndarray:
+    """(J, 4) quaternions ``C_j`` taking the reference's rest directions of each joint's children
+    to the motion's rest offsets (:func:`_best_rotation`; identity for a joint without children).
+
+    The children are the joints not on a translated path and, when ``reso`` is given (the
+    two skeletons have the same End Sites), the End Sites."""
+    C = np.tile([0.0, 0.0, 0.0, 1.0], (len(par), 1))
+    for j in range(len(par)):
+        pairs = [(roff[c], off[c]) for c in np.flatnonzero(par == j) if not varying[c]]
+        if reso is not None:
+            pairs += [(reso[e], eso[e]) for e in np.flatnonzero(esp == j)]
         r_list, s_list = [], []
-        for c in np.flatnonzero(par == j):
-            if varying[c]:
-                continue
-            r, sv = unit(roff[c]), off[c]
+        for ref_vec, sv in pairs:
+            r = _unit(ref_vec)
             if r is not None and np.linalg.norm(sv) > 1e-12:
                 r_list.append(r)
                 s_list.append(sv)
-        if same_sites:
-            for e in np.flatnonzero(esp == j):
-                r, sv = unit(reso[e]), eso[e]
-                if r is not None and np.linalg.norm(sv) > 1e-12:
-                    r_list.append(r)
-                    s_list.append(sv)
         if r_list:
             C[j] = _best_rotation(np.array(r_list), np.array(s_list))
-    Cinv = C * np.array([-1.0, -1.0, -1.0, 1.0])
+    return C
 
+
+def _new_offsets(par, varying, off, roff, Cinv) -> np.ndarray:
+    """Offsets of ``S'``: ``|offset_c| r_c``; a translated joint's (or one with no reference direction)
+    turned by its parent's ``C_p^-1``."""
     new_off = off.copy()
-    for c in range(1, J):
-        p = par[c]
-        r = unit(roff[c])
+    for c in range(1, len(par)):
+        r = _unit(roff[c])
         if varying[c] or r is None:
-            new_off[c] = quat_rotate(Cinv[p], off[c])
+            new_off[c] = quat_rotate(Cinv[par[c]], off[c])
         else:
             new_off[c] = np.linalg.norm(off[c]) * r
+    return new_off
+
+
+def _new_end_site_offsets(esp, eso, reso, Cinv) -> np.ndarray:
+    """End Site offsets of ``S'``: the reference's direction (``reso``, None when the End Sites
+    differ) at the motion's length, else turned by the parent's ``C_p^-1``."""
     new_eso = eso.copy()
     for e, p in enumerate(esp):
-        r = unit(reso[e]) if same_sites else None
+        r = _unit(reso[e]) if reso is not None else None
         new_eso[e] = np.linalg.norm(eso[e]) * r if r is not None else quat_rotate(Cinv[p], eso[e])
-    rot = np.asarray(motion.rotations)
-    new_rot = quat_multiply(rot, C[None])
+    return new_eso
+
+
+def _new_channels(motion: Motion, par, varying, new_off, C, Cinv) -> tuple[np.ndarray, np.ndarray]:
+    """Local rotations ``L'_j = C_p^-1 L_j C_j`` and positions: root and translated joints' kept
+    (``C_p^-1 t`` below the root), the other position channels the new offsets."""
+    new_rot = quat_multiply(np.asarray(motion.rotations), C[None])
     new_rot[:, 1:] = quat_multiply(Cinv[None, par[1:]], new_rot[:, 1:])
     pos = np.array(motion.positions, dtype=float)
     for c in np.flatnonzero(varying):
         pos[:, c] = quat_rotate(np.broadcast_to(Cinv[par[c]], (motion.n_frames, 4)), pos[:, c])
     pos[:, 0] = np.asarray(motion.positions)[:, 0]
-    pos = np.where((mask & (varying | (np.arange(J) == 0))[:, None])[None], pos, new_off[None])
-    out = dataclasses.replace(motion, offsets=new_off, rotations=new_rot, positions=pos, end_site_offsets=new_eso,
-                              source=(motion.source or "") + " (rest pose matched)")
-    if not return_error:
-        return out
-    err = float(np.linalg.norm(out.global_positions() - motion.global_positions(), axis=-1).max())
-    return out, err
+    keep = motion.position_mask & (varying | (np.arange(motion.n_joints) == 0))[:, None]
+    return new_rot, np.where(keep[None], pos, new_off[None])
