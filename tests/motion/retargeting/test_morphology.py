@@ -15,6 +15,17 @@ Pronost et al., Section 3.4.1, after Kulpa et al. (2005).  What is asserted:
   height scaled by the foot ratio, no penetration), whereas copying angles with the
   unscaled root translation sinks the feet ~15 cm into the floor and slides more;
   with ``fix_feet`` planted feet do not slide at all;
+* ``retarget`` is ``RetargetPlan(...).apply(...)``: its result equals ``decode(encode(m), target)``
+  bit for bit, with and without ``fix_feet``; on random poses (one frame and whole clips) of
+  characters whose proportions differ from the actor's (per-bone factors inside a limb,
+  trunk, legs, uniform size on top) ``RetargetPlan(source, actor).positions`` equals
+  ``retarget(pose, actor).global_positions()`` bit for bit, with and without the source's
+  world transforms given;
+* ``MotionRetriever.prepare`` (which uses the plan for such characters) gives the same
+  ``q_r`` as the retargeting it replaces (``retarget`` then the pose cloud), bit for bit;
+  plans are cached per (actor, pose skeleton) and a pose on another skeleton gets its own;
+* the plan refuses what ``retarget`` refuses (a target whose rest pose is turned, another
+  topology), with MotionError;
 * bad inputs raise :class:`MotionError`.
 """
 
@@ -31,18 +42,22 @@ from scipy.spatial.transform import Rotation
 from repro import data
 from repro.errors import MotionError
 from repro.motion import BANDAI_UNIT_M, CMU_UNIT_M, Motion, read_bvh, write_bvh
+from repro.motion.body.feet import foot_contacts, foot_metrics
+from repro.motion.body.pose_frames import pose_points
+from repro.motion.body.roles import LIMBS
+from repro.motion.body.skeleton import Skeleton, scale_skeleton
+from repro.motion.database.synthetic.conventions import build
 from repro.motion.retargeting.morphology import (
     LIMB_NAMES,
     MorphologyIndependentMotion,
+    RetargetPlan,
     decode,
     decode_with_report,
     encode,
     naive_retarget,
     retarget,
 )
-from repro.motion.body.feet import foot_contacts, foot_metrics
-from repro.motion.body.roles import LIMBS
-from repro.motion.body.skeleton import Skeleton, scale_skeleton
+from repro.motion.search.retrieval import MotionRetriever
 
 # Mixamo / cgspeed naming (the synthetic kung-fu database's), T-pose, metres, Y up, facing +Z.
 from tests.motion_fixtures import MIXAMO, MIXAMO_NAMES as NAMES  # noqa: E402
@@ -436,8 +451,6 @@ def test_a_blend_longer_than_any_clip_does_not_overflow():
 
 
 def test_retarget_plan_checks_the_source_transforms():
-    from repro.motion.retargeting.morphology import RetargetPlan
-
     m = random_motion(0, F=4)
     plan = RetargetPlan(m, rest_skeleton())
     with pytest.raises(MotionError, match="source"):
@@ -448,3 +461,95 @@ def test_retarget_plan_checks_the_source_transforms():
         plan.positions(np.zeros_like(m.rotations), m.local_translations())
     with pytest.raises(MotionError, match="NaN"):
         plan.positions(m.rotations, m.local_translations() * np.nan)
+
+
+# ------------------------------------------------------------------ the plan (RetargetPlan)
+@pytest.mark.parametrize("fix_feet", [False, True])
+def test_retarget_is_decode_of_encode(fix_feet):
+    """The plan's composition of encoding and decoding (stacked limb frames, the source's world
+    rotations reused) gives the numbers of the two functions, the feet pinned or not."""
+    m = random_motion(11, F=20, max_angle=1.5)
+    for tgt in (scale_skeleton(m, height=1.9, leg_scale=1.2, bone_scales={"LeftHand": 1.3}), rest_skeleton()):
+        want = decode(encode(m), tgt, fix_feet=fix_feet)
+        got = retarget(m, tgt, fix_feet=fix_feet)
+        np.testing.assert_array_equal(got.rotations, want.rotations)
+        np.testing.assert_array_equal(got.positions, want.positions)
+        assert got.channels == want.channels and got.joint_names == want.joint_names
+    with pytest.raises(MotionError, match="source skeleton"):
+        RetargetPlan(m, tgt).apply(dataclasses.replace(m, joint_names=[n + "_x" for n in NAMES]))
+
+
+CHARACTERS = [
+    dict(scale=1.1, arm_scale=1.2, leg_scale=0.9, bone_scales={"LeftForeArm": 1.3, "RightLeg": 0.8}),
+    dict(scale=0.8, bone_scales={"LeftArm": 1.5, "LeftUpLeg": 1.2, "Spine": 0.7}),
+    dict(trunk_scale=1.3, bone_scales={"RightForeArm": 0.6, "LeftFoot": 1.4}),
+]
+
+
+def on(character, m, frames):
+    """Frames ``frames`` of ``m`` played by ``character`` (same rotations, its offsets)."""
+    t = np.where(m.position_mask[None], m.local_translations(), character.offsets[None])[frames]
+    return character.motion_with(m.rotations[frames], t, frame_time=m.frame_time)
+
+
+def cloud(db, actor, g):
+    idx = [actor.index(r) for r in db.pose_roles]
+    return pose_points(g, idx, actor.index("pelvis"), actor.index("left_hip"), actor.index("right_hip"),
+                       window=db.window, step=db.step)[-1] / actor.size
+
+
+@pytest.mark.parametrize("kw", CHARACTERS)
+def test_plan_equals_retarget(synthetic_db, kw):
+    db = synthetic_db
+    actor = db.actors[0]
+    ch = scale_skeleton(actor, **kw)
+    rng = np.random.default_rng(len(str(kw)))
+    for _ in range(4):
+        m = db.motion(int(rng.integers(db.n_clips)))
+        f = int(rng.integers(m.n_frames))
+        for frames in (slice(f, f + 1), slice(None)):
+            pose = on(ch, m, frames)
+            want = retarget(pose, actor).global_positions()
+            plan = RetargetPlan(pose, actor)
+            got = plan.positions(pose.rotations, pose.local_translations())
+            assert np.array_equal(got, want)
+            got = plan.positions(pose.rotations, pose.local_translations(), source=pose.global_transforms())
+            assert np.array_equal(got, want)
+
+
+def test_prepare_equals_retarget(synthetic_db):
+    db = synthetic_db
+    r = MotionRetriever(db, seed=0)
+    actor = db.actors[0]
+    rng = np.random.default_rng(3)
+    for kw in CHARACTERS:
+        ch = scale_skeleton(actor, **kw)
+        assert r._scaling_of(on(ch, db.motion(0), slice(0, 1)), 0) is None  # not the uniform fast path
+        for _ in range(5):
+            m = db.motion(int(rng.integers(db.n_clips)))
+            pose = on(ch, m, slice(int(rng.integers(m.n_frames)), None))
+            q = r.prepare(pose, ch)
+            last = dataclasses.replace(pose, rotations=pose.rotations[-1:], positions=pose.positions[-1:])
+            want = cloud(db, actor, retarget(last, actor).global_positions())
+            assert np.array_equal(q.q_n[0], want)
+    n = len(r._plans)
+    assert 1 <= n <= len(CHARACTERS)  # one plan per character skeleton, reused
+    r.prepare(on(scale_skeleton(actor, **CHARACTERS[0]), db.motion(1), slice(0, 1)), scale_skeleton(actor, **CHARACTERS[0]))
+    assert len(r._plans) == n
+
+
+def test_plan_refuses_what_retarget_refuses(synthetic_db):
+    db = synthetic_db
+    actor = db.actors[0]
+    pose = on(scale_skeleton(actor, **CHARACTERS[0]), db.motion(0), slice(0, 1))
+    off = np.array(actor.offsets)
+    j = actor.index("LeftForeArm")
+    off[j] = np.array([off[j][1], -off[j][0], off[j][2]])  # the forearm turned by 90 degrees at rest
+    turned = dataclasses.replace(actor, offsets=off)
+    with pytest.raises(MotionError, match="rest pose"):
+        retarget(pose, turned)
+    with pytest.raises(MotionError, match="rest pose"):
+        RetargetPlan(pose, turned)
+    rig = build("mixamo")[0].motion(unit_m=1.0)
+    with pytest.raises(MotionError, match="joint names and parents"):
+        RetargetPlan(pose, rig)
