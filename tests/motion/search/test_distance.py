@@ -7,7 +7,8 @@ What is asserted:
 * it is zero for identical poses, symmetric, and invariant to rotating either pose about
   the vertical axis and translating it on the floor (hypothesis);
 * the vectorised :class:`AlignedPoseIndex` equals the plain function, for all rows and
-  for subsets, transformations included, and its direct distance keeps precision at a match.
+  for subsets, transformations included, and its direct distance keeps precision at a match;
+* the pose functions refuse pose clouds, weights and indices that are not numbers (issue 9, item 7).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from hypothesis import strategies as st
 from scipy.optimize import minimize
 
 from repro.errors import MotionError
-from repro.motion.body.pose_frames import rotate_y
+from repro.motion.body.pose_frames import pose_points, pose_weights, rotate_y
 from repro.motion.search.distance import AlignedPoseIndex, aligned_distance
 from tests.motion.body.test_pose_frames import angles, move, shifts
 
@@ -126,3 +127,24 @@ def test_direct_distance_equals_the_closed_form_and_keeps_precision_at_a_match()
     assert idx.direct_distance(match, 5)[0] < 1e-13
     with pytest.raises(MotionError, match="subset"):
         idx.subset([1, 2]).direct_distance(q, 0)
+
+
+def test_pose_functions_refuse_non_numbers():
+    p = np.random.default_rng(0).normal(size=(3, 17, 3))  # three random pose clouds
+    for bad in ("x", p * 1j, [["a", "b", "c"]] * 17):
+        with pytest.raises(MotionError):
+            aligned_distance(bad, p[0])
+        with pytest.raises(MotionError):
+            AlignedPoseIndex(p).distances(bad)
+    with pytest.raises(MotionError):
+        AlignedPoseIndex("abc")
+    with pytest.raises(MotionError):
+        pose_weights(17, ["a"] * 17)
+    g = np.zeros((4, 20, 3))
+    for kw in (dict(window=0), dict(window=1.5), dict(step="2")):
+        with pytest.raises(MotionError):
+            pose_points(g, [0, 1], 0, 1, 2, **kw)
+    with pytest.raises(MotionError):
+        pose_points(g, [0, 25], 0, 1, 2)
+    with pytest.raises(MotionError):
+        pose_points(g, [0, 1], 0, 99, 2)

@@ -4,8 +4,7 @@ What is asserted:
 
 * Kovar et al.'s aligned distance obeys the triangle inequality (random triples of real
   poses of the synthetic database and of random clouds, uniform and non-uniform
-  weights), and the cluster / clip-run radii bound every pose's distance from below
-  (``D(q, p) >= D(q, m) - r``), the bounds the exact search prunes with;
+  weights): the bounds the exact search prunes with hold (the radii: test_index.py);
 * ``method="exact"`` returns the exhaustive optimum (same pose, same ``d``) on hundreds
   of seeded queries, on the 72-clip database and on an augmented
   one, while scoring fewer poses than the exhaustive scan (counted, not timed);
@@ -14,7 +13,8 @@ What is asserted:
 * bad ``method`` values are refused, naming the value;
 * the exact search returns the exhaustive optimum with the very same ``d``, ``d_qr``, ``d_cr``
   (both re-score the near-best candidates one by one);
-* a database without clips of a semantics is refused by every method, naming the semantics.
+* a database without clips of a semantics is refused by every method, naming the semantics;
+* ``stats`` is anything but a dict (or None): refused before the search.
 """
 
 from __future__ import annotations
@@ -28,7 +28,6 @@ from repro.errors import RetrievalError
 from repro.motion.database.augment import augment
 from repro.motion.body.pose_frames import rotate_y
 from repro.motion.search.distance import aligned_distance
-from repro.motion.search.index import group_centroids
 from repro.motion.database.clips import MotionDatabase
 from repro.motion.search.retrieval import MotionRetriever, make_queries
 
@@ -56,21 +55,6 @@ def test_triangle_inequality_of_the_aligned_distance(db, weighted):
         assert np.all(np.abs(ab - aligned_distance(b, a, w)) <= 1e-9)
         # not vacuous: some triples are close to equality
         assert np.min(ab + bc - ac) < 0.05 * np.median(ac)
-
-
-def test_radii_bound_every_pose(db, retriever, prepared):
-    r = retriever
-    for c, q, sem in prepared[:20]:
-        qn = q.q_n[0]
-        dcent = r.centroid_index.distances(qn)
-        for cl in range(r.k):
-            b = r.cluster_block[cl][sem]
-            if b is None:
-                continue
-            d = b.index.distances(qn)
-            assert np.all(d >= dcent[cl] - r.retrieval_index.radius[sem][cl] - 1e-9)
-            dg = aligned_distance(qn, group_centroids(r.db, b), r.weights)
-            assert np.all(d >= (dg - b.gradius)[b.inv] - 1e-9)
 
 
 def test_exact_is_the_exhaustive_optimum(db, retriever, prepared):
@@ -157,24 +141,6 @@ def test_cmu_triangle_inequality_and_exact_search():
         assert a.pose == b.pose and a.d == pytest.approx(b.d, rel=1e-12, abs=1e-15)
 
 
-def test_prepare_fast_path_equals_retargeting(db, retriever):
-    """A character that is a uniform scaling of the actor: q_r without retargeting is the retargeted one."""
-    from repro.motion.body.pose_frames import pose_points
-    from repro.motion.retargeting.morphology import retarget
-    from repro.motion.body.skeleton import scale_skeleton
-
-    a = db.actors[0]
-    ch = scale_skeleton(a, height=1.3)
-    for c, pose, _, sem in make_queries(db, 10, seed=11):
-        p = retarget(pose, ch)
-        q = retriever.prepare(p, ch)
-        g = retarget(p, a).global_positions()
-        ref = pose_points(g, [a.index(x) for x in db.pose_roles], a.index("pelvis"), a.index("left_hip"),
-                          a.index("right_hip"))[-1] / a.size
-        np.testing.assert_allclose(q.q_n[0], ref, atol=1e-12)
-        assert q.size_c == pytest.approx(ch.size)
-
-
 def test_exact_and_exhaustive_report_identical_numbers(db, retriever, prepared):
     """Exact and exhaustive report the very same numbers."""
     for c, q, sem in prepared[:80]:
@@ -190,3 +156,14 @@ def test_exact_on_a_database_without_the_semantics(db):
     for method in ("exact", "exhaustive", "pruned", "kdtree"):
         with pytest.raises(RetrievalError, match="'kick'"):
             r.search(c, pose, ch, "kick", method=method)
+
+
+@pytest.mark.parametrize("stats", ["x", 1, [], (), np.zeros(2)], ids=repr)
+def test_search_exact_stats(synthetic_db, stats):
+    """``stats`` is filled after the search: anything but a dict (or None) was an AttributeError then."""
+    from repro.motion.runtime.strike import one_frame
+
+    small = synthetic_db.select(np.arange(3))
+    r = MotionRetriever(small, seed=0)
+    with pytest.raises(RetrievalError, match="^stats must be a dict"):
+        r.search_exact([0.3, 1.4, 0.5], one_frame(small.motion(0), 0), small.actor_skeleton(0), "punch", stats=stats)

@@ -2,10 +2,14 @@
 
 What is asserted: k-means is deterministic for a fixed seed, its clusters partition the
 poses, its centroids are the member means, and the aligned distance to the centroid never
-exceeds the canonical (unaligned) one; beyond ``max_fit`` poses it runs on a seeded subset.
+exceeds the canonical (unaligned) one; beyond ``max_fit`` poses it runs on a seeded subset;
+bad ``k`` / ``iterations`` / ``seed`` / ``max_fit`` / weights and pose clouds of strings or complex
+numbers are a MotionError, and ``k`` above the poses warns and says so (issue 9, item 7).
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 import pytest
@@ -76,3 +80,37 @@ def test_kmeans_on_a_subset_for_large_sets():
     np.testing.assert_array_equal(a.centroids, b.centroids)
     assert a.inertia < 0.01  # the four groups are still recovered
     np.testing.assert_array_equal(np.sort(np.concatenate(a.members)), np.arange(600))
+
+
+# ----------------------------------------------------------------- refusals (issue 9, item 7)
+# ----------------------------------------------------------------- k-means
+def _poses(n=40, seed=0):
+    return np.random.default_rng(seed).normal(size=(n, 17, 3))
+
+
+KMEANS_BAD = [
+    dict(k=0), dict(k=2.5), dict(k="3"), dict(k=True), dict(seed=-1), dict(seed="s"), dict(seed=0.5),
+    dict(iterations=0), dict(iterations=2.5), dict(iterations=10**9), dict(max_fit=0), dict(max_fit=2, k=5),
+    dict(max_fit=3.5), dict(weights="x"), dict(weights=np.ones(17) * 1j), dict(weights=np.ones(3)),
+]
+
+
+@pytest.mark.parametrize("kw", KMEANS_BAD, ids=repr)
+def test_bad_kmeans_arguments(kw):
+    kw = {"k": 3, **kw}
+    with pytest.raises(MotionError):
+        cluster_poses(_poses(), **kw)
+
+
+@pytest.mark.parametrize("points", [np.full((5, 17, 3), "a"), _poses() * 1j, None, "poses", [[1, 2, 3]]], ids=repr)
+def test_bad_kmeans_points(points):
+    with pytest.raises(MotionError):
+        cluster_poses(points, 2)
+
+
+def test_kmeans_k_above_n_warns_and_says_so():
+    with pytest.warns(ReproWarning, match="k = 50 .* 40 poses"):
+        assert cluster_poses(_poses(), 50).k <= 40
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        cluster_poses(_poses(), 4)

@@ -1,28 +1,24 @@
-"""Every public argument of the retrieval and k-means API is checked (issue 9, item 7).
+"""Every public argument of the retrieval is checked (repro.motion.search.arguments; issue 9, item 7).
 
 What is asserted: a table of (call, bad argument) pairs -- targets of 1e300, NaN, the
 wrong shape or type; weights that are strings, bools, negative, infinite or both 0;
 ``k`` of 0, 2.5 or more than the poses; ``kd_neighbours`` of 0; bad seeds, frames,
-semantics, flags, prepared queries; k-means ``k``/``iterations``/``seed``/``max_fit``;
-pose clouds of strings or complex numbers -- each raises a :class:`ReproError` subclass
+semantics, flags, prepared queries; a clip's hit role, joint and frame -- each raises a :class:`ReproError` subclass
 (RetrievalError or MotionError) and nothing else, quickly (``k = 10**6`` used to be
 cut silently to the number of poses and then take about a minute).  Targets up to
-:data:`MAX_TARGET_M` are still answered, with finite distances, by the three searches.
+:data:`MAX_TARGET_M` are still answered, with finite distances, by the three searches.  (The
+k-means and pose-cloud refusals are in test_kmeans.py and test_distance.py.)
 """
 
 from __future__ import annotations
 
 import dataclasses
 import time
-import warnings
 
 import numpy as np
 import pytest
 
-from repro.errors import MotionError, ReproError, ReproWarning, RetrievalError
-from repro.motion.body.pose_frames import pose_points, pose_weights
-from repro.motion.search.distance import AlignedPoseIndex, aligned_distance
-from repro.motion.search.kmeans import cluster_poses
+from repro.errors import MotionError, ReproError, RetrievalError
 from repro.motion.database.clips import Clip
 from repro.motion.search.retrieval import (
     MAX_TARGET_M,
@@ -55,6 +51,8 @@ def query(db):
 
 
 GOOD_TARGET = [0.1, 1.4, 0.5]
+
+
 BAD_TARGETS = [[0.0, 1e300, 0.0], [1e7, 0.0, 0.0], [np.nan, 1.0, 0.0], [0.0, np.inf, 0.0], [1, 2], [[1, 2, 3]],
                "abc", None, [1j, 0, 0], ["a", "b", "c"], object(), 5.0]
 
@@ -170,60 +168,6 @@ def test_good_calls_still_work(r, query):
     big = MotionRetriever(r.db, kd_neighbours=10**9)  # more than the poses: all of them
     assert big.search_kdtree(GOOD_TARGET, pose, ch, "punch").d == pytest.approx(
         r.search_exhaustive(GOOD_TARGET, pose, ch, "punch").d)
-
-
-# ----------------------------------------------------------------- k-means
-def _poses(n=40, seed=0):
-    return np.random.default_rng(seed).normal(size=(n, 17, 3))
-
-
-KMEANS_BAD = [
-    dict(k=0), dict(k=2.5), dict(k="3"), dict(k=True), dict(seed=-1), dict(seed="s"), dict(seed=0.5),
-    dict(iterations=0), dict(iterations=2.5), dict(iterations=10**9), dict(max_fit=0), dict(max_fit=2, k=5),
-    dict(max_fit=3.5), dict(weights="x"), dict(weights=np.ones(17) * 1j), dict(weights=np.ones(3)),
-]
-
-
-@pytest.mark.parametrize("kw", KMEANS_BAD, ids=repr)
-def test_bad_kmeans_arguments(kw):
-    kw = {"k": 3, **kw}
-    with pytest.raises(MotionError):
-        cluster_poses(_poses(), **kw)
-
-
-@pytest.mark.parametrize("points", [np.full((5, 17, 3), "a"), _poses() * 1j, None, "poses", [[1, 2, 3]]], ids=repr)
-def test_bad_kmeans_points(points):
-    with pytest.raises(MotionError):
-        cluster_poses(points, 2)
-
-
-def test_kmeans_k_above_n_warns_and_says_so():
-    with pytest.warns(ReproWarning, match="k = 50 .* 40 poses"):
-        assert cluster_poses(_poses(), 50).k <= 40
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        cluster_poses(_poses(), 4)
-
-
-def test_pose_functions_refuse_non_numbers():
-    p = _poses(3)
-    for bad in ("x", p * 1j, [["a", "b", "c"]] * 17):
-        with pytest.raises(MotionError):
-            aligned_distance(bad, p[0])
-        with pytest.raises(MotionError):
-            AlignedPoseIndex(p).distances(bad)
-    with pytest.raises(MotionError):
-        AlignedPoseIndex("abc")
-    with pytest.raises(MotionError):
-        pose_weights(17, ["a"] * 17)
-    g = np.zeros((4, 20, 3))
-    for kw in (dict(window=0), dict(window=1.5), dict(step="2")):
-        with pytest.raises(MotionError):
-            pose_points(g, [0, 1], 0, 1, 2, **kw)
-    with pytest.raises(MotionError):
-        pose_points(g, [0, 25], 0, 1, 2)
-    with pytest.raises(MotionError):
-        pose_points(g, [0, 1], 0, 99, 2)
 
 
 def test_clip_hit_segment_and_joint_names(db):
