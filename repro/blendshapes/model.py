@@ -62,6 +62,9 @@ class BlendshapeModel:
         ``{"Furrow": {"browDown_L": 1.0, "browDown_R": 1.0}}``.
     regions : mapping of str to int array
         Named vertex sets (e.g. ``"brow_middle"``), used as selection presets.
+    notes : sequence of str
+        What a reader decided about the source file, in words (which of its meshes
+        make the face, expressions it skipped and why); empty for a model built in code.
 
     All arrays are copied and made read-only, so caches keyed on a model stay
     valid.
@@ -84,6 +87,7 @@ class BlendshapeModel:
     units: str = "model units"
     sliders: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     regions: Mapping[str, np.ndarray] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         f0 = as_real_array(self.f0, "f0", finite=False, error=ModelError)
@@ -160,6 +164,9 @@ class BlendshapeModel:
         set_(self, "faces", read_only(faces.astype(np.int64)))
         set_(self, "sliders", sliders)
         set_(self, "regions", regions)
+        if isinstance(self.notes, (str, bytes)) or not isinstance(self.notes, Iterable):
+            raise ModelError(f"notes must be a sequence of strings, got {describe(self.notes)}")
+        set_(self, "notes", tuple(as_str(s, "a note", error=ModelError) for s in self.notes))
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -393,4 +400,5 @@ class BlendshapeModel:
             units=self.units,
             sliders=self.sliders,
             regions=regions,
+            notes=self.notes,
         )

@@ -37,7 +37,7 @@ def load_model(name="procedural", **kw) -> BlendshapeModel:
     raises :class:`~repro.errors.DataError` saying how to get it when absent.
     A keyword the chosen loader does not take is a :class:`~repro.errors.ModelError`.
     """
-    if isinstance(name, os.PathLike) or (isinstance(name, str) and name.lower().endswith((".gltf", ".glb"))):
+    if isinstance(name, os.PathLike) or (isinstance(name, str) and name.lower().endswith((".gltf", ".glb", ".vrm"))):
         from repro.blendshapes.faces.gltf import read_gltf
 
         unknown = sorted(set(kw) - {"mesh", "primitive", "max_bytes"})

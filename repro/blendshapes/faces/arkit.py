@@ -9,14 +9,15 @@ selections from where the named shapes move, not from vertex ids.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import re
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
 from repro.checks import as_real_array, describe
 from repro.errors import ModelError
 
-__all__ = ["arkit_rig", "ARKIT_SLIDERS"]
+__all__ = ["arkit_rig", "canonical_names", "neutral_targets", "ARKIT_SLIDERS", "ARKIT_NAMES", "NEUTRAL_NAMES"]
 
 #: The paper's sliders (Lewis et al. 2005, Figs. 3-5) over ARKit-style names, as for ICT
 #: (:data:`repro.blendshapes.faces.ict.ICT_SLIDERS`); for each slider the first alternative whose
@@ -39,19 +40,86 @@ ARKIT_SLIDERS: dict[str, tuple[dict[str, float], ...]] = {
 }
 
 
-def _canonical(name: str) -> str:
-    """ARKit camelCase (``browDownLeft``) as ARKit's own ``browDown_L``; other names unchanged."""
+#: Apple ARKit's 52 blendshape names (``ARFaceAnchor.BlendShapeLocation``), as Apple spells them.
+ARKIT_NAMES = (
+    "browDownLeft", "browDownRight", "browInnerUp", "browOuterUpLeft", "browOuterUpRight", "cheekPuff",
+    "cheekSquintLeft", "cheekSquintRight", "eyeBlinkLeft", "eyeBlinkRight", "eyeLookDownLeft", "eyeLookDownRight",
+    "eyeLookInLeft", "eyeLookInRight", "eyeLookOutLeft", "eyeLookOutRight", "eyeLookUpLeft", "eyeLookUpRight",
+    "eyeSquintLeft", "eyeSquintRight", "eyeWideLeft", "eyeWideRight", "jawForward", "jawLeft", "jawOpen", "jawRight",
+    "mouthClose", "mouthDimpleLeft", "mouthDimpleRight", "mouthFrownLeft", "mouthFrownRight", "mouthFunnel",
+    "mouthLeft", "mouthLowerDownLeft", "mouthLowerDownRight", "mouthPressLeft", "mouthPressRight", "mouthPucker",
+    "mouthRight", "mouthRollLower", "mouthRollUpper", "mouthShrugLower", "mouthShrugUpper", "mouthSmileLeft",
+    "mouthSmileRight", "mouthStretchLeft", "mouthStretchRight", "mouthUpperUpLeft", "mouthUpperUpRight",
+    "noseSneerLeft", "noseSneerRight", "tongueOut",
+)  # fmt: skip
+#: Side suffixes written by other tools, as ARKit's ``_L`` / ``_R`` (``Left`` / ``Right`` after a
+#: lower-case letter is handled separately, so that ``mouthLeft`` keeps its meaning as a whole).
+_SIDE_SUFFIXES = (("_Left", "_L"), ("_Right", "_R"), ("_left", "_L"), ("_right", "_R"), ("_l", "_L"), ("_r", "_R"),
+                  (".L", "_L"), (".R", "_R"), (".l", "_L"), (".r", "_R"))
+#: Namespace separators: ``face_shapes.ai_browDown_L`` (FBX blend-shape channel through assimp),
+#: ``head:jawOpen`` (Maya), ``rig|jawOpen`` (a DAG path).
+_NAMESPACE_SEPARATORS = (".", ":", "|")
+#: A group prefix (``ai_``, ``ca_``): one to four lower-case letters and ``_`` before a camelCase name.
+_GROUP_PREFIX = re.compile(r"^([a-z]{1,4})_(?=[a-z])")
+#: Names of a target that is the neutral pose itself (not an expression), after the namespace and group prefix.
+NEUTRAL_NAMES = ("neutral", "basis", "base", "default", "rest")
+
+
+def _side(name: str) -> str:
+    """``browDownLeft``, ``browDown_left``, ``browDown.L`` ... as ``browDown_L``; other names unchanged."""
+    for long, short in _SIDE_SUFFIXES:
+        if name.endswith(long) and len(name) > len(long):
+            return name[: -len(long)] + short
     for long, short in (("Left", "_L"), ("Right", "_R")):
-        if name.endswith(long) and len(name) > len(long) and name[0].islower():
+        if name.endswith(long) and len(name) > len(long) and name[-len(long) - 1].isalpha() and name[0].isalpha():
             return name[: -len(long)] + short
     return name
 
 
-def arkit_rig(f0, D, names: Sequence[str]) -> tuple[dict, dict]:
+_ARKIT_CANON = {_side(n).lower(): _side(n) for n in ARKIT_NAMES}
+
+
+def canonical_names(names: Sequence[str]) -> list[str]:
+    """Each shape name in the form the sliders and regions are looked up by (ARKit's ``browDown_L``).
+
+    The convention of many exporters, not of one file: a namespace is dropped (``face_shapes.`` in
+    ``face_shapes.ai_browDown_L``, ``head:`` in ``head:jawOpen``); a group prefix of one to four
+    lower-case letters (``ai_``, ``ca_``) is dropped when at least two names carry it; a side suffix
+    (``Left``, ``_left``, ``_l``, ``.L`` ...) becomes ``_L`` / ``_R``; and a name that is one of
+    :data:`ARKIT_NAMES` whatever its case (``JawOpen``) is spelled as ARKit spells it.  In-between
+    shapes (``eyeLowerClose_25_L``, ``_50_``, ``_75_``: the shape part of the way) keep their
+    number, so they never stand for the full shape; like every name that means nothing in
+    ARKit they stay shapes of their own (a slider under the file's name), in no named slider.
+    """
+    bare = []
+    for name in names:
+        s = _side(name)  # before the namespace: ``browDown.L`` is a side, not a namespace
+        for sep in _NAMESPACE_SEPARATORS:
+            s = s.rsplit(sep, 1)[-1] if not s.endswith(sep) else s
+        bare.append(s if s else name)
+    prefixes = [m.group(1) if (m := _GROUP_PREFIX.match(s)) else None for s in bare]
+    shared = {p for p in prefixes if p is not None and prefixes.count(p) >= 2}
+    out = []
+    for s, p in zip(bare, prefixes):
+        if p in shared:
+            s = s[len(p) + 1 :]
+        out.append(_ARKIT_CANON.get(s.lower(), s))
+    return out
+
+
+def neutral_targets(names: Sequence[str]) -> list[int]:
+    """Shapes named as the neutral pose itself (``neutral``, ``face_shapes.ai_neutral``, ``Basis`` ...)."""
+    return [k for k, s in enumerate(canonical_names(names)) if s.lower() in NEUTRAL_NAMES]
+
+
+def arkit_rig(f0, D, names: Sequence[str], aliases: Mapping[str, Mapping[str, float]] | None = None) -> tuple[dict, dict]:
     """The paper's sliders and selection regions of a face with ARKit-style shape names.
 
     Sliders: :data:`ARKIT_SLIDERS` (the ICT mapping), over the face's own names
-    (``browDown_L`` or ``browDownLeft``), those whose shapes are all present.
+    (``browDown_L``, ``browDownLeft``, ``face_shapes.ai_browDown_L``: :func:`canonical_names`),
+    those whose shapes are all present.  ``aliases`` stand for ARKit shapes the face has under
+    no name, as combinations of its shapes (a VRM face's ``blink_l`` expression for ``eyeBlink_L``,
+    :func:`~repro.blendshapes.faces.vrm.vrm_expressions`); a shape of the face itself comes first.
     Regions, found from where the named shapes move (not from vertex ids), with
     ``|d_k(v)|`` the motion of vertex ``v`` under shape ``k`` at weight 1 and the
     subject's left-right axis running from the motion centroid of the ``_R``
@@ -69,15 +137,25 @@ def arkit_rig(f0, D, names: Sequence[str]) -> tuple[dict, dict]:
     Regions whose shapes the face lacks are left out (scenarios needing them say so).
     """
     f0, D = _check_face(f0, D, names)
-    by_canon: dict[str, int] = {}
-    for k, s in enumerate(names):
-        by_canon.setdefault(_canonical(s), k)
+    by_canon: dict[str, dict[int, float]] = {}
+    for k, s in enumerate(canonical_names(names)):
+        by_canon.setdefault(s, {k: 1.0})
+    index = {s: k for k, s in enumerate(names)}
+    for s, combo in (aliases or {}).items():
+        by_canon.setdefault(s, {index[t]: float(c) for t, c in combo.items()})
 
     def motion(*shapes):
         """``|sum of the shapes' deltas|`` per vertex, or None when the face lacks one of them."""
         if not all(s in by_canon for s in shapes):
             return None
-        return np.linalg.norm(D[:, :, [by_canon[s] for s in shapes]].sum(axis=2), axis=1)
+        combos = [by_canon[s] for s in shapes]
+        if all(list(c.values()) == [1.0] for c in combos):  # plain shapes
+            return np.linalg.norm(D[:, :, [next(iter(c)) for c in combos]].sum(axis=2), axis=1)
+        w = np.zeros(D.shape[2])
+        for c in combos:
+            for k, coef in c.items():
+                w[k] += coef
+        return np.linalg.norm(D @ w, axis=1)
 
     regions = _bands(motion)
     if (pick := _brow_middle(f0, motion("browDown_L"), motion("browDown_R"))) is not None:
@@ -104,7 +182,7 @@ def _check_face(f0, D, names) -> tuple[np.ndarray, np.ndarray]:
     return f0, D
 
 
-def _sliders(names: Sequence[str], by_canon: dict[str, int]) -> dict[str, dict[str, float]]:
+def _sliders(names: Sequence[str], by_canon: dict[str, dict[int, float]]) -> dict[str, dict[str, float]]:
     """:data:`ARKIT_SLIDERS` over the face's own names: the first alternative whose shapes are all there."""
     sliders: dict[str, dict[str, float]] = {}
     for slider, options in ARKIT_SLIDERS.items():
@@ -112,7 +190,11 @@ def _sliders(names: Sequence[str], by_canon: dict[str, int]) -> dict[str, dict[s
             continue
         for combo in options:
             if all(s in by_canon for s in combo):
-                sliders[slider] = {names[by_canon[s]]: c for s, c in combo.items()}
+                out: dict[str, float] = {}
+                for s, c in combo.items():
+                    for k, coef in by_canon[s].items():
+                        out[names[k]] = out.get(names[k], 0.0) + c * coef
+                sliders[slider] = out
                 break
     return sliders
 

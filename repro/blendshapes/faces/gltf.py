@@ -47,8 +47,10 @@ from pathlib import Path
 
 import numpy as np
 
-from repro.blendshapes.faces.arkit import arkit_rig
+from repro.blendshapes.faces.arkit import arkit_rig, neutral_targets
 from repro.blendshapes.faces.gltf_document import GltfDocument
+from repro.blendshapes.faces.gltf_meshes import MeshPart, choose_face, merge
+from repro.blendshapes.faces.vrm import vrm_expressions
 from repro.blendshapes.model import BlendshapeModel
 from repro.checks import MEMORY_BUDGET, as_int, describe
 from repro.errors import ModelError
@@ -123,46 +125,49 @@ def _target_names(r: GltfDocument, mesh, prim, m: int) -> list[str]:
     return [f"target_{k}" for k in range(m)]
 
 
-def _plan(r: GltfDocument, mi: int, prims: list[int]) -> tuple[int, int]:
-    """Vertices and targets of the chosen primitives, after checking what reading them will allocate.
+def _plan(r: GltfDocument, parts: list[tuple[int, list[int]]]) -> None:
+    """Check what reading the primitives ``prims`` of each mesh ``mi`` in ``parts`` will allocate.
 
     Sums, before anything is allocated, every array the loader materialises for this file:
-    the neutral and the dense float64 deltas of every primitive (and the model's own copies),
-    the faces, and the largest accessor being decoded; refuses the file above
+    the neutral and the dense float64 deltas of every primitive (and the model's own copies;
+    one more copy when several meshes are merged into one face), the faces, and the largest
+    accessor being decoded; refuses the file above
     ``min(MEMORY_BUDGET, max(MODEL_BYTES_RATIO x bytes of the file and its buffers, MODEL_BYTES_FLOOR))``.
     Primitives sharing one accessor (a 7 KB file whose 20 primitives all point at one
     zero-filled 87k-vertex accessor, x 32 targets) count once per use: each use is a copy.
     """
-    mesh = r.doc.meshes[mi]
     uses: dict[int, int] = {}
-    n_total = faces_total = 0
-    m = 0
-    for pj in prims:
-        prim = mesh.primitives[pj]
-        label = f"meshes[{mi}] ({mesh.name!r}) primitive {pj}"
-        if not isinstance(prim.targets, list):
-            raise r.err(f"{label} targets must be a list, got {prim.targets!r:.60}")
-        m = len(prim.targets)
-        pos_i = getattr(prim.attributes, "POSITION", None)
-        if pos_i is None:
-            raise r.err(f"{label} has no POSITION attribute")
-        n = r.meta(pos_i, f"{label} POSITION", want=("VEC3",))[5]
-        used = [pos_i]
-        for k, target in enumerate(prim.targets):
-            ti = target.get("POSITION") if isinstance(target, dict) else getattr(target, "POSITION", None)
-            if ti is not None:
-                c = r.meta(ti, f"{label} target {k} POSITION", want=("VEC3",))[5]
-                if c != n:
-                    raise r.err(f"{label} target {k} has {c} vertices, the primitive has {n}")
-                used.append(ti)
-        if prim.indices is None:
-            faces_total += n
-        else:
-            faces_total += r.meta(prim.indices, f"{label} indices", want=("SCALAR",))[5]
-            used.append(prim.indices)
-        for a in used:
-            uses[a] = uses.get(a, 0) + 1
-        n_total += n
+    n_total = faces_total = dense = n_prims = m = 0
+    for mi, prims in parts:
+        mesh = r.doc.meshes[mi]
+        for pj in prims:
+            prim = mesh.primitives[pj]
+            label = f"meshes[{mi}] ({mesh.name!r}) primitive {pj}"
+            if not isinstance(prim.targets, list):
+                raise r.err(f"{label} targets must be a list, got {prim.targets!r:.60}")
+            m = len(prim.targets)
+            pos_i = getattr(prim.attributes, "POSITION", None)
+            if pos_i is None:
+                raise r.err(f"{label} has no POSITION attribute")
+            n = r.meta(pos_i, f"{label} POSITION", want=("VEC3",))[5]
+            used = [pos_i]
+            for k, target in enumerate(prim.targets):
+                ti = target.get("POSITION") if isinstance(target, dict) else getattr(target, "POSITION", None)
+                if ti is not None:
+                    c = r.meta(ti, f"{label} target {k} POSITION", want=("VEC3",))[5]
+                    if c != n:
+                        raise r.err(f"{label} target {k} has {c} vertices, the primitive has {n}")
+                    used.append(ti)
+            if prim.indices is None:
+                faces_total += n
+            else:
+                faces_total += r.meta(prim.indices, f"{label} indices", want=("SCALAR",))[5]
+                used.append(prim.indices)
+            for a in used:
+                uses[a] = uses.get(a, 0) + 1
+            n_total += n
+            dense += n * 3 * m * 8
+            n_prims += 1
     for a in sorted(uses):
         r.buffers_of(a)
     transient = 0
@@ -170,20 +175,21 @@ def _plan(r: GltfDocument, mi: int, prims: list[int]) -> tuple[int, int]:
         acc, _, dtype, _, ncomp, count = r.meta(a, "size")
         copies = 2 if acc.sparse is not None else 1
         transient = max(transient, count * ncomp * (copies * dtype.itemsize + 8))
-    dense = n_total * 3 * m * 8
-    # deltas and neutral (ours, and the model's copies), their finiteness masks, faces twice, one accessor
-    need = 2 * dense + dense // 8 + 2 * n_total * 3 * 8 + 2 * faces_total * 8 + transient
+    # deltas and neutral (ours, the merged face's, the model's copies), their finiteness masks, faces twice, one accessor
+    copies = 2 if len(parts) == 1 else 3
+    need = copies * dense + dense // 8 + (copies * n_total * 3 + 2 * faces_total) * 8 + transient
     cap = min(MEMORY_BUDGET, max(MODEL_BYTES_RATIO * r.read_total, MODEL_BYTES_FLOOR))
     if need > cap:
         shared, times = max(uses.items(), key=lambda kv: (kv[1], -kv[0]))
         why = f"; accessor {shared} is used {times} times" if times > 1 else ""
+        where = f"meshes[{parts[0][0]}]" if len(parts) == 1 else f"meshes {[mi for mi, _ in parts]}"
+        sizes = f"{n_total} vertices x {m} targets" if len(parts) == 1 else f"{n_total} vertices, {dense // 24} vertex-targets"
         raise r.err(
-            f"asks for {_size(need)} of vertex data across {len(prims)} primitive(s) of meshes[{mi}] "
-            f"({n_total} vertices x {m} targets in all, as float64{why}); the cap for this file is {_size(cap)} "
+            f"asks for {_size(need)} of vertex data across {n_prims} primitive(s) of {where} "
+            f"({sizes} in all, as float64{why}); the cap for this file is {_size(cap)} "
             f"({MODEL_BYTES_RATIO}x the {_size(r.read_total)} of the file and its buffers, at least {_size(MODEL_BYTES_FLOOR)}, "
             f"at most the memory budget {_size(MEMORY_BUDGET)}); refusing"
         )
-    return n_total, m
 
 
 def _size(n: int) -> str:
@@ -236,45 +242,76 @@ def _read_primitive(r: GltfDocument, mi: int, pj: int, f0_out: np.ndarray, d_out
     return n, faces
 
 
-def _choose(r: GltfDocument, mesh, primitive) -> tuple[int, list[int]]:
+def _n_targets(mesh) -> int:
+    return max((len(p.targets or []) for p in mesh.primitives or []), default=0)
+
+
+def _choose(r: GltfDocument, mesh, primitive) -> list[tuple[int, list[int]]]:
+    """The meshes to read, each with its primitives: the one asked for, or (``mesh=None``) every mesh with targets."""
     meshes = r.doc.meshes or []
     if not meshes:
         raise r.err("has no meshes")
-    if mesh is not None:
-        if isinstance(mesh, str):
-            hits = [i for i, m in enumerate(meshes) if m.name == mesh]
-            if not hits:
-                raise r.err(f"has no mesh named {mesh!r}; meshes: {[m.name for m in meshes]}")
-            mi = hits[0]
-        else:
-            mi = r.integer(mesh, "mesh=")
-            r.item("meshes", mi)
-        candidates = [mi]
-    else:
+    if mesh is None:
         candidates = [i for i, m in enumerate(meshes) if any(p.targets for p in m.primitives or [])]
         if not candidates:
             raise r.err(
                 f"has no morph targets (blendshapes): none of its {len(meshes)} meshes "
                 f"{[m.name for m in meshes]} has a primitive with targets"
             )
-    def n_targets(i):
-        return max((len(p.targets or []) for p in meshes[i].primitives or []), default=0)
+        return [(mi, _primitives(r, mi, None)) for mi in candidates]
+    if isinstance(mesh, str):
+        hits = [i for i, m in enumerate(meshes) if m.name == mesh]
+        if not hits:
+            raise r.err(f"has no mesh named {mesh!r}; meshes: {[m.name for m in meshes]}")
+        mi = hits[0]
+    else:
+        mi = r.integer(mesh, "mesh=")
+        r.item("meshes", mi)
+    return [(mi, _primitives(r, mi, primitive))]
 
-    mi = max(candidates, key=lambda i: (n_targets(i), -i))
-    prims = meshes[mi].primitives or []
+
+def _primitives(r: GltfDocument, mi: int, primitive) -> list[int]:
+    """Mesh ``mi``'s primitives to read: ``primitive``, or all those with the mesh's largest number of targets."""
+    prims = r.doc.meshes[mi].primitives or []
+    name = r.doc.meshes[mi].name
     if not prims:
-        raise r.err(f"meshes[{mi}] ({meshes[mi].name!r}) has no primitives")
-    m = n_targets(mi)
+        raise r.err(f"meshes[{mi}] ({name!r}) has no primitives")
+    m = _n_targets(r.doc.meshes[mi])
     if m == 0:
-        raise r.err(f"meshes[{mi}] ({meshes[mi].name!r}) has no morph targets (blendshapes)")
+        raise r.err(f"meshes[{mi}] ({name!r}) has no morph targets (blendshapes)")
     if primitive is not None:
         pj = r.integer(primitive, "primitive=")
         if pj >= len(prims):
             raise r.err(f"meshes[{mi}] has {len(prims)} primitives, no primitive {pj}")
         if not prims[pj].targets:
             raise r.err(f"meshes[{mi}] primitive {pj} has no morph targets (blendshapes)")
-        return mi, [pj]
-    return mi, [j for j, p in enumerate(prims) if len(p.targets or []) == m]
+        return [pj]
+    return [j for j, p in enumerate(prims) if len(p.targets or []) == m]
+
+
+def _read_mesh(r: GltfDocument, mi: int, prims: list[int]) -> MeshPart:
+    """Mesh ``mi``'s primitives ``prims`` read into one neutral and delta array, in world placement."""
+    gmesh = r.doc.meshes[mi]
+    m = len(gmesh.primitives[prims[0]].targets)
+    n_total = sum(r.meta(gmesh.primitives[j].attributes.POSITION, "size")[5] for j in prims)
+    # one neutral and one delta array for all primitives, filled in place (no per-primitive copies)
+    f0 = np.empty((n_total, 3))
+    D3 = np.zeros((n_total, 3, m))
+    faces_parts, o = [], 0
+    for j in prims:
+        n, fc = _read_primitive(r, mi, j, f0[o:], D3[o:])
+        faces_parts.append(fc + o)
+        o += n
+    names = _target_names(r, gmesh, gmesh.primitives[prims[0]], m)
+    M, _ = _world_of_mesh(r, mi)
+    L = M[:3, :3]
+    f0 = f0 @ L.T + M[:3, 3]
+    if not np.array_equal(L, np.eye(3)):
+        step = max(1, (1 << 22) // max(1, 3 * m))  # in place, a block of vertices at a time
+        for s in range(0, n_total, step):
+            D3[s : s + step] = np.einsum("ij,vjk->vik", L, D3[s : s + step])
+    named = names != [f"target_{k}" for k in range(m)]
+    return MeshPart(mi, gmesh.name or f"mesh{mi}", prims, f0, D3, np.concatenate(faces_parts), names, named)
 
 
 def read_gltf(
@@ -318,6 +355,8 @@ def read_gltf(
     if hasattr(path, "read") or not isinstance(path, (str, os.PathLike)):
         # a stream has no folder for the file's buffers, and no size known before reading
         raise ModelError(f"read_gltf reads a path to a .gltf or .glb file (its buffers are found beside it), got {describe(path)}")
+    if mesh == "auto":
+        mesh = None
     if mesh is not None and not isinstance(mesh, str):
         mesh = as_int(mesh, "mesh= (a mesh's name or index)", lo=0, error=ModelError)
     if primitive is not None:
@@ -340,35 +379,50 @@ def read_gltf(
 
 def _read(p: Path, raw: bytes, mesh, primitive, max_bytes: int) -> BlendshapeModel:
     r = GltfDocument(p, raw, max_bytes)
-    mi, prims = _choose(r, mesh, primitive)
-    gmesh = r.doc.meshes[mi]
-    n_total, m = _plan(r, mi, prims)  # what this will allocate, checked first
-    # one neutral and one delta array for all primitives, filled in place (no per-primitive copies)
-    f0 = np.empty((n_total, 3))
-    D3 = np.zeros((n_total, 3, m))
-    faces_parts, o = [], 0
-    for j in prims:
-        n, fc = _read_primitive(r, mi, j, f0[o:], D3[o:])
-        faces_parts.append(fc + o)
-        o += n
-    names = _target_names(r, gmesh, gmesh.primitives[prims[0]], m)
-    faces = np.concatenate(faces_parts)
-    M, _ = _world_of_mesh(r, mi)
-    L = M[:3, :3]
-    f0 = f0 @ L.T + M[:3, 3]
-    if not np.array_equal(L, np.eye(3)):
-        step = max(1, (1 << 22) // max(1, 3 * m))  # in place, a block of vertices at a time
-        for s in range(0, n_total, step):
-            D3[s : s + step] = np.einsum("ij,vjk->vik", L, D3[s : s + step])
-    D = D3.reshape(-1, m)
-    label = f"{p.name}:{gmesh.name or f'mesh{mi}'}/{','.join(map(str, prims))}"
-    extra = (gmesh.extras or {}).get("repro") if isinstance(gmesh.extras, dict) else None
+    auto = mesh is None
+    chosen = _choose(r, mesh, None if auto else primitive)
+    _plan(r, chosen)  # what this will allocate, checked first
+    parts = [_read_mesh(r, mi, prims) for mi, prims in chosen]
+    read = {mi for mi, _ in chosen}
+    others = [m.name or f"mesh{i}" for i, m in enumerate(r.doc.meshes) if i not in read and not _n_targets(m)]
+    try:
+        group, notes = choose_face(parts, without_targets=others, auto=auto)
+    except ModelError as exc:
+        raise r.err(str(exc)) from None
+    if auto and primitive is not None:  # one primitive of the face's first mesh
+        group = [_read_mesh(r, group[0].mi, _primitives(r, group[0].mi, primitive))]
+        notes[0] += f"; primitive {primitive} only"
+    f0, D3, faces, names = merge(group)
+    del parts
+    D = D3.reshape(-1, D3.shape[2])
+    label = f"{p.name}:{'+'.join(g.where for g in group)}"
+    gmesh = r.doc.meshes[group[0].mi]
+    extra = (gmesh.extras or {}).get("repro") if isinstance(gmesh.extras, dict) and len(group) == 1 else None
+    vrm = vrm_expressions(r.doc.extensions, {g.mi: g.names for g in group},
+                          [getattr(n, "mesh", None) for n in r.doc.nodes or []], names)
+    notes += _neutral_notes(D3, names) + vrm.notes
     try:
         if isinstance(extra, dict):
-            sliders = extra.get("sliders") or {}
+            sliders = dict(extra.get("sliders") or {})
             regions = {k: np.asarray(v, dtype=np.int64) for k, v in (extra.get("regions") or {}).items()}
         else:
-            sliders, regions = arkit_rig(f0, D, names)
-        return BlendshapeModel(f0=f0, D=D, names=names, faces=faces, name=label, units="m", sliders=sliders, regions=regions)
+            sliders, regions = arkit_rig(f0, D, names, aliases=vrm.aliases)
+        for key, combo in vrm.sliders.items():
+            if key in sliders:
+                notes.append(f"VRM expression {key!r} has the name of another slider: its slider is {key + '_expression'!r}")
+                key += "_expression"
+            sliders[key] = combo
+        return BlendshapeModel(f0=f0, D=D, names=names, faces=faces, name=label, units="m", sliders=sliders,
+                               regions=regions, notes=notes)
     except (ModelError, TypeError, ValueError, AttributeError) as exc:
         raise r.err(f"mesh {gmesh.name!r} does not make a blendshape model: {exc}") from None
+
+
+def _neutral_notes(D3: np.ndarray, names: list[str]) -> list[str]:
+    """A note for each target that is the neutral pose itself (:func:`~repro.blendshapes.faces.arkit.neutral_targets`)."""
+    notes = []
+    for k in neutral_targets(names):
+        move = np.linalg.norm(D3[:, :, k], axis=1)
+        notes.append(f"target {names[k]!r} is the neutral pose, not an expression: kept as a shape of its own, in no "
+                     f"named slider or region (it moves {np.count_nonzero(move)} vertices, at most {move.max():.3g} m)")
+    return notes

@@ -97,7 +97,7 @@ class GltfDocument:
         self.read_total = len(raw)  # bytes of the file and its buffers read: at most max_bytes
         self.decoded = 0  # bytes decoded from meshopt-compressed views, for the whole file
         self.glb_bin: bytes | None = None
-        glb = raw[:4] == GLB_MAGIC or path.suffix.lower() == ".glb"
+        glb = raw[:4] == GLB_MAGIC or path.suffix.lower() in (".glb", ".vrm")  # a VRM is a GLB
         text = self._split_glb(raw) if glb else self._text(raw)
         self.doc = self._parse(text, raw if glb else None)
         self._buffers: dict[int, bytes] = {}
