@@ -8,8 +8,10 @@ The paper's own face (Landreth's "Bingo", Figs. 2-5) is not available, so there 
 - :mod:`~repro.blendshapes.faces.ict`: the real ICT Face Model (staged data), read through
   :mod:`~repro.blendshapes.faces.obj` (OBJ meshes that keep vertex identity).
 - :mod:`~repro.blendshapes.faces.gltf`: any glTF 2.0 face with morph targets (the container in
-  :mod:`~repro.blendshapes.faces.gltf_document`, the paper's sliders and regions from ARKit-style
-  shape names in :mod:`~repro.blendshapes.faces.arkit`); :mod:`~repro.blendshapes.faces.gltf_write`
+  :mod:`~repro.blendshapes.faces.gltf_document`, which meshes make the face in
+  :mod:`~repro.blendshapes.faces.gltf_meshes`, the paper's sliders and regions from ARKit-style
+  shape names in :mod:`~repro.blendshapes.faces.arkit`, a VRM avatar's expressions as sliders in
+  :mod:`~repro.blendshapes.faces.vrm`); :mod:`~repro.blendshapes.faces.gltf_write`
   writes a model, its weights and a weight animation back out.
 
 :func:`load_model` picks one by name or path.
@@ -23,14 +25,15 @@ from repro.errors import ModelError
 __all__ = ["MODELS", "load_model"]
 
 #: Models :func:`load_model` knows, with the dataset each needs (None = embedded).
-MODELS = {"procedural": None, "ict": "ict"}  # and any .gltf/.glb path
+MODELS = {"procedural": None, "ict": "ict"}  # and any .gltf/.glb/.vrm path
 
 
 def load_model(name="procedural", **kw) -> BlendshapeModel:
     """A blendshape model by name, or a glTF 2.0 face by path.
 
-    A path (``str`` or ``os.PathLike``) ending in ``.gltf`` or ``.glb``: the face
-    in that file, in metres (keywords of :func:`repro.blendshapes.faces.gltf.read_gltf`).
+    A path (``str`` or ``os.PathLike``) ending in ``.gltf``, ``.glb`` or ``.vrm``: the face
+    in that file, in metres (keywords of :func:`repro.blendshapes.faces.gltf.read_gltf`; the
+    face's meshes are found in a multi-mesh avatar, a VRM's expressions become sliders).
     ``"procedural"``: the embedded 2,016-vertex face, always available
     (keyword ``n_vertices`` for a scaled-up one).  ``"ict"``: the ICT Face Model
     from the data folder (keywords of :func:`repro.blendshapes.faces.ict.load_ict`);
@@ -45,7 +48,7 @@ def load_model(name="procedural", **kw) -> BlendshapeModel:
             raise ModelError(f"load_model of a glTF file takes only mesh=, primitive= and max_bytes=, got {unknown}")
         return read_gltf(name, **kw)
     if not isinstance(name, str):
-        raise ModelError(f"model name must be a string or a .gltf/.glb path, got {name!r}; known: {sorted(MODELS)}")
+        raise ModelError(f"model name must be a string or a .gltf/.glb/.vrm path, got {name!r}; known: {sorted(MODELS)}")
     if name == "procedural":
         from repro.blendshapes.faces.procedural import procedural_model
 

@@ -4,7 +4,7 @@ A glTF face is a mesh primitive whose ``POSITION`` is the neutral ``f0`` and
 whose morph ``targets`` hold the deltas ``d_k`` (glTF stores targets as
 displacements, exactly the delta form of Lewis et al. 2005, Section 3), named
 in ``mesh.extras.targetNames``.  :func:`read_gltf` turns such a file (``.gltf``
-with its buffers, or ``.glb``) into a :class:`BlendshapeModel` in metres;
+with its buffers, ``.glb``, or a VRM avatar's ``.vrm``) into a :class:`BlendshapeModel` in metres;
 :func:`~repro.blendshapes.faces.gltf_write.write_gltf` writes one back, optionally
 with default weights and a weight animation, so a slider session opens in
 Blender or a browser viewer.  The file is read through
@@ -13,21 +13,34 @@ accessors, and the library that parses them).
 
 What is read
 ------------
-* The primitive with morph targets (the mesh with the most targets when
-  several have some; eyes and teeth without targets are skipped), or the mesh
-  named by ``mesh=`` (name or index).  Primitives of that mesh with the same
-  number of targets are merged (exporters split a mesh by material), unless
-  ``primitive=`` picks one.  The choice is recorded in the model's ``name``:
-  ``"<file>:<mesh>/<primitives>"``.
+* The face, found without being told (``mesh=None`` or ``"auto"``, the default):
+  the meshes with morph targets grouped by their set of target names, the group
+  with the most morph motion read as one face, its meshes merged (an avatar's
+  head, eyes and teeth that share ARKit names: one ``jawOpen`` moves head and
+  teeth); a face whose deltas are all zero is refused
+  (:mod:`~repro.blendshapes.faces.gltf_meshes`).  ``mesh=`` (a name or an index;
+  a mesh named ``"auto"`` by its index) reads that one mesh.  Primitives of a mesh
+  with its largest number of targets are merged (exporters split a mesh by
+  material), unless ``primitive=`` picks one (of the face's first mesh when the
+  face is found).  The choice is recorded in the model's ``name``,
+  ``"<file>:<mesh>/<primitives>"`` (meshes joined by ``+``), and said in words, with
+  the other meshes, in its ``notes``.
 * The mesh's world placement (node ``matrix`` or TRS, through the scene
   graph) is applied to the neutral; the deltas get its linear part.
 * Targets' ``NORMAL`` and ``TANGENT`` are ignored.
 * Names: ``mesh.extras.targetNames``, else the primitive's, else
-  ``target_0, target_1, ...``.
+  ``target_0, target_1, ...``.  A target that is the neutral pose itself
+  (``neutral``, ``face_shapes.ai_neutral``: :func:`~repro.blendshapes.faces.arkit.neutral_targets`)
+  is no expression: it stays a shape of its own (every target can be set by its
+  name), used by no named slider or region, and a note gives how far it moves.
 * Sliders and regions: a file written by :func:`~repro.blendshapes.faces.gltf_write.write_gltf` carries the
   model's own (``mesh.extras.repro``); any other face gets the paper's
-  sliders through ARKit-style names and regions found from where the named
-  shapes move (:func:`~repro.blendshapes.faces.arkit.arkit_rig`).
+  sliders through ARKit-style names (also namespaced FACS names such as
+  ``face_shapes.ai_browDown_L``) and regions found from where the named
+  shapes move (:func:`~repro.blendshapes.faces.arkit.arkit_rig`).  A VRM avatar's
+  expressions (``extensions.VRM`` 0.x or ``VRMC_vrm`` 1.0) are sliders too
+  (:func:`~repro.blendshapes.faces.vrm.vrm_expressions`; what of them cannot be used
+  is skipped and said in the model's ``notes``).
 
 Every problem with a file (not glTF, an HTML page saved as ``.glb``, a
 truncated GLB, a missing buffer, an unsupported required extension, a
@@ -317,16 +330,18 @@ def _read_mesh(r: GltfDocument, mi: int, prims: list[int]) -> MeshPart:
 def read_gltf(
     path, *, mesh: str | int | None = None, primitive: int | None = None, max_bytes: int = MAX_READ_BYTES
 ) -> BlendshapeModel:
-    """A glTF 2.0 face (``.gltf`` or ``.glb``) as a delta blendshape model in metres.
+    """A glTF 2.0 face (``.gltf``, ``.glb`` or ``.vrm``) as a delta blendshape model in metres.
 
     Parameters
     ----------
     path : path
         The file; a ``.gltf``'s external buffers are read beside it.
     mesh : str or int, optional
-        The mesh to read (name or index); default the mesh with the most morph targets.
+        The mesh to read (name or index); default (None or ``"auto"``) the face found in the
+        file: the meshes sharing one set of target names with the most morph motion, as one face.
     primitive : int, optional
-        One primitive of that mesh; default all its primitives with that many targets, merged.
+        One primitive of that mesh (of the face's first mesh by default); default all its
+        primitives with its largest number of targets, merged.
     max_bytes : int, default :data:`repro.io.MAX_READ_BYTES`
         Cap on the bytes read: the file and the buffers it uses, together.  What the file may
         make the loader allocate is bounded separately (:data:`MODEL_BYTES_RATIO`), and so are
@@ -335,11 +350,12 @@ def read_gltf(
     Returns
     -------
     BlendshapeModel
-        ``units="m"``, ``name="<file>:<mesh>/<primitives>"`` (which mesh and primitives were
-        read); neutral and deltas in world placement (the node's transform; deltas get its
-        linear part); names from ``extras.targetNames``.  Sliders and regions: the model's own
-        when the file was written by :func:`~repro.blendshapes.faces.gltf_write.write_gltf`, else
-        :func:`~repro.blendshapes.faces.arkit.arkit_rig`.
+        ``units="m"``, ``name="<file>:<mesh>/<primitives>"`` (which meshes and primitives were
+        read, ``+`` between meshes), ``notes`` saying why and what else the file holds; neutral
+        and deltas in world placement (the node's transform; deltas get its linear part); names
+        from ``extras.targetNames``.  Sliders and regions: the model's own when the file was
+        written by :func:`~repro.blendshapes.faces.gltf_write.write_gltf`, else
+        :func:`~repro.blendshapes.faces.arkit.arkit_rig`; and a VRM file's expressions.
 
     Raises
     ------
