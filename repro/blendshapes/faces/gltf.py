@@ -414,8 +414,11 @@ def _read(p: Path, raw: bytes, mesh, primitive, max_bytes: int) -> BlendshapeMod
     label = f"{p.name}:{'+'.join(g.where for g in group)}"
     gmesh = r.doc.meshes[group[0].mi]
     extra = (gmesh.extras or {}).get("repro") if isinstance(gmesh.extras, dict) and len(group) == 1 else None
-    vrm = vrm_expressions(r.doc.extensions, {g.mi: g.names for g in group},
-                          [getattr(n, "mesh", None) for n in r.doc.nodes or []], names)
+    try:
+        vrm = vrm_expressions(r.doc.extensions, {g.mi: g.names for g in group},
+                              [getattr(n, "mesh", None) for n in r.doc.nodes or []], names)
+    except ModelError as exc:
+        raise r.err(str(exc)) from None
     notes += _neutral_notes(D3, names) + vrm.notes
     try:
         if isinstance(extra, dict):
