@@ -6,6 +6,7 @@ from repro import data
 from repro.claims import pronost
 from repro.claims.ledger import evaluate
 from repro.experiments.pronost import adapted_motions as am
+from repro.experiments.pronost.databases import databases
 
 
 def _expected_clips(db, quick):
@@ -14,7 +15,7 @@ def _expected_clips(db, quick):
 
 def test_the_quick_feet_table_covers_its_subset_of_every_database_and_keeps_the_limits(quick_figures):
     feet = quick_figures("adapted_motions").extra_tables["feet"]
-    dbs = am._feet_databases()
+    dbs = databases()
     assert set(feet.database) == set(dbs)
     assert ("cmu" in dbs) == (data.missing_reason("cmu-bvh") is None)
     for name, db in dbs.items():
@@ -26,7 +27,7 @@ def test_the_quick_feet_table_covers_its_subset_of_every_database_and_keeps_the_
 
 def test_the_full_feet_table_covers_every_clip_and_keeps_the_limits():
     feet = am.feet_table(quick=False)
-    for name, db in am._feet_databases().items():
+    for name, db in databases().items():
         part = feet[feet.database == name]
         assert part["clip"].tolist() == _expected_clips(db, quick=False) and len(part) == db.n_clips
     assert feet.min_toe_height_m.min() >= pronost.PLAYED_TOE_FLOOR_M
@@ -46,7 +47,7 @@ def test_the_measure_fails_when_the_feet_are_not_planted(monkeypatch):
         return real(*a, **k)
 
     monkeypatch.setattr(adaptation, "adapt", pin)
-    db = am._feet_databases()["synthetic"]
+    db = databases()["synthetic"]
     feet = am.feet_of_played_strikes(db, "synthetic", range(12))
     assert feet.min_toe_height_m.min() < pronost.PLAYED_TOE_FLOOR_M
 
@@ -76,7 +77,7 @@ def test_summary_mentions_the_feet(quick_figures):
 
 
 def test_feet_table_is_deterministic():
-    db = am._feet_databases()["synthetic"]
+    db = databases()["synthetic"]
     a = am.feet_of_played_strikes(db, "synthetic", range(0, db.n_clips, 24))
     b = am.feet_of_played_strikes(db, "synthetic", range(0, db.n_clips, 24))
     assert a.equals(b)

@@ -25,6 +25,12 @@ reached and the reach level needed (limb / spine / root), how many frames needed
 largest slide of a planted foot, the bone-length error of the adapted motion and the cost
 of the adaptation (:func:`repro.motion.adaptation.cost.adaptation_cost`).
 
+The same orders are given on the CMU karate takes when they are staged (the CMU actor scaled to
+1.5 m and 2.0 m, in the guard of its first lunge punch:
+:func:`repro.experiments.pronost.databases.fighter_in_stance`); the table's first column is
+``database``, so that claim K6 is judged on real motion too.  The figure draws the synthetic
+database's orders.
+
 ``extra_tables["feet"]``: the feet of played strikes over a whole database (issue 12, item 4;
 claim K5).  Every clip of the synthetic database (and of the CMU one when ``cmu-bvh`` is
 staged) goes through the pipeline's retarget + adapt path: the clip's foot contacts are
@@ -45,7 +51,6 @@ from repro.experiments.registry import Result, experiment
 
 #: Fighter statures (m).
 HEIGHTS = (1.5, 2.0)
-STANCE_CLIP = "actor2_punch_left_high"
 #: (label, semantics, lateral x (m), height y (m), depth z (fraction of the fighter's height)).
 TARGETS = (
     ("punch to the head, left", "punch", -0.30, 1.35, 0.45),
@@ -69,30 +74,38 @@ def _segments(sk) -> list[tuple[int, int]]:
 
 
 def _compute(quick: bool, progress: bool = False):
-    from repro.motion.body.pose_frames import to_root_frame
-    from repro.motion.database.sources import default_database
-    from repro.motion.retargeting.morphology import retarget
-    from repro.motion.search.retrieval import MotionRetriever
-    from repro.motion.body.skeleton import scale_skeleton
-    from repro.motion.runtime.paper import PAPER
-    from repro.motion.runtime.strike import one_frame, strike
+    """The orders on every database present: the table (first column ``database``) and the synthetic
+    database's poses (the figure)."""
+    from repro.experiments.pronost.databases import databases
 
-    db = default_database("synthetic")
-    names = [str(n) for n in db.names]
+    rows, poses = [], []
+    for name, db in databases().items():
+        r, p = _orders(name, db, quick, progress)
+        rows += r
+        poses += p if name == "synthetic" else []
+    return pd.DataFrame(rows), tuple(poses)
+
+
+def _orders(name: str, db, quick: bool, progress: bool):
+    from repro.experiments.pronost.databases import fighter_in_stance
+    from repro.motion.body.pose_frames import to_root_frame
+    from repro.motion.search.retrieval import MotionRetriever
+    from repro.motion.runtime.paper import PAPER
+    from repro.motion.runtime.strike import strike
+
     retriever = MotionRetriever(db, seed=0)
     rows, poses = [], []
-    for H in bar(HEIGHTS, desc="adapted_motions: statures", unit="fighter", progress=progress):
-        ch = scale_skeleton(db.actors[0], height=H)
-        stance = one_frame(retarget(db.motion(names.index(STANCE_CLIP)), ch), 0)
+    for H in bar(HEIGHTS, desc=f"adapted_motions: statures, {name}", unit="fighter", progress=progress):
+        ch, stance = fighter_in_stance(db, H)
         q = retriever.prepare(stance, ch)
         for label, sem, x, y, zf in (TARGETS_QUICK if quick else TARGETS):
             c = np.array([x, y, zf * ch.size])
             s = strike(retriever, ch, stance, c, sem, frame="root", query=q, options=PAPER)
             r, a = s.retrieval, s.adaptation
             rows.append({
-                "height_m": H, "order": label, "semantics": sem, "target_x_m": x, "target_y_m": y,
-                "target_z_m": float(c[2]), "clip": r.name, "start_frame": r.start_frame, "hit_frame": r.hit_frame,
-                "fallback": r.fallback,
+                "database": name, "height_m": H, "order": label, "semantics": sem, "target_x_m": x,
+                "target_y_m": y, "target_z_m": float(c[2]), "clip": r.name, "start_frame": r.start_frame,
+                "hit_frame": r.hit_frame, "fallback": r.fallback,
                 "before_m": s.unadapted_error, "after_m": s.hit_error,
                 "reached": s.reached, "level": s.level, "frames_ccd": int(np.sum(a.solver == "ccd")),
                 "max_foot_slide_m": s.foot_slide, "bone_length_error_m": a.bone_length_error,
@@ -109,18 +122,7 @@ def _compute(quick: bool, progress: bool = False):
                 "traj_original": to_char(s.original_hit_positions()[sl]), "traj_adapted": to_char(s.hit_positions()[sl]),
                 "before_m": s.unadapted_error, "after_m": s.hit_error, "clip": r.name,
             })
-    return pd.DataFrame(rows), tuple(poses)
-
-
-def _feet_databases() -> dict:
-    """``{"synthetic": db, "cmu": db}`` (CMU only when the dataset is staged)."""
-    from repro import data
-    from repro.motion.database.sources import default_database
-
-    out = {"synthetic": default_database("synthetic")}
-    if data.missing_reason("cmu-bvh") is None:
-        out["cmu"] = default_database("cmu")
-    return out
+    return rows, poses
 
 
 def feet_of_played_strikes(db, name: str, clips=None, *, progress: bool = False) -> pd.DataFrame:
@@ -157,8 +159,10 @@ def feet_of_played_strikes(db, name: str, clips=None, *, progress: bool = False)
 
 def feet_table(quick: bool, progress: bool = False) -> pd.DataFrame:
     """The feet table over every database present (every clip; every ``FEET_QUICK_STEP``-th when quick)."""
+    from repro.experiments.pronost.databases import databases
+
     parts = []
-    for name, db in _feet_databases().items():
+    for name, db in databases().items():
         clips = range(0, db.n_clips, FEET_QUICK_STEP) if quick else None
         parts.append(feet_of_played_strikes(db, name, clips, progress=progress))
     return pd.concat(parts, ignore_index=True)
@@ -281,7 +285,7 @@ def _draw_matplotlib(poses, reason: str | None = None):
     "Fig. 10 analog: punches and kicks selected into the database and adapted to targets, for a 1.5 m and a "
     "2.0 m fighter (original pose grey, adapted light blue, target as a sphere)",
     paper="pronost2008",
-    data=("cmu-bvh",),  # the orders: the synthetic database only; the feet table: CMU too when staged
+    data=("cmu-bvh",),  # the orders and the feet table: CMU too when staged (the figure: the synthetic orders)
 )
 def adapted_motions(quick: bool = False, progress: bool = False) -> Result:
     table, poses = _compute(bool(quick), bool(progress))
@@ -292,16 +296,18 @@ def summary(result) -> str:
     """Markdown: how many orders are reached, what adaptation costs the body, and the misses."""
     from repro.experiments.summaries import bullets, num
 
-    t = result.table
-    reached = t[t.reached]
-    lines = [f"{len(reached)} of the {len(t)} orders are reached; pinned feet slide at most "
-             f"{num(1000 * t.max_foot_slide_m.max(), 2)} mm, bone lengths change at most "
-             f"{num(t.bone_length_error_m.max(), 2)} m",
-             f"correction (hit error before adaptation): {num(t.before_m.min(), 2)} to {num(t.before_m.max(), 2)} m"]
-    for r in t.itertuples():
-        lines.append(f"{num(r.height_m, 2)} m fighter, {r.order}: `{r.clip}` from frame {r.start_frame}, "
-                     f"{num(r.before_m, 2)} m off before adaptation, {num(r.after_m, 2)} m after"
-                     + ("" if r.reached else " (**missed**)"))
+    lines = []
+    for name, t in result.table.groupby("database", sort=False):
+        reached = t[t.reached]
+        lines += [f"*{name}*: {len(reached)} of the {len(t)} orders are reached; pinned feet slide at most "
+                  f"{num(1000 * t.max_foot_slide_m.max(), 2)} mm, bone lengths change at most "
+                  f"{num(t.bone_length_error_m.max(), 2)} m",
+                  f"*{name}*: correction (hit error before adaptation): {num(t.before_m.min(), 2)} to "
+                  f"{num(t.before_m.max(), 2)} m"]
+        for r in t.itertuples():
+            lines.append(f"*{name}*, {num(r.height_m, 2)} m fighter, {r.order}: `{r.clip}` from frame {r.start_frame}, "
+                         f"{num(r.before_m, 2)} m off before adaptation, {num(r.after_m, 2)} m after"
+                         + ("" if r.reached else " (**missed**)"))
     feet = result.extra_tables.get("feet")
     if feet is not None and len(feet):
         for name, g in feet.groupby("database", sort=False):

@@ -46,14 +46,6 @@ BONES: tuple[tuple[str, str], ...] = (
 _AXES = ("x", "y", "z")
 
 
-def _databases():
-    from repro import data
-    from repro.motion.database.sources import default_database
-
-    names = ["synthetic"] + (["cmu"] if data.missing_reason("cmu-bvh") is None else [])
-    return [(n, default_database(n)) for n in names]
-
-
 def cluster_table(name: str, db, clusters) -> pd.DataFrame:
     """One row per cluster (see the module docstring)."""
     rows = []
@@ -126,9 +118,10 @@ def example_target(db, i: int) -> np.ndarray:
 @experiment("clusters", "What the k-means pose clusters and the hit-trajectory boxes look like (Sections 3.2.1-3.2.2, "
             "Fig. 4 analog)", paper="pronost2008")
 def clusters(quick: bool = False) -> Result:
+    from repro.experiments.pronost.databases import databases
     from repro.motion.search.kmeans import cluster_poses
 
-    made = [(name, db, cluster_poses(db.pose_points, None, seed=0)) for name, db in _databases()]
+    made = [(name, db, cluster_poses(db.pose_points, None, seed=0)) for name, db in databases().items()]
     table = pd.concat([cluster_table(n, db, cl) for n, db, cl in made], ignore_index=True)
     boxes = pd.concat([box_table(n, db) for n, db, _ in made], ignore_index=True)
     return Result(table=table, draw=lambda: draw(made, table, boxes), extra_tables={"boxes": boxes})

@@ -114,17 +114,6 @@ LEVEL_RANK = {"low": 0, "middle": 1, "high": 2}
 
 
 # ---------------------------------------------------------------- shared helpers
-def databases() -> dict:
-    """``{"synthetic": db, "cmu": db}`` (CMU only when the dataset is staged)."""
-    from repro import data
-    from repro.motion.database.sources import default_database
-
-    out = {"synthetic": default_database("synthetic")}
-    if data.missing_reason("cmu-bvh") is None:
-        out["cmu"] = default_database("cmu")
-    return out
-
-
 def first_root_frame(motion, skeleton) -> tuple[float, np.ndarray]:
     """Heading and origin of the root reference frame of a motion's first frame."""
     from repro.motion.body.pose_frames import root_frames
@@ -275,6 +264,8 @@ def _eq1_rows(name: str, db, quick: bool) -> list[dict]:
 
 
 def _compute(quick: bool, progress: bool = False):
+    from repro.experiments.pronost.databases import databases
+
     dbs = databases()
     sweep = pd.DataFrame([r for name, db in dbs.items() for r in _sweep_rows(name, db, quick, progress)])
     eq1 = pd.DataFrame([r for name, db in dbs.items() for r in _eq1_rows(name, db, quick)])

@@ -62,6 +62,7 @@ import pandas as pd
 
 from repro.bench.retrieval import bench_retrieval, retrieval_summary
 from repro.experiments.progress import bar
+from repro.experiments.pronost.databases import database_names
 from repro.experiments.registry import Result, experiment
 from repro.motion.runtime.paper import PAPER_SEARCH_S, REACTION_BUDGET_S
 
@@ -72,13 +73,6 @@ K_VALUES_FULL = (2, 4, 8, 16, 32, 64, 128)
 METHOD_STYLE = {"pruned": ("C0", "pruned (paper: cluster + box)"), "exhaustive": ("C3", "exhaustive scan"),
                 "kdtree": ("C2", "k-d tree + rescoring"),
                 "exact": ("C4", "exact (branch and bound over clusters, clip runs, boxes)")}
-
-
-def base_databases() -> list[str]:
-    """The base databases measured: synthetic always, CMU when its data is present."""
-    from repro import data
-
-    return ["synthetic"] + (["cmu"] if data.missing_reason("cmu-bvh") is None else [])
 
 
 def k_sweep(databases=None, k_values=K_VALUES_QUICK, *, n_queries: int = 100, seed: int = 0,
@@ -96,7 +90,7 @@ def k_sweep(databases=None, k_values=K_VALUES_QUICK, *, n_queries: int = 100, se
     from repro.motion.search.retrieval import MotionRetriever, make_queries
 
     rows = []
-    for name in databases or base_databases():
+    for name in databases or database_names():
         db = default_database(name)
         kd = default_k(db.n_poses)
         queries = make_queries(db, n_queries, seed)
