@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from repro.blendshapes import BlendshapeModel, load_model, scenarios
-from repro.blendshapes.faces.arkit import arkit_rig
+from repro.blendshapes.faces.arkit import arkit_rig, canonical_names, neutral_targets
 from repro.blendshapes.faces.gltf_write import write_gltf
 from repro.blendshapes.faces.ict import ICT_SLIDERS
 from repro.errors import ModelError
@@ -119,3 +119,37 @@ def test_ict_written_as_a_third_party_arkit_face_gets_icts_sliders_and_nearby_re
 def test_arkit_rig_refuses_bad_arguments(args, match):
     with pytest.raises(ModelError, match=match):
         arkit_rig(*args)
+
+
+# ---------------------------------------------------------------- other tools' spellings of the names
+@pytest.mark.parametrize("names, want", [
+    # assimp through FBX: a namespace, then a group prefix that several names share
+    (["face_shapes.ai_browDown_L", "face_shapes.ai_browDown_R", "face_shapes.ca_jawOpen", "face_shapes.ca_x"],
+     ["browDown_L", "browDown_R", "jawOpen", "x"]),
+    # Maya namespaces and DAG paths; side suffixes of other tools; ARKit's names in any case
+    (["head:eyeBlink.L", "rig|eyeBlink_left", "EyeBlinkRight", "JAWOPEN", "browDownLeft"],
+     ["eyeBlink_L", "eyeBlink_L", "eyeBlink_R", "jawOpen", "browDown_L"]),
+    # mouthLeft is a shape of its own in ARKit, spelled as the _L form consistently
+    (["mouthLeft", "mouth_left", "jawRight"], ["mouth_L", "mouth_L", "jaw_R"]),
+    # a prefix only one name carries is part of that name; in-between shapes keep their number
+    (["ab_jawOpen", "eyeLowerClose_25_L", "eyeLowerClose_L"], ["ab_jawOpen", "eyeLowerClose_25_L", "eyeLowerClose_L"]),
+    # names that mean nothing in ARKit are left as they are
+    (["viseme_aa", "mouthOpen", "tongue"], ["viseme_aa", "mouthOpen", "tongue"]),
+])
+def test_canonical_names_follow_the_conventions_of_other_tools(names, want):
+    assert canonical_names(names) == want
+
+
+def test_neutral_targets_are_found_under_their_conventions():
+    assert neutral_targets(["face_shapes.ai_neutral", "face_shapes.ai_jawOpen", "Basis", "neutralize"]) == [0, 2]
+
+
+def test_a_namespaced_facs_face_gets_the_papers_sliders_and_regions(face, tmp_path):
+    """The ARKit face written as assimp writes an FBX blend-shape node: every name prefixed."""
+    m = _third_party(face, tmp_path, lambda s: f"face_shapes.ai_{s}")
+    plain = _third_party(face, tmp_path, lambda s: s)
+    assert set(m.sliders) == set(plain.sliders)
+    assert m.sliders["Furrow"] == {"face_shapes.ai_browDown_L": 1.0, "face_shapes.ai_browDown_R": 1.0}
+    assert set(m.regions) == set(plain.regions)
+    for key, verts in plain.regions.items():
+        np.testing.assert_array_equal(m.regions[key], verts, err_msg=key)
