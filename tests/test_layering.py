@@ -159,12 +159,6 @@ def test_no_private_name_imported_across_modules():
     assert not found, "\n".join(found)
 
 
-#: cycles being removed (issue 24); each entry the sorted modules of one strongly connected component
-KNOWN_CYCLES: list[list[str]] = [
-    ["repro.motion.search.exact", "repro.motion.search.retrieval", "repro.motion.search.start"],
-]
-
-
 def test_no_import_cycle():
     graph: dict[str, set[str]] = {m: set() for m in MODULES}
     for module, (_, tree) in MODULES.items():
@@ -209,7 +203,6 @@ def test_no_import_cycle():
                             break
                     if len(comp) > 1:
                         comps.append(sorted(comp))
-    comps = [c for c in comps if c not in KNOWN_CYCLES]
     assert comps == [], f"import cycles (type-only imports count): {comps}"
 
 

@@ -20,17 +20,9 @@ MAX_FUNCTION_LINES = 80
 
 #: functions allowed over MAX_FUNCTION_LINES, by "module:qualname", with why
 LONG_FUNCTIONS: dict[str, str] = {
-    "repro.motion.body.rest_pose:match_rest_pose": "to split into named steps (issue 24; 122 lines)",
-    "repro.motion.body.roles:_roles_from_structure": "to split into named steps (issue 24; 87 lines)",
-    "repro.motion.body.roles:_structure": "to split into named steps (issue 24; 95 lines)",
-    "repro.motion.body.roles:find_roles": "to split into named steps (issue 24; 127 lines)",
     "repro.motion.io.asfamc:_amc_values": "to split into named steps (issue 24; 98 lines)",
     "repro.motion.io.asfamc:read_amc": "to split into named steps (issue 24; 102 lines)",
     "repro.motion.io.asfamc:read_asf": "to split into named steps (issue 24; 248 lines)",
-    "repro.motion.io.bvh:_parse_hierarchy": "to split into named steps (issue 24; 139 lines)",
-    "repro.motion.retargeting.trees:TreePlan.__init__": "to split into named steps (issue 24; 90 lines)",
-    "repro.motion.retargeting.trees:retarget_across": "to split into named steps (issue 24; 127 lines)",
-    "repro.motion.search.exact:ExactSearch._search_exact": "to split into named steps (issue 24; 180 lines)",
     "repro.motion.search.kernel:search_first": "a numba-compiled kernel: one loop, no Python calls inside (splitting costs a call per candidate)",
 }
 
@@ -90,11 +82,7 @@ def _stage_violations() -> set[str]:
 
 
 #: modules still over the limit, being split (issue 24)
-KNOWN_LONG_MODULES: set[str] = {
-    "repro.motion.body.roles",
-    "repro.motion.retargeting.morphology",
-    "repro.motion.search.retrieval",
-}
+KNOWN_LONG_MODULES: set[str] = set()
 
 
 def test_no_module_over_the_line_limit():
