@@ -2,9 +2,13 @@
 
 A glTF face from another tool carries no sliders or regions of the paper (Lewis et al. 2005,
 Figs. 3-5), but most faces name their shapes after Apple's ARKit (``browDown_L`` or
-``browDownLeft``).  :func:`arkit_rig` maps the paper's sliders onto those names, as
-:data:`~repro.blendshapes.faces.ict.ICT_SLIDERS` does for ICT, and finds the figures'
-selections from where the named shapes move, not from vertex ids.
+``browDownLeft``), often behind a namespace and a group prefix (``face_shapes.ai_browDown_L``,
+an FBX blend-shape node written by assimp) or with another side suffix (``_left``, ``.L``):
+:func:`canonical_names` reads those conventions.  :func:`arkit_rig` maps the paper's sliders
+onto the names, as :data:`~repro.blendshapes.faces.ict.ICT_SLIDERS` does for ICT, and finds the
+figures' selections from where the named shapes move, not from vertex ids.  Shapes whose
+names mean nothing in ARKit (visemes, FACS in-betweens such as ``eyeLowerClose_25_L``, a
+``neutral`` target: :func:`neutral_targets`) stay shapes of their own, each set by its name.
 """
 
 from __future__ import annotations
