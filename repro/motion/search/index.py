@@ -158,7 +158,8 @@ class RetrievalIndex:
             code[sem_of_pose[order] == s] = i
         at = np.searchsorted(code * k + labels[order], np.arange(len(SEMANTICS) * k + 1))
         c = self._cand
-        self.cluster_block = [{s: self._block(*(c[n][at[i * k + cl]:at[i * k + cl + 1]] for n in ("rows", "clip", "size", "actor")))
+        names = ("rows", "clip", "size", "actor")
+        self.cluster_block = [{s: self._block(*(c[n][at[i * k + cl]:at[i * k + cl + 1]] for n in names))
                                for i, s in enumerate(SEMANTICS)} for cl in range(k)]
         self._sem_span = {s: slice(int(at[i * k]), int(at[(i + 1) * k])) for i, s in enumerate(SEMANTICS)}
 
@@ -186,8 +187,8 @@ class RetrievalIndex:
         (:func:`group_centroids`, rounded to float32 and kept, for the runs of more than one
         pose, as ``b.gcent`` until :meth:`_gather_groups` gathers them) to its poses, so that
         ``D(q, p) >= D(q, m) - r`` for each pose ``p`` of the run (the compiled search's bound
-        of a run, before its poses are scored).  The radius is measured from the rounded centroid, which keeps the bound exact
-        (any centre will do), in half the memory (at 1,000x the float64 terms of the centroids
+        of a run, before its poses are scored).  The radius is measured from the rounded centroid, which
+        keeps the bound exact (any centre will do), in half the memory (at 1,000x the float64 terms of the centroids
         took the build's traced peak from 3.4 to 4.3 GB, measured).
         """
         G = b.uclips.size

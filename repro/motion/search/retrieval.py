@@ -108,8 +108,7 @@ from repro.motion.core.cache import LRUCache
 from repro.motion.core.motion import Motion
 from repro.motion.database.annotation import SEMANTICS
 from repro.motion.database.clips import MotionDatabase
-from repro.motion.search import arguments
-from repro.motion.search.arguments import MAX_TARGET_M, MAX_WEIGHT, METHODS, check_flag, check_target
+from repro.motion.search.arguments import MAX_TARGET_M, MAX_WEIGHT, METHODS, check_flag, check_method, check_target
 from repro.motion.search.exact import ExactSearch
 from repro.motion.search.exhaustive import search_exhaustive
 from repro.motion.search.index import RetrievalIndex
@@ -243,13 +242,13 @@ class MotionRetriever(QueryPreparer):
         c, q, sem, method, scale_target, prune = self.arguments(
             target, current_pose, character, semantics, method=method, scale_target=scale_target, frame=frame,
             prune=prune)
+        if method == "kdtree":  # Eq. 1 always (its feature is c / size_c)
+            return self._kdtree(c, q, sem)
         c_r = self.targets.c_r(c, q.size_c, scale_target)
         if method == "exact":
             return self._exact(c, q, sem, c_r, scale_target)
         if method == "exhaustive":
             return search_exhaustive(self.retrieval_index, q, sem, c_r)
-        if method == "kdtree":
-            return self._kdtree(c, q, sem)
         return search_pruned(self.retrieval_index, q, sem, c_r, self.matrices, prune=prune)
 
     def arguments(self, target, current_pose, character, semantics, *, method: str, scale_target: bool = True,
@@ -258,7 +257,7 @@ class MotionRetriever(QueryPreparer):
 
         One preamble for :meth:`search`, :meth:`search_exact`, :meth:`search_exhaustive`
         and :meth:`search_kdtree`: the target (:data:`MAX_TARGET_M`), the semantics, the
-        flags, the method (:meth:`check_method`), then the prepared query
+        flags, the method (:func:`~repro.motion.search.arguments.check_method`), then the prepared query
         (:meth:`prepare`, or a :class:`Query` checked), in that order (the cheap checks
         before the retargeting).
 
@@ -270,14 +269,9 @@ class MotionRetriever(QueryPreparer):
         c = check_target(target)
         sem = self._semantics(semantics)
         prune, scale_target = check_flag("prune", prune), check_flag("scale_target", scale_target)
-        method = self.check_method(method)
+        method = check_method(method)
         q = self.query(current_pose, character, frame)
         return c, q, sem, method, scale_target, prune
-
-    @staticmethod
-    def check_method(method) -> str:
-        """``method`` checked: one of :data:`METHODS`."""
-        return arguments.check_method(method)
 
     def _semantics(self, semantics) -> str:
         if not isinstance(semantics, str) or semantics not in SEMANTICS:
@@ -342,7 +336,8 @@ class MotionRetriever(QueryPreparer):
         return self._kdtree(c, q, sem)
 
     def _kdtree(self, c, q: Query, sem: str) -> RetrievalResult:
-        return search_kdtree(self.retrieval_index, self.kd_trees, c, q, sem, self.targets.c_r(c, q.size_c, True), self.matrices,
+        c_r = self.targets.c_r(c, q.size_c, True)
+        return search_kdtree(self.retrieval_index, self.kd_trees, c, q, sem, c_r, self.matrices,
                              kd_neighbours=self.kd_neighbours)
 
 
