@@ -97,8 +97,10 @@ def check_finite(obj, where: str = "result", depth: int = 0, seen=None, skip=fro
                 walk(v, f"{where}.{k}")
 
 
-#: Attributes where an infinite value is legitimate: ASF joint limits ``(-inf inf)``.
-INFINITE_OK = {"limits"}
+#: Attributes where an infinite value is legitimate: ASF joint limits ``(-inf inf)``; the search index's
+#: per-cluster radius of a semantics, inf where the cluster holds no pose of it (a bound that prunes nothing:
+#: :class:`repro.motion.search.index.RetrievalIndex`).
+INFINITE_OK = {"limits", "radius"}
 
 
 def _peak_rss_kb() -> int:
