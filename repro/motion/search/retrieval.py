@@ -136,7 +136,7 @@ class MotionRetriever(QueryPreparer):
 
     Everything that does not depend on the query is computed once (Section 3.2.2:
     "we propose to organize the database into clusters in a precomputation process"), in its
-    :class:`~repro.motion.search.index.RetrievalIndex` (``index``): k-means clusters of all
+    :class:`~repro.motion.search.index.RetrievalIndex` (``retrieval_index``): k-means clusters of all
     poses, the candidate poses of every (cluster, semantics), the closed-form terms of the
     aligned distance for every pose, padded hit trajectories, the exact search's bounds.  The
     searches are the functions of :mod:`~repro.motion.search.pruned`,
@@ -178,8 +178,10 @@ class MotionRetriever(QueryPreparer):
 
     def __init__(self, db: MotionDatabase, *, k: int | None = None, seed: int = 0, weights=None,
                  w_q: float = 1.0, w_c: float = 1.0, kd_neighbours: int = 32, across_trees: bool = True):
-        index = RetrievalIndex(db, k=k, seed=seed, weights=weights, w_q=w_q, w_c=w_c)
+        # the facade's own arguments first: refused before the index's k-means runs
         self.kd_neighbours = as_int(kd_neighbours, "kd_neighbours", 1, None, error=RetrievalError)
+        across_trees = check_flag("across_trees", across_trees)
+        index = RetrievalIndex(db, k=k, seed=seed, weights=weights, w_q=w_q, w_c=w_c)
         super().__init__(index, across_trees=across_trees)
         self.retrieval_index = index
         # what the index holds, read by the notebooks, experiments and tests (the same objects)
