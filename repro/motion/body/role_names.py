@@ -22,19 +22,20 @@ from functools import lru_cache
 from repro.checks import describe
 from repro.errors import MotionError
 
-__all__ = ["CENTER_BASES", "SIDE_BASES", "is_head_name", "is_helper_name", "limbs_by_name", "name_side",
+__all__ = ["CENTER_BASES", "SIDE_BASES", "is_head_name", "is_helper_name", "is_neck_name", "limbs_by_name", "name_side",
            "side_and_base", "stem_votes", "trunk_by_name"]
 
 #: Base names (lower case, alphanumerics only, side removed) of each per-side role stem,
-#: best first.  "hand" is the wrist of Mixamo / Bandai skeletons, and the fist (end of the
-#: hand bone) of CMU ones, where a separate "wrist" joint exists.
+#: best first (``uparm``/``loarm``: the MakeHuman game rig's ``UpArm_L``/``LoArm_L``).  "hand"
+#: is the wrist of Mixamo / Bandai skeletons, and the fist (end of the hand bone) of CMU
+#: ones, where a separate "wrist" joint exists.
 SIDE_BASES: dict[str, tuple[str, ...]] = {
     "clavicle": ("clavicle", "collarbone", "collar", "shoulder"),
     "shoulder": ("humerus", "upperarm", "uparm", "arm", "shldr"),
-    "elbow": ("radius", "forearm", "lowerarm", "lowarm", "elbow"),
+    "elbow": ("radius", "forearm", "lowerarm", "lowarm", "loarm", "elbow"),
     "wrist": ("wrist", "hand"),
     "hip": ("femur", "upleg", "upperleg", "thigh", "hip"),
-    "knee": ("tibia", "lowerleg", "lowleg", "leg", "shin", "calf", "knee"),
+    "knee": ("tibia", "lowerleg", "lowleg", "loleg", "leg", "shin", "calf", "knee"),
     "ankle": ("foot", "ankle"),
     "toe": ("toes", "toebase", "toe", "ball"),
 }
@@ -137,6 +138,11 @@ _BODY_WORDS = tuple(
 )
 
 
+def is_neck_name(name: str) -> bool:
+    """True for a joint named a neck (``Neck``, ``LowerNeck``, ``neck_01``, ``mNeck``)."""
+    return _alnum(_strip(name)).lstrip("m") in CENTER_BASES["neck"] + ("neck01", "neck2", "neck02")
+
+
 def is_head_name(name: str) -> bool:
     """True for a joint named the head (``Head``, ``mHead``, ``head1``, ``HeadBone``)."""
     return _alnum(_strip(name)).lstrip("m") in ("head", "head1", "headbone")
@@ -180,7 +186,8 @@ def limbs_by_name(names: list[str], index: dict[str, int], par, roles: dict[str,
             if role in roles:
                 continue
             for base in bases:
-                hit = next((n for n in read_as.get((side, base), ()) if n not in used), None)
+                hit = next((n for n in read_as.get((side, base), ()) if n not in used and not n.startswith("__")),
+                           None)  # a MakeHuman "__UpLeg_L" is the helper above the bone
                 if hit is not None:
                     roles[role] = hit
                     used.add(hit)

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from repro.errors import MotionError
-from repro.motion.body.role_names import is_head_name, is_helper_name, name_side, stem_votes
+from repro.motion.body.role_names import is_head_name, is_helper_name, is_neck_name, name_side, stem_votes
 from repro.motion.core.kinematics import rest_positions
 
 __all__ = ["AmbiguousLimbs", "roles_from_structure", "trunk_from_tree"]
@@ -117,13 +117,27 @@ def _tips_under(j: int, children: list[list[int]], has_cand: np.ndarray, tips: s
     return out
 
 
-def _pelvis_hub(names: list[str], children: list[list[int]], has_cand: np.ndarray) -> tuple[int, list[int]]:
-    """The first joint from the root with >= 3 tip-bearing branches, and those branches."""
-    hub = 0
-    br = [c for c in children[hub] if has_cand[c]]
+def _first_branching(j: int, children: list[list[int]], has_cand: np.ndarray) -> tuple[int, list[int]]:
+    """The first joint from ``j`` down with other than one tip-bearing branch, and its branches."""
+    br = [c for c in children[j] if has_cand[c]]
     while len(br) == 1:
-        hub = br[0]
-        br = [c for c in children[hub] if has_cand[c]]
+        j = br[0]
+        br = [c for c in children[j] if has_cand[c]]
+    return j, br
+
+
+def _pelvis_hub(names: list[str], children: list[list[int]], has_cand: np.ndarray) -> tuple[int, list[int]]:
+    """The first joint from the root with >= 3 tip-bearing branches, and those branches.
+
+    A root branching in two, the trunk and a hips joint branching into the two legs (the
+    MakeHuman game rig: ``Root`` the spine base, ``Hips`` its child carrying the legs), is
+    the hub too: its branches are the trunk and the two legs."""
+    hub, br = _first_branching(0, children, has_cand)
+    if len(br) == 2:
+        split = [_first_branching(b, children, has_cand)[1] for b in br]
+        two = [k for k in (0, 1) if len(split[k]) == 2]
+        if len(two) == 1:
+            br = [br[1 - two[0]]] + split[two[0]]
     if len(br) < 3:
         raise MotionError(
             f"no joint of the tree branches into two legs and a trunk (first branching joint "
@@ -234,6 +248,8 @@ def _limb_from_chain(pts: list[int], names: list[str], P: np.ndarray, kind: str,
             continue
         trio = (pts[i - 1], pts[i], pts[i + 1])
         votes = [stem_votes(names[j], st) for j, st in zip(trio, stems)]
+        if votes[1][0] and stem_votes(names[trio[2]], stems[1])[0]:
+            votes[2] = (0, 0)  # the middle bone's second, twist segment (MakeHuman lowerarm02): on the bone
         k = (sum(v for v, _ in votes) - sum(c for _, c in votes), seg[i - 1] + seg[i])
         if key is None or k > key:
             best, key = i, k
@@ -345,11 +361,12 @@ def _arm_roles(names: list[str], par: np.ndarray, cand: np.ndarray, arms: dict, 
 
 
 def _head_role(names: list[str], par: np.ndarray, hub: int, head: int, end_sites) -> str:
-    """A joint named head on the head chain, else the tip (a head-top marker's parent)."""
+    """A joint named head on the head chain, else the tip (a head-top marker's parent); a tip
+    named neck (no head joint: CMU-style ``LowerNeck``, ``Neck``) is the head, the top of the neck."""
     hchain = _path_down(hub, head, par)
     named = [j for j in hchain if is_head_name(names[j])]
     if not named and end_sites is not None and head not in end_sites and not np.any(par == head) \
-            and len(hchain) >= 3:
+            and len(hchain) >= 3 and not is_neck_name(names[head]):
         head = int(par[head])  # a head-top marker joint (no End Site, no child): the head is its parent
     return names[named[-1] if named else head]
 
@@ -384,14 +401,20 @@ def roles_from_structure(names: list[str], par: np.ndarray, off: np.ndarray, end
 def trunk_from_tree(names: list[str], index: dict[str, int], par: np.ndarray, roles: dict[str, str]) -> None:
     """Pelvis, chest, spine, neck and clavicles from the tree (in place).
 
-    Pelvis = lowest common ancestor of the two hips, chest = that of the two shoulders,
+    Pelvis = lowest common ancestor of the two hips (or of them and the chest, when the hips
+    hang off a joint beside the trunk), chest = that of the two shoulders,
     spine = first joint after the pelvis on the way to the chest, neck = first joint after
     the chest on the way to the head, clavicle = a shoulder's parent other than the chest.
     """
     lh, rh = roles.get("left_hip"), roles.get("right_hip")
-    if "pelvis" not in roles and lh and rh:
-        roles["pelvis"] = names[_lca(index[lh], index[rh], par)]
     ls, rs = roles.get("left_shoulder"), roles.get("right_shoulder")
+    if "pelvis" not in roles and lh and rh:
+        p = _lca(index[lh], index[rh], par)
+        if ls and rs and "chest" not in roles:
+            c = _lca(index[ls], index[rs], par)
+            if p not in _ancestors(c, par):  # the legs' joint beside the trunk (MakeHuman game rig Hips)
+                p = _lca(p, c, par)
+        roles["pelvis"] = names[p]
     if "chest" not in roles and ls and rs:
         c = _lca(index[ls], index[rs], par)
         if "pelvis" not in roles or names[c] != roles["pelvis"]:
