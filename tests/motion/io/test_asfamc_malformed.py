@@ -20,7 +20,7 @@ import pytest
 
 from repro.errors import BVHError, ReproError
 from repro.motion import read_amc, read_asf, read_asf_amc
-from repro.motion.io import asfamc
+from repro.motion.io import asf, asfamc
 
 
 def chain_asf(n: int, *, dofs: bool = True, ids: bool = True) -> str:
@@ -137,7 +137,7 @@ def test_non_utf8_names_the_source(tmp_path):
 
 # ------------------------------------------------------ item 2: allocation
 def test_reads_are_capped(tmp_path, monkeypatch):
-    monkeypatch.setattr(asfamc, "MAX_ASF_BYTES", 1000)
+    monkeypatch.setattr(asf, "MAX_ASF_BYTES", 1000)
     with pytest.raises(BVHError, match="more than 1000 bytes"):
         read_asf(io.StringIO(SMALL_ASF + "# padding\n" * 100))
     monkeypatch.setattr(asfamc, "MAX_AMC_BYTES", 5000)
@@ -200,7 +200,8 @@ def test_rotations_are_vectorised_over_joints(n, monkeypatch):
     # one Euler conversion per distinct dof sequence / axis order, not one per joint
     calls = []
     real = asfamc.euler_to_quat
-    monkeypatch.setattr(asfamc, "euler_to_quat", lambda *a, **k: calls.append(1) or real(*a, **k))
+    for module in (asf, asfamc):  # the axis frames C (asf) and the motions M (asfamc)
+        monkeypatch.setattr(module, "euler_to_quat", lambda *a, **k: calls.append(1) or real(*a, **k))
     read_asf_amc(io.StringIO(chain_asf(n)), io.StringIO(chain_amc(n)))
     assert len(calls) <= 4, len(calls)
 
