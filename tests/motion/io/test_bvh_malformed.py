@@ -216,18 +216,18 @@ def test_deep_chain_reads():
 
 
 def test_deep_chain_kinematics_do_not_loop_over_levels(monkeypatch):
-    import repro.motion.core.motion as mm
+    import repro.motion.core.kinematics as kin  # Motion.global_transforms' forward kinematics
 
     m = _read(_chain(20000, frames=2))
     calls, products = [], [0]
-    real = mm.quat_multiply
+    real = kin.quat_multiply
 
     def counting(a, b):
         calls.append(1)
         products[0] += int(np.prod(np.broadcast_shapes(np.shape(a), np.shape(b))[:-1]))
         return real(a, b)
 
-    monkeypatch.setattr(mm, "quat_multiply", counting)
+    monkeypatch.setattr(kin, "quat_multiply", counting)
     gq, gp = m.global_transforms()
     # pointer doubling: ceil(log2(20000)) = 15 vectorised rounds, not one per level
     assert len(calls) <= 16, len(calls)
