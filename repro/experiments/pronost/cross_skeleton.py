@@ -1,23 +1,46 @@
-"""Retargeting across skeletons (issue 11; Pronost et al. Section 3.4.1, Kulpa et al. 2005).
+"""Retargeting across skeletons (issue 11; issue 25, item 9; Pronost et al. Section 3.4.1, Kulpa et al. 2005).
 
 The paper's database serves "hundreds of characters" with *different skeletons*.  This
-figure plays the synthetic database on characters in other tools' conventions
-(:mod:`repro.motion.database.synthetic.conventions`: Mixamo, MotionBuilder, Poser/DAZ, Second
-Life, 3ds Max Biped, SMPL, Unreal, Unity -- extra spine joints, twist bones, fingers, face
-joints, zero-length helpers, A-pose, Z-up) at statures 1.2-2.2 m, and on real data CMU
-clips on the Bandai Namco skeleton and the reverse, through
-:func:`repro.motion.retarget`.  Columns, per clip and character:
+figure plays the synthetic database on characters whose bodies and trees differ from the
+source actor's (:data:`repro.motion.database.synthetic.conventions.CHARACTERS`: Mixamo, Unreal,
+3ds Max Biped, Rigify, MotionBuilder, Second Life, SMPL, Unity and Poser names; arm, leg and
+torso proportions 10-25 % off the actor's; T-, A- and N-pose rest poses; 1 to 5 spine joints;
+2- and 3-segment fingers with no hand End Site; no toes; twist bones off the limbs and in the
+limb chains; zero-length helpers; Y or Z up; metres, centimetres, millimetres, inches) at
+statures 1.2-2.2 m, and on real data CMU clips on the Bandai Namco skeleton and the reverse,
+through :func:`repro.motion.retarget`.  The field's metrics, per clip and character:
 
-* ``hit_error_m``: at the annotated hit frame, distance from the striking limb's distal
-  joint to the representation's target (proximal joint + normalised limb vector x the
-  character's limb length); non-zero only where the limb cannot reach;
-* ``foot_slide_m``: mean horizontal displacement per frame of the character's ankles on
-  the frames where the source's ankle is planted (:func:`repro.motion.body.feet.foot_contacts`);
-* ``penetration_m``: deepest point of the ankles / toes below the floor plane;
+* ``position_error``: the joint-position error of Aberman et al. (2020, "Skeleton-Aware
+  Networks for Deep Motion Retargeting", Section 6): the mean Euclidean distance between
+  corresponding joints of the result and the source, divided by the stature.  Corresponding
+  joints are those both skeletons have by role (:data:`COMPARED_ROLES`: pelvis, chest, neck,
+  head, and per side shoulder, elbow, wrist, hip, knee, ankle, toe); every frame, each skeleton's
+  positions are divided by its own stature (:attr:`~repro.motion.body.skeleton.Skeleton.height`:
+  a common height of 1), the result's turned into the source's world (the rotation between the
+  two rest body frames, :func:`~repro.motion.retargeting.trees.body_frame`) and both root-aligned
+  (the pelvis subtracted).  There is no ground truth of the character performing the clip, so
+  this measures how far the character's body is from the source's in the same pose: its
+  proportions, and anything retargeting gets wrong (a role on the wrong joint);
+* ``foot_slide_m`` (the figure: cm per contact frame): mean horizontal displacement per frame
+  of the character's ankles on the frames where the source's ankle is planted
+  (:func:`repro.motion.body.feet.foot_contacts`);
+* ``penetration_m`` (cm): deepest point of the ankles / toes below the floor plane;
+* ``eq1_gap_m`` (the figure's hit error at contact, cm): at the annotated hit frame, in the
+  clip's first root frame, the distance from the character's striking joint (the wrist of a
+  punch, the ankle of a kick: every character has them) to the source's, scaled by the ratio of
+  statures (Eq. 1: where a retrieval asks the character to strike); ``hip_ratio_gap_m`` the
+  same scaled by the ratio of hip heights (the representation's root path normalisation);
+* ``hit_error_m``: at the hit frame, distance from the striking limb's distal joint to the
+  representation's target (proximal joint + normalised limb vector x the character's limb
+  length); non-zero only where the limb cannot reach;
 * ``bone_length_error``: largest relative difference between a bone of the result and the
   character's bone;
 * ``limb_angle_deg``: largest angle between a source limb's shoulder->wrist / hip->ankle
-  direction (mapped into the character's world) and the result's: the pose reads the same.
+  direction (mapped into the character's world) and the result's: the pose reads the same;
+* ``roles``: ``"as built"`` when the roles found on the character are the joints it was built
+  with (:func:`~repro.motion.database.synthetic.conventions.build_character`), else which
+  differ; ``error``: the :class:`~repro.errors.MotionError` of a character retargeting refuses
+  (its row's metrics then NaN).
 
 Every case is retargeted twice, ``fix_feet`` False (the representation alone) and True
 (planted ankles pinned, no ankle/toe below the floor: ``retarget(..., fix_feet=True)``);
@@ -25,12 +48,11 @@ the pinned feet bend the legs away from the source's directions (``limb_angle_de
 a few degrees), and the foot slide and ground penetration fall to zero.
 
 Real data: besides two whole takes (no hit annotation), annotated clips of the CMU +
-Bandai Namco database (:func:`repro.motion.database.sources.build_real_database`) give two more
-columns at the hit frame, in the clip's first root frame (where the database keeps hit
-points): ``eq1_gap_m``, the distance from the retargeted hit point (the character's joint
-of the clip's ``hit_role``) to the source's hit point scaled by Eq. 1 (``size_c /
-size_a``: where a retrieval asks the character to strike), and ``hip_ratio_gap_m``, the
-same scaled by the ratio of hip heights (the representation's root path normalisation).
+Bandai Namco database (:func:`repro.motion.database.sources.build_real_database`) give the
+hit columns, in the clip's first root frame (where the database keeps hit points):
+``eq1_gap_m``, the distance from the retargeted hit point (there: the character's joint of
+the clip's ``hit_role``) to the source's hit point scaled by Eq. 1 (``size_c / size_a``),
+and ``hip_ratio_gap_m``.
 Why a Bandai kick played by a CMU character falls ~0.2 m short of its Eq. 1 target: the
 two rigs' statures are not measured alike -- the Bandai skeleton has a zero-length head
 End Site (no head top) and a rest pose that cannot tell the ankle height
@@ -44,8 +66,8 @@ pose and adapts it, and its kick misses a hip-ratio target too, by less.  (Befor
 rest offsets carried each segment's twist, the Bandai pelvis also came out turned ~43
 deg about the trunk on a CMU character.)
 
-Quick: six conventions x two statures x two clips; full: every convention x five statures
-x eight clips, plus the real-data pairs when staged.
+Quick: every character x two statures x two clips; full: every character x five statures
+x eight clips; plus the real-data pairs when staged.
 """
 
 from __future__ import annotations
@@ -59,51 +81,107 @@ import pandas as pd
 from repro.experiments.progress import bar
 from repro.experiments.registry import Result, experiment
 
-CONVENTIONS_QUICK = ("mixamo", "motionbuilder", "secondlife", "biped", "smpl", "unreal")
 HEIGHTS = (1.2, 1.5, 1.75, 2.0, 2.2)
 HEIGHTS_QUICK = (1.2, 2.2)
 CLIPS = tuple((k, s) for k in ("punch", "kick_front", "kick_side", "kick_round") for s in ("left", "right"))
 CLIPS_QUICK = (("punch", "right"), ("kick_round", "left"))
 LIMBS = {"arm": ("shoulder", "wrist"), "leg": ("hip", "ankle")}
+#: The roles the joint-position error compares (those both skeletons have).
+COMPARED_ROLES = ("pelvis", "chest", "neck", "head") + tuple(
+    f"{s}_{k}" for s in ("left", "right") for k in ("shoulder", "elbow", "wrist", "hip", "knee", "ankle", "toe"))
 
 
-def measure(src, out, *, hit_frame: int | None = None, hit_role: str | None = None) -> dict:
-    """The accuracy columns of one retargeted clip (see the module docstring); metres."""
-    from repro.motion.body.feet import foot_contacts
-    from repro.motion.retargeting.trees import body_frame
-    from repro.motion.body.skeleton import Skeleton, skeleton_of
-    from repro.motion.body.units import infer_up
+def position_error(gs: np.ndarray, gt: np.ndarray, ss, ts, C: np.ndarray) -> float:
+    """Aberman et al. (2020)'s joint-position error of the result (positions ``gt``, skeleton
+    ``ts``) against the source (``gs``, ``ss``), module docstring: mean distance over frames and
+    the :data:`COMPARED_ROLES` both have, each skeleton divided by its stature, root-aligned, in
+    the source's world (``C`` maps it onto the character's)."""
+    common = [r for r in COMPARED_ROLES if r in ss.roles and r in ts.roles]
+    pts = []
+    for g, sk, to_src in ((gs, ss, np.eye(3)), (gt, ts, C)):
+        p = g[:, [sk.index(r) for r in common]] @ to_src / sk.height
+        pts.append(p - p[:, :1])  # the pelvis first
+    return float(np.linalg.norm(pts[1] - pts[0], axis=-1).mean())
 
-    ss, ts = Skeleton.from_motion(src), skeleton_of(out)
-    ups, upt = src.up or infer_up(src, ss), out.up or infer_up(out, ts)
-    C = body_frame(ts, upt) @ body_frame(ss, ups).T
-    gs, gt = src.global_positions(), out.global_positions()
-    u_m = ts.unit_m or 1.0
-    row = {}
-    # limb directions and the representation's target at the hit
+
+def _limb_angle(gs, gt, ss, ts, C) -> float:
     worst = 0.0
     for side in ("left", "right"):
-        for kind, (a, b) in LIMBS.items():
+        for a, b in LIMBS.values():
             va = (gs[:, ss.index(f"{side}_{b}")] - gs[:, ss.index(f"{side}_{a}")]) @ C.T
             vb = gt[:, ts.index(f"{side}_{b}")] - gt[:, ts.index(f"{side}_{a}")]
             cos = np.sum(va * vb, -1) / np.maximum(np.linalg.norm(va, axis=-1) * np.linalg.norm(vb, axis=-1), 1e-300)
             worst = max(worst, float(np.degrees(np.arccos(np.clip(cos, -1, 1))).max(initial=0.0)))
-    row["limb_angle_deg"] = worst
-    if hit_frame is not None and hit_role is not None:
-        side, stem = hit_role.split("_", 1)
-        kind = "arm" if stem in ("fist", "wrist", "hand") else "leg"
-        a, b = LIMBS[kind]
-        mid = "elbow" if kind == "arm" else "knee"
-        Ls = ss.bone_length(f"{side}_{mid}") + ss.bone_length(f"{side}_{b}")
-        Lt = ts.bone_length(f"{side}_{mid}") + ts.bone_length(f"{side}_{b}")
-        f = int(hit_frame)
-        n = (gs[f, ss.index(f"{side}_{b}")] - gs[f, ss.index(f"{side}_{a}")]) @ C.T / Ls
-        goal = gt[f, ts.index(f"{side}_{a}")] + n * Lt
-        row["hit_error_m"] = float(np.linalg.norm(gt[f, ts.index(f"{side}_{b}")] - goal)) * u_m
-    else:
-        row["hit_error_m"] = np.nan
+    return worst
+
+
+def _hit_error(gs, gt, ss, ts, C, hit_frame: int, hit_role: str) -> float:
+    side, stem = hit_role.split("_", 1)
+    kind = "arm" if stem in ("fist", "wrist", "hand") else "leg"
+    a, b = LIMBS[kind]
+    mid = "elbow" if kind == "arm" else "knee"
+    Ls = ss.bone_length(f"{side}_{mid}") + ss.bone_length(f"{side}_{b}")
+    Lt = ts.bone_length(f"{side}_{mid}") + ts.bone_length(f"{side}_{b}")
+    f = int(hit_frame)
+    n = (gs[f, ss.index(f"{side}_{b}")] - gs[f, ss.index(f"{side}_{a}")]) @ C.T / Ls
+    goal = gt[f, ts.index(f"{side}_{a}")] + n * Lt
+    return float(np.linalg.norm(gt[f, ts.index(f"{side}_{b}")] - goal))
+
+
+def world_map(src, out, ss=None, ts=None) -> np.ndarray:
+    """``C``: the rotation taking the source's world onto the result's (their rest body frames,
+    :func:`~repro.motion.retargeting.trees.body_frame`)."""
+    from repro.motion.body.skeleton import Skeleton, skeleton_of
+    from repro.motion.body.units import infer_up
+    from repro.motion.retargeting.trees import body_frame
+
+    ss = Skeleton.from_motion(src) if ss is None else ss
+    ts = skeleton_of(out) if ts is None else ts
+    return body_frame(ts, out.up or infer_up(out, ts)) @ body_frame(ss, src.up or infer_up(src, ss)).T
+
+
+@dataclasses.dataclass(frozen=True)
+class Source:
+    """What :func:`measure` reads of a source clip, computed once for all its characters."""
+
+    skeleton: object
+    up: str
+    positions: np.ndarray
+    contacts: np.ndarray
+
+    @classmethod
+    def of(cls, src) -> Source:
+        from repro.motion.body.feet import foot_contacts
+        from repro.motion.body.skeleton import Skeleton
+        from repro.motion.body.units import infer_up
+
+        ss = Skeleton.from_motion(src)
+        ups, gs = src.up or infer_up(src, ss), src.global_positions()
+        return cls(ss, ups, gs, foot_contacts(src, skeleton=ss, global_positions=gs, up_axis=2 if ups == "z" else 1))
+
+
+def measure(src, out, *, hit_frame: int | None = None, hit_role: str | None = None, gaps: bool = False,
+            source: Source | None = None) -> dict:
+    """The accuracy columns of one retargeted clip (see the module docstring); metres.
+
+    ``gaps``: with the hit, also ``eq1_gap_m`` and ``hip_ratio_gap_m`` of ``hit_role``
+    (:func:`hit_gaps`, the result mapped into the source's world); ``source``: ``Source.of(src)``."""
+    from repro.motion.body.skeleton import skeleton_of
+    from repro.motion.body.units import infer_up
+
+    source = Source.of(src) if source is None else source
+    ss, gs, contacts = source.skeleton, source.positions, source.contacts
+    ts = skeleton_of(out)
+    upt = out.up or infer_up(out, ts)
+    C = world_map(src, out, ss, ts)
+    gt = out.global_positions()
+    u_m = ts.unit_m or 1.0
+    row = {"position_error": position_error(gs, gt, ss, ts, C), "limb_angle_deg": _limb_angle(gs, gt, ss, ts, C)}
+    has_hit = hit_frame is not None and hit_role is not None
+    row["hit_error_m"] = _hit_error(gs, gt, ss, ts, C, hit_frame, hit_role) * u_m if has_hit else np.nan
+    if has_hit and gaps:
+        row.update(_gaps((gs * (ss.unit_m or 1.0), ss), ((gt @ C) * u_m, ts), int(hit_frame), hit_role))
     # feet
-    contacts = foot_contacts(src, skeleton=ss, global_positions=gs, up_axis=2 if ups == "z" else 1)
     k = 2 if upt == "z" else 1
     slide = []
     for s, side in enumerate(("left", "right")):
@@ -123,28 +201,54 @@ def measure(src, out, *, hit_frame: int | None = None, hit_role: str | None = No
     return row
 
 
+def roles_note(character, built: dict[str, str]) -> str:
+    """``"as built"``, or the roles found on other joints than the character was built with."""
+    from repro.motion.body.skeleton import Skeleton
+
+    found = Skeleton.from_motion(character).roles
+    wrong = [f"{r}: {found.get(r)} (built {j})" for r, j in built.items() if found.get(r) != j]
+    return "as built" if not wrong else "; ".join(wrong)
+
+
 def _synthetic_rows(quick: bool, progress: bool = False) -> list[dict]:
-    from repro.motion import retarget
     from repro.motion.database.synthetic import synthetic_clip
-    from repro.motion.database.synthetic.conventions import CONVENTIONS, build
+    from repro.motion.database.synthetic.conventions import CHARACTERS, build_character
 
     rows = []
-    convs = CONVENTIONS_QUICK if quick else tuple(c for c in CONVENTIONS if c != "unsided")
     for kind, side in CLIPS_QUICK if quick else CLIPS:
         clip, ann = synthetic_clip(kind, side=side, seed=11)
-        hit_role = f"{side}_{'fist' if kind == 'punch' else 'foot'}"
-        hit_role = hit_role if kind == "punch" else f"{side}_ankle"
-        for conv in bar(convs, desc=f"cross_skeleton: {kind}_{side} on each convention", unit="skeleton",
+        source = Source.of(clip)
+        hit = {"hit_frame": ann["hit_frame"], "hit_role": f"{side}_{'wrist' if kind == 'punch' else 'ankle'}"}
+        for name in bar(tuple(CHARACTERS), desc=f"cross_skeleton: {kind}_{side} on each character", unit="skeleton",
                         progress=progress):
             for h in HEIGHTS_QUICK if quick else HEIGHTS:
-                ch = build(conv, height=h)[0].motion(unit_m=1.0)
-                for fix in (False, True):
-                    out = retarget(clip, ch, fix_feet=fix)
-                    row = {"source": "synthetic", "clip": f"{kind}_{side}", "character": conv, "height_m": h,
-                           "joints": ch.n_joints, "fix_feet": fix}
-                    row.update(measure(clip, out, hit_frame=ann["hit_frame"],
-                                       hit_role=hit_role.replace("fist", "wrist")))
-                    rows.append(row)
+                ch, built = build_character(name, height=h)
+                case = {"source": "synthetic", "clip": f"{kind}_{side}", "character": name, "height_m": h,
+                        "joints": ch.n_joints, "body": CHARACTERS[name].describe()}
+                rows += _character_rows(clip, ch, built, case, source, hit)
+    return rows
+
+
+def _character_rows(clip, ch, built: dict[str, str], case: dict, source: Source, hit: dict) -> list[dict]:
+    """The rows of one clip on one character, without and with ``fix_feet``; a refusal is a row
+    whose ``error`` says why (metrics NaN)."""
+    from repro.errors import MotionError
+    from repro.motion import retarget
+
+    rows = []
+    try:
+        note = roles_note(ch, built)
+    except MotionError as e:
+        return [{**case, "fix_feet": fix, "roles": "", "error": f"{type(e).__name__}: {e}"} for fix in (False, True)]
+    for fix in (False, True):
+        row = {**case, "fix_feet": fix, "roles": note, "error": ""}
+        try:
+            out = retarget(clip, ch, fix_feet=fix)
+        except MotionError as e:  # a finding: the row says why
+            row["error"] = f"{type(e).__name__}: {e}"
+        else:
+            row.update(measure(clip, out, **hit, gaps=True, source=source))
+        rows.append(row)
     return rows
 
 
@@ -173,12 +277,19 @@ def _real_rows(quick: bool) -> list[dict]:
 
 def hit_gaps(src, out, hit_frame: int, hit_role: str) -> dict:
     """``eq1_gap_m`` and ``hip_ratio_gap_m`` of one retargeted clip (module docstring); metres."""
-    from repro.motion.body.pose_frames import root_frames, to_root_frame
     from repro.motion.body.skeleton import Skeleton, skeleton_of
 
+    ss, ts = Skeleton.from_motion(src), skeleton_of(out)
+    return _gaps((src.global_positions() * (ss.unit_m or 1.0), ss), (out.global_positions() * (ts.unit_m or 1.0), ts),
+                 hit_frame, hit_role)
+
+
+def _gaps(source, result, hit_frame: int, hit_role: str) -> dict:
+    """:func:`hit_gaps` of (metre positions, skeleton) pairs, both in one world."""
+    from repro.motion.body.pose_frames import root_frames, to_root_frame
+
     out_m = {}
-    for key, m, sk in (("s", src, Skeleton.from_motion(src)), ("t", out, skeleton_of(out))):
-        g = m.global_positions() * (sk.unit_m or 1.0)
+    for key, (g, sk) in (("s", source), ("t", result)):
         th, o = root_frames(g, sk.index("pelvis"), sk.index("left_hip"), sk.index("right_hip"))
         out_m[key] = (to_root_frame(g[hit_frame, sk.index(hit_role)], th[0], o[0]), sk)
     (ps, ss), (pt, ts) = out_m["s"], out_m["t"]
@@ -215,23 +326,82 @@ def _real_clip_rows(quick: bool) -> list[dict]:
     return rows
 
 
+#: The figure's panels: (column, scale to the plotted unit, the unit, label, aggregate, round-off floor in the column's unit).
+PANELS = (
+    ("position_error", 100.0, "%", "joint-position error (% of stature)\n(Aberman et al. 2020), mean", "mean", 1e-9),
+    ("foot_slide_m", 100.0, "cm", "foot skate (cm per contact frame), mean", "mean", 1e-8),
+    ("penetration_m", 100.0, "cm", "ground penetration (cm), deepest", "max", 1e-8),
+    ("eq1_gap_m", 100.0, "cm", "hit error at contact (cm), mean\n(striking joint vs the Eq. 1 target)", "mean", 1e-8),
+)
+
+
+def _figure_groups(table: pd.DataFrame) -> pd.DataFrame:
+    """The table with a ``group`` column: the synthetic characters, then the real pairs."""
+    t = table.copy()
+    real = t.source != "synthetic"
+    t["group"] = t.character
+    t.loc[real, "group"] = [f"real: {s.split()[0]} -> {c}" for s, c in zip(t.source[real], t.character[real])]
+    return t
+
+
+def _panel(ax, t: pd.DataFrame, groups: list, labels: list, col: str, k: float, unit: str, label: str, how: str,
+           floor: float) -> None:
+    width = 0.4
+    notes = []
+    for off, fix, color in ((-width / 2, False, "tab:blue"), (width / 2, True, "tab:orange")):
+        sub = t[t.fix_feet.astype(bool) == fix]
+        v = sub.groupby("group")[col].agg(how).reindex(groups)
+        if v.notna().any() and (v.dropna() < floor).all():
+            notes.append(f"{'with' if fix else 'without'} fix_feet: round-off (< {floor * k:g} {unit}) on every character")
+            continue
+        x = np.arange(len(groups)) + off
+        drawn = v.where(v >= floor)
+        ax.bar(x, drawn.values * k, width, color=color, label=f"fix_feet={fix}")
+        for xi, vi in zip(x, v.values):
+            if np.isfinite(vi) and vi < floor:
+                ax.text(xi, 0, "0" if vi == 0 else "~0", ha="center", va="bottom", fontsize=8, color=color)
+            elif not np.isfinite(vi) and len(sub):
+                ax.text(xi, 0, "n/a", ha="center", va="bottom", fontsize=8, rotation=90, color=color)
+    ax.set_xticks(range(len(groups)), labels, rotation=35, ha="right", fontsize=8)
+    ax.tick_params(axis="y", labelsize=8)
+    ax.set_ylabel(label, fontsize=9)
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend(fontsize=8, loc="upper left")
+    ax.set_ylim(0, ax.get_ylim()[1] * 1.15)
+    if notes:
+        ax.text(0.99, 0.97, "\n".join(notes), transform=ax.transAxes, ha="right", va="top", fontsize=8)
+
+
 def draw(table: pd.DataFrame):
     import matplotlib.pyplot as plt
 
-    syn = table[(table.source == "synthetic") & ~table.fix_feet.astype(bool)]  # the representation alone
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4))
-    for ax, col, lab in zip(axes, ("limb_angle_deg", "foot_slide_m", "bone_length_error"),
-                            ("limb direction angle (deg), max", "foot slide while planted (m/frame)",
-                             "bone length error (relative), max")):
-        g = syn.groupby("character")[col].max()
-        ax.bar(range(len(g)), g.values, color="tab:blue")
-        ax.set_xticks(range(len(g)), g.index, rotation=45, ha="right", fontsize=8)
-        ax.set_ylabel(lab, fontsize=8)
-        ax.grid(alpha=0.3, axis="y")
+    t = _figure_groups(table)
+    syn = t[t.source == "synthetic"]
+    groups = list(dict.fromkeys(syn.group)) + sorted(set(t.group) - set(syn.group))
+    wrong = syn[syn.get("roles", pd.Series("as built", index=syn.index)).fillna("as built") != "as built"]
+    failed = syn[syn.get("error", pd.Series("", index=syn.index)).fillna("") != ""]
+    fig, axes = plt.subplots(2, 2, figsize=(13, 9))
+    labels = [g + (" *" if g in set(wrong.character) else "") + (" (refused)" if g in set(failed.character) else "")
+              for g in groups]
+    for ax, panel in zip(axes.flat, PANELS):
+        _panel(ax, t, groups, labels, *panel)
     heights = ", ".join(f"{h:g}" for h in sorted(set(syn.height_m)))
-    fig.suptitle(f"Synthetic database retargeted onto other skeletons (statures {heights} m)")
-    fig.tight_layout()
+    fig.suptitle(f"Synthetic clips retargeted onto characters of other bodies and trees (statures {heights} m), "
+                 "and CMU <-> Bandai Namco", fontsize=11)
+    foot = ["~0: round-off (below the panel's floor); 0: exactly none. The representation's own target is met "
+            f"at every hit (hit_error_m <= {num_or_zero(syn.hit_error_m.max())} m: round-off)."]
+    for name, g in wrong.groupby("character"):
+        foot.append(f"* {name}: roles found on other joints than built ({g.roles.iloc[0].split(';')[0]}; ...): "
+                    "its errors are the role finder's")
+    for name, g in failed.groupby("character"):
+        foot.append(f"{name}: retargeting refused: {g.error.iloc[0][:110]}")
+    fig.text(0.01, 0.005, "\n".join(foot), fontsize=8, ha="left", va="bottom")
+    fig.tight_layout(rect=(0, 0.025 * len(foot) + 0.01, 1, 1))
     return fig
+
+
+def num_or_zero(x) -> str:
+    return f"{float(x):.0e}" if np.isfinite(x) else "n/a"
 
 
 @experiment(
@@ -247,17 +417,26 @@ def cross_skeleton(quick: bool = False, progress: bool = False) -> Result:
 
 
 def summary(result) -> str:
-    """Markdown: per source and character convention, the worst of each accuracy column."""
+    """Markdown: per source and character, the figure's metrics and the worst of the other columns."""
     from repro.experiments.summaries import bullets, num
 
     t = result.table
     lines = []
     for (source, character, fix), g in t.groupby(["source", "character", "fix_feet"], sort=False):
         feet = ", fix_feet" if fix else ""
-        lines.append(f"{source} onto *{character}*{feet} ({int(g.joints.iloc[0])} joints, {len(g)} clips x statures): limb-direction "
-                     f"angle up to {num(g.limb_angle_deg.max(), 2)} deg, hit error {num(g.hit_error_m.max(), 2)} m, foot slide "
-                     f"{num(g.foot_slide_m.max(), 2)} m, ground penetration {num(g.penetration_m.max(), 2)} m, bone-length "
-                     f"error {num(g.bone_length_error.max(), 2)} m")
+        refused = g["error"].fillna("").ne("") if "error" in g else pd.Series(False, index=g.index)
+        if refused.any():
+            lines.append(f"{source} onto *{character}*{feet}: refused ({g['error'][refused].iloc[0]})")
+            continue
+        hit = f", hit error at contact (Eq. 1 target) {num(g.eq1_gap_m.mean() * 100, 2)} cm" if g.eq1_gap_m.notna().any() else ""
+        lines.append(f"{source} onto *{character}*{feet} ({int(g.joints.iloc[0])} joints, {len(g)} clips x statures): joint-position "
+                     f"error {num(g.position_error.mean() * 100, 2)} % of stature{hit}, foot skate "
+                     f"{num(g.foot_slide_m.mean() * 100, 2)} cm per contact frame, ground penetration "
+                     f"{num(g.penetration_m.max() * 100, 2)} cm; limb-direction angle up to {num(g.limb_angle_deg.max(), 2)} deg, "
+                     f"representation's hit error {num(g.hit_error_m.max(), 2)} m, bone-length error {num(g.bone_length_error.max(), 2)}")
+    if "roles" in t:
+        for character, g in t[t.roles.fillna("as built") != "as built"].groupby("character"):
+            lines.append(f"*{character}*: roles found on other joints than built ({g.roles.iloc[0]})")
     if "eq1_gap_m" in t:
         kicks = t[t.eq1_gap_m.notna() & t["clip"].str.contains("kick") & (t.character == "cmu")]
         for _, r in kicks.head(1).iterrows():
