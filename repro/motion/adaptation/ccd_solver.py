@@ -43,11 +43,10 @@ from repro.motion.adaptation.rig import (
     check_frames,
     check_targets,
     default_tol,
-    path_fk,
-    path_fk_from,
     rig_of,
     start_rotations,
 )
+from repro.motion.core.kinematics import chain_fk, chain_fk_from
 from repro.motion.core.kinematics import dot, matvec, matvec_t
 from repro.motion.core.motion import Motion
 from repro.motion.core.quaternion import cross, matrix_to_quat, min_rotation, quat_multiply, quat_to_matrix, vector_norm
@@ -223,7 +222,7 @@ def ccd_spec(rig: Rig, ch: Chain, chain, limits, hinge_range_deg):
 def _distal_world(ch: Chain, rot: np.ndarray, trans: np.ndarray) -> np.ndarray:
     """(n, 4) world orientation of the limb's distal joint in the pose ``rot``."""
     P = ch.path[: ch.k_dist + 1]
-    rw, _ = path_fk(quat_to_matrix(rot[:, P]), trans[:, P])
+    rw, _ = chain_fk(quat_to_matrix(rot[:, P]), trans[:, P])
     return matrix_to_quat(rw[:, -1])
 
 
@@ -243,7 +242,7 @@ def ccd_sweeps(
         # the sweeps turn only joints above the limb and read only its root (shoulder / hip):
         # forward kinematics stops there; the hand / foot keeps its start world orientation
         # (the limb step restores it), so the distal joint's goal does not move while the trunk turns
-        rw, pw = path_fk(quat_to_matrix(rot[:, ch.path]), trans[:, ch.path])
+        rw, pw = chain_fk(quat_to_matrix(rot[:, ch.path]), trans[:, ch.path])
         Wg_fixed = goal - (pw[:, -1] + matvec(rw[:, -1], ch.hit_offset) - pw[:, kd])
         P = ch.path[: kp + 1]
     else:
@@ -252,7 +251,7 @@ def ccd_sweeps(
     q0 = ref[:, P]
     ml = quat_to_matrix(ql)
     tl = trans[:, P]
-    rw, pw = path_fk(ml, tl)
+    rw, pw = chain_fk(ml, tl)
     L = l1 + l2
     reach_max = L if dmax is None else np.minimum(dmax, L)
     tiny = 1e-9 * L
@@ -278,7 +277,7 @@ def ccd_sweeps(
         if worse.any():  # a sweep that made things worse is undone, and the frame stops
             ql[worse] = best_ql[worse]
             ml[worse] = quat_to_matrix(ql[worse])
-            rw[worse], pw[worse] = path_fk(ml[worse], tl[worse])
+            rw[worse], pw[worse] = chain_fk(ml[worse], tl[worse])
         # a sweep that gains less than 5 % of the remaining objective is creeping along
         # joint limits (a converging sweep gains a constant, large fraction)
         creeping = better & (best_err - err < np.maximum(0.05 * np.where(np.isfinite(best_err), best_err, 0.0), tiny))
@@ -293,7 +292,7 @@ def ccd_sweeps(
                         rw, pw, active)
     rot[:, P] = ql
     if finish:  # the hit point of the turned trunk, the limb as it was
-        rw, pw = path_fk(quat_to_matrix(rot[:, ch.path]), trans[:, ch.path])
+        rw, pw = chain_fk(quat_to_matrix(rot[:, ch.path]), trans[:, ch.path])
     return iters, _hit(ch, rw, pw)
 
 
@@ -331,7 +330,7 @@ def _turn_joint(ch, k, kind, lim, goal, Wg_fixed, reach, q0, ql, ml, tl, rw, pw,
     qn = np.where(active[:, None], qn / vector_norm(qn, keepdims=True), ql[:, k])
     ql[:, k] = qn
     ml[:, k] = quat_to_matrix(qn)
-    path_fk_from(ml, tl, rw, pw, k)
+    chain_fk_from(ml, tl, rw, pw, k)
 
 
 def _hinge_step(e, g, r_parent, m_joint, up, low, h_loc, lim, active, q):

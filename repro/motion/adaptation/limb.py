@@ -23,11 +23,10 @@ from repro.motion.adaptation.rig import (
     check_frames,
     check_targets,
     default_tol,
-    path_fk,
     rig_of,
     start_rotations,
 )
-from repro.motion.core.kinematics import dot, matvec, matvec_t, normalize, transport
+from repro.motion.core.kinematics import chain_fk, dot, matvec, matvec_t, normalize, transport
 from repro.motion.core.motion import Motion
 from repro.motion.core.quaternion import matrix_to_quat, min_rotation, quat_multiply, quat_to_matrix, vector_norm
 from repro.motion.core.quaternion import quat_rotate as qrot
@@ -83,7 +82,7 @@ def solve_limb(
     """
     P = ch.path[: ch.k_hit + 1]
     ml = quat_to_matrix(rot[:, P])
-    rw, pw = path_fk(ml, trans[:, P])
+    rw, pw = chain_fk(ml, trans[:, P])
     kp, km, kd = ch.k_prox, ch.k_mid, ch.k_dist
     S, E0, W0 = pw[:, kp], pw[:, km], pw[:, kd]
     hit_rel = pw[:, -1] + matvec(rw[:, -1], ch.hit_offset) - W0
@@ -141,7 +140,7 @@ def solve_limb(
 def limb_dmax(ch: Chain, ref: np.ndarray, trans: np.ndarray, max_extension: float) -> np.ndarray:
     """Per frame ``min(L, max(max_extension * L, |distal - proximal|))`` in the pose ``ref``."""
     P = ch.path[: ch.k_dist + 1]
-    _, pw = path_fk(quat_to_matrix(ref[:, P]), trans[:, P])
+    _, pw = chain_fk(quat_to_matrix(ref[:, P]), trans[:, P])
     L = vector_norm(trans[:, ch.mid]) + vector_norm(trans[:, ch.dist])
     d = vector_norm(pw[:, ch.k_dist] - pw[:, ch.k_prox])
     return np.minimum(L, np.maximum(max_extension * L, d))

@@ -34,7 +34,8 @@ class AdaptOptions:
     ``max_iter`` are :func:`~repro.motion.adaptation.ccd`'s; ``tol`` the reach tolerance in
     motion units (None: 1e-4 of the limb length); ``max_extension`` the limb step's bound, a
     fraction of the limb length; ``feet`` one of :data:`FEET`; ``foot_blend`` seconds over
-    which a foot pin is released; ``hit_point`` ``"joint"`` or ``"end_site"``; ``floor`` a
+    which a foot pin is released; ``hit_point`` ``"joint"`` or ``"end_site"`` (the joint's tip: its End
+    Site, else its fingers' knuckles, :func:`repro.motion.body.hit_points.hit_offset`); ``floor`` a
     height the pinned toes stay above (None: no floor); ``max_foot_error`` a trial's bound
     on the support foot's error (None: unbounded).  Raises :class:`repro.errors.MotionError`
     for a bad option.

@@ -2,10 +2,10 @@
 
 A :class:`Rig` caches, per :class:`~repro.motion.core.motion.Motion` (weakly), the skeleton
 roles, local translations, global transforms, foot contacts and one :class:`Chain` per
-effector (the path root -> hit point, the limb's proximal / middle / distal joints and
-the clip-wide bending axis of the middle joint).  Forward kinematics along such a path is
-:func:`repro.motion.core.kinematics.chain_fk` / :func:`~repro.motion.core.kinematics.chain_fk_from`
-(the limb and CCD solvers still import them from here as ``path_fk`` / ``path_fk_from``).
+effector (the path root -> hit point, the hit point on the effector joint, the limb's proximal /
+middle / distal joints and the clip-wide bending axis of the middle joint).  Forward kinematics
+along such a path is :func:`repro.motion.core.kinematics.chain_fk` /
+:func:`~repro.motion.core.kinematics.chain_fk_from`.
 """
 
 from __future__ import annotations
@@ -18,8 +18,7 @@ import numpy as np
 from repro.checks import as_real, as_real_array
 from repro.errors import MotionError
 from repro.motion.body.feet import foot_contacts
-from repro.motion.core.kinematics import chain_fk as path_fk
-from repro.motion.core.kinematics import chain_fk_from as path_fk_from
+from repro.motion.body.hit_points import hit_offset
 from repro.motion.core.kinematics import depth_levels
 from repro.motion.core.quaternion import cross
 from repro.motion.core.quaternion import quat_rotate as qrot
@@ -31,8 +30,6 @@ __all__ = [
     "Chain",
     "Rig",
     "rig_of",
-    "path_fk",
-    "path_fk_from",
     "vec3",
     "check_frames",
     "check_targets",
@@ -185,11 +182,8 @@ class Rig:
                 )
         if hit_point == "joint":
             off = np.zeros(3)
-        elif hit_point == "end_site":
-            es = [o for p, o in zip(sk.end_site_parents, sk.end_site_offsets) if p == hit]
-            if not es:
-                raise MotionError(f"hit_point='end_site' but joint {sk.joint_names[hit]!r} has no End Site")
-            off = np.array(es[0], dtype=float)
+        elif hit_point == "end_site":  # the tip: its End Site, else its fingers' knuckles (a hand), ...
+            off = hit_offset(sk, hit)[0]
         else:
             raise MotionError(f"hit_point must be 'joint' or 'end_site', got {hit_point!r}")
         hinge, bend = self._hinge(prox, mid, dist)

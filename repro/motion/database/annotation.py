@@ -21,7 +21,9 @@ import numpy as np
 
 from repro.checks import as_choice, as_real, as_real_array, as_str, describe
 from repro.errors import MotionError
+from repro.motion.body.hit_points import hit_offset
 from repro.motion.body.pose_frames import heading_from_hips
+from repro.motion.core.quaternion import quat_rotate
 from repro.motion.core.motion import Motion
 from repro.motion.body.skeleton import Skeleton
 
@@ -249,7 +251,7 @@ def _check_motion(motion, skeleton=None) -> None:
 
 def hit_point_trajectory(motion: Motion, joint: str, where: str = "joint", *,
                          positions: np.ndarray | None = None) -> np.ndarray:
-    """(F, 3) world trajectory of a hit point: a joint, or the (first) End Site of a joint.
+    """(F, 3) world trajectory of a hit point: a joint, or its tip (:func:`repro.motion.body.hit_points.hit_offset`).
 
     Parameters
     ----------
@@ -258,7 +260,8 @@ def hit_point_trajectory(motion: Motion, joint: str, where: str = "joint", *,
     joint : str
         Joint name (a clip's ``hit_joint``).
     where : {"joint", "end_site"}
-        The joint's own position, or its (first) End Site.
+        The joint's own position, or its tip: its (first) End Site, else the knuckles of the
+        fingers below it (a hand with fingers), else the joint.
     positions : (F, J, 3) array, optional
         The motion's :meth:`~repro.motion.core.motion.Motion.global_positions` when already
         computed (used for ``where="joint"``).
@@ -272,8 +275,7 @@ def hit_point_trajectory(motion: Motion, joint: str, where: str = "joint", *,
     if where == "joint":
         return (motion.global_positions() if positions is None else positions)[:, j]
     if where == "end_site":
-        sites = np.flatnonzero(motion.end_site_parents == j)
-        if sites.size == 0:
-            raise MotionError(f"joint {joint!r} has no End Site")
-        return motion.end_site_positions()[:, sites[0]]
+        off = hit_offset(motion, j)[0]
+        gq, gp = motion.global_transforms()
+        return gp[:, j] + quat_rotate(gq[:, j], off[None])
     raise MotionError(f"where must be 'joint' or 'end_site', got {where!r}")

@@ -91,6 +91,26 @@ def test_reach_limb_unreachable_gives_excess_distance():
     assert np.all(np.isfinite(close.rotations)) and not close.reached[0]
 
 
+def test_the_tip_of_a_joint_without_an_end_site_is_its_knuckles_or_itself():
+    """hit_point="end_site" on a joint with no End Site (issue 25: a hand with fingers): the knuckles of the
+    joints below it, else the joint itself (repro.motion.body.hit_points), never a refusal."""
+    from repro.motion.body.hit_points import hit_offset
+    from repro.motion.body.skeleton import skeleton_of
+    from repro.motion.core.quaternion import quat_rotate
+
+    m = fixture_motion()
+    sk = skeleton_of(m)
+    foot = sk.index("right_foot")
+    off, src = hit_offset(sk, foot)
+    assert not np.any(sk.end_site_parents == foot) and src in ("knuckles", "joint")
+    gp = m.global_positions()
+    target = gp[0, foot] + np.array([0.0, 0.05, 0.1])
+    tip = reach_limb(m, 0, "right_foot", target, hit_point="end_site")
+    assert tip.reached[0]
+    g = with_rotations(m, slice(0, 1), tip.rotations).global_transforms()
+    np.testing.assert_allclose(g[1][0, foot] + quat_rotate(g[0][0, foot], off), target, atol=1e-6)
+
+
 def test_reach_limb_bad_inputs():
     m = fixture_motion()
     with pytest.raises(MotionError, match="out of range"):
@@ -99,8 +119,8 @@ def test_reach_limb_bad_inputs():
         reach_limb(m, [0, 1], "right_fist", [[0, 1, 0], [np.inf, 0, 0]])
     with pytest.raises(MotionError, match="targets must be"):
         reach_limb(m, [0, 1, 2], "right_fist", np.zeros((2, 3)))
-    with pytest.raises(MotionError, match="End Site"):
-        reach_limb(m, 0, "right_foot", [0, 0, 0], hit_point="end_site")
+    with pytest.raises(MotionError, match="hit_point"):
+        reach_limb(m, 0, "right_foot", [0, 0, 0], hit_point="tip")
     with pytest.raises(MotionError, match="rotations must be"):
         reach_limb(m, [0, 1], "right_fist", [0, 1, 0], rotations=np.zeros((3, len(MIXAMO), 4)))
     with pytest.raises(MotionError, match="Motion"):

@@ -41,7 +41,7 @@ def z_up_cm():
 def _stands_and_strikes(f, up_idx=1):
     g = f.stance.global_positions()
     sk = f.character
-    feet = [sk.index(r) for r in ("left_ankle", "right_ankle", "left_toe", "right_toe")]
+    feet = [sk.index(r) for r in ("left_ankle", "right_ankle", "left_toe", "right_toe") if r in sk.roles]  # no toes: DAZ
     assert g[:, sk.index("head"), 1].min() > 0.6 * sk.size  # upright in the Y-up world
     assert -1e-6 < g[:, feet, 1].min() < 0.15
     head = (0.0, 0.85 * sk.size, 0.0)
@@ -90,4 +90,27 @@ def test_fighter_takes_the_z_up_pybvh_fixture(synthetic_db):
         f = KungFuFighter(synthetic_db, character=m, seed=0)
     assert any("up axis Z" in str(w.message) for w in caught)
     assert f.character.joint_names == m.joint_names and 1.2 < f.character.size < 2.2
+    _stands_and_strikes(f)
+
+
+#: Real rigs whose hands carry fingers and no End Site (issue 25, item 1): MotionBuilder-style (60 joints),
+#: DAZ / Poser and Unity humanoid names
+FINGERED = ["mocap/formats/pybvh/bvh_test3.bvh", "mocap/formats/realrigs/threejs_pirouette_daz.bvh",
+            "mocap/formats/realrigs/shadermotion_unity_humanoid.bvh"]
+
+
+@pytest.mark.data("cmu-bvh")  # the formats corpus is staged with the mocap data
+@pytest.mark.parametrize("name", FINGERED)
+def test_a_hand_with_fingers_punches_with_its_knuckles(synthetic_db, name):
+    from repro.motion.body.hit_points import hit_offset
+
+    path = data.data_dir() / name
+    if not path.is_file():
+        pytest.skip(f"{name} not staged")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnitWarning)  # the unit and the up axis, inferred
+        f = KungFuFighter(synthetic_db, character=read_bvh(path), seed=0)
+    sk = f.character
+    fist = sk.index("right_fist")
+    assert not np.any(sk.end_site_parents == fist) and hit_offset(sk, fist)[1] == "knuckles"
     _stands_and_strikes(f)
