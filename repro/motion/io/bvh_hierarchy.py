@@ -118,7 +118,7 @@ class _HierarchyReader:
             body = tok[:-1] if opens else tok
             if head in ("ROOT", "JOINT"):
                 block = self._joint(head, body, lineno)
-            elif head == "End" and len(body) == 2 and body[1] == "Site":
+            elif head == "End" and _is_end_site(body):
                 block = self._end_site(lineno)
             elif head == "OFFSET":
                 self._offset(tok, where)
@@ -258,3 +258,11 @@ def parse_hierarchy(header: str, motion_found: bool) -> Hierarchy:
         raise BVHError(f"line {n0}: expected 'HIERARCHY', got {' '.join(t0)!r}")
     reader = _HierarchyReader()
     return reader.finish(reader.read(lines, n0), motion_found)
+
+
+def _is_end_site(body: list[str]) -> bool:
+    """``End Site``, and the variants two exporters write: a name after it (``End Site Head_end``) and a
+    number glued to it (``End Site4``).  The name or number is not kept: End Sites are unnamed leaves."""
+    if len(body) == 2:
+        return re.fullmatch(r"Site\d*", body[1]) is not None
+    return len(body) == 3 and body[1] == "Site"
