@@ -11,7 +11,8 @@ list (``tests/test_structure.py`` checks it), so data flows down the folder tree
   (:func:`read_bvh`, :func:`write_bvh`) and the CMU database's Acclaim ASF/AMC originals.
 - :mod:`~repro.motion.body`: the body a motion drives: joint roles from names or structure
   (:func:`find_roles`), the :class:`Skeleton` and its size (Eq. 1's ``size_a``, ``size_c``),
-  units and up axis, the rest pose, pose frames and pose clouds, the feet.
+  units and up axis, the rest pose, pose frames and pose clouds, the feet, where a strike lands
+  (the hit point: an End Site, else the knuckles).
 - :mod:`~repro.motion.retargeting`: Section 3.4.1, Kulpa et al.'s morphology-independent
   representation (:func:`encode`, :func:`decode`, :func:`retarget`), retargeting across
   joint trees through the roles, one dispatcher between the two.
@@ -24,8 +25,9 @@ list (``tests/test_structure.py`` checks it), so data flows down the folder tree
 - :mod:`~repro.motion.adaptation`: Section 3.4.2, the offset ``d(t)``, limb IK, CCD, the
   feet kept planted (:func:`adapt`).
 - :mod:`~repro.motion.runtime`: one order carried out, retrieve -> retarget -> adapt
-  (:func:`repro.motion.runtime.strike.strike`, :class:`Strike`), and the interactive
-  fighter, with the paper's constants.
+  (:func:`repro.motion.runtime.strike.strike`, :class:`Strike`) as :class:`StrikeOptions` say
+  (the library's defaults; :data:`PAPER` the paper's choices), and the interactive fighter,
+  with the paper's constants.
 
 The names below are the public API the figures, benchmarks and panels use; the rest is
 reachable through the stage modules. Every malformed file raises :class:`BVHError`, every bad
