@@ -58,8 +58,9 @@ _SKIP_PARTS = (
     "twist", "roll", "helper", "nub", "prop", "weapon", "sword", "thumb", "index", "pinky", "pinkie",
     "finger", "carpal", "wing", "tail", "hind", "face", "eye", "jaw", "tongue", "brow", "teeth", "cheek",
     "skirt", "hair", "cape", "breast", "skull", "headtop", "headend", "ik", "pole", "target", "bow",
+    "oculi", "orbicularis", "levator", "risorius", "temporalis", "special",  # MakeHuman's face muscles
 )  # fmt: skip
-_SKIP_WHOLE = re.compile(r"^(ring|middle|mid|little|lip|lid|ear|nose|nostril|hand[a-z]+\d*|fingers?\d*)$")
+_SKIP_WHOLE = re.compile(r"^(ring|middle|mid|little|lip|lid|ear|nose|nostril|oris\d*|hand[a-z]+\d*|fingers?\d*)$")
 _SKIP_END = re.compile(r"(end|nub|site|tip)\d*$")
 
 

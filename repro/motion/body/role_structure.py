@@ -9,20 +9,28 @@ first when it has the rest offsets):
   aside by name (:func:`repro.motion.body.role_names.is_helper_name`); the remaining leaves
   are the *tips*;
 * the legs are the two branches of the first joint branching three ways (the pelvis hub)
-  whose tips lie lowest, the head the highest tip of the third branch (the trunk) and the
+  whose tips lie lowest besides the trunk (the branch of three or more tips spread the
+  widest: two hands apart), the head the highest tip of the trunk and the
   arms its most lateral tips on either side (fingers of one hand are all on one side, so
-  they are not taken for the two arms);
+  they are not taken for the two arms); a root branching only into the trunk and a joint
+  carrying the two legs (MakeHuman's game rig: ``Root`` the spine base, ``Hips`` beside the
+  spine) is the hub as well;
 * runs of co-located joints (zero-length helpers) are collapsed to their deepest joint;
   in each limb chain the two longest consecutive bones are the upper arm and forearm
   (thigh and shin), so a joint before them is the clavicle and one after them the hand
-  (toe); an arm's shoulder lies off the trunk's midline (CMU's clavicle joints lie on
-  it); a wrist that branches into fingers has no ``hand`` joint (CMU's, branching into
+  (toe); the second, twist segment of the middle bone (MakeHuman ``lowerarm02.L`` after
+  ``lowerarm01.L``: ``01`` the bone, ``02`` its twist) may end the chain, so the elbow
+  (knee) is the real joint, between the two bones' twist segments (a two-bone IK chain
+  must be parent and child); an arm's shoulder lies off the trunk's midline (CMU's
+  clavicle joints lie on it); a wrist that branches into fingers has no ``hand`` joint (CMU's, branching into
   the hand and a one-joint thumb, has);
 * the names confirm: a limb name contradicting every reading of the chain makes the names
   decide, and the side comes from the names (``Left``/``L_``/``_l``/``l``/``.L``), else
   from the rest pose (the toes point forward, left = up x forward);
 * the head is a joint named head on the head chain, else the tip (or, for a leaf without
-  an End Site such as Mixamo ``HeadTop_End``, its parent).
+  an End Site such as Mixamo ``HeadTop_End``, its parent); a skeleton without a head joint
+  (CMU-style ``LowerNeck`` -> ``Neck`` ending the trunk) has its head role at the top of the
+  neck, the neck chain's last joint, and its neck role at the joint before.
 
 A rest pose that cannot be read this way (every bone along one line, as Bandai Namco's)
 raises :class:`~repro.errors.MotionError`, and the finder lets the names decide.
@@ -151,6 +159,12 @@ def _height(t: int, P: np.ndarray, hub: int, mean_upper: np.ndarray) -> float:
     return float((P[t] - P[hub]) @ (mean_upper - P[hub]))
 
 
+def _spread(P: np.ndarray, tips: list[int]) -> float:
+    """Largest distance between two of ``tips``."""
+    Q = P[tips]
+    return float(np.linalg.norm(Q[:, None] - Q[None], axis=-1).max()) if len(tips) > 1 else 0.0
+
+
 def _legs(names: list[str], P: np.ndarray, hub: int, groups: list) -> list[int]:
     """The lowest tip of each of the two lowest branches besides the trunk (``groups[0]``)."""
     mean_upper = P[groups[0][0]].mean(axis=0)
@@ -199,7 +213,10 @@ def _structure(names: list[str], par: np.ndarray, off: np.ndarray) -> _Body:
     P, scale = _rest_pose(par, off)
     children, has_cand, tips = _candidate_tree(names, par)
     hub, br = _pelvis_hub(names, children, has_cand)
-    groups = sorted(((_tips_under(c, children, has_cand, tips), c) for c in br), key=lambda g: -len(g[0]))
+    # the trunk: the branch of three or more tips spread the widest (two hands apart; a foot's
+    # toes, five tips on MakeHuman's, lie close together)
+    groups = sorted(((_tips_under(c, children, has_cand, tips), c) for c in br),
+                    key=lambda g: (len(g[0]) >= 3, _spread(P, g[0])), reverse=True)
     upper_tips = groups[0][0]
     if len(upper_tips) < 3:
         raise MotionError(

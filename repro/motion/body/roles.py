@@ -58,6 +58,7 @@ import numpy as np
 
 from repro.checks import as_real_array, describe
 from repro.errors import MotionError
+from repro.motion.body.humanoid import check_humanoid
 from repro.motion.body.role_names import is_helper_name, limbs_by_name, trunk_by_name
 from repro.motion.body.role_structure import AmbiguousLimbs, roles_from_structure, trunk_from_tree
 from repro.motion.core.cache import LRUCache
@@ -174,9 +175,12 @@ def find_roles(
     Raises
     ------
     repro.errors.MotionError
-        If a required role is missing (the message names the missing roles and lists
-        the joints), an override names an unknown joint or role, or a limb is not a
-        parent-child chain.
+        If the skeleton is not a humanoid (with ``parents`` and ``offsets``:
+        :func:`repro.motion.body.humanoid.check_humanoid` -- no arm or leg, limbs that are
+        not mirror images, proportions far from a human's, a rest pose standing on four
+        limbs; the message says which test failed, with its numbers), a required role is
+        missing (the message names the missing roles and lists the joints), an override
+        names an unknown joint or role, or a limb is not a parent-child chain.
     """
     names, par, offsets, end_site_parents = _checked_arguments(joint_names, parents, overrides, required,
                                                                offsets, end_site_parents)
@@ -247,6 +251,8 @@ def _find_roles(names, par, overrides, required, offsets, end_sites=None) -> dic
                 if n is not None:
                     roles[role] = n
     _hit_points(roles)
+    if par is not None and offsets is not None:
+        check_humanoid(names, par, offsets, roles)
     missing = [r for r in required if r not in roles]
     if missing:
         raise MotionError(
