@@ -130,19 +130,23 @@ class Decoder:
         self.pair_pm = np.stack([self.prox, self.mid], axis=1)  # (4, 2): proximal, middle
         self.pair_mw = np.stack([self.mid, self.dist], axis=1)  # (4, 2): middle, distal
         self.limb_joints = np.concatenate([self.prox, self.mid, self.dist])
+        self.triple = np.stack([self.prox, self.mid, self.dist], axis=1)
 
     def local_translations(self, translations: np.ndarray) -> np.ndarray:
         """(F, J, 3) the target's local translations of normalised ones: the position channels
         scaled by its hip height / bone lengths, its offsets elsewhere."""
         return np.where(self.mask[None], translations * self.mul[None, :, None], self.offsets[None])
 
-    def place_limbs(self, rotations, gq, gp, a, dn, u, v, swivel, end_rot):
+    def place_limbs(self, rotations, gq, gp, a, dn, u, v, swivel, end_rot=None, rp_inv=None):
         """``(rotations, (E1, W1, q2))``: ``rotations`` (F, J, 4) with the limbs' joints replaced.
 
         ``gq``, ``gp``: the target's world transforms with the source's local rotations;
         ``a, dn, u, v``: :func:`~repro.motion.retargeting.representation.limb_frames` of the
         wanted proximal -> distal vectors (F, 4, 3) in the limbs' parent frames; ``swivel``
-        (F, 4) and ``end_rot`` (F, 4, 4) the stored angles and distal orientations.  The
+        (F, 4) and ``end_rot`` (F, 4, 4) the stored angles and distal orientations; without
+        ``end_rot`` (source and target of one plan: the same world rotations),
+        :meth:`~repro.motion.retargeting.representation.Encoder.end_rotations` of ``rp_inv``
+        and ``gq``, in the call that turns the proximal and middle joints.  The
         middle joint goes on the circle about the axis at the swivel angle (two-bone IK, law
         of cosines, distances clipped to the reach), the proximal and middle joints turn by
         the smallest rotations that bring the middle and distal joints there; ``E1``,
@@ -162,7 +166,11 @@ class Decoder:
         EW_star = S[:, :, None] + qrot(Rp[:, :, None], np.stack([e_loc, a * dc[..., None]], axis=2))
         E_star, W_star = EW_star[:, :, 0], EW_star[:, :, 1]
         q1 = min_rotation(gp[:, self.mid] - S, E_star - S)
-        G1 = quat_multiply(np.stack([q1, q1], axis=2), gq[:, self.pair_pm])  # q1 G_prox, q1 G_mid
+        if end_rot is None:  # q1 G_prox, q1 G_mid and R_parent^-1 G_dist
+            G1 = quat_multiply(np.stack([q1, q1, rp_inv], axis=2), gq[:, self.triple])
+            end_rot = G1[:, :, 2]
+        else:  # q1 G_prox, q1 G_mid
+            G1 = quat_multiply(np.stack([q1, q1], axis=2), gq[:, self.pair_pm])
         EW1 = S[:, :, None] + qrot(q1[:, :, None], gp[:, self.pair_mw] - S[:, :, None])
         E1, W1 = EW1[:, :, 0], EW1[:, :, 1]
         q2 = min_rotation(W1 - E1, W_star - E1)

@@ -239,7 +239,7 @@ class RetargetPlan:
             want, _ = pin_planted_feet(dec, want, gq, gp_t, local_t, *feet)
             frames = limb_frames(want, self.thr[None, :, 1], a0, r0)
         swivel = enc.swivel(e, *axes)
-        rot, _ = dec.place_limbs(rotations, gq, gp_t, *frames, swivel, enc.end_rotations(rp_inv, gq))
+        rot, _ = dec.place_limbs(rotations, gq, gp_t, *frames, swivel, rp_inv=rp_inv)
         return rot, local_t, gp_t
 
 
