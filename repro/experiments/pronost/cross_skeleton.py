@@ -11,7 +11,7 @@ statures 1.2-2.2 m, and on real data CMU clips on the Bandai Namco skeleton and 
 through :func:`repro.motion.retarget`.  The field's metrics, per clip and character:
 
 * ``position_error``: the joint-position error of Aberman et al. (2020, "Skeleton-Aware
-  Networks for Deep Motion Retargeting", Section 6): the mean Euclidean distance between
+  Networks for Deep Motion Retargeting", its evaluation): the mean Euclidean distance between
   corresponding joints of the result and the source, divided by the stature.  Corresponding
   joints are those both skeletons have by role (:data:`COMPARED_ROLES`: pelvis, chest, neck,
   head, and per side shoulder, elbow, wrist, hip, knee, ankle, toe); every frame, each skeleton's
