@@ -46,18 +46,21 @@ __all__ = ["ARM_TO_LEG", "FLOOR_TOLERANCE", "MIN_HAND_HEIGHT", "SYMMETRY_TOLERAN
 #: Human Movement*, 4th ed. 2009, Fig. 4.1, after Drillis & Contini 1966): upper arm 0.186 H,
 #: forearm 0.146 H, thigh 0.245 H, shank 0.246 H; hip (greater trochanter) at 0.530 H, chin at
 #: 0.870 H.  Arm / leg = 0.332 / 0.491 = 0.68: the intermembral index of humans, 68-72 (Napier &
-#: Napier, *A Handbook of Living Primates*, 1967), against 100-117 for the great apes and about
-#: 100 for a quadruped's fore and hind legs.  The band is wide (characters are stylised, a
-#: rig's joints sit at different points of the bones) but stops short of the apes'.
-ARM_TO_LEG: tuple[float, float] = (0.35, 1.05)
+#: Napier, *A Handbook of Living Primates*, 1967), 0.54-0.67 on the real rigs here.  The band
+#: is wide: it takes stylised characters and the library's own scaled ones
+#: (:func:`~repro.motion.body.skeleton.scale_skeleton` with arm and leg scales 0.75-1.25 and
+#: forearm and shin scales 0.7-1.4 give 0.26-1.41), and refuses only what is far outside.
+ARM_TO_LEG: tuple[float, float] = (0.2, 1.6)
 #: Trunk (path length pelvis -> head joint) over leg (path length pelvis -> ankle, the hip
 #: offset included): about (0.870 - 0.530) / (0.491 + 0.05) = 0.63 for the human figures
-#: above, 0.5-0.85 on real rigs; a quadruped's spine runs the length of its body (an
-#: elephant's about twice its leg).
+#: above, 0.52-0.95 on the real and generated rigs here; a quadruped's spine runs the length
+#: of its body (an elephant's about twice its leg).
 TRUNK_TO_LEG: tuple[float, float] = (0.25, 1.4)
-#: Largest relative difference between the left and right arm (leg) lengths: human limbs
-#: are mirror images to a few per cent (motion-capture fits differ by up to about 5 %).
-SYMMETRY_TOLERANCE: float = 0.15
+#: Largest relative difference between the left and right arm (leg) lengths.  Human limbs
+#: are mirror images to a few per cent (0-5 % on the real rigs here); the library's own
+#: characters scale one bone of one side by up to 1.5 (about 25 % on the limb); a limb twice
+#: the length of its mirror (a crab's claw) is 50 %.
+SYMMETRY_TOLERANCE: float = 0.4
 #: Lowest a wrist may stand above the ankles in the rest pose, along the legs' up, in leg
 #: lengths: a person's hands hang at about 0.9 leg lengths (wrist at 0.485 H, ankle at
 #: 0.039 H, leg 0.491 H in Winter's figures) in an N-pose and higher in A- and T-poses; a
@@ -145,7 +148,7 @@ def check_humanoid(names: Sequence[str], par: np.ndarray, offsets: np.ndarray, r
             f"bones); roles found: {sorted(roles)}", names)
     _check_symmetry(arms, legs, names)
     _check_proportions(index, par, lengths, roles, arms, legs, names)
-    _check_stance(index, par, offsets, roles, float(np.mean(list(legs.values()))) if legs else None, names)
+    _check_stance(index, par, offsets, roles, float(np.mean(list(legs.values()))) if len(legs) == 2 else None, names)
 
 
 def _check_symmetry(arms: dict[str, float], legs: dict[str, float], names) -> None:
@@ -188,7 +191,8 @@ def _unit(v: np.ndarray) -> np.ndarray | None:
 
 def _check_stance(index, par, offsets, roles, leg: float | None, names) -> None:
     """The head above the pelvis, both legs reaching the lowest point, the hands off the floor,
-    along the legs' up (ankles -> pelvis); skipped for a rest pose that shows no stance."""
+    along the legs' up (ankles -> pelvis); skipped for a rest pose that shows no stance and
+    without two legs of some length (``leg`` their mean, None without)."""
     need = ("pelvis", "head", "left_hip", "right_hip", "left_ankle", "right_ankle")
     off = np.asarray(offsets, dtype=float)
     if leg is None or not all(r in roles for r in need) or _line_pose(off):

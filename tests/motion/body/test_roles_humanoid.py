@@ -83,16 +83,16 @@ def _mixamo():
 
 def test_limbs_that_are_not_mirror_images_are_refused():
     names, par, off = _mixamo()
-    off[names.index("mixamorig:LeftForeArm")] *= 2.0  # a left upper arm twice as long
+    off[names.index("mixamorig:LeftForeArm")] *= 3.0  # a left upper arm three times as long
     with pytest.raises(MotionError, match=r"its arms are not mirror images: left .*, right .* units long, \d+ % apart"):
         find_roles(names, par, offsets=off)
 
 
-def test_arms_of_an_ape_are_refused():
+def test_arms_far_longer_than_legs_are_refused():
     names, par, off = _mixamo()
     for s in ("Left", "Right"):
         for b in ("ForeArm", "Hand"):
-            off[names.index(f"mixamorig:{s}{b}")] *= 1.8
+            off[names.index(f"mixamorig:{s}{b}")] *= 2.8
     with pytest.raises(MotionError, match=r"its arms are 1\.\d\d times as long as its legs .* a human's are about 0\.7"):
         find_roles(names, par, offsets=off)
 
