@@ -34,53 +34,16 @@ import numpy as np
 from repro.checks import as_int, as_real, as_real_array, check_alloc, describe, read_only
 from repro.errors import MotionError, UnitWarning
 from repro.motion.core.kinematics import check_indices, check_joint_names, rest_positions
-from repro.motion.core.motion import CMU_UNIT_M, Motion
+from repro.motion.core.motion import Motion
 from repro.motion.body.roles import LIMBS, REQUIRED_ROLES, bone_lengths_of, find_roles
+from repro.motion.body.stature import Stature, infer_unit, measure_stature
 
 __all__ = [
     "Skeleton",
     "skeleton_of",
     "scale_skeleton",
     "rescale_constraint",
-    "infer_unit",
-    "UNITS",
 ]
-
-#: Candidate units: (name, metres per unit).
-UNITS: tuple[tuple[str, float], ...] = (
-    ("metres", 1.0),
-    ("centimetres", 0.01),
-    ("millimetres", 0.001),
-    ("inches", 0.0254),
-    ("CMU units (1/0.45 inch)", CMU_UNIT_M),
-)
-#: Statures a human skeleton may have, metres.
-STATURE_RANGE_M: tuple[float, float] = (0.5, 2.5)
-#: The stature the choice between overlapping units favours, metres.
-TYPICAL_STATURE_M: float = 1.7
-
-
-def infer_unit(stature: float) -> tuple[float, str]:
-    """``(unit_m, unit name)`` of a skeleton whose stature is ``stature`` file units.
-
-    Raises
-    ------
-    repro.errors.MotionError
-        If the stature is not finite and positive, or no unit of :data:`UNITS` makes it
-        a human stature (:data:`STATURE_RANGE_M`).
-    """
-    h = as_real(stature, "stature (file units, finite and > 0 to infer the unit)", error=MotionError, lo=0.0,
-                lo_open=True)
-    lo, hi = STATURE_RANGE_M
-    fits = [(abs(np.log(h * u / TYPICAL_STATURE_M)), u, n) for n, u in UNITS if lo <= h * u <= hi]
-    if not fits:
-        raise MotionError(
-            f"cannot infer the length unit: a stature of {h:.4g} file units is no human stature "
-            f"({lo}-{hi} m) in any of {[n for n, _ in UNITS]}; pass unit_m= explicitly"
-        )
-    _, u, n = min(fits)
-    return u, n
-
 
 @dataclass(frozen=True, eq=False)
 class Skeleton:
@@ -100,8 +63,9 @@ class Skeleton:
       (``|offset(knee)|``), shin (``|offset(ankle)|``) of each side and the limb lengths
       ``arm = upper arm + forearm`` and ``leg = thigh + shin`` -- the "limb length" that
       normalises the limbs in Kulpa et al. (2005) (Section 3.4.1);
-    * :attr:`height` -- the *straightened stature*, see its docstring; :attr:`size` is the
-      same in metres: this is the ``size`` of Eq. 1;
+    * :attr:`height` -- the stature, measured one way on every rig (:attr:`stature`,
+      :attr:`stature_method`, :mod:`repro.motion.body.stature`); :attr:`size` is the same in
+      metres: this is the ``size`` of Eq. 1;
     * :attr:`hip_height` -- pelvis height of the straightened skeleton, the size that
       normalises the root trajectory in :mod:`repro.motion.retargeting.morphology`.
 
@@ -224,7 +188,7 @@ class Skeleton:
             roles=roles,
         )
         if sk.unit_m is None:
-            # no unit given: inferred from the stature (repro.motion.body.units), with a UnitWarning;
+            # no unit given: inferred from the stature (repro.motion.body.stature), with a UnitWarning;
             # left unknown when the stature fits no unit (to_metres then says so)
             try:
                 u, name = infer_unit(sk.height)
@@ -232,7 +196,7 @@ class Skeleton:
                 return sk
             warnings.warn(
                 f"{getattr(motion, 'source', None) or 'motion'}: no unit_m given; inferred {name} "
-                f"({u:g} m per unit) from the stature of {sk.height:.4g} units",
+                f"({u:g} m per unit) from the stature of {sk.height:.4g} units ({sk.stature_method})",
                 UnitWarning,
                 stacklevel=2,
             )
@@ -374,10 +338,9 @@ class Skeleton:
 
     @cached_property
     def head_top(self) -> float:
-        """Length of the head's End Site (top of the head, CMU), 0 when there is none."""
-        h = self.index("head")
-        lengths = [np.linalg.norm(o) for p, o in zip(self.end_site_parents, self.end_site_offsets) if p == h]
-        return float(max(lengths, default=0.0))
+        """Head joint -> top of the head along the body's axis, file units (:attr:`stature`'s part:
+        from the head's End Site or head-top joint, else estimated)."""
+        return self.stature.head_top
 
     @cached_property
     def ankle_height(self) -> float:
@@ -422,29 +385,36 @@ class Skeleton:
         return self.ankle_height + self.leg_length + self.hip_drop
 
     @cached_property
+    def stature(self) -> Stature:
+        """The stature and its parts, measured one way on every rig
+        (:func:`repro.motion.body.stature.measure_stature`), file units."""
+        return measure_stature(self)
+
+    @property
+    def stature_method(self) -> str:
+        """How :attr:`height` was measured (:attr:`repro.motion.body.stature.Stature.method`)."""
+        return self.stature.method
+
+    @property
     def height(self) -> float:
-        """Straightened stature, file units.
+        """Stature, file units: floor to the top of the head of the body standing straight.
 
-        ``height = ankle_height + leg_length + hip_drop + trunk_length + head_top``: the
-        height of the character standing perfectly straight, from the lowest point of the
-        foot to the top of the head, computed from bone lengths (see
-        :attr:`ankle_height`, :attr:`leg_length`, :attr:`hip_drop`,
-        :attr:`trunk_length`, :attr:`head_top`).
+        ``sole -> ankle + ankle -> knee -> hip + hips -> head joint + head joint -> head top``,
+        the same measure on every rig (:mod:`repro.motion.body.stature`): lengths between
+        joints of the rest pose, so the rest *posture* does not matter (CMU's legs abducted
+        ~20 degrees, A and N poses, Bandai Namco's rest pose along +X) nor helper joints (twist
+        joints in a limb, folded spine bones); the ankle height and the head top come from the
+        rig (foot joints and End Sites, a head End Site or head-top joint) and are estimated
+        from anthropometry where the rig does not tell them (Bandai Namco: no head top, the
+        foot continuing the shin).  :attr:`stature_method` says which.
 
-        Why this definition of the paper's ``size`` (Eq. 1): the paper gives the example
-        "a constraint placed at 1-meter in front of the virtual fighter does not have the
-        same influence if the latter is 2m or 1.5m tall" -- size is the stature.  A
-        measurement on the rest pose would depend on the rig's rest *posture* (CMU legs
-        abducted ~20 degrees: rest-pose head-top-to-toe height 28.15 units = 1.589 m for
-        subject 135, vs 29.0 units = 1.636 m straightened; the Bandai Namco rest pose lies along +X
-        and has no height at all), whereas bone lengths are what differ between
-        morphologies.  Limitations: without a head End Site (Bandai Namco) the stature
-        stops at the head joint (base of the skull), and without a measurable foot the
-        ankle height counts 0, so statures of *different* rig families are not directly
-        comparable -- ratios between a skeleton and its :func:`scale_skeleton`
-        derivatives are exact.
+        Why the paper's ``size`` (Eq. 1) is the stature: "a constraint placed at 1-meter in
+        front of the virtual fighter does not have the same influence if the latter is 2m or
+        1.5m tall".  Subject 135 of CMU measures 28.96 units = 1.634 m (its rest pose's
+        head-top-to-toe height is 28.15 units), the Bandai Namco actor 1.464 m with the head top
+        estimated (1.462 m on the one take whose head has an End Site).
         """
-        return self.hip_height + self.trunk_length + self.head_top
+        return self.stature.height
 
     def to_metres(self, value: float) -> float:
         """``value`` (file units) in metres.
@@ -577,7 +547,7 @@ def scale_skeleton(
     ----------
     skeleton : Skeleton or Motion
     height : float, optional
-        Target :attr:`Skeleton.size` (straightened stature) in metres (needs
+        Target :attr:`Skeleton.size` (stature) in metres (needs
         ``unit_m``); the paper's fighters are 1.5 to 2 m.
     scale : float, optional
         Uniform factor instead of ``height`` (not both).  Default: no uniform scaling.

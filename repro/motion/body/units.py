@@ -1,11 +1,13 @@
 """Length unit and up axis of a skeleton, inferred from its stature and rest pose.
 
 A BVH file does not say its unit or its up axis.  A human is 0.5 to 2.5 m tall
-(:data:`STATURE_RANGE_M`), so the straightened stature of the skeleton in file units
-(:attr:`repro.motion.body.skeleton.Skeleton.height`, found from the body-part roles) tells the
-unit among :data:`UNITS` -- metres, centimetres, millimetres, inches and the CMU unit
-(1/0.45 inch) -- as the one whose stature in metres lies in that range and is closest
-(on a log scale) to a typical adult's :data:`TYPICAL_STATURE_M`.  The up axis is the
+(:data:`STATURE_RANGE_M`), so the stature of the skeleton in file units
+(:attr:`repro.motion.body.skeleton.Skeleton.height`, measured one way on every rig from the
+body-part roles: :mod:`repro.motion.body.stature`) tells the unit among :data:`UNITS` --
+metres, centimetres (Mixamo's and Unreal's 100 units per metre), millimetres, inches, the CMU
+unit (1/0.45 inch), feet and decimetres (MakeHuman) -- as the one whose stature in metres lies
+in that range and is closest (on a log scale) to a typical adult's :data:`TYPICAL_STATURE_M`,
+the more conventional one when two are nearly as close (:func:`infer_unit`).  The up axis is the
 world axis (Y or Z) closest to the rest pelvis -> head direction; when the rest pose
 does not tell (a rig whose rest pose lies along X, as Bandai Namco's), the mean pelvis ->
 head direction over the frames.  :func:`infer_units` records both on the
@@ -22,14 +24,8 @@ import numpy as np
 
 from repro.errors import MotionError, UnitWarning
 from repro.motion.core.motion import Motion
-from repro.motion.body.skeleton import (
-    STATURE_RANGE_M,
-    TYPICAL_STATURE_M,
-    UNITS,
-    Skeleton,
-    infer_unit,
-    skeleton_of,
-)
+from repro.motion.body.skeleton import Skeleton, skeleton_of
+from repro.motion.body.stature import STATURE_RANGE_M, TYPICAL_STATURE_M, UNITS, infer_unit
 
 __all__ = ["STATURE_RANGE_M", "TYPICAL_STATURE_M", "UNITS", "infer_unit", "infer_units", "infer_up", "y_up_metres"]
 
@@ -94,7 +90,8 @@ def infer_units(motion: Motion, *, unit_m: float | None = None, up: str | None =
     if unit_m is None:
         sk = skeleton_of(dataclasses.replace(motion, unit_m=1.0))
         unit_m, name = infer_unit(sk.height)
-        said.append(f"unit {name} ({unit_m:g} m per unit; stature {sk.height:.4g} units = {sk.height * unit_m:.3f} m)")
+        said.append(f"unit {name} ({unit_m:g} m per unit; stature {sk.height:.4g} units = {sk.height * unit_m:.3f} m, "
+                    f"{sk.stature_method})")
     if up is None:
         up = infer_up(motion, sk)
         said.append(f"up axis {up.upper()}")
@@ -130,7 +127,7 @@ def y_up_metres(character, *, warn: bool = True):
     unit_m = character.unit_m
     if unit_m is None:
         unit_m, name = infer_unit(sk.height)
-        said.append(f"unit {name} ({unit_m:g} m per unit)")
+        said.append(f"unit {name} ({unit_m:g} m per unit; stature {sk.height:.4g} units, {sk.stature_method})")
     up = getattr(character, "up", None)
     if up is None:
         try:

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
 
 from repro import data
 from repro.errors import MotionError
@@ -20,6 +21,9 @@ from repro.motion.body.skeleton import (
     scale_skeleton,
     skeleton_of,
 )
+from repro.motion.body.stature import ANKLE_PER_LEG, HEAD_JOINT_FRACTION
+from repro.motion.database.synthetic import synthetic_skeleton
+from repro.motion.database.synthetic.conventions import CONVENTIONS, build
 from tests.motion.body.role_tables import BANDAI_EXPECTED, CMU_EXPECTED, MIXAMO, MIXAMO_NAMES, MIXAMO_PARENTS
 
 
@@ -192,10 +196,85 @@ def test_bandai_sizes():
     # mocap/bandai/PROVENANCE.md: leg (UpperLeg->Foot) 0.80 m, arm (UpperArm->Hand) 0.47 m
     assert sk.to_metres(sk.leg_length) == pytest.approx(0.80, abs=0.01)
     assert sk.to_metres(sk.arm_length) == pytest.approx(0.47, abs=0.01)
-    # the rest pose is a straight line along +X: no head top, ankle height not measurable
-    assert sk.head_top == 0.0 and sk.ankle_height == 0.0
-    # stature up to the head joint; the Head joint stands 1.34-1.41 m above the lowest joint
-    assert 1.25 < sk.size < 1.45
+    # the rest pose is a straight line along +X: the ankle height is not measurable (hip_height
+    # counts 0) and the head End Site has zero length, so the stature estimates both (issue 25)
+    assert sk.ankle_height == 0.0
+    assert sk.stature.foot == "estimated" and sk.stature.top == "estimated"
+    assert "head top estimated" in sk.stature_method and sk.head_top > 0
+    # the Head joint stands 1.34-1.41 m above the lowest joint; the stature is 1.46 m
+    assert 1.40 < sk.size < 1.52
+    # the one Bandai take whose head has an End Site measures the same actor within 1 %
+    bow = Skeleton.from_motion(read_bvh(data.fetch("mocap/bandai/dataset-1_bow_normal_001.bvh"),
+                                        unit_m=BANDAI_UNIT_M))
+    assert bow.stature.top == "End Site"
+    assert bow.size == pytest.approx(sk.size, rel=0.01)
+
+
+# ------------------------------------------------------- stature, one way on every rig (issue 25)
+def _rig_stature(rig, roles=None) -> Skeleton:
+    return Skeleton.from_motion(rig.motion(unit_m=1.0), roles=roles)
+
+
+@pytest.mark.parametrize("height", [1.6, 1.75, 1.9])
+def test_the_synthetic_actors_measure_their_built_height(height):
+    sk = Skeleton.from_motion(synthetic_skeleton(height))
+    assert sk.size == pytest.approx(height, rel=1e-14)
+    assert sk.stature.foot != "estimated" and sk.stature.top == "End Site"
+
+
+@pytest.mark.parametrize("convention", CONVENTIONS)
+def test_every_convention_measures_the_built_height(convention):
+    rig, _ = build(convention, height=1.8)
+    assert _rig_stature(rig).size == pytest.approx(1.8, rel=1e-12)
+
+
+def test_rest_posture_and_helper_joints_do_not_change_the_stature():
+    sk = _rig_stature(build("secondlife")[0])
+    base = sk.height
+    # Second Life bento: mSpine1 goes up, mSpine2 comes back (the bone lengths summed gave 2.20 m)
+    rig, _ = build("secondlife")
+    rig.offsets[rig.i("mSpine1")] = np.array([0.0, 0.084, 0.0])
+    rig.offsets[rig.i("mSpine2")] = np.array([0.0, -0.084, 0.0])
+    assert _rig_stature(rig).height == pytest.approx(base, rel=1e-12)
+    # a twist joint halfway along each thigh and shin (the roles as before: found in roles.py)
+    rig, _ = build("secondlife")
+    for j in ("mKneeLeft", "mAnkleLeft", "mKneeRight", "mAnkleRight"):
+        rig.insert_above(j, j + "Twist", 0.5)
+    assert _rig_stature(rig, roles=sk.roles).height == pytest.approx(base, rel=1e-12)
+    # the whole rig lying along +X, or turned Z up, or in an A pose
+    for rot in (Rotation.from_euler("z", -90, degrees=True), Rotation.from_euler("x", 90, degrees=True)):
+        assert _rig_stature(build("secondlife")[0].transform(rot)).height == pytest.approx(base, rel=1e-12)
+    assert _rig_stature(build("smpl")[0]).height == pytest.approx(base, rel=1e-12)
+
+
+def test_a_head_without_top_is_estimated_and_said():
+    rig, _ = build("mixamo")
+    rig.end_sites["mixamorig:Head"] = np.array([0.0, 1e-3, 0.0])  # a stub End Site
+    rig.remove("mixamorig:HeadTop_End")
+    sk = _rig_stature(rig)
+    st = sk.stature
+    assert st.top == "estimated" and "head top estimated" in sk.stature_method
+    # the head joint at HEAD_JOINT_FRACTION of the stature (the synthetic actor's is at 0.90)
+    assert st.head_top == pytest.approx((st.height - st.head_top) * (1 / HEAD_JOINT_FRACTION - 1))
+    assert 1.65 < sk.size < 1.75
+    # the eyes, in front of the head joint, are no head top
+    rig.add_leaf("mixamorig:Head", "mixamorig:LeftEye", (0.03, 0.08, 0.09))
+    assert _rig_stature(rig).stature.top == "estimated"
+    # Mixamo's HeadTop_End joint is one
+    rig.add_leaf("mixamorig:Head", "mixamorig:HeadTop_End", (0.0, 0.175, 0.0))
+    assert _rig_stature(rig).stature.top == "joint mixamorig:HeadTop_End"
+    assert _rig_stature(rig).size == pytest.approx(1.75)
+
+
+def test_a_foot_along_the_shin_is_estimated():
+    rig, _ = build("motionbuilder")
+    for s in ("Left", "Right"):  # toes straight below the ankle: the rest foot tells no sole
+        rig.offsets[rig.i(f"{s}Toe")] = np.array([0.0, -0.13, 0.0])
+        rig.end_sites[f"{s}Toe"] = np.array([0.0, -0.06, 0.0])
+    sk = _rig_stature(rig)
+    assert sk.stature.foot == "estimated"
+    assert sk.stature.sole_to_ankle == pytest.approx(ANKLE_PER_LEG * sk.stature.leg)
+    assert ANKLE_PER_LEG == pytest.approx(0.039 / 0.491)
 
 
 # ------------------------------------------------------------------- hostile arguments (issue 23)
