@@ -479,7 +479,7 @@ def build_real_database(include: Sequence[str] = REAL_SOURCES, *, cmu_takes=None
     What the retrieval (:class:`repro.motion.search.retrieval.MotionRetriever`) does with it:
     by default (``across_trees=True``) the current pose is retargeted (Section 3.4.1) to
     every actor -- to the actors of the character's joint tree as on one tree, across
-    joint trees (:func:`repro.motion.search.retrieval.retarget_to_tree`) to the other family's
+    joint trees (:func:`repro.motion.retargeting.dispatch.retarget_to_tree`) to the other family's
     -- so a CMU character can be served a Bandai clip and the reverse (Eq. 1 is then
     applied between the two rigs' statures, which are not measured alike: the Bandai
     skeleton has no head top and no ankle height, see the ``cross_skeleton`` figure).

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from repro.errors import MotionError
+from repro.motion.database.clips import Clip
 
 
 @pytest.fixture(scope="module")
@@ -116,3 +117,15 @@ def test_manifest_files_stay_in_their_folder(synthetic_dir, tmp_path):
     (d / "manifest.csv").write_text("\n".join(text) + "\n")
     with pytest.raises(MotionError, match="leads outside"):
         build_database(d)
+
+
+def test_clip_hit_segment_and_joint_names(small):
+    m = small.motion(0)
+    ok = dict(name="c", motion=m, semantics="punch", hit_role="right_fist", hit_joint=str(small.hit_joints[0]),
+              hit_where="joint", hit_frame=1)
+    Clip(**ok)
+    for bad in (dict(hit_role="nose"), dict(hit_role=None), dict(hit_joint="NoSuchJoint"), dict(hit_joint=3),
+                dict(side="middle"), dict(hit_frame=1.5), dict(hit_frame="1"), dict(name=""), dict(motion=None),
+                dict(semantics=None)):
+        with pytest.raises(MotionError):
+            Clip(**{**ok, **bad})

@@ -18,8 +18,7 @@ import time
 import numpy as np
 import pytest
 
-from repro.errors import MotionError, ReproError, RetrievalError
-from repro.motion.database.clips import Clip
+from repro.errors import ReproError, RetrievalError
 from repro.motion.search.retrieval import (
     MAX_TARGET_M,
     MotionRetriever,
@@ -170,13 +169,3 @@ def test_good_calls_still_work(r, query):
         r.search_exhaustive(GOOD_TARGET, pose, ch, "punch").d)
 
 
-def test_clip_hit_segment_and_joint_names(db):
-    m = db.motion(0)
-    ok = dict(name="c", motion=m, semantics="punch", hit_role="right_fist", hit_joint=str(db.hit_joints[0]),
-              hit_where="joint", hit_frame=1)
-    Clip(**ok)
-    for bad in (dict(hit_role="nose"), dict(hit_role=None), dict(hit_joint="NoSuchJoint"), dict(hit_joint=3),
-                dict(side="middle"), dict(hit_frame=1.5), dict(hit_frame="1"), dict(name=""), dict(motion=None),
-                dict(semantics=None)):
-        with pytest.raises(MotionError):
-            Clip(**{**ok, **bad})
