@@ -119,8 +119,15 @@ def test_hit_point_trajectory_with_given_positions():
     g = m.global_positions()
     assert np.array_equal(hit_point_trajectory(m, "Spine", positions=g), g[:, 1])
     assert np.array_equal(hit_point_trajectory(m, "Spine", "end_site"), m.end_site_positions()[:, 0])
-    with pytest.raises(Exception, match="no End Site"):
-        hit_point_trajectory(m, "Hips", "end_site")
+    # a joint without an End Site: the knuckles of the joints below it (repro.motion.body.hit_points), here the
+    # end of the Hips' longest path segment
+    from repro.motion.body.hit_points import hit_offset
+    from repro.motion.core.quaternion import quat_rotate
+
+    gq, gp = m.global_transforms()
+    off, src = hit_offset(m, "Hips")
+    assert src == "knuckles"
+    np.testing.assert_array_equal(hit_point_trajectory(m, "Hips", "end_site"), gp[:, 0] + quat_rotate(gq[:, 0], off[None]))
 
 
 def test_motion_fk_is_fk_arrays():
