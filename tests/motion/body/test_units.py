@@ -82,6 +82,19 @@ def test_an_ambiguous_stature_takes_the_conventional_unit_and_says_so():
     assert "ambiguous" not in infer_unit(28.96)[1]  # CMU subject 135
 
 
+def test_a_mixamo_cm_rig_with_a_floor_root_fits_centimetres():
+    # a Mixamo export in centimetres whose root sits on the floor under the hips: the stature no
+    # longer runs through the pelvis role, so a pelvis put on that root does not add the hips'
+    # height to the trunk (the sum of the bones from the pelvis up made it 2.65 m: "no unit fits")
+    rig, _ = build("mixamo")
+    rig.insert_above("mixamorig:Hips", "Armature", 0.0)
+    m = rig.transform(scale=100.0).motion(unit_m=None)
+    roles = dict(Skeleton.from_motion(dataclasses.replace(m, unit_m=0.01)).roles, pelvis="Armature")
+    with pytest.warns(UnitWarning, match="centimetres"):
+        sk = Skeleton.from_motion(m, roles=roles)
+    assert sk.height == pytest.approx(175.0) and sk.unit_m == 0.01
+
+
 def test_the_warning_says_how_the_stature_was_measured():
     rig, _ = build("mixamo")
     m = rig.transform(scale=100.0).motion(unit_m=None)
