@@ -46,7 +46,8 @@ import numpy as np
 from repro.checks import as_int, as_real_array
 from repro.errors import MotionError
 from repro.motion.adaptation.ccd_solver import ccd_spec, ccd_sweeps
-from repro.motion.adaptation.foot_pins import feet_independent, foot_slides, liftoff_offset, solve_feet, start_frame
+from repro.motion.adaptation.foot_pins import (feet_independent, floor_heights, floor_offset, foot_slides, liftoff_offset,
+                                               solve_feet, start_frame)
 from repro.motion.adaptation.limb import limb_dmax, solve_limb
 from repro.motion.adaptation.offset import offset_curve
 from repro.motion.adaptation.options import AdaptOptions
@@ -301,8 +302,16 @@ def _offset_goals(e: _Edit, frames) -> None:
     F = e.motion.n_frames
     e.t_start = start_frame(e.contacts, e.ch, e.t0, e.tc)
     e.d = offset_curve(e.t_start, e.tc, e.X - e.p[e.tc], F, kind=e.o.kind, release=e.n_release)
+    floor = None
+    if e.o.floor is not None and e.ch.kind == "leg":  # the kicking foot's floor
+        n_blend = int(round(e.o.foot_blend / e.motion.frame_time))
+        floor = floor_heights(e.rig, e.ch.side, e.ref_gp, e.t0, e.o.floor, n_blend)
     if e.o.feet == "plant":
-        e.d += liftoff_offset(e.rig, e.ch, e.contacts, e.ref_gp, e.t0, e.t_start, e.tc, e.o.floor, e.o.kind)
+        e.d += liftoff_offset(e.rig, e.ch, e.contacts, e.ref_gp, e.t0, e.t_start, e.tc, floor, e.o.kind)
+    if floor is not None:  # a kicking foot is not driven below the floor
+        on = np.any(e.d != 0.0, axis=1)
+        on[: e.t0 + 1] = False
+        e.d += floor_offset(e.rig, e.ch, e.ref_gp, e.p, e.p + e.d, on, floor)
     e.goals = e.p + e.d
     edit = np.flatnonzero(np.any(e.d != 0.0, axis=1))
     edit = edit[edit > e.t0] if e.tc > e.t0 else edit[edit >= e.t0]

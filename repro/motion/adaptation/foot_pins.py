@@ -3,9 +3,14 @@
 :func:`solve_feet` keeps each foot that does not strike planted over its contact phases
 (``"pin"``: those overlapping the edit; ``"plant"``: every phase after ``t0``, the
 kicking foot up to its lift-off) or on its original trajectory (``"track"``), by the limb
-step on the leg with the foot's world orientation kept; :func:`lift_to_floor` raises a
-pin so that its toe stays above the floor; :func:`liftoff_offset` eases the kicking
-foot's pin into ``d(t)``; :func:`foot_slides` measures how far the pinned ankles slide.
+step on the leg with the foot's world orientation kept; :func:`lift_to_floor` raises an
+ankle goal so that the whole foot (the ankle, the joints below it, their End Sites) stays
+above the floor (:func:`floor_heights`: a foot already through it at ``t0``, the current pose,
+is raised over ``foot_blend``, not in one frame), on every frame after ``t0`` where the foot
+is not striking; :func:`floor_offset`
+does the same for the kicking foot's hit goals (a target below the clip's kick lowers ``d(t)``
+while the foot is still low); :func:`liftoff_offset` eases the kicking foot's pin into
+``d(t)``; :func:`foot_slides` measures how far the pinned ankles slide.
 """
 
 from __future__ import annotations
@@ -24,7 +29,9 @@ __all__ = [
     "liftoff_offset",
     "feet_independent",
     "solve_feet",
+    "floor_heights",
     "lift_to_floor",
+    "floor_offset",
     "foot_slides",
 ]
 
@@ -48,6 +55,24 @@ def start_frame(contacts: np.ndarray, ch: Chain, t0: int, tc: int) -> int:
     return t0
 
 
+def floor_heights(rig, side: str, gp: np.ndarray, t0: int, floor: float, n_blend: int) -> np.ndarray:
+    """(F,) the height the ``side`` foot keeps above on each frame: ``floor``, eased in after ``t0``.
+
+    Frame ``t0`` (the current pose) never changes: when its foot already reaches ``sink``
+    below the floor, the floor starts there and rises linearly to ``floor`` over the
+    ``n_blend`` frames after ``t0`` (as a pin is released), so the foot is not popped up in
+    one frame.  ``gp`` are the input's joint positions.
+    """
+    F = gp.shape[0]
+    h = np.full(F, float(floor))
+    ank = rig.sk.index(f"{side}_ankle")
+    sink = float(floor - (gp[t0, ank, 1] + rig.foot_drop(side)[t0]))
+    if sink > 0.0:
+        k = np.arange(0, min(n_blend, F - 1 - t0) + 1)
+        h[t0 + k] -= sink * (1.0 - k / (n_blend + 1.0))
+    return h
+
+
 def liftoff_offset(rig, ch, contacts, gp, t0: int, t_start: int, tc: int, floor, kind: str) -> np.ndarray:
     """(F, 3) the kicking foot's pin at its lift-off, eased out by ``tc``: no jump when the pin lets go.
 
@@ -55,7 +80,8 @@ def liftoff_offset(rig, ch, contacts, gp, t0: int, t_start: int, tc: int, floor,
     start of the phase (:func:`solve_feet`); the input's foot has moved meanwhile (the
     blend with the current pose), so the hit goal starts from the pinned place and eases
     (``kind``) to the input's by ``tc``, where ``d(tc)`` takes over.  0 for an arm, an
-    unpinned foot or ``t_start == t0``.
+    unpinned foot or ``t_start == t0``.  ``floor``: None or the kicking foot's (F,)
+    :func:`floor_heights`.
     """
     F = gp.shape[0]
     out = np.zeros((F, 3))
@@ -70,7 +96,7 @@ def liftoff_offset(rig, ch, contacts, gp, t0: int, t_start: int, tc: int, floor,
     if floor is not None:  # the pin's own floor lift (as solve_feet lifts it)
         on = np.zeros(F, dtype=bool)
         on[t_start] = True
-        lift_to_floor(rig, ch.side, ank, gp, goal, on, floor)
+        lift_to_floor(rig, ch.side, goal, on, floor)
     delta = goal[t_start] - gp[t_start, ank]  # the foot keeps its world orientation: the hit point moves with the ankle
     w = offset_curve(t_start, tc, np.ones(3), F, kind=kind, release=None)[:, 0]
     r = np.zeros(F)
@@ -102,7 +128,9 @@ def solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors
                 shifted, floor, t_start, only=None, foot_offsets=None) -> tuple[float, int]:
     """Keep the other feet planted (``"pin"``, ``"plant"``) or on their trajectories (in place).
 
-    Goals come from ``ref_gp`` (the input's joint positions, before a root shift).
+    Goals come from ``ref_gp`` (the input's joint positions, before a root shift); with a
+    ``floor`` (a height) they are raised so that the whole foot stays above it
+    (:func:`floor_heights`) on every frame after ``t0`` but the strike's.
     ``only`` (F,) bool: solve on those frames alone (a probe of
     :func:`~repro.motion.adaptation.adapt`'s bound).
     Returns the largest ankle error and the number of solved frames.
@@ -145,9 +173,13 @@ def solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors
             if foot_offsets is not None:  # a step: the goals move with the stepping foot
                 goal += foot_offsets[:, s]
                 w = np.maximum(w, np.any(foot_offsets[:, s] != 0.0, axis=1))
-            if floor is not None:
-                lift_to_floor(rig, side, ank, gp, goal, w > 0, floor)
             need |= w > 0
+        if floor is not None:  # the whole foot above the floor after t0, but over the strike itself
+            on = np.ones(F, dtype=bool)
+            on[: t0 + 1] = False
+            if striking:
+                on[t_start + 1:stop] = False
+            need |= lift_to_floor(rig, side, goal, on, floor_heights(rig, side, gp, t0, floor, n_blend))
         if striking:  # never over the strike itself
             need[t_start + 1:stop] = False
         else:
@@ -166,18 +198,33 @@ def solve_feet(rig, ch, motion, rot, feet, foot_blend, t0, stop, pinned, anchors
     return foot_err, n_feet
 
 
-def lift_to_floor(rig, side: str, ank: int, gp: np.ndarray, goal: np.ndarray, on: np.ndarray, floor: float) -> None:
-    """Raise the ankle goals on ``on`` frames so that the toe (same foot orientation) is not below ``floor``."""
-    try:
-        toe = rig.sk.index(f"{side}_foot")
-    except MotionError:
-        return
-    if toe == ank:
-        return
-    rel = gp[:, toe, 1] - gp[:, ank, 1]  # the foot keeps its world orientation
-    low = np.minimum(goal[:, 1] + rel, goal[:, 1]) - floor
-    lift = np.where(on, np.maximum(0.0, -low), 0.0)
+def lift_to_floor(rig, side: str, goal: np.ndarray, on: np.ndarray, floor: np.ndarray) -> np.ndarray:
+    """Raise the ankle goals on ``on`` frames so that no point of the foot is below ``floor`` (F,) (in place).
+
+    The foot keeps its world orientation at its goal (the limb step and the pins keep it),
+    so its lowest point is ``goal[1] + rig.foot_drop(side)``.  Returns the (F,) frames raised.
+    """
+    lift = np.where(on, np.maximum(0.0, floor - (goal[:, 1] + rig.foot_drop(side))), 0.0)
     goal[:, 1] += lift
+    return lift > 0.0
+
+
+def floor_offset(rig, ch, gp: np.ndarray, p: np.ndarray, goals: np.ndarray, on: np.ndarray,
+                 floor: np.ndarray) -> np.ndarray:
+    """(F, 3) the raise of a kicking foot's hit goals that keeps the whole foot at or above ``floor`` (F,).
+
+    ``d(t)`` reaches ``X - p(tc)`` from the lift-off on: a target lower than the clip's kick
+    lowers the foot while it is still near the ground, through the floor.  The foot keeps
+    its world orientation (the limb step, and CCD's last limb step, keep it), so at the hit
+    goal its lowest point is ``goals[1] + foot_drop - (p[1] - ankle[1])`` (``gp`` the input's
+    joint positions, ``p`` its hit trajectory).  0 off ``on`` and for an arm.
+    """
+    out = np.zeros_like(goals)
+    if ch.kind != "leg":
+        return out
+    low = goals[:, 1] + rig.foot_drop(ch.side) - (p[:, 1] - gp[:, ch.dist, 1])
+    out[:, 1] = np.where(on, np.maximum(0.0, floor - low), 0.0)
+    return out
 
 
 def foot_slides(rig: Rig, anchors, gp2: np.ndarray, gp: np.ndarray) -> tuple[dict, dict]:

@@ -92,6 +92,8 @@ class Rig:
         self.levels = depth_levels(self.sk.parents)
         self._globals = None
         self._contacts = None
+        self._foot_drops: dict[str, np.ndarray] = {}
+        self._unshifted: Rig | None = None  # a root-shifted rig's input (moved): the foot drops are its
         orders = motion.rotation_orders
         self.full_rotation = np.array([len(set(o)) == 3 for o in orders])
 
@@ -117,6 +119,8 @@ class Rig:
         new.levels = self.levels
         new._globals = None
         new._contacts = None
+        new._foot_drops = {}
+        new._unshifted = self if self._unshifted is None else self._unshifted  # same rotations, same drops
         new.full_rotation = self.full_rotation
         return new
 
@@ -131,6 +135,36 @@ class Rig:
         if self._contacts is None:
             self._contacts = foot_contacts(self.motion, global_positions=self.globals[1], skeleton=self.sk)
         return self._contacts
+
+    def foot_drop(self, side: str) -> np.ndarray:
+        """(F,) how far the foot reaches below its ankle, per frame: the lowest of the ankle, the joints
+        below it and their End Sites (the toe tips), minus the ankle's height (<= 0).
+
+        Depends on the rotations only: it holds wherever the foot keeps its world orientation
+        (the limb step and the foot pins keep it), so an ankle goal ``g`` puts the foot's lowest
+        point at ``g[1] + foot_drop``.
+        """
+        if self._unshifted is not None:  # the same numbers however the trials are ordered
+            return self._unshifted.foot_drop(side)
+        drop = self._foot_drops.get(side)
+        if drop is None:
+            ank = self.sk.index(f"{side}_ankle")
+            gq, gp = self.globals
+            below = np.zeros(self.sk.n_joints, dtype=bool)
+            below[ank] = True
+            for j in range(ank + 1, self.sk.n_joints):  # parents come before their children
+                below[j] = below[self.sk.parents[j]]
+            low = gp[:, below, 1].min(axis=1)
+            motion = self.motion
+            ends = np.flatnonzero(below[motion.end_site_parents])
+            if ends.size:
+                par = motion.end_site_parents[ends]
+                tips = gp[:, par] + qrot(gq[:, par], motion.end_site_offsets[ends][None])
+                low = np.minimum(low, tips[..., 1].min(axis=1))
+            drop = low - gp[:, ank, 1]
+            drop.flags.writeable = False
+            self._foot_drops[side] = drop
+        return drop
 
     def path_to(self, j: int) -> np.ndarray:
         out = [j]
