@@ -16,8 +16,11 @@ frame ``t0`` is unchanged), with the foot's original world orientation, released
 ``foot_blend`` seconds; ``"plant"`` pins every contact phase after ``t0`` (also those
 after the edited frames, and the kicking foot up to its lift-off); ``"track"`` keeps the
 other ankles on their original trajectories; None leaves the legs alone.  ``floor``
-lifts a pinned ankle's goal so that its toe joint stays at or above that height.  The
-contacts come from the caller (detected once on the retrieved clip) or from
+keeps the whole foot (the ankle, the joints below it, their End Sites) at or above that
+height on every frame after ``t0``: the other feet's goals are lifted (pinned or not), and
+so is the kicking foot's hit goal where ``d(t)`` would drive it through the floor (a
+target lower than the clip's kick); a current pose already below it is lifted out over
+``foot_blend`` (:mod:`.foot_pins`).  The contacts come from the caller (detected once on the retrieved clip) or from
 :func:`repro.motion.body.feet.foot_contacts` on ``motion``.
 
 Whole-body reach: ``root_offsets`` adds a root translation before solving (the root

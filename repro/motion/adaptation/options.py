@@ -1,7 +1,7 @@
 """The options of the Section 3.4.2 edit (:func:`repro.motion.adaptation.adapt`), checked once.
 
 Their defaults are the library's: the fighter's strike (:func:`repro.motion.runtime.strike.strike`)
-plants the feet on the floor at height 0 (``feet="plant"``, ``floor=0.0``) and eases ``d(t)``
+plants the feet and keeps them above the floor at height 0 (``feet="plant"``, ``floor=0.0``) and eases ``d(t)``
 with a smoothstep released over 0.25 s.  What depends on the skeleton (the chain's joint
 names, the limits' keys, the default ``tol``) is checked by :func:`adapt` against its rig.
 """
@@ -36,7 +36,8 @@ class AdaptOptions:
     fraction of the limb length; ``feet`` one of :data:`FEET`; ``foot_blend`` seconds over
     which a foot pin is released; ``hit_point`` ``"joint"`` or ``"end_site"`` (the joint's tip: its End
     Site, else its fingers' knuckles, :func:`repro.motion.body.hit_points.hit_offset`); ``floor`` a
-    height the pinned toes stay above (None: no floor); ``max_foot_error`` a trial's bound
+    height every foot (its joints and End Sites) stays above after ``t0``, the kicking foot too
+    (None: no floor); ``max_foot_error`` a trial's bound
     on the support foot's error (None: unbounded).  Raises :class:`repro.errors.MotionError`
     for a bad option.
     """
