@@ -31,6 +31,7 @@ from repro.motion.core.quaternion import quat_rotate as qrot
 from repro.motion.retargeting.planted_feet import pin_planted_feet
 from repro.motion.retargeting.representation import (
     LIMB_NAMES,
+    Encoder,
     MorphologyIndependentMotion,
     limb_frames,
     limb_indices,
@@ -123,7 +124,8 @@ class Decoder:
         mul[source.root_path] = H
         self.mul = mul
         self.offsets = tgt.offsets
-        self.levels = depth_levels(tgt.parents)
+        # the same tree: an encoder's levels are the target's
+        self.levels = source.levels if isinstance(source, Encoder) else depth_levels(tgt.parents)
         self.prox, self.mid, self.dist, self.par = limb_indices(tgt)
         self.l1, self.l2 = bl[self.mid], bl[self.dist]
         self.L = self.l1 + self.l2

@@ -556,9 +556,12 @@ def _levels_below(parents, tops, ends) -> list[tuple[np.ndarray, np.ndarray]]:
             out.add(j)
             j = int(parents[j])
     depth: dict[int, int] = {}
-    for j in sorted(out):  # parents before children (parents[j] < j)
-        depth[j] = depth.get(int(parents[j]), -1) + 1
-    by = [sorted(j for j, d in depth.items() if d == k) for k in range(max(depth.values(), default=-1) + 1)]
+    by: list[list[int]] = []
+    for j in sorted(out):  # parents before children (parents[j] < j): each depth in index order
+        d = depth[j] = depth.get(int(parents[j]), -1) + 1
+        if d == len(by):
+            by.append([])
+        by[d].append(j)
     return [(np.array(js, dtype=np.intp), np.asarray(parents)[js]) for js in by]
 
 
