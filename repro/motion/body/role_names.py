@@ -22,7 +22,7 @@ from functools import lru_cache
 from repro.checks import describe
 from repro.errors import MotionError
 
-__all__ = ["CENTER_BASES", "SIDE_BASES", "is_head_name", "is_helper_name", "is_neck_name", "limbs_by_name", "name_side",
+__all__ = ["CENTER_BASES", "SIDE_BASES", "is_clavicle_name", "is_head_name", "is_helper_name", "is_neck_name", "limbs_by_name", "name_side",
            "side_and_base", "stem_votes", "trunk_by_name"]
 
 #: Base names (lower case, alphanumerics only, side removed) of each per-side role stem,
@@ -137,6 +137,12 @@ _BODY_WORDS = tuple(
     sorted({b for bs in SIDE_BASES.values() for b in bs} | {b for bs in CENTER_BASES.values() for b in bs}
            | {"collar", "shldr", "calf", "ball", "clav", "upper", "lower", "fore", "thigh", "abdomen", "torso"})
 )
+
+
+def is_clavicle_name(name: str) -> bool:
+    """True for a sided joint named a clavicle (``clavicle.L``, ``LeftCollar``, ``Bip01 L Clavicle``);
+    not ``shoulder``, which names the upper arm in other conventions."""
+    return any(b in ("clavicle", "collarbone", "collar") for b in _bases(name))
 
 
 def is_neck_name(name: str) -> bool:

@@ -45,7 +45,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from repro.errors import MotionError
-from repro.motion.body.role_names import is_head_name, is_helper_name, is_neck_name, name_side, stem_votes
+from repro.motion.body.role_names import (is_clavicle_name, is_head_name, is_helper_name, is_neck_name, name_side,
+                                         stem_votes)
 from repro.motion.core.kinematics import rest_positions
 
 __all__ = ["AmbiguousLimbs", "roles_from_structure", "trunk_from_tree"]
@@ -374,7 +375,10 @@ def _arm_roles(names: list[str], par: np.ndarray, cand: np.ndarray, arms: dict, 
             if len(kids) == 1 or (len(inner) == 1 and inner[0] == am["after"][0]):
                 roles[f"{s}_hand"] = names[am["after"][0]]
         if am["before"]:
-            roles[f"{s}_clavicle"] = names[am["before"][-1]]
+            # a joint named the clavicle before the arm (MakeHuman clavicle.L, then shoulder01.L and
+            # the upper arm's first segment upperarm01.L), else the joint just before the shoulder
+            named = [j for j in am["before"] if is_clavicle_name(names[j])]
+            roles[f"{s}_clavicle"] = names[(named or am["before"])[-1]]
 
 
 def _head_role(names: list[str], par: np.ndarray, hub: int, head: int, end_sites) -> str:

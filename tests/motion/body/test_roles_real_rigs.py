@@ -69,7 +69,7 @@ MAKEHUMAN_DEFAULT_ROLES = {
     "pelvis": "root", "spine": "spine05", "chest": "spine01", "neck": "neck01", "head": "head",
     "left_hip": "upperleg02.L", "left_knee": "lowerleg01.L", "left_ankle": "lowerleg02.L", "left_foot": "foot.L",
     "left_shoulder": "upperarm02.L", "left_elbow": "lowerarm01.L", "left_wrist": "lowerarm02.L",
-    "left_hand": "wrist.L", "left_fist": "wrist.L",
+    "left_hand": "wrist.L", "left_fist": "wrist.L", "left_clavicle": "clavicle.L",
 }  # fmt: skip
 
 
@@ -147,7 +147,8 @@ def _realrig(name):
 
 @pytest.mark.parametrize("name, want", [
     ("makehuman_default_rig_tpose.bvh", {"pelvis": "root", "chest": "spine01", "head": "head",
-                                         "left_elbow": "lowerarm01.L", "right_knee": "lowerleg01.R"}),
+                                         "left_elbow": "lowerarm01.L", "right_knee": "lowerleg01.R",
+                                         "right_clavicle": "clavicle.R", "right_fist": "wrist.R"}),
     ("makehuman_game_rig_zombiewalk.bvh", {"pelvis": "Root", "chest": "Spine3", "head": "Head",
                                            "left_elbow": "LoArm_L", "right_knee": "LoLeg_R"}),
     ("emretanirgan_jump_no_end_sites.bvh", {"head": "Neck", "neck": "LowerNeck", "left_elbow": "lradius"}),
