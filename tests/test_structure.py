@@ -20,9 +20,6 @@ MAX_FUNCTION_LINES = 80
 
 #: functions allowed over MAX_FUNCTION_LINES, by "module:qualname", with why
 LONG_FUNCTIONS: dict[str, str] = {
-    "repro.motion.io.asfamc:_amc_values": "to split into named steps (issue 24; 98 lines)",
-    "repro.motion.io.asfamc:read_amc": "to split into named steps (issue 24; 102 lines)",
-    "repro.motion.io.asfamc:read_asf": "to split into named steps (issue 24; 248 lines)",
     "repro.motion.search.kernel:search_first": "a numba-compiled kernel: one loop, no Python calls inside (splitting costs a call per candidate)",
 }
 

@@ -40,7 +40,8 @@ from repro.errors import BVHError
 from repro.motion.core.motion import BANDAI_UNIT_M, CMU_UNIT_M, Motion
 
 # io: BVH, and the CMU database's ASF/AMC originals
-from repro.motion.io.asfamc import AsfBone, AsfSkeleton, read_amc, read_asf, read_asf_amc
+from repro.motion.io.asf import AsfBone, AsfSkeleton, read_asf
+from repro.motion.io.asfamc import read_amc, read_asf_amc
 from repro.motion.io.bvh import read_bvh, write_bvh
 
 # body: roles, the Skeleton and its sizes (Eq. 1), the feet

@@ -46,7 +46,7 @@ TARGETS = {
 #: The code each target exercises (named in a failing test's message).
 READERS = {
     "bvh": "repro/motion/io/bvh.py read_bvh / write_bvh, repro/motion/core/motion.py",
-    "asf": "repro/motion/io/asfamc.py read_asf, then read_amc",
+    "asf": "repro/motion/io/asf.py read_asf, then repro/motion/io/asfamc.py read_amc",
     "amc": "repro/motion/io/asfamc.py read_amc / read_asf_amc",
     "obj": "repro/blendshapes/faces/obj.py read_obj",
     "gltf": "repro/blendshapes/faces/gltf.py read_gltf",

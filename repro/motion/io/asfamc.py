@@ -42,13 +42,10 @@ from repro.checks import as_real, describe
 from repro.errors import BVHError
 from repro.motion.core.motion import Motion
 from repro.motion.core.quaternion import euler_to_quat, quat_multiply
-from repro.motion.io.asf import AsfBone, AsfSkeleton, acclaim_lines, acclaim_text, read_asf
+from repro.motion.io.asf import AsfSkeleton, acclaim_lines, acclaim_text, read_asf
 
 # the skeleton's names (from asf) are listed too: repro.motion imports them from here
 __all__ = [
-    "AsfBone",
-    "AsfSkeleton",
-    "read_asf",
     "read_amc",
     "read_asf_amc",
     "CMU_FRAME_TIME",

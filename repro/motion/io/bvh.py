@@ -68,6 +68,7 @@ from repro.motion.core.channels import POSITION_CHANNELS, joint_columns
 from repro.motion.core.motion import Motion
 from repro.motion.core.quaternion import euler_to_quat
 from repro.motion.io.bvh_hierarchy import Hierarchy, parse_hierarchy
+from repro.motion.io.tokens import INTEGER
 
 __all__ = ["read_bvh", "write_bvh", "MAX_FRAMES"]
 
@@ -87,7 +88,6 @@ _MAX_INDENT = 32
 _MOTION_RE = re.compile(rb"^[ \t]*MOTION[ \t]*\r?$", re.M)
 _FRAMES_RE = re.compile(r"^Frames\s*:\s*(\S+)$")
 _FRAME_TIME_RE = re.compile(r"^Frame\s+Time\s*:\s*(\S+)$")
-_INT_RE = re.compile(r"[+-]?[0-9]+")
 _TOKEN_RE = re.compile(rb"[^ \t\n\r\x0b\x0c]+")  # the tokens of bytes.split()
 _NOT_SPACE = np.ones(256, dtype=bool)
 _NOT_SPACE[[9, 10, 11, 12, 13, 32]] = False  # the ASCII whitespace bytes.split() splits on
@@ -284,7 +284,7 @@ def _parse_motion_block(data: bytes, pos: int, lineno: int, n_channels: int, n_j
     """
     m, pos, lineno = _header_line(data, pos, lineno, _FRAMES_RE, "'Frames:' after MOTION", "'Frames: <count>'")
     count = m.group(1)
-    if not _INT_RE.fullmatch(count):
+    if not INTEGER.fullmatch(count):
         raise BVHError(f"line {lineno}: frame count {count[:40]!r} is not an integer")
     digits = count.lstrip("+-").lstrip("0")
     if len(digits) > 18:  # no int() of thousands of digits (Python refuses over 4300)

@@ -16,12 +16,11 @@ import re
 
 from repro.errors import BVHError
 from repro.motion.core.channels import POSITION_CHANNELS, ROTATION_CHANNELS
-from repro.motion.io.tokens import finite_float
+from repro.motion.io.tokens import INTEGER, finite_float
 
 __all__ = ["Hierarchy", "parse_hierarchy"]
 
 _CANONICAL_CHANNEL = {c.lower(): c for c in POSITION_CHANNELS + ROTATION_CHANNELS}
-_INT_RE = re.compile(r"[+-]?[0-9]+")
 
 
 class Hierarchy:
@@ -48,7 +47,7 @@ class Hierarchy:
 def _parse_channels(tok: list[str], where: str) -> tuple[str, ...]:
     if len(tok) < 2:
         raise BVHError(f"{where}: CHANNELS needs a count")
-    if not _INT_RE.fullmatch(tok[1]):
+    if not INTEGER.fullmatch(tok[1]):
         raise BVHError(f"{where}: channel count {tok[1][:40]!r} is not an integer")
     n = int(tok[1]) if len(tok[1]) <= 20 else 7  # no int() of thousands of digits
     if n < 0 or n > 6:

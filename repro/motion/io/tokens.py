@@ -8,10 +8,14 @@ scripts, ``inf`` and ``nan``.  The readers refuse those with the same
 from __future__ import annotations
 
 import math
+import re
 
 from repro.errors import BVHError
 
-__all__ = ["finite_float"]
+__all__ = ["INTEGER", "finite_float"]
+
+#: A decimal integer token of a BVH file (a CHANNELS or Frames count).
+INTEGER = re.compile(r"[+-]?[0-9]+")
 
 
 def finite_float(tok: str, label: str) -> float:
