@@ -19,19 +19,24 @@ from repro.motion.database.synthetic.conventions import CONVENTIONS, build
 from tests.motion.body.test_roles_real_rigs import cmu_without_head, makehuman_default, makehuman_game, rig, sided
 
 
-def quadruped(spine: float = 1.6, z_up: bool = True):
+def quadruped(spine: float = 1.6, z_up: bool = True, horse_link: bool = False, legs_on: str = "Bip01 Pelvis"):
     """A four-legged animal named like a 3ds Max Biped (an elephant in metres): hind legs off
-    ``Bip01 Pelvis``, fore legs (``UpperArm``, ``Forearm``, ``Hand``) off the chest, all four
-    on the floor, a horizontal spine of two ``spine``-long links, a head ahead with a trunk
-    hanging from it and a tail; facing +Z."""
+    ``legs_on``, fore legs (``UpperArm``, ``Forearm``, ``Hand``) off the chest, all four on the
+    floor, a horizontal spine of two ``spine``-long links, a head ahead with a trunk hanging
+    from it and a tail; facing +Z.  ``horse_link``: Biped's three-link hind legs (``Thigh``,
+    ``Calf``, ``HorseLink``, ``Foot``)."""
     j = [("Bip01", None, (0, 0, 0)), ("Bip01 Pelvis", "Bip01", (0, 2.6, 0)),
          ("Bip01 Spine", "Bip01 Pelvis", (0, 0.1, 0.4)), ("Bip01 Spine1", "Bip01 Spine", (0, 0.15, spine)),
          ("Bip01 Spine2", "Bip01 Spine1", (0, 0.1, spine)), ("Bip01 Neck", "Bip01 Spine2", (0, 0.1, 0.5)),
          ("Bip01 Head", "Bip01 Neck", (0, 0.2, 0.5)), ("Bip01 Ponytail1", "Bip01 Head", (0, -0.5, 0.5)),
          ("Bip01 Ponytail11", "Bip01 Ponytail1", (0, -1.0, 0.1)), ("Bip01 Tail", "Bip01 Pelvis", (0, 0, -0.3)),
          ("Bip01 Tail1", "Bip01 Tail", (0, -0.6, -0.2))]
-    legs = [("Bip01 {} Thigh", "=Bip01 Pelvis", (0.5, -0.1, 0)), ("Bip01 {} Calf", "Bip01 {} Thigh", (0, -1.1, 0.1)),
+    legs = [("Bip01 {} Thigh", "=" + legs_on, (0.5, -0.1, 0)), ("Bip01 {} Calf", "Bip01 {} Thigh", (0, -1.1, 0.1)),
             ("Bip01 {} Foot", "Bip01 {} Calf", (0, -1.0, -0.05)), ("Bip01 {} Toe0", "Bip01 {} Foot", (0, -0.35, 0.2))]
+    if horse_link:
+        legs[1:3] = [("Bip01 {} Calf", "Bip01 {} Thigh", (0, -0.8, 0.1)),
+                     ("Bip01 {} HorseLink", "Bip01 {} Calf", (0, -0.6, -0.1)),
+                     ("Bip01 {} Foot", "Bip01 {} HorseLink", (0, -0.7, 0.05))]
     arms = [("Bip01 {} Clavicle", "=Bip01 Spine2", (0.3, -0.1, 0)),
             ("Bip01 {} UpperArm", "Bip01 {} Clavicle", (0.3, -0.2, 0)),
             ("Bip01 {} Forearm", "Bip01 {} UpperArm", (0, -1.05, 0)), ("Bip01 {} Hand", "Bip01 {} Forearm", (0, -0.95, 0)),
@@ -46,8 +51,9 @@ def turned(names, par, off, seed: int):
 
 
 @pytest.mark.parametrize("seed", [None, 0, 1, 2])
-def test_an_elephant_named_like_a_biped_is_refused_by_its_trunk(seed):
-    names, par, off = quadruped()
+@pytest.mark.parametrize("kw", [{}, {"horse_link": True}, {"legs_on": "Bip01 Spine"}])
+def test_an_elephant_named_like_a_biped_is_refused_by_its_trunk(seed, kw):
+    names, par, off = quadruped(**kw)
     if seed is not None:
         names, par, off = turned(names, par, off, seed)
     with pytest.raises(MotionError, match=r"not a humanoid skeleton: its trunk .* is 1\.\d\d times its legs"):
@@ -55,9 +61,9 @@ def test_an_elephant_named_like_a_biped_is_refused_by_its_trunk(seed):
 
 
 @pytest.mark.parametrize("seed", [None, 3, 4])
-@pytest.mark.parametrize("z_up", [True, False])
-def test_a_short_quadruped_is_refused_for_standing_on_its_arms(z_up, seed):
-    names, par, off = quadruped(spine=0.7, z_up=z_up)
+@pytest.mark.parametrize("kw", [{"z_up": True}, {"z_up": False}, {"horse_link": True}, {"legs_on": "Bip01 Spine"}])
+def test_a_short_quadruped_is_refused_for_standing_on_its_arms(kw, seed):
+    names, par, off = quadruped(spine=0.7, **kw)
     if seed is not None:
         names, par, off = turned(names, par, off, seed)
     with pytest.raises(MotionError, match=r"not a humanoid skeleton: its (left|right) arm stands on the floor like a "
