@@ -118,10 +118,12 @@ def test_real_pairs(quick):
     fixed = real_all[real_all.fix_feet.astype(bool)]
     assert fixed.foot_slide_m.max() < 1e-9 and fixed.penetration_m.max() < 1e-9
     assert fixed.bone_length_error.max() < 1e-9
-    # the annotated clips: at the hit, the representation's target is met; the Bandai kick on
-    # CMU lands near its hip-height-scaled point, far from its Eq. 1 (stature) point
+    # the annotated clips: at the hit, the representation's target is met; with the statures of both
+    # rigs measured alike (repro.motion.body.stature), the Bandai kick on CMU lands near its Eq. 1 point
+    # as near its hip-height-scaled one (it missed the Eq. 1 point by 0.20 m when Bandai's stature
+    # lacked its head top and ankle height)
     clips = real[real.eq1_gap_m.notna()]
     assert clips.hit_error_m.max() < 1e-6
     kick = clips[(clips.character == "cmu") & clips["clip"].str.contains("kick")].iloc[0]
-    assert kick.hip_ratio_gap_m < 0.1 < kick.eq1_gap_m
-    assert kick.size_ratio > kick.hip_ratio + 0.05
+    assert kick.eq1_gap_m < 0.1 and kick.hip_ratio_gap_m < 0.1
+    assert abs(kick.size_ratio - kick.hip_ratio) < 0.05

@@ -53,18 +53,17 @@ hit columns, in the clip's first root frame (where the database keeps hit points
 ``eq1_gap_m``, the distance from the retargeted hit point (there: the character's joint of
 the clip's ``hit_role``) to the source's hit point scaled by Eq. 1 (``size_c / size_a``),
 and ``hip_ratio_gap_m``.
-Why a Bandai kick played by a CMU character falls ~0.2 m short of its Eq. 1 target: the
-two rigs' statures are not measured alike -- the Bandai skeleton has a zero-length head
-End Site (no head top) and a rest pose that cannot tell the ankle height
-(:attr:`~repro.motion.body.skeleton.Skeleton.height`), so its stature is 1.298 m against
-CMU's 1.636 m (ratio 1.26) while their hip heights differ by 1.156 and their legs
-(thigh + shin) by 1.046.  The retargeted root path follows the hip heights and the limbs
-their lengths, so the hit point lands near the hip-ratio point (``hip_ratio_gap_m`` a
-few cm) and the Eq. 1 point is ~20% farther.  This is most, not all, of a strike's miss
-there: :func:`repro.motion.runtime.strike.strike` also aligns the clip's start on the character's
-pose and adapts it, and its kick misses a hip-ratio target too, by less.  (Before the
-rest offsets carried each segment's twist, the Bandai pelvis also came out turned ~43
-deg about the trunk on a CMU character.)
+Eq. 1 needs the two rigs' statures measured alike.  The Bandai skeleton has a zero-length head
+End Site (no head top) and a rest pose that cannot tell the ankle height; its stature
+(:mod:`repro.motion.body.stature`: floor to head top, straightened, with the ankle height and
+the head top estimated from Winter 2009 where the rig does not tell) is 1.464 m against CMU's
+1.635 m (ratio 1.117), beside a hip-height ratio of 1.156.  The retargeted root path follows
+the hip heights and the limbs their lengths, so the hit point lands near the hip-ratio point;
+with the statures measured alike the Eq. 1 point is close to it (the Bandai kick on a CMU
+character: ``eq1_gap_m`` about 4 cm in the quick run).  Before the stature was measured one
+way on every rig, Bandai's came out at 1.298 m (ratio 1.26) and the same kick missed its Eq. 1
+point by about 0.2 m.  (Before the rest offsets carried each segment's twist, the Bandai
+pelvis also came out turned ~43 deg about the trunk on a CMU character.)
 
 Quick: every character x two statures x two clips; full: every character x five statures
 x eight clips; plus the real-data pairs when staged.
