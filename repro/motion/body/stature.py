@@ -127,7 +127,7 @@ class Stature:
                 else f"ankle height estimated ({ANKLE_PER_LEG:.3f} x leg, Winter 2009)")
         top = (f"head top from the {self.top}" if self.top != "estimated"
                else f"head top estimated (head joint at {HEAD_JOINT_FRACTION:g} of the stature)")
-        return f"floor to head top, straightened: {foot}; ankle-knee-hip; hips-head; {top}"
+        return f"floor to head top of the body standing straight: {foot}; legs hip-knee-ankle; hips to head; {top}"
 
 
 def _descendants(parents: np.ndarray, j: int) -> np.ndarray:
@@ -139,10 +139,9 @@ def _descendants(parents: np.ndarray, j: int) -> np.ndarray:
     return below
 
 
-def _points_below(skeleton, j: int) -> tuple[list[str], np.ndarray]:
-    """Names and rest positions of the End Sites of joint ``j``, then of the joints and End Sites
-    under it (``j`` excluded); End Sites are named ``"End Site"``."""
-    p = skeleton._rest_positions
+def _points_below(skeleton, p: np.ndarray, j: int) -> tuple[list[str], np.ndarray]:
+    """Names and rest positions (``p``: the joints') of the End Sites of joint ``j``, then of the
+    joints and End Sites under it (``j`` excluded); End Sites are named ``"End Site"``."""
     below = _descendants(skeleton.parents, j)
     es = np.asarray(skeleton.end_site_parents, dtype=int)
     own = es == j
@@ -154,13 +153,12 @@ def _points_below(skeleton, j: int) -> tuple[list[str], np.ndarray]:
     return names, pts.reshape(-1, 3)
 
 
-def _sole_to_ankle(skeleton, side: str) -> float | None:
+def _sole_to_ankle(skeleton, p: np.ndarray, side: str) -> float | None:
     """Height of the ankle above the foot's lowest point along the rest shin, or None."""
-    p = skeleton._rest_positions
     ank = skeleton.index(f"{side}_ankle")
     shin = p[ank] - p[skeleton.index(f"{side}_knee")]
     n = np.linalg.norm(shin)
-    _, pts = _points_below(skeleton, ank)
+    _, pts = _points_below(skeleton, p, ank)
     if n <= 0 or not len(pts):
         return None
     v = pts - p[ank]
@@ -177,14 +175,14 @@ def measure_stature(skeleton) -> Stature:
     standing straight, from the rest offsets and the roles ``left_/right_hip, _knee, _ankle``
     and ``head``.  A uniform scaling of the skeleton scales it by the same factor.
     """
-    p = skeleton._rest_positions
+    p = skeleton.rest_positions()
     hips = [skeleton.index(f"{s}_hip") for s in ("left", "right")]
     head = skeleton.index("head")
     legs, soles = [], []
     for s in ("left", "right"):
         h, k, a = (skeleton.index(f"{s}_{r}") for r in ("hip", "knee", "ankle"))
         legs.append(np.linalg.norm(p[k] - p[h]) + np.linalg.norm(p[a] - p[k]))
-        soles.append(_sole_to_ankle(skeleton, s))
+        soles.append(_sole_to_ankle(skeleton, p, s))
     leg = float(np.mean(legs))
     measured = [x for x in soles if x is not None]
     sole = float(np.mean(measured)) if measured else ANKLE_PER_LEG * leg
@@ -193,7 +191,7 @@ def measure_stature(skeleton) -> Stature:
     below_head = sole + leg + hips_to_head
     estimate = below_head * (1.0 / HEAD_JOINT_FRACTION - 1.0)
     top, where = estimate, "estimated"
-    names, pts = _points_below(skeleton, head)
+    names, pts = _points_below(skeleton, p, head)
     if hips_to_head > 0 and len(pts):
         v = pts - p[head]
         rise = v @ (trunk / hips_to_head)
