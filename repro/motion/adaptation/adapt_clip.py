@@ -20,8 +20,8 @@ keeps the whole foot (the ankle, the joints below it, their End Sites) at or abo
 height on every frame after ``t0``: the other feet's goals are lifted (pinned or not), and
 so is the kicking foot's hit goal where ``d(t)`` would drive it through the floor (a
 target lower than the clip's kick); a current pose already below it is lifted out over
-``foot_blend`` (:mod:`.foot_pins`).  The contacts come from the caller (detected once on the retrieved clip) or from
-:func:`repro.motion.body.feet.foot_contacts` on ``motion``.
+``foot_blend`` (:mod:`.foot_pins`).  The contacts come from the caller (detected once on
+the retrieved clip) or from :func:`repro.motion.body.feet.foot_contacts` on ``motion``.
 
 Whole-body reach: ``root_offsets`` adds a root translation before solving (the root
 level of :func:`repro.motion.runtime.strike.strike`); ``p(t)`` and the foot anchors stay the

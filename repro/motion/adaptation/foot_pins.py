@@ -7,10 +7,10 @@ step on the leg with the foot's world orientation kept; :func:`lift_to_floor` ra
 ankle goal so that the whole foot (the ankle, the joints below it, their End Sites) stays
 above the floor (:func:`floor_heights`: a foot already through it at ``t0``, the current pose,
 is raised over ``foot_blend``, not in one frame), on every frame after ``t0`` where the foot
-is not striking; :func:`floor_offset`
-does the same for the kicking foot's hit goals (a target below the clip's kick lowers ``d(t)``
-while the foot is still low); :func:`liftoff_offset` eases the kicking foot's pin into
-``d(t)``; :func:`foot_slides` measures how far the pinned ankles slide.
+is not striking; :func:`floor_offset` does the same for the kicking foot's hit goals (a
+target below the clip's kick lowers ``d(t)`` while the foot is still low);
+:func:`liftoff_offset` eases the kicking foot's pin into ``d(t)``; :func:`foot_slides`
+measures how far the pinned ankles slide.
 """
 
 from __future__ import annotations
