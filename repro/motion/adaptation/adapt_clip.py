@@ -49,8 +49,8 @@ import numpy as np
 from repro.checks import as_int, as_real_array
 from repro.errors import MotionError
 from repro.motion.adaptation.ccd_solver import ccd_spec, ccd_sweeps
-from repro.motion.adaptation.foot_pins import (feet_independent, floor_heights, floor_offset, foot_slides, liftoff_offset,
-                                               solve_feet, start_frame)
+from repro.motion.adaptation.foot_pins import (
+    feet_independent, floor_heights, floor_offset, foot_slides, liftoff_offset, solve_feet, start_frame)
 from repro.motion.adaptation.limb import limb_dmax, solve_limb
 from repro.motion.adaptation.offset import offset_curve
 from repro.motion.adaptation.options import AdaptOptions
