@@ -5,7 +5,7 @@ hit point; the paper says nothing of a target lower than the clip's kick, where 
 lowers the kicking foot while it is still near the ground.  What is asserted:
 
 * ``adapt`` on a synthetic high kick aimed 30 cm lower: the kicking foot (ankle, toe,
-  End Site) never goes below the floor (it went 10+ cm through it), the target is still
+  End Site) never goes below the floor (it went 9 cm through it), the target is still
   reached at the contact, the support foot does not slide;
 * a current pose already through the floor (frame ``t0`` never changes) is lifted out over
   ``foot_blend``, not popped up in one frame;
