@@ -45,8 +45,9 @@ within frames of the order, so its support foot never steps.  ``Strike.level`` s
 level the contact frame needed; ``reached=False`` with the residual and the highest level
 tried (``levels_tried``) when nothing reaches.
 
-Feet: the planted phases after ``t0`` are pinned (``feet="plant"``) with the toe kept at
-or above the floor (``y = 0``).
+Feet: the planted phases after ``t0`` are pinned (``feet="plant"``), and the whole foot (the
+ankle, the joints below it, their End Sites) is kept at or above the floor (``y = 0``) on every
+frame after ``t0``, the kicking foot's too.
 
 Bad input: a target inside the body (horizontally within :data:`BODY_RADIUS` x size of
 the current pose's root, below the head) raises :class:`repro.errors.MotionError`; so does
