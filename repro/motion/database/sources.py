@@ -109,8 +109,8 @@ BANDAI_TAKES: dict[str, str] = {
 #: directions (the retrieval can retarget them to the 135 actor only after
 #: :func:`match_rest_pose`, ``non_fighting_poses(rest_like=db)``); the Bandai walk and bow are on the
 #: Bandai joint tree (the bow's file has a 10 cm Head End Site and a slightly different
-#: Hips offset, so its skeleton is *not* the one of the other Bandai takes: its size is
-#: 1.40 m instead of 1.30 m).  135_03 is labelled "Empi" in the CMU index but is a
+#: Hips offset, so its skeleton is *not* the one of the other Bandai takes, though its stature
+#: measures the same, 1.46 m: :mod:`repro.motion.body.stature`).  135_03 is labelled "Empi" in the CMU index but is a
 #: ~5 m walk without any strike (``mocap/cmu/PROVENANCE.md``): subject 135's only walk.
 NON_FIGHTING_TAKES: dict[str, tuple[str, str, str]] = {
     "mocap/cmu/131_01.bvh": ("cmu131", "walk", "Start Walk Stop"),
@@ -443,9 +443,9 @@ def build_bandai_database(takes: Mapping[str, str] | Sequence[str] | None = None
     ``mocap/bandai/PROVENANCE.md``.
 
     The actor is the Bandai skeleton itself (one base actor): leg 0.80 m, arm 0.47 m,
-    ``size_a`` 1.30 m -- the straightened stature stops at the ``Head`` joint (the file
-    has no head-top point) and counts no ankle height, so it is *not* comparable with the
-    CMU actor's 1.64 m (see :attr:`repro.motion.body.skeleton.Skeleton.height`).  Hit points:
+    ``size_a`` 1.46 m -- the file has no head-top point and its rest pose does not tell the
+    ankle height, so both are estimated (:mod:`repro.motion.body.stature`, the same measure as
+    the CMU actor's 1.64 m; up to the ``Head`` joint it would be 1.30 m).  Hit points:
     ``Hand_L``/``Hand_R`` (the wrist; no fist point) and ``Toes_L``/``Toes_R``.
 
     Raises
