@@ -211,11 +211,27 @@ def quat_to_matrix(q: np.ndarray) -> np.ndarray:
 
 
 def matrix_to_quat(m: np.ndarray) -> np.ndarray:
-    """Unit quaternions ``(x, y, z, w)`` of rotation matrices, (..., 3, 3) -> (..., 4) (scipy)."""
+    """Unit quaternions ``(x, y, z, w)`` of rotation matrices, (..., 3, 3) -> (..., 4) (scipy).
+
+    Raises :class:`repro.errors.MotionError` for a matrix that is not finite or not a proper frame
+    (determinant <= 0: a degenerate frame, e.g. built on a zero-length bone), where scipy would
+    raise its own ValueError or fail to converge.
+    """
     from scipy.spatial.transform import Rotation
 
+    from repro.errors import MotionError
+
+    m = np.asarray(m, dtype=float)
     shape = m.shape[:-2]
-    return Rotation.from_matrix(m.reshape(-1, 3, 3)).as_quat().reshape(shape + (4,))
+    flat = m.reshape(-1, 3, 3)
+    if not np.isfinite(flat).all():
+        raise MotionError("matrix_to_quat: a rotation matrix is not finite (a degenerate frame?)")
+    with np.errstate(all="ignore"):
+        bad = np.flatnonzero(~(np.linalg.det(flat) > 0))
+    if bad.size:
+        raise MotionError(f"matrix_to_quat: rotation matrix {int(bad[0])} of {flat.shape[0]} is not a proper frame "
+                          "(determinant <= 0: a left-handed or degenerate frame, e.g. on a zero-length bone)")
+    return Rotation.from_matrix(flat).as_quat().reshape(shape + (4,))
 
 
 def euler_to_quat(seq: str, angles, degrees: bool = True) -> np.ndarray:

@@ -51,3 +51,14 @@ def test_other_dtypes_take_the_component_path():
     a = np.array([0, 0, 0, 1])
     assert Q.quat_multiply(a, a).dtype == np.result_type(a, a)
     np.testing.assert_array_equal(Q.quat_multiply(a, a), [0, 0, 0, 1])
+
+
+def test_matrix_to_quat_refuses_degenerate_frames_with_a_motion_error():
+    from repro.errors import MotionError
+    from repro.motion.core.quaternion import matrix_to_quat
+
+    good = np.stack([np.eye(3), np.diag([1.0, -1.0, -1.0])])
+    np.testing.assert_allclose(np.abs(matrix_to_quat(good)), [[0, 0, 0, 1], [1, 0, 0, 0]], atol=1e-15)
+    for bad in (np.zeros((3, 3)), np.diag([1.0, 1.0, -1.0]), np.full((2, 3, 3), np.nan)):
+        with pytest.raises(MotionError, match="matrix_to_quat"):
+            matrix_to_quat(bad)
