@@ -106,6 +106,35 @@ def infer_units(motion: Motion, *, unit_m: float | None = None, up: str | None =
     return dataclasses.replace(motion, unit_m=unit_m, up=up)
 
 
+#: Turns about +Y by multiples of 90 degrees (exact): the rest pose facing +X, -Z, -X made to face +Z.
+_YAW_TURNS = {
+    "+X": np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]),
+    "-Z": np.array([[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]]),
+    "-X": np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]),
+}
+
+
+def _facing_turn(sk: Skeleton, R: np.ndarray):
+    """``(turn, "+X" / "-Z" / "-X")`` making an upright rest pose face +Z (the databases' actors do), or None.
+
+    The facing is the horizontal direction ``(left hip - right hip) x up``, taken to the nearest world
+    axis (exporters' rest poses face along one); a rest pose that is not upright (Bandai's lies along +X)
+    or whose hips do not tell is left as it is.
+    """
+    p = sk.rest_positions() @ R.T
+    body_up = p[sk.index("head")] - p[sk.index("pelvis")]
+    n = float(np.linalg.norm(body_up))
+    lateral = p[sk.index("left_hip")] - p[sk.index("right_hip")]
+    flat = np.array([lateral[0], 0.0, lateral[2]])
+    if not (n > 0 and body_up[1] > np.cos(np.radians(45.0)) * n) or \
+            not np.linalg.norm(flat) > 0.5 * np.linalg.norm(lateral) > 0:
+        return None
+    fx, fz = -lateral[2], lateral[0]  # (lateral x up), horizontal
+    if abs(fz) >= abs(fx):
+        return None if fz > 0 else (_YAW_TURNS["-Z"], "-Z")
+    return (_YAW_TURNS["+X"], "+X") if fx > 0 else (_YAW_TURNS["-X"], "-X")
+
+
 def y_up_metres(character, *, warn: bool = True):
     """``character`` (Skeleton or Motion) in the Y-up, metre convention of the databases.
 
@@ -114,7 +143,10 @@ def y_up_metres(character, *, warn: bool = True):
     neither axis, as Bandai Namco's, counts as Y-up).  A Z-up character is turned about X
     (+Z -> +Y, -Y -> +Z): offsets and End Sites ``R o``, local rotations ``R L R^-1``,
     position channels ``R p`` -- the same body and motion in the turned world, its rest
-    pose upright in it.  Returns ``character`` itself when it already is Y-up in metres;
+    pose upright in it.  An upright rest pose facing another horizontal axis than +Z (exporters'
+    characters facing -Z or +X) is turned about Y to face +Z, as the databases' actors do, the
+    same way (:func:`_facing_turn`).  Returns ``character`` itself when it already is Y-up in
+    metres facing +Z;
     a :class:`~repro.errors.UnitWarning` names what was inferred (``warn``).
 
     Raises
@@ -136,12 +168,16 @@ def y_up_metres(character, *, warn: bool = True):
             up = "y"
         if up != "y":
             said.append(f"up axis {up.upper()}")
+    R = _Z_TO_Y if up == "z" else np.eye(3)
+    turn = _facing_turn(sk, R)
+    if turn is not None:
+        R = turn[0] @ R
+        said.append(f"a rest pose facing {turn[1]} (turned to face +Z)")
     if said and warn:
         warnings.warn(f"character {sk.joint_names[0]!r}: inferred {' and '.join(said)}; converted to Y-up metres",
                       UnitWarning, stacklevel=2)
-    if unit_m == 1.0 and up == "y":
+    if unit_m == 1.0 and up == "y" and turn is None:
         return character
-    R = _Z_TO_Y if up == "z" else np.eye(3)
     off = np.asarray(character.offsets, dtype=float) @ R.T * unit_m
     es = np.asarray(character.end_site_offsets, dtype=float).reshape(-1, 3) @ R.T * unit_m
     if isinstance(character, Skeleton):

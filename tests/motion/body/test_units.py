@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import re
 import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from repro import data
@@ -175,3 +177,27 @@ def test_real_rigs_units_and_statures(name, unit_m, lo, hi):
         out = infer_units(m)
     assert out.unit_m == pytest.approx(unit_m)
     assert lo < Skeleton.from_motion(out).size < hi
+
+
+@pytest.mark.parametrize(("facing", "yaw_deg"), [("-Z", 180.0), ("+X", 90.0), ("-X", -90.0)])
+def test_a_rest_pose_facing_another_axis_is_turned_to_face_z(facing, yaw_deg):
+    """y_up_metres turns an upright character facing -Z, +X or -X about Y to face +Z (the actors' way)."""
+    import warnings
+
+    from scipy.spatial.transform import Rotation
+
+    from repro.errors import UnitWarning
+    from repro.motion.body.skeleton import skeleton_of
+    from repro.motion.body.units import y_up_metres
+    from repro.motion.database.synthetic.conventions import build
+
+    m = dataclasses.replace(build("mixamo")[0].motion(unit_m=1.0), up="y")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # facing +Z, Y-up, metres: nothing to say, nothing to change
+        assert y_up_metres(m) is m
+    R = Rotation.from_euler("y", yaw_deg, degrees=True).as_matrix()
+    sk = skeleton_of(m)
+    turned = sk.with_offsets(sk.offsets @ R.T, sk.end_site_offsets @ R.T, unit_m=1.0)
+    with pytest.warns(UnitWarning, match=f"facing {re.escape(facing)}"):
+        back = y_up_metres(turned)
+    np.testing.assert_allclose(back.rest_positions(), sk.rest_positions(), atol=1e-12)
