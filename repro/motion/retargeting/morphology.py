@@ -28,6 +28,7 @@ import numpy as np
 
 from repro.checks import as_bool, as_real, describe
 from repro.errors import MotionError
+from repro.motion.body.rest_pose import match_rest_pose
 from repro.motion.body.skeleton import Skeleton, check_role_table, skeleton_of
 from repro.motion.core.kinematics import chain_positions, check_pose_arrays, fk_arrays, world_of
 from repro.motion.core.motion import Motion
@@ -48,6 +49,7 @@ from repro.motion.retargeting.trees import retarget_across
 
 __all__ = [
     "LIMB_NAMES",
+    "REST_ANGLE_DEG",
     "DecodeReport",
     "MorphologyIndependentMotion",
     "RetargetPlan",
@@ -62,6 +64,27 @@ __all__ = [
 def _check_target(target) -> None:
     if not isinstance(target, (Skeleton, Motion)):
         raise MotionError(f"target must be a Skeleton or a Motion, got {describe(target)}")
+
+
+#: Largest angle (degrees) between a bone's rest direction on the source and on a target of the same
+#: tree for the local rotations to mean the same pose (the decoder refuses more); beyond it
+#: :func:`retarget` first re-expresses the motion on the target's rest directions.
+REST_ANGLE_DEG: float = 5.0
+
+
+def _on_target_rest(motion: Motion, sk: Skeleton, target, roles) -> tuple[Motion, Skeleton]:
+    """``(motion, its skeleton)``, re-expressed on ``target``'s rest directions when a bone's differ by
+    more than :data:`REST_ANGLE_DEG` (:func:`repro.motion.body.rest_pose.match_rest_pose`: the same world
+    bone directions, so the same poses; CMU subjects 131, 7 and 9 against subject 135, A- / N-pose rigs)."""
+    tgt = skeleton_of(target)
+    a, b = sk.offsets, tgt.offsets
+    la, lb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
+    ok = (la > 0) & (lb > 0)
+    cos = np.sum(a[ok] * b[ok], axis=1) / (la[ok] * lb[ok])
+    if not ok.any() or np.degrees(np.arccos(np.clip(cos.min(), -1.0, 1.0))) <= REST_ANGLE_DEG:
+        return motion, sk
+    matched = match_rest_pose(motion, tgt)
+    return matched, Skeleton.from_motion(matched, roles=roles)
 
 
 def retarget(motion: Motion, target, *, roles=None, fix_feet: bool = False) -> Motion:
@@ -90,8 +113,11 @@ def retarget(motion: Motion, target, *, roles=None, fix_feet: bool = False) -> M
         Correct the feet artifacts (see :func:`decode`; across joint trees,
         :func:`~repro.motion.retargeting.trees.retarget_across`'s ``fix_feet``).
 
-    A target whose joint tree differs (other joint names with the same parents; or
-    another tree, rest pose or up axis) is retargeted too: with the same parents and
+    A target of the same joint tree whose rest pose differs (a bone turned by more than
+    :data:`REST_ANGLE_DEG`: another CMU subject's ASF axes, an A- or N-pose rig) gets the motion
+    re-expressed on its rest directions first (the same poses).  A target whose joint tree
+    differs (other joint names with the same parents; or another tree, rest pose or up axis) is
+    retargeted too: with the same parents and
     the roles on the same joints, the joints are renamed and decoded as above (exact);
     otherwise through the body-part roles, :func:`repro.motion.retargeting.trees.retarget_across`.
     """
@@ -101,6 +127,7 @@ def retarget(motion: Motion, target, *, roles=None, fix_feet: bool = False) -> M
     fix_feet = as_bool(fix_feet, "fix_feet", error=MotionError)
     sk = Skeleton.from_motion(motion, roles=roles)
     if list(target.joint_names) == list(motion.joint_names) and np.array_equal(target.parents, motion.parents):
+        motion, sk = _on_target_rest(motion, sk, target, roles)
         return RetargetPlan(sk, target).apply(motion, fix_feet=fix_feet)
     Encoder(sk)  # what encoding refuses is refused whatever the target
     tgt = skeleton_of(target)
