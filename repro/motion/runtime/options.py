@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from repro.checks import as_bool, as_choice, as_real, describe
 from repro.errors import MotionError, RetrievalError
 from repro.motion.adaptation import AdaptOptions
-from repro.motion.search.retrieval import METHODS
+from repro.motion.search.arguments import METHODS
 
 __all__ = ["BLEND_S", "MAX_ROOT_SHIFT", "REACH_LEVELS", "StrikeOptions"]
 

@@ -15,7 +15,7 @@ from repro.motion.core.ops import EASINGS
 from repro.motion.runtime.options import BLEND_S, REACH_LEVELS, StrikeOptions
 from repro.motion.runtime.paper import PAPER
 from repro.motion.runtime.strike import one_frame, strike
-from repro.motion.search.retrieval import METHODS
+from repro.motion.search.arguments import METHODS
 from tests.pairwise import pairwise
 
 #: targets in the stance's root frame (metres): a punch the limb or spine reaches, a punch that needs
