@@ -38,7 +38,7 @@ from repro.motion.retargeting.representation import (
     position_mask,
 )
 
-__all__ = ["DecodeReport", "Decoder", "decode", "decode_with_report"]
+__all__ = ["REST_ANGLE_DEG", "DecodeReport", "Decoder", "decode", "decode_with_report", "rest_turn"]
 
 
 def check_mi(mi: MorphologyIndependentMotion) -> None:
@@ -62,6 +62,26 @@ def check_mi(mi: MorphologyIndependentMotion) -> None:
         raise MotionError("morphology-independent motion: a normalised limb vector is longer than 1")
 
 
+#: Largest angle (degrees) between a bone's rest direction on the source and on the target for the
+#: copied local rotations to mean the same pose: the decoder refuses more (``max_rest_angle_deg``), and
+#: :func:`repro.motion.retargeting.morphology.retarget` first re-expresses the motion on the target's rest.
+REST_ANGLE_DEG: float = 5.0
+
+
+def rest_turn(source, target_offsets: np.ndarray) -> tuple[float, int]:
+    """``(degrees, joint)``: the largest angle between a bone's rest direction on the source (``source``:
+    its rest offsets or unit directions, a zero row for no bone) and on the target (its rest offsets), and
+    the joint whose bone it is (``(0.0, -1)`` when no bone has a length on both)."""
+    ls, lt = np.linalg.norm(source, axis=1), np.linalg.norm(target_offsets, axis=1)
+    ok = (ls > 0) & (lt > 0)
+    if not ok.any():
+        return 0.0, -1
+    cos = np.sum(target_offsets[ok] / lt[ok, None] * (source[ok] / ls[ok, None]), axis=1)
+    ang = np.degrees(np.arccos(np.clip(cos, -1, 1)))
+    k = int(np.argmax(ang))
+    return float(ang[k]), int(np.flatnonzero(ok)[k])
+
+
 def target_skeleton(mi, target, max_rest_angle_deg: float) -> Skeleton:
     """``target`` as a Skeleton with the roles of ``mi`` (an encoded motion or an :class:`~repro.motion.retargeting.representation.Encoder`),
     checked: the same joint names and parents, bones pointing the same way at rest."""
@@ -76,12 +96,8 @@ def target_skeleton(mi, target, max_rest_angle_deg: float) -> Skeleton:
         )
     tgt = skeleton_of(target, roles=mi.roles)
     # bones must point the same way at rest for local rotations to mean the same pose
-    bl = tgt.bone_lengths
-    ok = (bl > 0) & (np.linalg.norm(mi.rest_directions, axis=1) > 0)
-    cosang = np.sum(tgt.offsets[ok] / bl[ok, None] * mi.rest_directions[ok], axis=1)
-    worst = np.degrees(np.arccos(np.clip(cosang, -1, 1))).max(initial=0.0)
+    worst, j = rest_turn(mi.rest_directions, tgt.offsets)
     if worst > max_rest_angle_deg:
-        j = np.flatnonzero(ok)[int(np.argmax(np.degrees(np.arccos(np.clip(cosang, -1, 1)))))]
         raise MotionError(
             f"target rest pose differs from the source's: bone to {tgt.joint_names[j]!r} is turned by "
             f"{worst:.1f} degrees (> {max_rest_angle_deg}); local rotations would not mean the same pose"
@@ -217,7 +233,7 @@ def decode_with_report(
     *,
     fix_feet: bool = False,
     blend_time: float = 0.1,
-    max_rest_angle_deg: float = 5.0,
+    max_rest_angle_deg: float = REST_ANGLE_DEG,
 ) -> tuple[Motion, DecodeReport]:
     """:func:`decode`, also returning a :class:`DecodeReport`."""
     check_mi(mi)
@@ -254,7 +270,7 @@ def decode(
     *,
     fix_feet: bool = False,
     blend_time: float = 0.1,
-    max_rest_angle_deg: float = 5.0,
+    max_rest_angle_deg: float = REST_ANGLE_DEG,
 ) -> Motion:
     """Put a morphology-independent motion on a target skeleton (Section 3.4.1).
 

@@ -33,7 +33,14 @@ from repro.motion.body.skeleton import Skeleton, check_role_table, skeleton_of
 from repro.motion.core.kinematics import chain_positions, check_pose_arrays, fk_arrays, world_of
 from repro.motion.core.motion import Motion
 from repro.motion.core.quaternion import quat_multiply, vector_norm
-from repro.motion.retargeting.decoding import DecodeReport, Decoder, decode, decode_with_report
+from repro.motion.retargeting.decoding import (
+    REST_ANGLE_DEG,
+    DecodeReport,
+    Decoder,
+    decode,
+    decode_with_report,
+    rest_turn,
+)
 from repro.motion.retargeting.planted_feet import pin_planted_feet
 from repro.motion.retargeting.representation import (
     LIMB_NAMES,
@@ -66,22 +73,12 @@ def _check_target(target) -> None:
         raise MotionError(f"target must be a Skeleton or a Motion, got {describe(target)}")
 
 
-#: Largest angle (degrees) between a bone's rest direction on the source and on a target of the same
-#: tree for the local rotations to mean the same pose (the decoder refuses more); beyond it
-#: :func:`retarget` first re-expresses the motion on the target's rest directions.
-REST_ANGLE_DEG: float = 5.0
-
-
 def _on_target_rest(motion: Motion, sk: Skeleton, target, roles) -> tuple[Motion, Skeleton]:
     """``(motion, its skeleton)``, re-expressed on ``target``'s rest directions when a bone's differ by
     more than :data:`REST_ANGLE_DEG` (:func:`repro.motion.body.rest_pose.match_rest_pose`: the same world
     bone directions, so the same poses; CMU subjects 131, 7 and 9 against subject 135, A- / N-pose rigs)."""
     tgt = skeleton_of(target)
-    a, b = sk.offsets, tgt.offsets
-    la, lb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
-    ok = (la > 0) & (lb > 0)
-    cos = np.sum(a[ok] * b[ok], axis=1) / (la[ok] * lb[ok])
-    if not ok.any() or np.degrees(np.arccos(np.clip(cos.min(), -1.0, 1.0))) <= REST_ANGLE_DEG:
+    if rest_turn(sk.offsets, tgt.offsets)[0] <= REST_ANGLE_DEG:
         return motion, sk
     matched = match_rest_pose(motion, tgt)
     return matched, Skeleton.from_motion(matched, roles=roles)
@@ -182,7 +179,7 @@ class RetargetPlan:
             raise MotionError("RetargetPlan: the target must have the source's joint names and parents")
         self.n_joints = sk.n_joints
         self.encoder = enc = Encoder(sk)
-        self.decoder = dec = Decoder(enc, target, 5.0)
+        self.decoder = dec = Decoder(enc, target, REST_ANGLE_DEG)
         self.thr = np.stack([1e-12 * enc.L, 1e-12 * dec.L], axis=1)  # (4, 2): encode, decode
         self._subtrees(np.asarray(sk.parents), enc.prox)
 
