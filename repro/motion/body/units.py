@@ -24,6 +24,7 @@ import numpy as np
 
 from repro.errors import MotionError, UnitWarning
 from repro.motion.core.motion import Motion
+from repro.motion.body.pose_frames import heading_from_hips
 from repro.motion.body.skeleton import Skeleton, skeleton_of
 from repro.motion.body.stature import STATURE_RANGE_M, TYPICAL_STATURE_M, UNITS, infer_unit
 
@@ -117,9 +118,9 @@ _YAW_TURNS = {
 def _facing_turn(sk: Skeleton, R: np.ndarray):
     """``(turn, "+X" / "-Z" / "-X")`` making an upright rest pose face +Z (the databases' actors do), or None.
 
-    The facing is the horizontal direction ``(left hip - right hip) x up``, taken to the nearest world
-    axis (exporters' rest poses face along one); a rest pose that is not upright (Bandai's lies along +X)
-    or whose hips do not tell is left as it is.
+    The facing is the hips' heading (:func:`repro.motion.body.pose_frames.heading_from_hips`), taken
+    to the nearest world axis (exporters' rest poses face along one); a rest pose that is not upright
+    (Bandai's lies along +X) or whose hips do not tell is left as it is.
     """
     p = sk.rest_positions() @ R.T
     body_up = p[sk.index("head")] - p[sk.index("pelvis")]
@@ -129,7 +130,8 @@ def _facing_turn(sk: Skeleton, R: np.ndarray):
     if not (n > 0 and body_up[1] > np.cos(np.radians(45.0)) * n) or \
             not np.linalg.norm(flat) > 0.5 * np.linalg.norm(lateral) > 0:
         return None
-    fx, fz = -lateral[2], lateral[0]  # (lateral x up), horizontal
+    theta = float(heading_from_hips(p[sk.index("left_hip")], p[sk.index("right_hip")]))
+    fx, fz = np.sin(theta), np.cos(theta)
     if abs(fz) >= abs(fx):
         return None if fz > 0 else (_YAW_TURNS["-Z"], "-Z")
     return (_YAW_TURNS["+X"], "+X") if fx > 0 else (_YAW_TURNS["-X"], "-X")
