@@ -26,6 +26,7 @@ import numpy as np
 
 from repro.checks import as_int, describe
 from repro.errors import MotionError
+from repro.motion.core.kinematics import children_of
 
 __all__ = ["HIT_POINT_SOURCES", "THUMB_NAMES", "hit_offset"]
 
@@ -75,17 +76,9 @@ def hit_offset(skeleton, joint) -> tuple[np.ndarray, str]:
     return np.zeros(3), "joint"
 
 
-def _children(parents: np.ndarray) -> list[list[int]]:
-    kids: list[list[int]] = [[] for _ in range(parents.shape[0])]
-    for c, p in enumerate(parents.tolist()):
-        if p >= 0:
-            kids[p].append(c)
-    return kids
-
-
 def _knuckles(parents: np.ndarray, offsets: np.ndarray, j: int, names: list[str]) -> np.ndarray | None:
     """Mean knuckle (rest position in ``j``'s frame) of the paths below ``j``, thumb left out; None if none."""
-    paths = _paths(_children(parents), j)
+    paths = _paths(children_of(parents), j)
     named = [p for p in paths if not any(any(t in names[k] for t in THUMB_NAMES) for k in p)]
     thumb_named = len(named) < len(paths)
     points = [p for p in (_path_knuckle(offsets, path) for path in (named or paths)) if p is not None]

@@ -47,7 +47,7 @@ import numpy as np
 from repro.errors import MotionError
 from repro.motion.body.role_names import (is_clavicle_name, is_head_name, is_helper_name, is_neck_name, name_side,
                                          stem_votes)
-from repro.motion.core.kinematics import rest_positions
+from repro.motion.core.kinematics import children_of, rest_positions
 
 __all__ = ["AmbiguousLimbs", "roles_from_structure", "trunk_from_tree"]
 
@@ -104,9 +104,7 @@ def _candidate_tree(names: list[str], par: np.ndarray) -> tuple[list[list[int]],
     """Children of every joint, which joints lead to a candidate (unskipped) joint, and the tips."""
     J = len(names)
     skip = np.array([is_helper_name(n) for n in names])
-    children: list[list[int]] = [[] for _ in range(J)]
-    for j in range(1, J):
-        children[par[j]].append(j)
+    children = children_of(par)
     # a skipped joint's subtree is kept only when it holds unskipped joints (in-chain helpers)
     has_cand = ~skip.copy()
     for j in range(J - 1, 0, -1):

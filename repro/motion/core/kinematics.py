@@ -38,6 +38,7 @@ __all__ = [
     "chain_fk_from",
     "chain_positions",
     "depth_levels",
+    "children_of",
     "LEVEL_LOOP_MAX_DEPTH",
     "world_of",
     "check_pose_arrays",
@@ -143,6 +144,15 @@ def check_pose_arrays(rotations, translations, n_joints: int) -> tuple[np.ndarra
 
 
 # ------------------------------------------------------------------ forward kinematics
+def children_of(parents) -> list[list[int]]:
+    """The children of every joint, in joint order (``parents[j] < 0``: a root)."""
+    kids: list[list[int]] = [[] for _ in range(len(parents))]
+    for c, p in enumerate(np.asarray(parents).tolist()):
+        if p >= 0:
+            kids[p].append(c)
+    return kids
+
+
 def depth_levels(parents) -> list[tuple[np.ndarray, np.ndarray]]:
     """``(joints, their parents)`` per depth 1, 2, ... of a tree (``parents[j] < j``), index order within a level.
 

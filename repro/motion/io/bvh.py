@@ -65,6 +65,7 @@ from repro.checks import as_bool, as_int, as_real, describe
 from repro.errors import BVHError, BVHWarning
 from repro.io import atomic_path, read_bytes
 from repro.motion.core.channels import POSITION_CHANNELS, joint_columns
+from repro.motion.core.kinematics import children_of
 from repro.motion.core.motion import Motion
 from repro.motion.core.quaternion import euler_to_quat
 from repro.motion.io.bvh_hierarchy import Hierarchy, parse_hierarchy
@@ -443,9 +444,7 @@ def _motion_from_table(h: Hierarchy, values: np.ndarray, frame_time: float, *, u
 
 # ---------------------------------------------------------------------- output
 def _dfs_order(parents: np.ndarray) -> tuple[list[int], list[list[int]]]:
-    children: list[list[int]] = [[] for _ in parents]
-    for j in range(1, len(parents)):
-        children[parents[j]].append(j)
+    children = children_of(parents)
     order, stack = [], [0]
     while stack:
         j = stack.pop()

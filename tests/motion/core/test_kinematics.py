@@ -202,3 +202,10 @@ def test_forward_kinematics_of_a_deep_chain_takes_log_depth_rounds(monkeypatch):
     monkeypatch.setattr(K, "quat_multiply", lambda a, b: calls.append(1) or real(a, b))
     K.forward_kinematics(parents, rot, tr)
     assert len(calls) == int(np.ceil(np.log2(J)))  # pointer doubling, not one step per level
+
+
+def test_children_of_lists_each_joints_children_in_joint_order():
+    from repro.motion.core.kinematics import children_of
+
+    assert children_of([-1, 0, 1, 0, 3, 3]) == [[1, 3], [2], [], [4, 5], [], []]
+    assert children_of(np.array([-1])) == [[]]
