@@ -18,6 +18,13 @@ well as from a clone.
   otherwise silently move to another one).
 - A browser is opened only when there is a display to open it on (and not with
   ``--no-browser``); on a headless machine the command prints the address to open.
+- The page starts fast and stays offline: Voilà keeps one kernel that has already run the
+  app's notebook (its preheated kernel pool, ``preheat_kernel``), so a visit gets the
+  finished page instead of waiting for the notebook to run (the pool is refilled
+  :data:`REFILL_DELAY` seconds after a visit, not while the page sets itself up).  The page
+  is Voilà's "lab" template without its links to a CDN (:data:`TEMPLATE`, in
+  ``repro/ui/apps/voila/templates``, found through ``JUPYTER_PATH``), and while the notebook
+  runs it says what is being prepared (:data:`LOADING`).
 """
 
 from __future__ import annotations
@@ -38,6 +45,7 @@ from repro.processes import parent_death_signal
 
 __all__ = [
     "APPS",
+    "LOADING",
     "DEFAULT_HOST",
     "DEFAULT_PORT",
     "AppError",
@@ -54,9 +62,22 @@ APPS = {
     "face": "Lewis et al. 2005: sliders, selection, alpha and attenuation on a blendshape face",
     "fighter": "Pronost et al.: order kicks and punches at a target, watch the adapted strike",
 }
+#: What each app's page says under its spinner while the notebook runs (a cold start; a preheated one is ready).
+LOADING = {
+    "face": "Preparing the face: starting Python and loading the face model (the ICT Face Model when its data "
+            "are installed, else the embedded face).",
+    "fighter": "Preparing the fighter: starting Python, building its motion database and adapting a first kick.",
+}
+#: Seconds after a visit before the preheated kernel pool starts the next kernel (Voilà's ``fill_delay``,
+#: default 1 s: the new kernel's run then competes for the CPU with the page's first paint).
+REFILL_DELAY = 3.0
+#: The Voilà template of the apps (in ``JUPYTER_DIR``/voila/templates).
+TEMPLATE = "repro"
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8866
 APPS_DIR = Path(__file__).with_name("apps")
+#: A Jupyter data folder of the apps' own (put first on ``JUPYTER_PATH``): the Voilà template.
+JUPYTER_DIR = APPS_DIR
 
 
 class AppError(ReproError):
@@ -133,7 +154,10 @@ def voila_command(which: str, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT
     """The command line that serves app ``which`` (Voilà, this Python).
 
     ``token``: Voilà asks for the token that :func:`app_environment` puts in ``JUPYTER_TOKEN``
-    (``--Voila.auto_token=True``: without it Voilà serves everyone).
+    (``--Voila.auto_token=True``: without it Voilà serves everyone).  One preheated kernel
+    (``preheat_kernel``, pool of 1) runs the notebook before the first visit; the page uses
+    the apps' template (:data:`TEMPLATE`, found through :func:`app_environment`'s
+    ``JUPYTER_PATH``) with the app's :data:`LOADING` line.
     """
     nb = app_notebook(which)
     return [
@@ -142,12 +166,17 @@ def voila_command(which: str, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT
         f"--Voila.open_browser={bool(open_browser)}",
         f"--Voila.auto_token={bool(token)}",
         "--show_tracebacks=True",
+        f"--VoilaConfiguration.template={TEMPLATE}",
+        "--VoilaConfiguration.resources", f"repro_loading={LOADING[which]}",
+        "--VoilaConfiguration.preheat_kernel=True", "--VoilaConfiguration.default_pool_size=1",
+        f"--VoilaKernelManager.fill_delay={REFILL_DELAY}",
     ]
 
 
 def app_environment(base=None, *, token: str | None = None) -> dict:
     """The environment of Voilà and its kernel: this one, with one BLAS thread unless the user chose,
-    and ``JUPYTER_TOKEN`` = ``token`` (removed when None: an inherited one is not the app's).
+    ``JUPYTER_TOKEN`` = ``token`` (removed when None: an inherited one is not the app's), and
+    :data:`JUPYTER_DIR` first on ``JUPYTER_PATH`` (where Voilà finds the apps' template).
 
     The panels' products are small (the ICT face's ``D @ w``: 28,227 x 57), and a
     multi-threaded OpenBLAS spends longer waking its threads than multiplying: on a busy
@@ -156,6 +185,7 @@ def app_environment(base=None, *, token: str | None = None) -> dict:
     env = dict(os.environ if base is None else base)
     env.setdefault("OPENBLAS_NUM_THREADS", "1")
     env.pop("JUPYTER_TOKEN_FILE", None)
+    env["JUPYTER_PATH"] = os.pathsep.join([str(JUPYTER_DIR), *filter(None, [env.get("JUPYTER_PATH")])])
     if token is None:
         env.pop("JUPYTER_TOKEN", None)
     else:
