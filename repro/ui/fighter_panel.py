@@ -15,12 +15,22 @@ paper's experiment (Section 4, figure 1):
 - a filmstrip of the strike (:func:`filmstrip_figure`: a few key frames of the stick
   figure reaching the target sphere; the unadapted motion in grey, as the paper's Fig.
   10 shows the modified posture over the original);
-- a line of numbers in stable, parseable text (:data:`FIGHTER_NUMBERS_FORMAT`, CSS class
-  ``repro-fighter-numbers``), read back by :func:`parse_fighter_numbers`, e.g.
+- the strike said in words (:func:`fighter_readout`, CSS class ``repro-fighter-readout``),
+  e.g. "kick: hit the target (0 mm off), 0.53 s after the order; first frame in 20 ms
+  (within the 33 ms budget); the retrieved clip alone missed by 12 cm", readable on a
+  projector;
+- behind a "details" toggle, the line of numbers in stable, parseable text
+  (:data:`FIGHTER_NUMBERS_FORMAT`, CSS class ``repro-fighter-numbers``), read back by
+  :func:`parse_fighter_numbers`, e.g.
   ``order: kick | clip: actor2_kick_round_right_high | d: 0.0690 | d_qr: 0.0412 |
   d_cr: 0.0278 | hit error: 7.8e-11 m | reached: yes | prepare: 3.656 ms | search:
   0.284 ms | load+convert: 3.149 ms | adapt: 5.689 ms | adapt per frame: 0.082 ms |
   first frame: 12.778 ms | budget: 33.333 ms | within budget: yes``.
+
+The fighter answers every control: a change of height, arms or legs orders the last
+strike again (same kind, same target) with the new body, so the 3D view, the filmstrip and
+the readouts show the new fighter at once.  The panel's first screen fits 1280 x 720
+(controls in two columns beside the 3D view, the filmstrip below).
 
 :func:`animation_html` renders a strike as a ``matplotlib.animation`` JavaScript player
 (notebooks), :func:`animation_png` as an animated PNG that the browser plays by itself
@@ -45,12 +55,14 @@ __all__ = [
     "FighterPanel",
     "FIGHTER_NUMBERS_FORMAT",
     "format_fighter_numbers",
+    "fighter_readout",
     "parse_fighter_numbers",
     "filmstrip_figure",
     "key_frames",
     "animation_html",
     "animation_png",
     "numbers_html",
+    "readout_html",
 ]
 
 #: The panel's numbers line (times in milliseconds, distances in metres).
@@ -79,6 +91,32 @@ def format_fighter_numbers(strike: Strike) -> str:
         load_convert=t["load_convert"] * 1e3, adapt=t["adapt"] * 1e3, adapt_per_frame=t["adapt_per_frame"] * 1e3,
         first_frame=t["first_frame"] * 1e3, budget=strike.budget_s * 1e3,
         within_budget="yes" if strike.within_budget else "no")
+
+
+def _distance(metres: float) -> str:
+    """A distance for a reader: millimetres under 10 cm, centimetres under 1 m, else metres."""
+    if metres < 0.1:
+        return f"{1000 * metres:.0f} mm"
+    return f"{100 * metres:.0f} cm" if metres < 1.0 else f"{metres:.2f} m"
+
+
+def fighter_readout(strike: Strike) -> str:
+    """A strike in plain words (the panel's readout; the raw numbers are :func:`format_fighter_numbers`).
+
+    Whether the strike reached the target and how far off it landed (the hit error at the
+    contact, Pronost et al. Section 3.4), when it lands, whether the first adapted frame was
+    ready within the reaction budget (1/30 s, Section 4) and how far the retrieved clip alone
+    would have missed, e.g. "kick: hit the target (0 mm off), 0.53 s after the order; first
+    frame in 20 ms (within the 33 ms budget); the retrieved clip alone missed by 12 cm".
+    """
+    t = strike.timings["first_frame"] * 1e3
+    budget = strike.budget_s * 1e3
+    when = f"{strike.tc * strike.motion.frame_time:.2f} s after the order"
+    verdict = (f"hit the target ({_distance(strike.hit_error)} off), {when}" if strike.reached
+               else f"missed the target by {_distance(strike.hit_error)} (out of reach), {when}")
+    return (f"{strike.kind}: {verdict}; first frame in {t:.0f} ms "
+            f"({'within' if strike.within_budget else 'over'} the {budget:.0f} ms budget); "
+            f"the retrieved clip alone missed by {_distance(strike.unadapted_error)}")
 
 
 def parse_fighter_numbers(text: str) -> dict:
@@ -128,6 +166,12 @@ def numbers_html(text: str) -> str:
     return f'<code style="white-space:normal" title="{html.escape(text)}">' + " | ".join(parts) + "</code>"
 
 
+def readout_html(text: str) -> str:
+    """The readout as HTML: the verdict (up to the first ";") in bold, the rest plain; its text is ``text``."""
+    head, sep, rest = text.partition(";")
+    return f"<b>{html.escape(head)}</b>{html.escape(sep + rest)}"
+
+
 #: Labels for the icon-only buttons of the ``Play`` widget (play/pause, stop, loop) and the panel's layout.
 PANEL_CSS = """<style>
 .repro-fighter-play { width: auto !important; flex: none; }
@@ -137,6 +181,9 @@ PANEL_CSS = """<style>
 .repro-fighter-play button:nth-of-type(2)::after { content: " stop"; }
 .repro-fighter-play button:nth-of-type(3)::after { content: " loop"; }
 .repro-fighter-numbers code { font-size: 12px; line-height: 1.5; }
+.repro-fighter-readout { font-size: 16px; line-height: 1.4; }
+.repro-fighter-readout b { font-size: 18px; }
+.repro-fighter-panel button.repro-fighter-kick, .repro-fighter-panel button.repro-fighter-punch { font-size: 16px; font-weight: bold; height: 40px; }
 .repro-fighter-panel img { max-width: 100%; height: auto; }
 </style>"""
 
@@ -176,7 +223,8 @@ class FighterPanel(PanelCallbacks):
         The panel (class ``repro-fighter-panel``); displaying the panel displays it.
     sliders : dict
         ``x``, ``y``, ``z``, ``height``, ``arm_scale``, ``leg_scale``.
-    kick_button, punch_button, follow_box, user_toggle, play, step_button, image, numbers_html, status_html
+    kick_button, punch_button, follow_box, user_toggle, play, step_button, image, readout_html, details_toggle,
+    numbers_html, status_html
     fighter : KungFuFighter
     last_strike : Strike or None
     """
@@ -197,6 +245,7 @@ class FighterPanel(PanelCallbacks):
         self.last_strike: Strike | None = None
         self.error: str | None = None
         self._numbers_text = "press kick or punch"
+        self._readout_text = "press kick or punch"
         self._batch_depth = 0
         self._pending_character = False
         self._make_sliders(target)
@@ -242,13 +291,20 @@ class FighterPanel(PanelCallbacks):
                                  description="the user", tooltip="play the simulated user's head")
         self.play.add_class("repro-fighter-play")
         self.step_button = widgets.Button(description="step 1 s", tooltip="advance the simulated user by one second")
+        for b in (self.kick_button, self.punch_button):
+            b.layout = widgets.Layout(width="120px")
         self.image = widgets.Image(format="png", layout=widgets.Layout(
             width="990px", max_width="100%", display=None if self.view else "none"))
         self.image.add_class("repro-fighter-filmstrip")
         self.animation = widgets.Image(format="png", layout=widgets.Layout(
             width="400px", display=None if self.view and self.animate else "none"))
         self.animation.add_class("repro-fighter-animation")
-        self.numbers_html = widgets.HTML()
+        self.readout_html = widgets.HTML(layout=widgets.Layout(width="100%"))
+        self.readout_html.add_class("repro-fighter-readout")
+        self.details_toggle = widgets.ToggleButton(value=False, description="details",
+                                                   tooltip="show the raw numbers (distances, timings)")
+        self.details_toggle.add_class("repro-fighter-details")
+        self.numbers_html = widgets.HTML(layout=widgets.Layout(display="none"))
         self.numbers_html.add_class("repro-fighter-numbers")
         self.status_html = widgets.HTML()
         self.status_html.add_class("repro-fighter-status")
@@ -263,21 +319,32 @@ class FighterPanel(PanelCallbacks):
         self.user_toggle.observe(self._guarded(self._on_user_toggle), names="value")
         self.play.observe(self._guarded(self._on_play), names="value")
         self.step_button.on_click(self._guarded(lambda _b: self.step_user(30)))
+        self.details_toggle.observe(self._guarded(self._on_details), names="value")
 
     def _layout(self) -> widgets.VBox:
-        box = widgets.VBox([
-            widgets.HBox([
-                widgets.VBox([widgets.HTML("<b>target (the user's head)</b>"),
-                              self.sliders["x"], self.sliders["y"], self.sliders["z"], self.follow_box]),
-                widgets.VBox([widgets.HTML("<b>fighter (supervisor's choice)</b>"),
-                              self.sliders["height"], self.sliders["arm_scale"], self.sliders["leg_scale"]]),
-            ]),
-            widgets.HBox([self.kick_button, self.punch_button, self.user_toggle, self.play, self.step_button]),
-            self.numbers_html,
+        """The first screen (1280 x 720): the sliders, the orders and the readouts beside the 3D view; below, the
+        filmstrip (and the animation)."""
+        sliders = widgets.VBox([
+            widgets.HTML("<b>target (the user's head)</b>"),
+            self.sliders["x"], self.sliders["y"], self.sliders["z"], self.follow_box,
+            widgets.HTML("<b>fighter (supervisor's choice)</b>"),
+            self.sliders["height"], self.sliders["arm_scale"], self.sliders["leg_scale"],
+        ], layout=widgets.Layout(flex="0 0 auto"))
+        orders = widgets.VBox([
+            widgets.HBox([self.kick_button, self.punch_button]),
+            self.readout_html,
+            widgets.HBox([self.user_toggle, self.step_button]),
+            self.play,
             self.status_html,
-            # the 3D view and the animation only where asked: without them the panel shows one picture (one <img>)
-            *([widgets.HBox([*([self.view3d.widget] if self.view3d else []),
-                             *([self.animation] if self.animate else [])])] if self.view3d or self.animate else []),
+            self.details_toggle,
+            self.numbers_html,
+        ], layout=widgets.Layout(flex="1 1 0", min_width="280px", max_width="420px"))
+        top = widgets.HBox([sliders, orders, *([self.view3d.widget] if self.view3d else [])],
+                           layout=widgets.Layout(align_items="flex-start"))
+        # the animation only where asked: without it the panel shows one picture (one <img>) below the view
+        box = widgets.VBox([
+            top,
+            *([self.animation] if self.animate else []),
             self.image,
             widgets.HTML(PANEL_CSS),
         ])
@@ -295,6 +362,8 @@ class FighterPanel(PanelCallbacks):
         self.error = msg
         self._numbers_text = f"error: {msg}"
         self.numbers_html.value = numbers_html(self._numbers_text)
+        self._readout_text = f"error: {msg}"
+        self.readout_html.value = f'<span style="color:#b00020">error: {html.escape(msg)}</span>'
         self.status_html.value = f'<span style="color:#b00020">error: {html.escape(msg)}</span>'
 
     def _status(self) -> str:
@@ -309,6 +378,7 @@ class FighterPanel(PanelCallbacks):
 
     def _show(self) -> None:
         self.numbers_html.value = numbers_html(self._numbers_text)
+        self.readout_html.value = readout_html(self._readout_text)
         self.status_html.value = self._status()
 
     # ------------------------------------------------------------- callbacks
@@ -323,11 +393,18 @@ class FighterPanel(PanelCallbacks):
             self._apply_character()
 
     def _apply_character(self) -> None:
+        """The new body; the last strike ordered again with it (same kind, same target): shown at once."""
         s = self.sliders
         self.fighter.set_character(character_from(s["height"].value, s["arm_scale"].value, s["leg_scale"].value,
                                                   base=self.fighter.db.actors[0]))
         self.error = None
-        self._show()
+        if self.last_strike is not None:
+            self.order(self.last_strike.kind)
+        else:
+            self._show()
+
+    def _on_details(self, change) -> None:
+        self.numbers_html.layout.display = None if change["new"] else "none"
 
     def _on_user_toggle(self, change) -> None:
         if change["new"]:
@@ -366,6 +443,11 @@ class FighterPanel(PanelCallbacks):
     def numbers_text(self) -> str:
         """The numbers line as displayed (:data:`FIGHTER_NUMBERS_FORMAT`), ``"error: ..."`` or the prompt."""
         return self._numbers_text
+
+    @property
+    def readout_text(self) -> str:
+        """The strike in words as displayed (:func:`fighter_readout`), ``"error: ..."`` or the prompt."""
+        return self._readout_text
 
     @property
     def numbers(self) -> dict:
@@ -414,6 +496,7 @@ class FighterPanel(PanelCallbacks):
         self.last_strike = strike
         self.error = None
         self._numbers_text = format_fighter_numbers(strike)
+        self._readout_text = fighter_readout(strike)
         self._show()
         if self.view:
             if self.view3d is not None:
@@ -443,7 +526,8 @@ class FighterPanel(PanelCallbacks):
 
     def close(self) -> None:
         for w in [*self.sliders.values(), self.kick_button, self.punch_button, self.follow_box, self.user_toggle,
-                  self.play, self.step_button, self.image, self.animation, self.numbers_html, self.status_html, self.widget]:
+                  self.play, self.step_button, self.image, self.animation, self.readout_html, self.details_toggle,
+                  self.numbers_html, self.status_html, self.widget]:
             w.close()
         if self.view3d is not None:
             self.view3d.close()

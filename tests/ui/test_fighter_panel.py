@@ -139,3 +139,55 @@ def test_animation_html_is_a_player(fighter):
     assert "<script" in out and "animation" in out.lower()
 
 
+
+
+def test_panel_says_the_strike_in_words_with_the_numbers_behind_details(panel):
+    """Issue 26, item 7: the readout is plain words; the raw numbers line is behind a "details" toggle."""
+    from repro.ui.fighter_panel import fighter_readout
+
+    assert panel.readout_text == "press kick or punch"
+    assert panel.numbers_html.layout.display == "none" and not panel.details_toggle.value
+    panel.set_target(0.3, 1.3, 0.2)
+    s = panel.kick()
+    words = panel.readout_text
+    assert words == fighter_readout(s)
+    assert words.startswith("kick: hit the target (") and "mm off)" in words
+    assert f"{s.tc * s.motion.frame_time:.2f} s after the order" in words
+    assert f"first frame in {s.timings['first_frame'] * 1e3:.0f} ms" in words and "33 ms budget" in words
+    assert "d_qr" not in words and "e-" not in words and "nan" not in words
+    assert "<b>kick: hit the target" in panel.readout_html.value
+    panel.details_toggle.value = True
+    assert panel.numbers_html.layout.display is None
+    panel.details_toggle.value = False
+    assert panel.numbers_html.layout.display == "none"
+
+
+def test_readout_of_a_missed_strike_says_by_how_much(fighter):
+    from repro.ui.fighter_panel import FighterPanel
+
+    p = FighterPanel(fresh(fighter, position=(0.0, -1.4)), view=False, follow=False)
+    p.set_target(0.0, 1.7, 1.5)
+    s = p.punch()
+    assert not s.reached
+    assert p.readout_text.startswith(f"punch: missed the target by {s.hit_error:.2f} m (out of reach)")
+    p.close()
+
+
+def test_character_change_orders_the_last_strike_again_with_the_new_body(fighter):
+    """Issue 26, item 9: moving height, arms or legs shows the new fighter at once (the last strike replayed)."""
+    from repro.ui.fighter_panel import FighterPanel
+
+    p = FighterPanel(fresh(fighter), view=True)
+    p.set_character(height=1.5)  # no strike yet: nothing to replay
+    assert p.last_strike is None and p.image_png() == b""
+    p.set_target(0.3, 1.3, 0.4)
+    first = p.kick()
+    png, digest = p.image_png(), p.view3d.digest
+    p.sliders["height"].value = 1.9
+    again = p.last_strike
+    assert again is not first and again.kind == "kick"
+    np.testing.assert_array_equal(again.target, first.target)
+    assert p.fighter.character.size == pytest.approx(1.9)
+    assert p.image_png() != png and p.view3d.digest != digest  # filmstrip and 3D view repainted
+    assert p.numbers["kind"] == "kick" and p.readout_text.startswith("kick: ")
+    p.close()
