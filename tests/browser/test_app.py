@@ -316,13 +316,17 @@ def test_fighter_app_orders_play_a_strike(app, page):
     page.goto(a.url, wait_until="domcontentloaded")
     film = "img.repro-fighter-filmstrip"
     numbers = ".repro-fighter-panel .repro-fighter-numbers"
-    page.wait_for_selector(numbers, timeout=START_TIMEOUT * 1000)
+    page.wait_for_selector(numbers, state="attached", timeout=START_TIMEOUT * 1000)
     page.wait_for_function(f"() => {{ const c = document.querySelector('{CANVAS}'); return c && c.dataset.painted; }}",
                            timeout=START_TIMEOUT * 1000)
     page.wait_for_function("(s) => { const e = document.querySelector(s); return e && e.src; }", arg=film)
     page.screenshot(path=str(ARTIFACTS / "app-fighter-1-start.png"))
     page.evaluate(WATCH_CANVAS_JS)
     page.evaluate(WATCH_JS.replace("window.__inputs = [];", ""), film)
+    # the readout says the strike in words; the raw numbers line is behind the details toggle
+    assert not page.locator(numbers).is_visible()
+    page.locator(".repro-fighter-panel .repro-fighter-details").click()
+    page.wait_for_selector(numbers, state="visible")
     # the icon buttons of the simulated user's player carry words, not cut off
     labels = page.evaluate("""() => [...document.querySelectorAll('.repro-fighter-play button')].map(
         b => [getComputedStyle(b, '::after').content, b.scrollWidth <= b.clientWidth + 1])""")
@@ -342,6 +346,8 @@ def test_fighter_app_orders_play_a_strike(app, page):
         text = page.locator(numbers).inner_text().strip()
         shown = parse_fighter_numbers(text)
         assert shown["kind"] == kind and kind in shown["clip"], shown
+        words = page.locator(".repro-fighter-panel .repro-fighter-readout").inner_text().strip()
+        assert words.startswith(f"{kind}: "), words
         # the frame drawn is the strike the kernel sent for this order
         from repro.ui.webview import unpack
 

@@ -123,7 +123,9 @@ def test_kick_button_in_the_fighter_panel(open_notebook):
     nb = open_notebook(FIGHTER_NB)
     nb.run_all()
     panel, numbers_sel = ".repro-fighter-panel", ".repro-fighter-panel .repro-fighter-numbers"
-    nb.page.wait_for_selector(numbers_sel)
+    nb.page.wait_for_selector(numbers_sel, state="attached")
+    nb.page.locator(f"{panel} .repro-fighter-details").click()  # the raw numbers line, behind "details"
+    nb.page.wait_for_selector(numbers_sel, state="visible")
     nb.page.locator(f"{panel} .repro-fighter-kick").scroll_into_view_if_needed()
     image = f"{panel} img.repro-fighter-filmstrip"
     src = nb.page.locator(image).get_attribute("src")
