@@ -183,7 +183,8 @@ PANEL_CSS = """<style>
 .repro-fighter-numbers code { font-size: 12px; line-height: 1.5; }
 .repro-fighter-readout { font-size: 16px; line-height: 1.4; }
 .repro-fighter-readout b { font-size: 18px; }
-.repro-fighter-panel button.repro-fighter-kick, .repro-fighter-panel button.repro-fighter-punch { font-size: 16px; font-weight: bold; height: 40px; }
+.repro-fighter-panel button.repro-fighter-kick, .repro-fighter-panel button.repro-fighter-punch {
+  font-size: 16px; font-weight: bold; height: 40px; }
 .repro-fighter-panel img { max-width: 100%; height: auto; }
 </style>"""
 
