@@ -341,7 +341,7 @@ class FighterPanel(PanelCallbacks):
             self.numbers_html,
         ], layout=widgets.Layout(flex="1 1 0", min_width="280px", max_width="420px"))
         top = widgets.HBox([sliders, orders, *([self.view3d.widget] if self.view3d else [])],
-                           layout=widgets.Layout(align_items="flex-start"))
+                           layout=widgets.Layout(align_items="flex-start", flex_flow="row wrap"))
         # the animation only where asked: without it the panel shows one picture (one <img>) below the view
         box = widgets.VBox([
             top,
