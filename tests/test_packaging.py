@@ -71,3 +71,21 @@ def test_readme_lists_every_registered_figure():
     text = (REPO / "README.md").read_text()
     missing = [name for name in registry() if f"`{name}`" not in text]
     assert not missing, f"README.md does not list {missing}"
+
+
+def test_package_data_covers_every_file_the_package_ships():
+    """Every tracked non-Python file under repro/ is matched by ``[tool.setuptools.package-data]``:
+    a file left out works from a clone (editable install) and is missing from a wheel (the apps'
+    Voilà template was, once)."""
+    import fnmatch
+    import subprocess
+
+    patterns = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["repro"]
+    tracked = subprocess.run(["git", "ls-files", "repro"], cwd=REPO, capture_output=True, text=True,
+                             check=True).stdout.split()
+    data = [p.removeprefix("repro/") for p in tracked if not p.endswith(".py")]
+    assert data, "git ls-files found no data files under repro/"
+    # setuptools' glob: "*" does not cross "/", as fnmatch's does; compare segment counts too
+    missed = [p for p in data if not any(fnmatch.fnmatch(p, pat) and p.count("/") == pat.count("/")
+                                         for pat in patterns)]
+    assert not missed, f"not in package-data (a wheel would lack them): {missed}"
