@@ -89,3 +89,39 @@ def test_package_data_covers_every_file_the_package_ships():
     missed = [p for p in data if not any(fnmatch.fnmatch(p, pat) and p.count("/") == pat.count("/")
                                          for pat in patterns)]
     assert not missed, f"not in package-data (a wheel would lack them): {missed}"
+
+
+def test_citation_cff_names_the_project_and_both_papers():
+    """CITATION.cff (Citation File Format 1.2.0) has its required keys and cites the two papers."""
+    cff = yaml.safe_load((REPO / "CITATION.cff").read_text())
+    assert cff["cff-version"] == "1.2.0"
+    for key in ("message", "title", "authors"):
+        assert cff.get(key), key
+    assert cff["version"] == tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["version"]
+    titles = [r["title"] for r in cff["references"]]
+    assert titles == ["Reducing Blendshape Interference by Selected Motion Attenuation",
+                      "Interactive Animation of Virtual Characters: Application to Virtual Kung-fu Fighting"]
+    for ref in cff["references"]:
+        assert ref["type"] and ref["authors"], ref["title"]
+    assert [a["family-names"] for a in cff["references"][0]["authors"]] == ["Lewis", "Mooser", "Deng", "Neumann"]
+    assert [a["family-names"] for a in cff["references"][1]["authors"]] == [
+        "Pronost", "Li", "Geng", "Multon", "Kulpa", "Dumont"]
+
+
+def test_binder_files_install_what_setup_installs():
+    """Binder (repo2docker, not runnable here): apt.txt lists setup.sh's rendering libraries, postBuild
+    is executable and installs the kernel configuration setup.sh installs, and environment.yml installs
+    the project itself."""
+    import os
+
+    setup = (REPO / "scripts" / "setup.sh").read_text()
+    rendering = re.search(r"for p in ([^;]+); do", setup).group(1).split()
+    apt = (REPO / "apt.txt").read_text().split()
+    assert apt == [p for p in rendering if not p.startswith("chromium")]
+    post = REPO / "postBuild"
+    assert os.access(post, os.X_OK)
+    assert "scripts/ipython/ipython_kernel_config.py" in post.read_text()
+    assert "scripts/ipython/ipython_kernel_config.py" in setup
+    env = yaml.safe_load((REPO / "environment.yml").read_text())
+    pip = next(d["pip"] for d in env["dependencies"] if isinstance(d, dict))
+    assert "-e ." in pip
