@@ -34,14 +34,29 @@ if [ ! -x .venv/bin/python ]; then
   "$PY" -m venv .venv
 fi
 
-# reinstall only when the project's dependency list changed
+# Python packages: by default exactly the locked versions (hash-checked), the ones the suite passes with;
+# REPRO_UNPINNED=1 installs the newest versions pyproject.toml allows instead (to try them).
+# Reinstalled only when the dependency list, the lock or the choice changed.
+LOCK=requirements/lock-py311-linux-x86_64.txt
+unpinned=${REPRO_UNPINNED:-0}
+if [ "$unpinned" != 1 ] && { [ "$(uname -m)" != x86_64 ] || [ "$(uname -s)" != Linux ] \
+     || ! .venv/bin/python -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))'; }; then
+  echo "setup: $LOCK is for CPython 3.11 on Linux x86_64; installing unpinned versions here (its header says how to lock another platform)"
+  unpinned=1
+fi
 stamp=.venv/.repro-installed
-want=$(sha256sum pyproject.toml | cut -d' ' -f1)
+want=$(cat pyproject.toml "$LOCK" | sha256sum | cut -d' ' -f1)-unpinned=$unpinned
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
-  echo "setup: installing repro and its dependencies into .venv"
   pip_quiet() { .venv/bin/python -m pip "$@" 2>&1 | { grep -v "is ignored: it is neither" || true; }; return "${PIPESTATUS[0]}"; }
-  pip_quiet install -q --upgrade pip
-  pip_quiet install -q -e '.[dev]'
+  if [ "$unpinned" = 1 ]; then
+    echo "setup: installing repro and the newest versions of its dependencies into .venv (REPRO_UNPINNED=1)"
+    pip_quiet install -q --upgrade pip
+    pip_quiet install -q -e '.[dev]'
+  else
+    echo "setup: installing the locked versions ($LOCK) and repro into .venv"
+    pip_quiet install -q --require-hashes -r "$LOCK"
+    pip_quiet install -q --no-deps --no-build-isolation -e .
+  fi
   echo "$want" > "$stamp"
 fi
 

@@ -125,3 +125,40 @@ def test_binder_files_install_what_setup_installs():
     env = yaml.safe_load((REPO / "environment.yml").read_text())
     pip = next(d["pip"] for d in env["dependencies"] if isinstance(d, dict))
     assert "-e ." in pip
+
+
+LOCK = REPO / "requirements" / "lock-py311-linux-x86_64.txt"
+
+
+def _locked() -> dict[str, tuple[str, list[str]]]:
+    """``{name: (version, [sha256, ...])}`` of the lock file's requirements."""
+    pins: dict[str, tuple[str, list[str]]] = {}
+    text = LOCK.read_text().replace("\\\n", " ")
+    for line in text.splitlines():
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        m = re.match(r"([A-Za-z0-9_.\-]+)==([^\s;]+)", line.strip())
+        assert m, f"not an exact pin: {line.strip()[:80]}"
+        pins[m.group(1).lower().replace("_", "-")] = (m.group(2), re.findall(r"--hash=sha256:([0-9a-f]{64})", line))
+    return pins
+
+
+def test_the_lock_pins_every_dependency_with_hashes():
+    """Every package pyproject.toml names (runtime, dev extra, build backend) is pinned with ``==`` and at
+    least one sha256 in the lock, as ``pip install --require-hashes`` needs; so is everything in it."""
+    project = tomllib.loads((REPO / "pyproject.toml").read_text())
+    named = {_name(r).replace("_", "-") for r in project["project"]["dependencies"]
+             + project["project"]["optional-dependencies"]["dev"] + project["build-system"]["requires"]}
+    pins = _locked()
+    assert named - set(pins) == set(), f"named in pyproject.toml, not locked: {sorted(named - set(pins))}"
+    unhashed = [n for n, (_, hashes) in pins.items() if not hashes]
+    assert not unhashed, f"locked without a hash: {unhashed}"
+    assert "repro" not in pins
+
+
+def test_setup_installs_from_the_lock_unless_asked_for_the_newest():
+    setup = (REPO / "scripts" / "setup.sh").read_text()
+    assert f"LOCK={LOCK.relative_to(REPO)}" in setup
+    assert 'install -q --require-hashes -r "$LOCK"' in setup
+    assert "--no-deps --no-build-isolation -e ." in setup
+    assert "REPRO_UNPINNED" in setup and "-e '.[dev]'" in setup
