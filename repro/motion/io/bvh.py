@@ -67,7 +67,7 @@ from repro.io import atomic_path, read_bytes
 from repro.motion.core.channels import POSITION_CHANNELS, joint_columns
 from repro.motion.core.kinematics import children_of
 from repro.motion.core.motion import Motion
-from repro.motion.core.quaternion import euler_to_quat
+from repro.motion.core.quaternion import euler_to_quat, slerp
 from repro.motion.io.bvh_hierarchy import Hierarchy, parse_hierarchy
 from repro.motion.io.tokens import INTEGER
 
@@ -82,6 +82,10 @@ MAX_FRAMES = 10_000_000
 _POSE_FLOOR = 1 << 22
 #: Bytes of the frame block handled at a time (bounds the temporary arrays).
 _CHUNK = 1 << 22
+#: a frame line short or long by at most this fraction of the channels (at least one value) is repaired
+REPAIR_SLACK = 0.1
+#: at most this fraction of a file's frames are repaired; more such lines are an error
+REPAIR_FRACTION = 0.01
 #: Writers indent at most this many levels (deeper joints keep this indentation),
 #: so that the text of a deep chain grows linearly with its depth.
 _MAX_INDENT = 32
@@ -177,6 +181,7 @@ def _scan_frames(data: bytes, start: int, first: int, n_frames: int, n_channels:
     trail: tuple[int, bytes] | None = None  # first non-empty line after the frames
     n_trail = 0
     run, run_open = 0, True  # frame-like lines right after the declared frames
+    repaired: list[tuple[int, int, int, int, int]] = []  # frame lines to repair (see _keep_repairable)
     for begin, end in _chunks(data, start, stop):
         lines, counts, newlines = _line_counts(data, begin, end)
         if n_channels:
@@ -185,21 +190,17 @@ def _scan_frames(data: bytes, start: int, first: int, n_frames: int, n_channels:
         else:  # lines whose index is below n_frames are frames
             take = int(np.searchsorted(lines, n_frames - line_base))
             frame_no = line_base + lines + 1
-        bad = np.flatnonzero(counts[: lines.size if strict else take] != n_channels)
-        if bad.size:
-            i = bad[0]
-            raise BVHError(
-                f"line {first + line_base + lines[i]}: frame {frame_no[i]} has {counts[i]} values, "
-                f"expected {n_channels} (channel count mismatch or truncated line)"
-            )
+        for i in np.flatnonzero(counts[: lines.size if strict else take] != n_channels):
+            bad = (int(frame_no[i]) - 1, first + line_base + int(lines[i]), int(counts[i]),
+                   *_line_span(data, begin, end, newlines, int(lines[i])))
+            _keep_repairable(repaired, bad, n_frames, n_channels, strict)
         if n_channels and take and k + take == n_frames:
             last = int(lines[take - 1])
             frames_end = begin + (int(newlines[last]) + 1 if last < newlines.size else end - begin)
         if lines.size > take:
             if trail is None:
                 i = int(lines[take])
-                lb = begin + (int(newlines[i - 1]) + 1 if i > 0 else 0)
-                le = begin + (int(newlines[i]) if i < newlines.size else end - begin)
+                lb, le = _line_span(data, begin, end, newlines, i)
                 trail = (first + line_base + i, data[lb:le].strip())
             if run_open:
                 other = np.flatnonzero(counts[take:] != n_channels)
@@ -216,7 +217,38 @@ def _scan_frames(data: bytes, start: int, first: int, n_frames: int, n_channels:
         # one more frame than declared: the count is wrong, this is not an appendix
         present = n_frames + (n_trail if strict else run)
         raise BVHError(f"line {trail[0]}: 'Frames: {n_frames}' declared but {present} frame lines present")
-    return frames_end, (None if trail is None else (trail[0], n_trail, trail[1]))
+    return frames_end, (None if trail is None else (trail[0], n_trail, trail[1])), repaired
+
+
+def _line_span(data: bytes, begin: int, end: int, newlines: np.ndarray, i: int) -> tuple[int, int]:
+    """Byte range of line ``i`` of the chunk ``data[begin:end]`` (its newline excluded)."""
+    return (begin + (int(newlines[i - 1]) + 1 if i > 0 else 0),
+            begin + (int(newlines[i]) if i < newlines.size else end - begin))
+
+
+def _keep_repairable(repaired: list, bad: tuple, n_frames: int, n_channels: int, strict: bool) -> None:
+    """Add ``bad`` = (frame index, line number, values, byte range) to ``repaired``, or raise its BVHError.
+
+    A frame line with the wrong number of values is repaired (by :func:`_interpolate_frames`) only
+    when reading leniently, when it is short or long by at most :data:`REPAIR_SLACK` of the channels
+    (a value lost or doubled by an exporter, as in files whose lines hold 65 of 66 values), and when
+    such lines are at most :data:`REPAIR_FRACTION` of the frames; else it is an error, as is every
+    such line with ``strict=True``.
+    """
+    frame, line, count, _, _ = bad
+    error = BVHError(f"line {line}: frame {frame + 1} has {count} values, expected {n_channels} "
+                     "(channel count mismatch or truncated line)")
+    if strict or not n_channels or abs(count - n_channels) > max(1, int(REPAIR_SLACK * n_channels)):
+        raise error
+    repaired.append(bad)
+    limit = int(REPAIR_FRACTION * n_frames)
+    if len(repaired) > limit:
+        first = repaired[0]
+        raise BVHError(
+            f"line {first[1]}: frame {first[0] + 1} has {first[2]} values, expected {n_channels} (channel count "
+            f"mismatch or truncated line); {len(repaired)} frame lines have the wrong number of values, more than "
+            f"the {limit} a read repairs ({REPAIR_FRACTION:.0%} of {n_frames} frames)"
+        )
 
 
 def _bad_value(chunk: bytes, tokens: list[bytes], t0: int, line0: int, n_channels: int) -> BVHError:
@@ -240,13 +272,20 @@ def _bad_value(chunk: bytes, tokens: list[bytes], t0: int, line0: int, n_channel
     )
 
 
-def _parse_values(data: bytes, start: int, stop: int, first: int, n_frames: int, n_channels: int) -> np.ndarray:
-    """The (F, C) table of the frame lines in ``data[start:stop]`` (already checked by :func:`_scan_frames`)."""
+def _parse_values(data: bytes, start: int, stop: int, first: int, n_frames: int, n_channels: int,
+                  repaired=()) -> np.ndarray:
+    """The (F, C) table of the frame lines in ``data[start:stop]`` (already checked by :func:`_scan_frames`).
+
+    The lines of ``repaired`` (:func:`_keep_repairable`) are read as zeros, to be interpolated.
+    """
     values = np.empty((n_frames, n_channels))
     flat = values.reshape(-1)
     t0 = line0 = 0
+    zeros = b" ".join([b"0"] * n_channels)
     for begin, end in _chunks(data, start, stop):
         chunk = data[begin:end]
+        for _, _, _, lb, le in reversed([r for r in repaired if begin <= r[3] < end]):
+            chunk = chunk[: lb - begin] + zeros + chunk[le - begin :]
         tokens = chunk.split()
         if t0 + len(tokens) > flat.size:  # pragma: no cover - _scan_frames counted them
             raise BVHError(f"line {first + line0}: more frame values than declared")
@@ -281,7 +320,8 @@ def _parse_motion_block(data: bytes, pos: int, lineno: int, n_channels: int, n_j
     """Parse ``Frames:``, ``Frame Time:`` and the frame lines after MOTION.
 
     ``lineno`` is the number of the MOTION line.  Returns (values (F, C), frame time,
-    line number of the first frame line, trailing content or None).
+    line number of the first frame line, trailing content or None, the repaired frame lines as
+    ``(frame index, line number, values found)``).
     """
     m, pos, lineno = _header_line(data, pos, lineno, _FRAMES_RE, "'Frames:' after MOTION", "'Frames: <count>'")
     count = m.group(1)
@@ -309,7 +349,7 @@ def _parse_motion_block(data: bytes, pos: int, lineno: int, n_channels: int, n_j
             )
     first = lineno + 1  # number of the line starting at ``pos``
     pos = min(pos, len(data))
-    frames_end, trailing = _scan_frames(data, pos, first, n_frames, n_channels, strict)
+    frames_end, trailing, repaired = _scan_frames(data, pos, first, n_frames, n_channels, strict)
     # bound the pose arrays (F x J quaternions and translations) by what the file holds
     size = len(data) - pos
     if n_frames * n_joints > max(_POSE_FLOOR, size):
@@ -320,10 +360,10 @@ def _parse_motion_block(data: bytes, pos: int, lineno: int, n_channels: int, n_j
             "count is wrong"
         )
     if n_channels:
-        values = _parse_values(data, pos, frames_end, first, n_frames, n_channels)
+        values = _parse_values(data, pos, frames_end, first, n_frames, n_channels, repaired)
     else:
         values = np.zeros((n_frames, 0))
-    return values, frame_time, first, trailing
+    return values, frame_time, first, trailing, [(f, line, count) for f, line, count, _, _ in repaired]
 
 
 def read_bvh(src, *, unit_m: float | None = None, strict: bool = False) -> Motion:
@@ -380,10 +420,20 @@ def read_bvh(src, *, unit_m: float | None = None, strict: bool = False) -> Motio
     h = parse_hierarchy(header, motion_found=m is not None)
     n_channels = sum(len(c) for c in h.channels)
     motion_line = header_bytes.count(b"\n") + 1
-    values, frame_time, _, trailing = _parse_motion_block(
+    values, frame_time, _, trailing, repaired = _parse_motion_block(
         data, m.end() + 1, motion_line, n_channels, len(h.names), strict
     )
-    motion = _motion_from_table(h, values, frame_time, unit_m=unit_m, source=name)
+    motion = _motion_from_table(h, values, frame_time, unit_m=unit_m, source=name,
+                                repaired=[f for f, _, _ in repaired])
+    if repaired:
+        lines = ", ".join(f"line {line} ({count} values)" for _, line, count in repaired[:5])
+        warnings.warn(
+            f"{name or '<stream>'}: repaired {len(repaired)} frame line{'s' if len(repaired) != 1 else ''} with "
+            f"the wrong number of values ({lines}{', ...' if len(repaired) > 5 else ''}; expected {n_channels}): "
+            "each such frame is interpolated from its neighbouring frames; pass strict=True to make this an error",
+            BVHWarning,
+            stacklevel=2,
+        )
     if trailing is not None:
         line, n, text = trailing
         warnings.warn(
@@ -396,7 +446,8 @@ def read_bvh(src, *, unit_m: float | None = None, strict: bool = False) -> Motio
     return motion
 
 
-def _motion_from_table(h: Hierarchy, values: np.ndarray, frame_time: float, *, unit_m, source) -> Motion:
+def _motion_from_table(h: Hierarchy, values: np.ndarray, frame_time: float, *, unit_m, source,
+                       repaired=()) -> Motion:
     F = values.shape[0]
     J = len(h.names)
     offsets = np.array(h.offsets, dtype=float).reshape(J, 3)
@@ -427,6 +478,8 @@ def _motion_from_table(h: Hierarchy, values: np.ndarray, frame_time: float, *, u
         angles = values[:, np.array(cols)]  # (F, Jg, k)
         if F:
             rotations[:, joints] = euler_to_quat(seq, angles, degrees=True)
+    if len(repaired):
+        _interpolate_frames(rotations, positions, np.asarray(repaired, dtype=np.intp))
     return Motion(
         joint_names=h.names,
         parents=np.array(h.parents, dtype=np.intp),
@@ -440,6 +493,18 @@ def _motion_from_table(h: Hierarchy, values: np.ndarray, frame_time: float, *, u
         unit_m=unit_m,
         source=source,
     )
+
+
+def _interpolate_frames(rotations: np.ndarray, positions: np.ndarray, bad: np.ndarray) -> None:
+    """Replace frames ``bad`` (sorted) in place by their neighbours: rotations slerped, positions
+    interpolated linearly between the nearest good frames before and after (copied at either end)."""
+    good = np.setdiff1d(np.arange(rotations.shape[0]), bad)
+    k = np.searchsorted(good, bad)
+    before, after = good[np.maximum(k - 1, 0)], good[np.minimum(k, good.size - 1)]
+    span = after - before
+    a = np.where(span > 0, (bad - before) / np.where(span > 0, span, 1), 0.0)
+    rotations[bad] = slerp(rotations[before], rotations[after], a[:, None, None])
+    positions[bad] = positions[before] + a[:, None, None] * (positions[after] - positions[before])
 
 
 # ---------------------------------------------------------------------- output
