@@ -10,6 +10,8 @@ real data (ICT face, CMU mocap) when present:
 - ``not reproduced``: the numbers contradict it;
 - ``not applicable``: the data needed is absent, or the claim is about
   something this reproduction cannot have (e.g. the paper's own model).
+- ``not judged``: the run measured less than the claim's verdict needs (its
+  ``evidence``: e.g. a trend over two database sizes in quick mode).
 
 ``expected`` records the verdicts the ledger was last reviewed with; the test suite fails
 when a measured verdict changes (a regression in reproduction) -- except for timing claims,
@@ -55,4 +57,4 @@ def evaluate(*, quick: bool = True, claims=None, progress: bool = False, results
                            else call_experiment(get_experiment(name), quick=quick, progress=progress))
         return cache[name]
 
-    return ledger.evaluate(claims or LEDGER, get)
+    return ledger.evaluate(claims or LEDGER, get, quick=quick)

@@ -33,7 +33,7 @@ __all__ = [
     "to_markdown",
 ]
 
-VERDICTS = ("reproduced", "partially", "not reproduced", "not applicable")
+VERDICTS = ("reproduced", "partially", "not reproduced", "not applicable", "not judged")
 #: the two columns of every verdict: the embedded data, and the real data when present
 DATASETS = ("embedded", "real")
 
@@ -51,6 +51,8 @@ class Claim:
     expected: dict = field(default_factory=dict)  #: {"embedded": verdict, "real": verdict}
     timing: bool = False
     reads: tuple = ()  #: other figures whose tables it reads besides ``figure``
+    #: ``(values key, minimum, what it counts)``: the least evidence a verdict needs (see :func:`evaluate`)
+    evidence: tuple = ()
 
     @property
     def figures(self) -> tuple:
@@ -69,13 +71,14 @@ def registrar(ledger: list, paper: str, per: Callable | None = None):
     """
 
     def claim(id: str, statement: str, *, figure: str, notebook: str, criterion: str, expected: dict,
-              timing: bool = False, reads: tuple = (), table: str | None = None, embedded_only: str | None = None):
+              timing: bool = False, reads: tuple = (), table: str | None = None, embedded_only: str | None = None,
+              evidence: tuple = ()):
         def deco(func):
             if any(c.id == id for c in ledger):
                 raise ValueError(f"claim {id!r} is in the {paper} ledger twice")
             measure = func if table is None else _judging(func, figure, table, per, embedded_only)
             ledger.append(Claim(id, paper, statement, figure, notebook, criterion, measure, dict(expected),
-                                timing, tuple(reads)))
+                                timing, tuple(reads), tuple(evidence)))
             return func
 
         return deco
@@ -124,8 +127,14 @@ def fmt(x) -> str:
 
 
 # ----------------------------------------------------------------- evaluation
-def evaluate(claims, results: Callable[[str], object] | Mapping) -> list[dict]:
-    """Judge every claim on the figures' results (``results(name)`` or ``results[name]``); one row each."""
+def evaluate(claims, results: Callable[[str], object] | Mapping, *, quick: bool = False) -> list[dict]:
+    """Judge every claim on the figures' results (``results(name)`` or ``results[name]``); one row each.
+
+    A verdict needs the evidence its claim declares (``evidence``): where a measured count is below
+    its minimum (a trend over two database sizes, as a quick run measures), the verdict is
+    ``not judged`` and the ``why`` says what was missing; ``quick`` (the results are the quick
+    figures) names the full sweep as what would judge it.
+    """
     fetch = results.__getitem__ if isinstance(results, Mapping) else results
     rows = []
     for c in claims:
@@ -144,7 +153,7 @@ def evaluate(claims, results: Callable[[str], object] | Mapping) -> list[dict]:
         row = {"id": c.id, "paper": c.paper, "statement": c.statement, "figure": c.figure, "notebook": c.notebook,
                "criterion": c.criterion, "timing": c.timing}
         for ds in DATASETS:
-            verdict, values, why = m[ds]
+            verdict, values, why = _enough(c, *m[ds], quick)
             if verdict not in VERDICTS:
                 raise ValueError(f"claim {c.id}: unknown verdict {verdict!r}")
             row[f"{ds}_verdict"] = verdict
@@ -153,6 +162,18 @@ def evaluate(claims, results: Callable[[str], object] | Mapping) -> list[dict]:
             row[f"{ds}_expected"] = c.expected.get(ds, "")
         rows.append(row)
     return rows
+
+
+def _enough(claim: Claim, verdict: str, values: dict, why: str, quick: bool) -> tuple[str, dict, str]:
+    """``(verdict, values, why)``, or ``not judged`` where ``values`` hold less than ``claim.evidence`` asks."""
+    if verdict == "not applicable":
+        return verdict, values, why
+    for key, minimum, what in claim.evidence:
+        if key in values and values[key] < minimum:
+            mode = " in quick mode: needs the full sweep" if quick else ""
+            return ("not judged", values,
+                    f"not judged{mode} ({fmt(values[key])} {what}; a verdict needs at least {minimum})")
+    return verdict, values, why
 
 
 # ----------------------------------------------------------------- rendering

@@ -117,7 +117,7 @@ def readme_claims_block(rows) -> str:
         counts: dict[str, int] = {}
         for r in stable:
             counts[r[f"{ds}_verdict"]] = counts.get(r[f"{ds}_verdict"], 0) + 1
-        order = ("reproduced", "partially", "not reproduced", "not applicable")
+        order = ("reproduced", "partially", "not reproduced", "not applicable", "not judged")
         parts.append(f"{ds} data: " + ", ".join(f"{counts[v]} {v}" for v in order if counts.get(v)))
     line = f"{len(stable)} claims — " + "; ".join(parts)
     ids = ", ".join(f"{r['id']} (`{r['figure']}`)" for r in timing)

@@ -112,3 +112,30 @@ def test_k3_and_k7_read_the_exact_rows():
     _, v7, why7 = measure["K7"](get)["embedded"]
     assert v7["loglog_slope_exact"] == pytest.approx(0.5) and v7["loglog_slope_pruned"] == pytest.approx(0.2)
     assert "exact 0.50" in why7
+
+
+def test_a_verdict_from_less_evidence_than_the_claim_needs_is_not_judged():
+    """Issue 26, item 2: a trend over two sizes (a quick run) gets no verdict; the why says what is missing."""
+
+    def slope(sizes):
+        def measure(get):
+            get("retrieval_latency")
+            return {"embedded": ("reproduced", {"slope": 0.4, "sizes": sizes}, "grows"),
+                    "real": ("not reproduced", {"slope": -0.1, "sizes": sizes}, "does not grow")}
+        return measure
+
+    def judged(sizes, quick):
+        book: list = []
+        ledger.registrar(book, "pronost2008")("X7", "s", figure="retrieval_latency", notebook="n", criterion="c",
+                                              expected={}, evidence=(("sizes", 3, "database sizes"),))(slope(sizes))
+        return ledger.evaluate(book, {"retrieval_latency": Result(None)}, quick=quick)[0]
+
+    row = judged(2, quick=True)
+    assert row["embedded_verdict"] == row["real_verdict"] == "not judged"
+    assert row["real_why"] == "not judged in quick mode: needs the full sweep (2 database sizes; a verdict needs at least 3)"
+    assert "sizes=2" in row["real_values"]  # the measured values stay visible
+    assert judged(2, quick=False)["real_why"] == "not judged (2 database sizes; a verdict needs at least 3)"
+    row = judged(4, quick=True)
+    assert (row["embedded_verdict"], row["real_verdict"]) == ("reproduced", "not reproduced")
+    k7 = next(c for c in claims.LEDGER if c.id == "K7")
+    assert k7.evidence and k7.evidence[0][:2] == ("sizes", 3)
