@@ -67,6 +67,9 @@ def _parser() -> argparse.ArgumentParser:
     c.set_defaults(usage=c.format_usage)
     c.add_argument("--full", action="store_true", help="measure with the full sweeps (default: the quick ones CI uses)")
     c.add_argument("--out", default=DEFAULT_OUT)
+    c.add_argument("--store", action="store_true",
+                   help="also rewrite the stored ledger notebook 00 opens with (repro/claims/stored.csv; quick mode, "
+                        "with the real data present, as the tests measure it)")
     d = sub.add_parser("data", help="the datasets: list, fetch")
     dsub = d.add_subparsers(dest="data_command", required=True)
     dsub.add_parser("list", help="each dataset, whether present and verified").set_defaults(usage=None)
@@ -175,6 +178,11 @@ def _claims(args) -> int:
     from repro import claims
     from repro.io import write_csv, write_text
 
+    if args.store and args.full:
+        from repro.errors import DataError
+
+        raise DataError("--store keeps the quick ledger (the one the tests measure): drop --full")
+
     rows = claims.evaluate(quick=not args.full, progress=True)
     for r in rows:
         print(f"{r['id']:4s} {r['embedded_verdict']:15s} {r['real_verdict']:15s} {r['statement'][:90]}")
@@ -182,6 +190,10 @@ def _claims(args) -> int:
     out = Path(args.out)
     print(f"wrote {write_text(out / 'claims.md', claims.to_markdown(rows))}")
     print(f"wrote {write_csv(out / 'claims.csv', claims.ledger_table(rows))}")
+    if args.store:
+        from repro.claims import overview
+
+        print(f"wrote {write_text(overview.STORED, overview.stored_csv(rows))}")
     return 0
 
 
