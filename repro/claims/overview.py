@@ -64,10 +64,16 @@ def stored_rows(path: Path | None = None) -> list[dict]:
 
 
 def one_line(statement: str) -> str:
-    """A claim's statement without its quotation and section: ``"Search time grows ... (Section 2: '...')"``
-    -> ``"Search time grows ..."``."""
-    cut = statement.find(" (")
-    return statement if cut <= 0 else statement[:cut]
+    """A claim's statement without the reference that closes it: ``"Search time grows ... (Section 2: '...')"``
+    -> ``"Search time grows ..."``; a parenthesis inside the claim's own words stays."""
+    if not statement.endswith(")"):
+        return statement
+    depth = 0
+    for i in range(len(statement) - 1, -1, -1):  # the "(" matching the final ")"
+        depth += {")": 1, "(": -1}.get(statement[i], 0)
+        if depth == 0:
+            return statement[:i].rstrip() or statement
+    return statement
 
 
 def _badge(verdict: str) -> str:

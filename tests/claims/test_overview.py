@@ -36,6 +36,8 @@ def test_the_table_shows_each_claim_in_one_line_its_badges_and_the_whole_why():
 def test_one_line_drops_the_quotation_and_section():
     assert overview.one_line("A (Section 1: 'b')") == "A"
     assert overview.one_line("no parenthesis") == "no parenthesis"
+    assert overview.one_line("'a (75 motions ...)' suffices (Abstract, Sections 1, 2)") == "'a (75 motions ...)' suffices"
+    assert overview.one_line("unbalanced)") == "unbalanced)"
 
 
 def test_every_verdict_has_a_badge_colour():
