@@ -42,9 +42,11 @@ def draw(pairs):
     for model, att in pairs:
         sel = sc.selection(model)
         w_base, w_target = sc.weights(model)
+        settings = sorted(((att.default_alpha(sel) if a is None else a, label, a)
+                           for label, a in [("c) default", None), ("d)", 25.0), ("e)", 3000.0)]),
+                          key=lambda s: s[0])  # panels in increasing alpha, after the unattenuated face
         poses = [("b) no attenuation", att.displacement(w_target))]
-        for label, a in [("c) default", None), ("d)", 25.0), ("e)", 3000.0)]:
-            a_val = att.default_alpha(sel) if a is None else a
+        for a_val, label, a in settings:
             poses.append((f"{label} alpha {a_val:.4g}", att.displacement(att.edit(w_base, w_target, sel, a))))
         v = sc.vertices(model)
         ds = [d for _, d in poses]
