@@ -47,15 +47,10 @@ fi
 stamp=.venv/.repro-installed
 want=$(cat pyproject.toml "$LOCK" | sha256sum | cut -d' ' -f1)-unpinned=$unpinned
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
-  # pip's output minus two notices that say nothing to act on: this machine's extra package indexes, and
-  # setuptools' BuildBackendWarning block on every editable install (each of its editable strategies
-  # prints one, so no pyproject.toml setting avoids it; newer pips show it).  Errors stay visible.
+  # pip's output minus one notice that says nothing to act on (this machine's extra package indexes that
+  # do not exist); errors and every other warning stay visible.
   pip_quiet() {
-    .venv/bin/python -m pip "$@" 2>&1 | awk '
-      /is ignored: it is neither/ { next }
-      /BuildBackendWarning: Editable install/ { skip = 12 }
-      skip { skip--; if (/with strategy, WheelFile/) skip = 0; next }
-      { print }'
+    .venv/bin/python -m pip "$@" 2>&1 | { grep -v 'is ignored: it is neither a file nor a directory' || true; }
     return "${PIPESTATUS[0]}"
   }
   if [ "$unpinned" = 1 ]; then

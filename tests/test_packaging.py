@@ -162,3 +162,12 @@ def test_setup_installs_from_the_lock_unless_asked_for_the_newest():
     assert 'install -q --require-hashes -r "$LOCK"' in setup
     assert "--no-deps --no-build-isolation -e ." in setup
     assert "REPRO_UNPINNED" in setup and "-e '.[dev]'" in setup
+
+
+def test_the_editable_install_is_a_plain_pth_file():
+    """``package-dir = {"" = "."}`` makes setuptools' editable install a ``.pth`` file naming the checkout
+    (its ``_StaticPth`` strategy), which emits no warning; without it setuptools picks its meta path finder,
+    whose ``InformationOnly`` block pip >= 25 relays as a ``BuildBackendWarning`` on every set-up (issue 27,
+    item 3: a newcomer sees only setup.sh's own lines)."""
+    setuptools_cfg = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
+    assert setuptools_cfg["package-dir"] == {"": "."}
