@@ -37,11 +37,15 @@ fi
 # Python packages: by default exactly the locked versions (hash-checked), the ones the suite passes with;
 # REPRO_UNPINNED=1 installs the newest versions pyproject.toml allows instead (to try them).
 # Reinstalled only when the dependency list, the lock or the choice changed.
-LOCK=requirements/lock-py311-linux-x86_64.txt
+LOCK=requirements/lock-py311-linux.txt
 unpinned=${REPRO_UNPINNED:-0}
-if [ "$unpinned" != 1 ] && { [ "$(uname -m)" != x86_64 ] || [ "$(uname -s)" != Linux ] \
-     || ! .venv/bin/python -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))'; }; then
-  echo "setup: $LOCK is for CPython 3.11 on Linux x86_64; installing unpinned versions here (its header says how to lock another platform)"
+locked_platform='import platform, sys
+libc, version = platform.libc_ver()
+sys.exit(not ((3, 11, 5) <= sys.version_info < (3, 12) and platform.system() == "Linux"
+              and platform.machine() in ("x86_64", "aarch64") and libc == "glibc"
+              and tuple(map(int, version.split("."))) >= (2, 28)))'
+if [ "$unpinned" != 1 ] && ! .venv/bin/python -c "$locked_platform"; then
+  echo "setup: $LOCK is for CPython 3.11.5+ on Linux (glibc 2.28+, x86_64 or aarch64); installing unpinned versions here (its header says how to lock another platform)"
   unpinned=1
 fi
 stamp=.venv/.repro-installed

@@ -127,7 +127,7 @@ def test_binder_files_install_what_setup_installs():
     assert "-e ." in pip
 
 
-LOCK = REPO / "requirements" / "lock-py311-linux-x86_64.txt"
+LOCK = REPO / "requirements" / "lock-py311-linux.txt"
 
 
 def _locked() -> dict[str, tuple[str, list[str]]]:
