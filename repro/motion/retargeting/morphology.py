@@ -32,7 +32,7 @@ from repro.motion.body.rest_pose import match_rest_pose
 from repro.motion.body.skeleton import Skeleton, check_role_table, skeleton_of
 from repro.motion.core.kinematics import chain_positions, check_pose_arrays, fk_arrays, world_of
 from repro.motion.core.motion import Motion
-from repro.motion.core.quaternion import quat_multiply, vector_norm
+from repro.motion.core.quaternion import quat_multiply, quat_rotate, vector_norm
 from repro.motion.retargeting.decoding import (
     REST_ANGLE_DEG,
     DecodeReport,
@@ -141,6 +141,49 @@ def retarget(motion: Motion, target, *, roles=None, fix_feet: bool = False) -> M
     return retarget_across(motion, target, roles=roles, fix_feet=fix_feet)
 
 
+class RestStep:
+    """:func:`~repro.motion.body.rest_pose.match_rest_pose` of ``source`` onto ``target``'s rest directions,
+    as a plan step: its per-joint constant rotations ``C_j`` computed once, applied to poses by :meth:`pose`.
+
+    ``C_j`` are the world rotations of the source's rest pose matched (``G'_j = G_j C_j`` with
+    ``G = I``); a pose's local rotations become ``L'_j = C_p^-1 L_j C_j``, its local translations
+    the matched offsets, except the root's (kept) and those of the joints below the root whose
+    position channels vary in ``source`` (turned by ``C_p^-1``): the numbers of ``match_rest_pose``
+    up to rounding.
+
+    Parameters
+    ----------
+    source : Motion
+        The poses' skeleton and channels (a Skeleton's :meth:`~repro.motion.body.skeleton.Skeleton.rest_motion`).
+    target : Skeleton or Motion
+        Same joint names and parents.
+    """
+
+    def __init__(self, source: Motion, target):
+        rest = np.zeros_like(source.rotations)
+        rest[..., 3] = 1.0
+        #: the source's skeleton with the target's rest directions (its first frame: rest pose)
+        self.skeleton = match_rest_pose(dataclasses.replace(source, rotations=rest), target)
+        self.C = self.skeleton.global_transforms()[0][0]
+        self.Cinv = self.C * np.array([-1.0, -1.0, -1.0, 1.0])
+        self.parents = np.asarray(source.parents)
+        self.offsets = np.asarray(self.skeleton.offsets)
+        moved = np.abs(self.skeleton.local_translations() - self.offsets[None]).max(axis=0).max(axis=1) > 0
+        moved[0] = False
+        self.varying = np.flatnonzero(moved)
+
+    def pose(self, rotations: np.ndarray, translations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(local rotations, local translations)`` (F, J, 4), (F, J, 3) on the matched skeleton."""
+        par = self.parents
+        r = quat_multiply(rotations, self.C[None])
+        r[:, 1:] = quat_multiply(self.Cinv[None, par[1:]], r[:, 1:])
+        t = np.broadcast_to(self.offsets, translations.shape).copy()
+        t[:, 0] = translations[:, 0]
+        for c in self.varying:
+            t[:, c] = quat_rotate(np.broadcast_to(self.Cinv[par[c]], (len(t), 4)), translations[:, c])
+        return r, t
+
+
 class RetargetPlan:
     """:func:`retarget` between two fixed skeletons of the same joint tree.
 
@@ -154,7 +197,10 @@ class RetargetPlan:
     without the Motion objects nor the foot contacts:
     :meth:`repro.motion.search.retrieval.MotionRetriever.prepare`, one pose per query).
     Encoding's and decoding's limb frames run as one stacked call when the feet are not
-    fixed, which gives the numbers of two.
+    fixed, which gives the numbers of two.  A target whose rest directions differ by more than
+    :data:`REST_ANGLE_DEG` gets the poses re-expressed on them first, as :func:`retarget` does,
+    by a :class:`RestStep` (per-joint constant rotations computed here, applied to all frames at
+    once; :func:`retarget`'s numbers up to rounding); otherwise the plan has no such step.
 
     Parameters
     ----------
@@ -169,15 +215,20 @@ class RetargetPlan:
     ------
     repro.errors.MotionError
         What :func:`retarget` raises for these skeletons (missing roles, zero-length limb
-        bones, another topology or rest pose).
+        bones, another topology).
     """
 
     def __init__(self, source, target, *, roles=None):
         _check_target(target)
-        sk = skeleton_of(source, roles=check_role_table(roles, "roles"))
+        roles = check_role_table(roles, "roles")
+        sk = skeleton_of(source, roles=roles)
         if list(target.joint_names) != list(sk.joint_names) or not np.array_equal(target.parents, sk.parents):
             raise MotionError("RetargetPlan: the target must have the source's joint names and parents")
         self.n_joints = sk.n_joints
+        self.rest = None
+        if rest_turn(sk.offsets, skeleton_of(target).offsets)[0] > REST_ANGLE_DEG:
+            self.rest = RestStep(source if isinstance(source, Motion) else sk.rest_motion(), target)
+            sk = Skeleton.from_motion(self.rest.skeleton, roles=roles)
         self.encoder = enc = Encoder(sk)
         self.decoder = dec = Decoder(enc, target, REST_ANGLE_DEG)
         self.thr = np.stack([1e-12 * enc.L, 1e-12 * dec.L], axis=1)  # (4, 2): encode, decode
@@ -212,12 +263,14 @@ class RetargetPlan:
             raise MotionError("RetargetPlan.apply: the motion must be on the plan's source skeleton")
         fix_feet = as_bool(fix_feet, "fix_feet", error=MotionError)
         blend_time = as_real(blend_time, "blend_time (seconds)", error=MotionError, lo=0.0)
-        t = motion.local_translations()
-        gq, gp = fk_arrays(self.encoder.levels, motion.rotations, t)
+        r, t = motion.rotations, motion.local_translations()
+        if self.rest is not None:
+            r, t = self.rest.pose(r, t)
+        gq, gp = fk_arrays(self.encoder.levels, r, t)
         feet = None
         if fix_feet:
             feet = self.encoder.feet(motion, gp) + (motion.frame_time, blend_time)
-        rot, local_t, _ = self._solve(motion.rotations, t, gq, gp, feet)
+        rot, local_t, _ = self._solve(r, t, gq, gp, feet)
         return self.decoder.motion(rot, local_t, motion.frame_time)
 
     def positions(self, rotations: np.ndarray, translations: np.ndarray, *, source=None) -> np.ndarray:
@@ -229,6 +282,9 @@ class RetargetPlan:
         (:meth:`~repro.motion.core.motion.Motion.global_transforms`; default: computed here).
         """
         rotations, translations = check_pose_arrays(rotations, translations, self.n_joints)
+        if self.rest is not None:
+            rotations, translations = self.rest.pose(rotations, translations)
+            source = None if source is None else (quat_multiply(source[0], self.rest.C[None]), source[1])
         gq, gp = world_of(self.encoder.levels, rotations, translations, source)
         rot, local_t, gp = self._solve(rotations, translations, gq, gp)
         # the Motion apply returns renormalises its rotations; its global positions are this FK

@@ -19,8 +19,8 @@ Pronost et al., Section 3.4.1, after Kulpa et al. (2005).  What is asserted:
 * ``MotionRetriever.prepare`` (which uses the plan for such characters) gives the same
   ``q_r`` as the retargeting it replaces (``retarget`` then the pose cloud), bit for bit;
   plans are cached per (actor, pose skeleton) and a pose on another skeleton gets its own;
-* the plan refuses what ``retarget`` refuses (a target whose rest pose is turned, another
-  topology), with MotionError;
+* the plan refuses what ``retarget`` refuses (another topology), with MotionError; a target whose
+  rest pose is turned gets the poses re-expressed on its rest directions, as ``retarget`` does (1e-9);
 * bad inputs raise :class:`MotionError`.
 """
 
@@ -32,7 +32,8 @@ import numpy as np
 import pytest
 
 from repro.errors import MotionError
-from repro.motion import read_bvh, write_bvh
+from repro import data
+from repro.motion import CMU_UNIT_M, read_bvh, write_bvh
 from repro.motion.body.feet import foot_contacts, foot_metrics
 from repro.motion.body.pose_frames import pose_points
 from repro.motion.body.skeleton import Skeleton, scale_skeleton
@@ -234,7 +235,7 @@ def test_prepare_equals_retarget(synthetic_db):
     assert len(r._plans) == n
 
 
-def test_plan_refuses_another_rest_pose_retarget_matches_it(synthetic_db):
+def test_plan_matches_another_rest_pose_as_retarget(synthetic_db):
     db = synthetic_db
     actor = db.actors[0]
     pose = on(scale_skeleton(actor, **CHARACTERS[0]), db.motion(0), slice(0, 1))
@@ -242,8 +243,16 @@ def test_plan_refuses_another_rest_pose_retarget_matches_it(synthetic_db):
     j = actor.index("LeftForeArm")
     off[j] = np.array([off[j][1], -off[j][0], off[j][2]])  # the forearm turned by 90 degrees at rest
     turned = dataclasses.replace(actor, offsets=off)
-    with pytest.raises(MotionError, match="rest pose"):
-        RetargetPlan(pose, turned)  # the plan copies local rotations: the same rest directions only
+    # the plan re-expresses the poses on the target's rest directions as retarget does (issue 25, leftovers)
+    plan = RetargetPlan(pose, turned)
+    assert plan.rest is not None
+    want = retarget(pose, turned)
+    assert np.abs(plan.apply(pose).global_positions() - want.global_positions()).max() <= 1e-9
+    assert np.abs(plan.apply(pose).rotations - want.rotations).max() <= 1e-9
+    g = plan.positions(pose.rotations, pose.local_translations())
+    assert np.abs(g - want.global_positions()).max() <= 1e-9
+    g2 = plan.positions(pose.rotations, pose.local_translations(), source=pose.global_transforms())
+    assert np.abs(g2 - want.global_positions()).max() <= 1e-9
     # retarget re-expresses the motion on the target's rest directions first (issue 25, item 5): the same
     # poses, so the arm's limb vector (shoulder -> wrist, Kulpa et al.'s normalised vector) is the source's
     out = retarget(pose, turned)
@@ -254,3 +263,28 @@ def test_plan_refuses_another_rest_pose_retarget_matches_it(synthetic_db):
     rig = build("mixamo")[0].motion(unit_m=1.0)
     with pytest.raises(MotionError, match="joint names and parents"):
         RetargetPlan(pose, rig)
+
+
+@pytest.mark.data("cmu-bvh")
+def test_plan_other_cmu_subject_equals_retarget(front_kick):
+    """Subject 131 (rest directions 11.7 degrees from subject 135's) onto the 135 actor: the plan's
+    precomputed rest step gives retarget's numbers (1e-9), with and without the feet fixed."""
+    m = read_bvh(data.fetch("mocap/cmu/131_01.bvh"), unit_m=CMU_UNIT_M)
+    m = dataclasses.replace(m, rotations=m.rotations[:120:3], positions=m.positions[:120:3])
+    plan = RetargetPlan(m, front_kick)
+    assert plan.rest is not None
+    for fix_feet in (False, True):
+        want = retarget(m, front_kick, fix_feet=fix_feet)
+        got = plan.apply(m, fix_feet=fix_feet)
+        assert np.abs(got.global_positions() - want.global_positions()).max() <= 1e-9
+    g = plan.positions(m.rotations, m.local_translations(), source=m.global_transforms())
+    assert np.abs(g - retarget(m, front_kick).global_positions()).max() <= 1e-9
+
+
+def test_plan_same_rest_pose_unchanged():
+    """A target with the source's rest directions: no rest step, the plan's usual numbers."""
+    m = random_motion(5, F=6)
+    tgt = scale_skeleton(m, height=1.8, leg_scale=1.1)
+    plan = RetargetPlan(m, tgt)
+    assert plan.rest is None
+    assert np.array_equal(plan.apply(m).global_positions(), retarget(m, tgt).global_positions())
