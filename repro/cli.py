@@ -9,6 +9,7 @@
     repro bench adaptation          retarget/adapt cost per frame, write figures/bench_adaptation.csv
     repro bench index               build time and peak memory of the 100x / 1,000x databases and index
     repro bench prepare             query preparation (q retargeted to the actor) per kind of character
+    repro bench order               the fighter's order-to-first-frame on the real humanoid rigs
     repro claims                    the claims ledger (figures/claims.md, figures/claims.csv)
     repro data list                 each dataset: present? verified?
     repro data fetch NAME           download (and verify) a dataset into the data folder
@@ -32,7 +33,7 @@ from pathlib import Path
 from repro.errors import ReproError, UnknownFigureError
 
 DEFAULT_OUT = "figures"
-BENCHES = ("attenuation", "retrieval", "adaptation", "index", "prepare")
+BENCHES = ("attenuation", "retrieval", "adaptation", "index", "prepare", "order")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -305,7 +306,7 @@ def _main(args) -> int:
 
             return _run(list(registry()), args.out, args.quick, args.force, args.face, args.jobs)
         if args.command == "bench":
-            from repro.bench import adaptation, attenuation, index_build, prepare, retrieval
+            from repro.bench import adaptation, attenuation, index_build, order, prepare, retrieval
             from repro.io import write_csv
 
             run_, fmt, csv_name = {
@@ -314,6 +315,7 @@ def _main(args) -> int:
                 "adaptation": (adaptation.bench_adaptation, adaptation.format_adaptation, "bench_adaptation.csv"),
                 "index": (index_build.bench_index_build, index_build.format_index_build, "bench_index_build.csv"),
                 "prepare": (prepare.bench_prepare, prepare.format_prepare, "bench_prepare.csv"),
+                "order": (order.bench_order, order.format_order, "bench_order.csv"),
             }[args.which]
             extra = {}
             if args.queries is not None or args.factors is not None or args.database is not None:

@@ -36,6 +36,7 @@ _HOMES = {
     "bench_adaptation": "adaptation", "format_adaptation": "adaptation",
     "bench_index_build": "index_build", "format_index_build": "index_build",
     "bench_prepare": "prepare", "format_prepare": "prepare",
+    "bench_order": "order", "format_order": "order",
 }
 
 
