@@ -66,6 +66,9 @@ __all__ = [
     "blendshape_panel",
     "PAPER_SLIDERS",
     "NUMBERS_FORMAT",
+    "NOT_APPLICABLE",
+    "face_readout",
+    "format_numbers",
     "parse_numbers",
 ]
 
@@ -80,6 +83,15 @@ NUMBERS_FORMAT = (
     "selected motion: {selected_motion:.6g} | unselected fidelity: {unselected_fidelity:.6g} "
     "| alpha: {alpha:.6g} | attenuation: {attenuation}"
 )
+#: the numbers line's unselected fidelity when the sliders intend no motion of the rest (0/0): no number
+NOT_APPLICABLE = "n/a"
+
+
+def format_numbers(numbers: dict) -> str:
+    """The numbers line (:data:`NUMBERS_FORMAT`), with :data:`NOT_APPLICABLE` for a fidelity that is no number."""
+    if np.isfinite(numbers["unselected_fidelity"]):
+        return NUMBERS_FORMAT.format(**numbers)
+    return NUMBERS_FORMAT.replace("{unselected_fidelity:.6g}", NOT_APPLICABLE).format(**numbers)
 
 #: Exponents (base 10) of the alpha slider's range.
 ALPHA_EXPONENTS = (-3.0, 6.0)
@@ -99,7 +111,26 @@ def parse_numbers(text: str) -> dict:
     gives ``{"selected_motion": 0.0837, "unselected_fidelity": 0.547, "alpha": 335.0, "attenuation": "on"}``.
     Raises ``ValueError`` for anything else (e.g. an ``error: ...`` line).
     """
-    return parse_numbers_line(text, _NUMBER_FIELDS, {"attenuation"}, pattern=r"([a-z ]+): (\S+)", panel="the panel")
+    out = parse_numbers_line(text, _NUMBER_FIELDS, {"attenuation", "unselected_fidelity"},
+                             pattern=r"([a-z ]+): (\S+)", panel="the panel")
+    fidelity = out["unselected_fidelity"]
+    try:
+        out["unselected_fidelity"] = float("nan") if fidelity == NOT_APPLICABLE else float(fidelity)
+    except ValueError:
+        raise ValueError(f"not a numbers line of the panel: {text!r}") from None
+    return out
+
+
+def face_readout(numbers: dict, region: str, n_vertices: int, units: str) -> str:
+    """The numbers line in plain words (Lewis et al. Section 5: the selection held, the rest following the
+    sliders), e.g. "brow_middle (2 vertices) held: moved 0.01 cm; the rest follows the sliders 57 %"."""
+    moved = f"moved {numbers['selected_motion']:.2g} {units}"
+    fidelity = numbers["unselected_fidelity"]
+    rest = ("the rest of the face has not been asked to move yet: move a shape slider" if not np.isfinite(fidelity)
+            else f"the rest follows the sliders {100 * fidelity:.0f} %")
+    if numbers["attenuation"] == "on":
+        return f"{region} ({n_vertices} vertices) held: {moved}; {rest}"
+    return f"attenuation off: the sliders move the whole face; {region} ({n_vertices} vertices) {moved}"
 
 
 # ----------------------------------------------------------------------- panel
@@ -254,7 +285,7 @@ class BlendshapePanel(PanelCallbacks):
         self.select_button = widgets.Button(description="select now", icon="crosshairs",
                                             tooltip="make the current slider pose the pose to keep (w_base)")
         self.alpha_slider = widgets.FloatLogSlider(value=1.0, base=10, min=ALPHA_EXPONENTS[0], max=ALPHA_EXPONENTS[1],
-                                                   step=0.01, description="alpha", readout_format=".4g",
+                                                   step=0.01, description="alpha", readout=False,
                                                    # on release only: with continuous updates the browser's
                                                    # slider sends back its step-snapped value as soon as it is
                                                    # drawn (335 -> 10**2.53 = 338.8), moving alpha by itself
@@ -262,6 +293,10 @@ class BlendshapePanel(PanelCallbacks):
                                                    layout=widgets.Layout(width="560px"),
                                                    style={"description_width": "50px"})
         self.alpha_slider.add_class("repro-alpha")
+        # alpha's value beside its slider, written as the numbers line writes it (the slider's own readout,
+        # d3's ".6g", pads zeros: 4703.50 beside "alpha: 4703.5")
+        self.alpha_value = widgets.HTML(layout=widgets.Layout(width="64px"))
+        self.alpha_value.add_class("repro-alpha-value")
         self.default_alpha = widgets.Checkbox(value=default_alpha, description="default alpha (Section 5)",
                                               indent=False)
         self.attenuation = widgets.ToggleButton(value=False, description="attenuation", icon="anchor",
@@ -273,6 +308,8 @@ class BlendshapePanel(PanelCallbacks):
             display="none" if self._view is None or self.view_kind == "3d" else None))
         self.numbers_html = widgets.HTML()
         self.numbers_html.add_class("repro-numbers")
+        self.readout_html = widgets.HTML()  # the numbers in words (face_readout)
+        self.readout_html.add_class("repro-face-readout")
         self.status_html = widgets.HTML()
         self.status_html.add_class("repro-status")
 
@@ -289,14 +326,28 @@ class BlendshapePanel(PanelCallbacks):
         self.attenuation.observe(self._guarded(self._on_attenuation), names="value")
 
     def _layout(self, alpha_on_top: bool) -> widgets.VBox:
-        """The panel: sliders beside the view, then the selection, alpha, attenuation and the numbers."""
+        """The panel: the shape sliders, the view and the controls (selection, alpha, attenuation, numbers) side
+        by side; with ``alpha_on_top``, alpha and the numbers above the sliders and the view, the rest below."""
         model = self.model
         header = widgets.HTML(
             f"<b>{html.escape(model.name)}</b>: {model.n_vertices:,} vertices, {model.n_shapes} shapes "
             f"({html.escape(model.units)})")
         left = widgets.VBox([header, *self.sliders.values()])
         right = widgets.VBox([self._view.widget if self.view_kind == "3d" else self.view_image])
-        alpha_row = widgets.HBox([self.alpha_slider, self.default_alpha])
+        if not alpha_on_top:
+            # three columns (shapes, view, the selection and alpha): the whole panel fits a 1280x720 screen
+            # (issue 26, item 8); on a narrower page the third column wraps below the view
+            self.alpha_slider.layout.width = "262px"
+            controls = widgets.VBox([
+                self.region, widgets.HBox([*self.axis_boxes.values(), self.select_button]),
+                widgets.HBox([self.alpha_slider, self.alpha_value]), self.default_alpha,
+                widgets.HBox([self.attenuation, self.reset_button]),
+                self.readout_html, self.numbers_html, self.status_html,
+            ], layout=widgets.Layout(width="330px", margin="0 0 0 8px"))
+            panel = widgets.VBox([widgets.HBox([left, right, controls], layout=widgets.Layout(flex_flow="row wrap"))])
+            panel.add_class("repro-blendshape-panel")
+            return panel
+        alpha_row = widgets.HBox([self.alpha_slider, self.alpha_value, self.default_alpha])
         rows = [
             widgets.HBox([left, right]),
             widgets.HBox([self.region, *self.axis_boxes.values(), self.select_button]),
@@ -305,8 +356,9 @@ class BlendshapePanel(PanelCallbacks):
             self.numbers_html,
             self.status_html,
         ]
-        if alpha_on_top:  # alpha and its numbers first (the Fig. 5 notebook)
-            rows = [alpha_row, self.numbers_html] + [r for r in rows if r not in (alpha_row, self.numbers_html)]
+        # alpha and its numbers first (the Fig. 5 notebook)
+        rows = [alpha_row, self.readout_html, self.numbers_html] + [
+            r for r in rows if r not in (alpha_row, self.numbers_html)]
         panel = widgets.VBox(rows)
         panel.add_class("repro-blendshape-panel")
         return panel
@@ -484,10 +536,13 @@ class BlendshapePanel(PanelCallbacks):
             d, numbers = result
             self.error = None
             self._numbers = numbers
-            self._numbers_text = NUMBERS_FORMAT.format(**numbers)
+            self._numbers_text = format_numbers(numbers)
         t1 = time.perf_counter()
         self.last_update_seconds["numbers"] = t1 - t0
         self.numbers_html.value = f"<code>{html.escape(self._numbers_text)}</code>"
+        self.alpha_value.value = f"{float(self._alpha):.6g}"
+        self.readout_html.value = ("" if result is None else html.escape(
+            face_readout(self._numbers, self.region.value, len(self._sel_vertices), self.model.units)))
         self.status_html.value = self._status()
         if self._view is None:
             self.last_update_seconds["view"] = time.perf_counter() - t1
@@ -537,6 +592,7 @@ class BlendshapePanel(PanelCallbacks):
         self._numbers = {}
         self._numbers_text = f"error: {msg}"
         self.numbers_html.value = f"<code>{html.escape(self._numbers_text)}</code>"
+        self.readout_html.value = ""
         self.status_html.value = f'<span style="color:#b00020">error: {html.escape(msg)}</span>'
 
     # ------------------------------------------------------------ public API
@@ -669,7 +725,7 @@ class BlendshapePanel(PanelCallbacks):
         self._view = self._picture_view = None
         for w in [*self.sliders.values(), self.region, *self.axis_boxes.values(), self.select_button,
                   self.alpha_slider, self.default_alpha, self.attenuation, self.reset_button,
-                  self.view_image, self.numbers_html, self.status_html, self.widget]:
+                  self.alpha_value, self.view_image, self.readout_html, self.numbers_html, self.status_html, self.widget]:
             w.close()
 
     def image_png(self) -> bytes:

@@ -257,3 +257,18 @@ def test_fighter_app_shows_no_nan_and_repaints_the_new_fighter_after_a_morpholog
     assert not o.outside(), f"the fighter app asked other hosts: {o.outside()}"
     page.screenshot(path=str(ARTIFACTS / "screen-fighter-after-height.png"))
     print(f"\nbench app fighter: height key presses -> new fighter painted in the 3D view {1000 * repaint:.0f} ms")
+
+
+def test_face_app_speaks_in_words_and_shows_no_nan(opened):
+    """Issue 26, items 6-7: no nan anywhere on the face app's page (the fidelity of nothing moved is "n/a"), the
+    readout in words beside the numbers, and the alpha slider showing the value the numbers line gives."""
+    o = opened("face")
+    page = o.page
+    text = page.inner_text("body")
+    assert not re.search(r"\bnan\b", text, re.IGNORECASE), "a nan on the face app's page"
+    readout = page.inner_text(".repro-blendshape-panel .repro-face-readout")
+    assert "vertices" in readout and ("held" in readout or "attenuation off" in readout), readout
+    numbers = page.inner_text(".repro-blendshape-panel .repro-numbers")
+    alpha = re.search(r"alpha: (\S+)", numbers).group(1)
+    shown = page.inner_text(".repro-blendshape-panel .repro-alpha-value")
+    assert shown.strip() == alpha, (shown, numbers)

@@ -172,7 +172,9 @@ def test_select_now_workflow(face):
     np.testing.assert_allclose(p.w_base, face.weights(Furrow=0.4))
     n = p.numbers
     assert n["selected_motion"] == 0.0 and math.isnan(n["unselected_fidelity"])  # nothing moved since
-    assert "unselected fidelity: nan" in p.numbers_text
+    assert "unselected fidelity: n/a" in p.numbers_text  # no number (0/0), never "nan" on the page (issue 26)
+    assert math.isnan(parse_numbers(p.numbers_text)["unselected_fidelity"])
+    assert "has not been asked to move yet" in p.readout_html.value
     p.set_sliders(JawOpen=0.4, SmirkLeft=0.4, SmirkRight=0.4, MouthStretch=0.3)
     r = scenarios.evaluate(face, "furrow_then_mouth")
     assert p.numbers["selected_motion"] == pytest.approx(r["attenuated_selected_motion"], abs=1e-9)
@@ -498,3 +500,20 @@ def test_fighter_panel_labels_its_icon_buttons_and_animates_on_request(strike):
     q = FighterPanel(KungFuFighter("synthetic", seed=0))
     assert [w for w in q.widget.children if isinstance(w, widgets.Image)] == [q.image]
     q.close()
+
+
+def test_the_readout_says_the_numbers_in_words():
+    """Issue 26, item 7: what the selection did and how the rest follows, in words a projector can show."""
+    from repro.ui.face_panel import face_readout
+
+    on = {"selected_motion": 0.0123, "unselected_fidelity": 0.5712, "alpha": 335.0, "attenuation": "on"}
+    assert face_readout(on, "brow_middle", 2, "cm") == (
+        "brow_middle (2 vertices) held: moved 0.012 cm; the rest follows the sliders 57 %")
+    still = {**on, "selected_motion": 0.0, "unselected_fidelity": float("nan")}
+    assert face_readout(still, "brow_middle", 2, "cm") == (
+        "brow_middle (2 vertices) held: moved 0 cm; the rest of the face has not been asked to move yet: "
+        "move a shape slider")
+    off = {**on, "attenuation": "off", "selected_motion": 0.41}
+    assert face_readout(off, "mouth", 40, "model units") == (
+        "attenuation off: the sliders move the whole face; mouth (40 vertices) moved 0.41 model units")
+    assert "nan" not in face_readout(still, "r", 1, "cm")
