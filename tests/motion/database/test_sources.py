@@ -258,10 +258,17 @@ def test_non_fighting_poses_as_queries(real_db, real_retriever):
     src = clip_source_dataset(db)
     raw = non_fighting_poses(takes=["mocap/cmu/131_01.bvh"])["131_01"]
     pose = frame_of(raw, raw.n_frames // 2)
-    # other CMU subjects: same joint tree, other rest directions -> refused as they are
-    with pytest.raises(RetrievalError, match="rest pose"):
-        r.search(np.array([0.0, 1.2, 0.6]), pose, Skeleton.from_motion(pose), "punch")
     matched = non_fighting_poses(rest_like=db)
+    # other CMU subjects: same joint tree, other rest directions -> the query path re-expresses the pose on the
+    # actor's rest directions itself (RetargetPlan's rest step, issue 25), as rest_like does beforehand
+    target = np.array([0.0, 1.2, 0.6])
+    as_is = r.search(target, pose, Skeleton.from_motion(pose), "punch", method="exact")
+    twin = frame_of(matched["131_01"], raw.n_frames // 2)
+    before = r.search(target, twin, Skeleton.from_motion(twin), "punch", method="exact")
+    assert (as_is.clip, as_is.start_frame) == (before.clip, before.start_frame)
+    # d differs a little: Eq. 1 scales the target by the character's size, measured on each pose's own rest pose
+    ratio = Skeleton.from_motion(pose).size / Skeleton.from_motion(twin).size
+    assert np.isfinite(as_is.d) and as_is.d == pytest.approx(before.d, rel=0.25), ratio
     for name, m in matched.items():
         family = "bandai" if m.source.startswith("mocap/bandai/") else "cmu135"
         pose = frame_of(m, m.n_frames // 2)
