@@ -33,7 +33,9 @@ damaged cache is rebuilt with a :class:`~repro.errors.CacheWarning`.  A cache
 file is read only as a regular file inside the cache folder (a FIFO, a device or a
 link leading elsewhere in its place is damage, never a hang or a read elsewhere),
 and its identity (format, source sha256s, shape names) is inside the checked
-content, so another valid cache put in its place is refused.  The model
+content, so another valid cache put in its place is refused.  The cache is
+used only beside the data it came from: without the data files, a leftover
+cache is ignored and loading fails as a first build would.  The model
 is also kept in memory per process (see :func:`load_ict`).  :func:`read_cache`
 reads and checks one cache file (through :func:`repro.io.read_npz`: no member is
 allocated before its ``.npy`` header is checked against the archive) and says
@@ -505,6 +507,30 @@ def _arrays(shapes: tuple[str, ...], use_cache: bool) -> dict[str, np.ndarray]:
     return arrays
 
 
+def _require_sources(shapes: tuple[str, ...]) -> None:
+    """Make sure the data files the arrays come from are in the data folder (presence only: cheap).
+
+    The derived cache stands for the data beside it, never for absent data: a leftover cache
+    after the data folder went away (or in a session without one) is not used.  A missing
+    file is fetched (:func:`repro.data.fetch`: downloaded, or a :class:`DataError` saying how
+    to get it), as on a first build.
+    """
+    root = data.data_dir()
+    try:  # the folder's identity and modification time: a file removed or added changes it
+        st = (root / _FOLDER).stat()
+        stamp = (st.st_ino, st.st_mtime_ns)
+    except OSError:
+        stamp = None
+    for rel in _missing_sources(str(root), stamp, shapes):
+        data.fetch(rel)
+
+
+@lru_cache(maxsize=8)
+def _missing_sources(root: str, stamp, shapes: tuple[str, ...]) -> tuple[str, ...]:
+    # (root, stamp) only key the memo: the 59 look-ups take about 10 ms, the folder's stat 10 us
+    return tuple(rel for rel in _used_files(shapes) if data.locate(rel, Path(root)) is None)
+
+
 def _normalise_shapes(shapes) -> tuple[str, ...]:
     if shapes is None:
         return ICT_SHAPES
@@ -548,6 +574,7 @@ def _load_memo(face_only: bool, shapes: tuple[str, ...], data_root: str, cache_r
 def _cache_clear() -> None:
     _load_memo.cache_clear()
     _load_full.cache_clear()
+    _missing_sources.cache_clear()
 
 
 def load_ict(
@@ -607,8 +634,11 @@ def load_ict(
     truncated, missing or mistyped entries, another format, other source
     hashes, changed arrays) is rebuilt with a
     :class:`~repro.errors.CacheWarning`.  A first build prints and warns nothing.  When the cache folder is
-    not writable the model is simply rebuilt each time.  A warm load skips the
-    data files altogether.  Measured on the shared 2-core build machine (all
+    not writable the model is simply rebuilt each time.  The cache (and the
+    in-process memo) is used only while the data files it came from are in the
+    data folder (their presence is checked, not their sha256): a
+    leftover cache does not stand in for absent data, which raise the
+    :class:`DataError` of a first build.  Measured on the shared 2-core build machine (all
     57 shapes, face only): about 4 s cold (sha256 check and parse of 58 OBJs,
     about 0.06 s each), about 0.07 s from the 38 MB ``.npz`` cache (plus about
     0.3 s of imports in a new process), and nothing from the in-process memo
@@ -619,6 +649,7 @@ def load_ict(
     names = _normalise_shapes(shapes)
     if not cache:
         return _make_model(_arrays(names, use_cache=False), face_only)
+    _require_sources(names)
     return _load_memo(face_only, names, str(data.data_dir()), str(cache_dir()))
 
 
