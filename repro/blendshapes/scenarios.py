@@ -21,6 +21,16 @@ w_base`` is replaced by ``w2`` of Eq. (3).  :func:`evaluate` measures one such
 session; :func:`compare_methods` puts attenuation beside the two alternatives
 Section 3 rejects; :func:`alpha_sweep` and :func:`axis_table` give the numbers
 of Fig. 5 and Fig. 4.
+
+A session needs what it names (the region, the sliders) and something to show:
+on a face whose shapes are local (a Ready Player Me head: the mouth shapes
+leave the brow exactly still) the further moves may not move the selection at
+all, and every ratio to the unattenuated motion would be 0/0.  Such a session
+does not apply to the face: :meth:`Scenario.not_applicable` says why, and every
+function here raises that reason as a :class:`~repro.errors.ModelError` instead
+of returning NaN.  :func:`default_sliders` is what a face offers an animator:
+the paper's sliders (:data:`PAPER_SLIDERS`) when it can play one of these
+sessions, its own controls (a VRM's expressions, then its shapes) otherwise.
 """
 
 from __future__ import annotations
@@ -40,7 +50,9 @@ from repro.errors import ModelError
 __all__ = [
     "Scenario",
     "SCENARIOS",
+    "PAPER_SLIDERS",
     "scenario",
+    "default_sliders",
     "evaluate",
     "compare_methods",
     "alpha_sweep",
@@ -105,6 +117,48 @@ class Scenario:
         _check_model(model)
         return np.flatnonzero(model.weights(self.base))
 
+    def not_applicable(self, model: BlendshapeModel) -> str | None:
+        """Why this session cannot run on ``model``, in words; None when it can.
+
+        It cannot when the face lacks the region or a slider the session names; when the
+        first move (``base``) leaves every selected vertex where it was (nothing was
+        positioned to keep); when the further moves leave every selected coordinate
+        still: there is no interference to attenuate (Figs. 2-3), and the selected motion
+        left by Eq. (3), as a fraction of the unattenuated one, would be 0/0; or when they
+        move nothing else (the unselected fidelity would be 0/0).
+        """
+        _check_model(model)
+        if self.region not in model.regions:
+            return f"it needs region {self.region!r}, which the face does not define; its regions are {sorted(model.regions)}"
+        missing = [s for s in (*self.base, *self.moves) if s not in model.slider_names]
+        if missing:
+            return f"it needs the sliders {missing}, which the face does not have"
+        sel = self.selection(model)
+        w_base, w_target = self.weights(model)
+        d_base, d_target = model.displacement(w_base).ravel(), model.displacement(w_target).ravel()
+        if self.base and not d_base.reshape(-1, 3)[np.unique(sel // 3)].any():
+            return (f"its first move ({_listed(self.base)}) leaves the selected vertices of {self.region!r} "
+                    "where they were: nothing is positioned to keep")
+        moved = d_target != d_base
+        if not moved[sel].any():
+            return (f"its further moves ({_listed(self.moves)}) leave the selected {self.axes} coordinates of "
+                    f"{self.region!r} exactly still: there is no interference to attenuate on this face")
+        moved[sel] = False
+        if not moved.any():
+            return (f"its further moves ({_listed(self.moves)}) move only the selected coordinates: "
+                    "there is no rest of the face to follow them")
+        return None
+
+    def check(self, model: BlendshapeModel) -> None:
+        """Raise :class:`~repro.errors.ModelError` with :meth:`not_applicable`'s reason when the session cannot run."""
+        why = self.not_applicable(model)
+        if why is not None:
+            raise ModelError(f"scenario {self.key!r} ({self.figure}) does not apply to model {model.name!r}: {why}")
+
+
+def _listed(sliders: Mapping[str, float]) -> str:
+    return ", ".join(f"{k} {v:g}" for k, v in sliders.items()) or "none"
+
 
 SCENARIOS: dict[str, Scenario] = {
     s.key: s
@@ -133,6 +187,32 @@ SCENARIOS: dict[str, Scenario] = {
         ),
     ]
 }
+
+
+#: The sliders the paper names (Figs. 2-5): those its scenarios move, in the order a panel shows them.
+PAPER_SLIDERS = (
+    "Furrow", "SmirkLeft", "SmirkRight", "Wince", "SneerLeft", "SneerRight",
+    "JawOpen", "Blink", "BrowUp", "MouthStretch",
+)
+
+
+def default_sliders(model: BlendshapeModel) -> tuple[str, ...]:
+    """The sliders ``model`` offers an animator first (Section 5's panel), in order.
+
+    The paper's sliders the face has (:data:`PAPER_SLIDERS`), when it can play one of the
+    paper's sessions (:meth:`Scenario.not_applicable` is None for one of :data:`SCENARIOS`).
+    Otherwise those few cannot move the face, and its own controls follow: its other named
+    sliders in their order (a VRM avatar's expressions), then every shape that no slider
+    offered so far moves (a target no expression binds), so that all of the face can move.
+    """
+    _check_model(model)
+    paper = tuple(s for s in PAPER_SLIDERS if s in model.slider_names)
+    if any(sc.not_applicable(model) is None for sc in SCENARIOS.values()):
+        return paper
+    offered = paper + tuple(s for s in model.sliders if s not in paper)
+    reached = {s for s in offered if s in model.names}
+    reached.update(shape for s in offered if s in model.sliders for shape, c in model.sliders[s].items() if c)
+    return offered + tuple(s for s in model.names if s not in reached)
 
 
 def scenario(key: str) -> Scenario:
@@ -198,11 +278,14 @@ def evaluate(model: BlendshapeModel, sc: Scenario | str, alpha=None, *, attenuat
     as the sliders intend), ``unselected_error``, ``roughness`` (largest
     Laplacian magnitude of the displacement) and ``roughness_at_selection``
     (the same, of the motion since the selection, at the selected vertices and
-    their neighbours).  ``reduction`` is attenuated
-    over unattenuated selected motion.
+    their neighbours; both NaN for a model without triangles).  ``reduction`` is
+    attenuated over unattenuated selected motion.  A session that does not apply
+    to the face (:meth:`Scenario.not_applicable`) is a :class:`~repro.errors.ModelError`
+    saying why, here and in the other functions of this module.
     """
     sc = _scenario(sc)
     att = _attenuator(model, attenuator)
+    sc.check(model)
     sel = sc.selection(model)
     w_base, w_target = sc.weights(model)
     a = _alpha(att, sel, alpha)
@@ -221,9 +304,7 @@ def evaluate(model: BlendshapeModel, sc: Scenario | str, alpha=None, *, attenuat
     attd = _measure(model, d_att, d_base, d_target, sel)
     out.update({f"none_{k}": v for k, v in none.items()})
     out.update({f"attenuated_{k}": v for k, v in attd.items()})
-    out["reduction"] = (
-        attd["selected_motion"] / none["selected_motion"] if none["selected_motion"] > 0 else float("nan")
-    )
+    out["reduction"] = attd["selected_motion"] / none["selected_motion"]  # > 0: sc.check
     return out
 
 
@@ -238,6 +319,7 @@ def compare_methods(model: BlendshapeModel, sc: Scenario | str, alpha=None, *, a
     """
     sc = _scenario(sc)
     att = _attenuator(model, attenuator)
+    sc.check(model)
     sel = sc.selection(model)
     w_base, w_target = sc.weights(model)
     d_base, d_target = att.displacement(w_base), att.displacement(w_target)
@@ -280,6 +362,7 @@ def alpha_sweep(model: BlendshapeModel, sc: Scenario | str, alphas: Iterable[flo
         alphas = list(alphas)  # a generator, once
     # numbers, all of them before the first solve (each is then checked as Eq. 2's alpha)
     alphas = as_real_array(alphas, "alphas", ndim=1, finite=False, error=ModelError)
+    sc.check(model)
     sel = sc.selection(model)
     w_base, w_target = sc.weights(model)
     w1 = w_target - w_base
@@ -295,10 +378,10 @@ def alpha_sweep(model: BlendshapeModel, sc: Scenario | str, alphas: Iterable[flo
             "model": model.name, "scenario": sc.key, "alpha": float(a),
             "default_alpha": att.default_alpha(sel),
             "selected_motion": m["selected_motion"],
-            "selected_motion_fraction": m["selected_motion"] / none if none > 0 else float("nan"),
+            "selected_motion_fraction": m["selected_motion"] / none,  # none > 0 and w1_norm > 0: sc.check
             "unselected_fidelity": m["unselected_fidelity"],
             "unselected_error": m["unselected_error"],
-            "w_change_vs_w1": float(np.linalg.norm(w2 - w1) / w1_norm) if w1_norm > 0 else float("nan"),
+            "w_change_vs_w1": float(np.linalg.norm(w2 - w1) / w1_norm),
         })
     return rows
 
@@ -307,6 +390,7 @@ def axis_table(model: BlendshapeModel, sc: Scenario | str, alpha=None, *, attenu
     """x/y/z displacement of each selected vertex with and without attenuation (Fig. 4)."""
     sc = _scenario(sc)
     att = _attenuator(model, attenuator)
+    sc.check(model)
     sel = sc.selection(model)
     w_base, w_target = sc.weights(model)
     a = _alpha(att, sel, alpha)
@@ -332,10 +416,16 @@ def interference(model: BlendshapeModel, sc: Scenario | str) -> dict:
 
     ``drift`` is the per-vertex motion (n,) caused by the further moves alone;
     the returned numbers compare the drift of the selected vertices with the
-    motion the first move gave them.
+    motion the first move gave them, so a session without a first move
+    (``base``), or one that does not apply to the face (:meth:`Scenario.check`),
+    is a :class:`~repro.errors.ModelError`.
     """
     sc = _scenario(sc)
     _check_model(model)
+    if not sc.base:
+        raise ModelError(f"scenario {sc.key!r} ({sc.figure}) has no first move (base): interference is the drag "
+                         "of what a first move positioned; its sessions are those with a base pose")
+    sc.check(model)
     sel = sc.selection(model)
     verts = np.unique(sel // 3)
     w_base, w_target = sc.weights(model)
@@ -353,7 +443,7 @@ def interference(model: BlendshapeModel, sc: Scenario | str) -> dict:
         "drift_selected_mean": float(drift[verts].mean()),
         "drift_selected_max": float(drift[verts].max()),
         "drift_selected_dy": float((d_target - d_base)[verts, 1].mean()),
-        "drift_relative": float(drift[verts].mean() / first_move) if first_move > 0 else float("nan"),
+        "drift_relative": float(drift[verts].mean() / first_move),  # first_move > 0: sc.check
         "drift": drift,
     }
 
