@@ -38,12 +38,14 @@ import numpy as np
 
 from repro.errors import ReproError
 
-__all__ = ["MeshWebView", "StrikeWebView", "WebView", "mesh_frame", "pack", "strike_scene", "unpack"]
+__all__ = ["MeshWebView", "StrikeWebView", "WebView", "bounding_radius", "mesh_frame", "pack", "strike_scene", "unpack"]
 
 MAGIC = b"RPV1"
 _DTYPES = {"f4": np.float32, "i2": np.int16, "u1": np.uint8, "u4": np.uint32}
 #: Quantisation of the face's positions: int16 over +-QUANT_RANGE times the rest pose's half extent.
 QUANT_RANGE = 1.5
+#: The face's bounding sphere fills the view's smaller side up to this factor (a 6 % margin all round).
+FIT_MARGIN = 1.06
 #: A 1-pixel GIF whose ``onload`` starts the script.
 _PIXEL = "data:image/gif;base64,R0lGODlhAQABAIAAAP///wAAACH5BAEAAAAALAAAAAABAAEAAAICRAEAOw=="
 
@@ -147,6 +149,11 @@ class MeshWebView(WebView):
     :meth:`render` sends the vertex positions (int16: ``QUANT_RANGE`` times the rest
     pose's half extent over 32767 steps: 6.6e-4 cm on the ICT face) and the motion (uint8
     over ``clim``); the triangles, the colour map and the colour bar's label go once.
+
+    The camera is fitted to the face's bounding sphere (:func:`bounding_radius`, about the
+    centre the page turns the face around), with a :data:`FIT_MARGIN`: at zoom 1 the face,
+    at rest or with any one shape at full weight, stays whole in the view however it is
+    turned (a fit to the front view's box cut the forehead off once the face was tilted).
     """
 
     def __init__(self, model, clim, cmap: str, size, *, units: str | None = None):
@@ -163,9 +170,9 @@ class MeshWebView(WebView):
         self.extent = float(half.max()) or 1.0
         self.step = QUANT_RANGE * self.extent / 32767
         self.clim = (float(clim[0]), float(clim[1]))
-        hv = h - self.bar_height
-        # pixels per model unit as the matplotlib view (equal aspect, 6 % margins), over min(w, hv)
-        fit = min(w / (2 * 1.12 * max(half[0], 1e-12)), hv / (2 * 1.12 * max(half[1], 1e-12))) / min(w, hv)
+        self.radius = bounding_radius(model, self.centre)
+        # pixels per model unit over min(w, h - bar): the sphere's diameter, with the margin, spans the view
+        fit = 1.0 / (2 * FIT_MARGIN * self.radius)
         lut = np.clip(np.rint(mpl.colormaps[cmap](np.linspace(0, 1, 256))[:, :3] * 255), 0, 255).astype(np.uint8)
         faces = np.ascontiguousarray(model.faces, dtype=np.uint32)
         self.static_id = _digest(faces.tobytes(), lut.tobytes(), repr((self.clim, w, h)).encode())
@@ -189,6 +196,16 @@ class MeshWebView(WebView):
         self.digest = unpack(data)[0]["digest"]
         self.frame.value = data
         return self.digest
+
+
+def bounding_radius(model, centre) -> float:
+    """The radius about ``centre`` of a sphere holding the rest face and each shape at full weight (model units)."""
+    f0 = np.asarray(model.f0, dtype=np.float64) - centre
+    D = np.asarray(model.D, dtype=np.float64).reshape(model.n_vertices, 3, -1)  # row 3*v + axis
+    # |f0 + d_k|^2 per vertex and shape, without an (n, 3, k) array of posed points
+    sq = (f0 ** 2).sum(axis=1)[:, None] + 2 * np.einsum("vi,vik->vk", f0, D) + np.einsum("vik,vik->vk", D, D)
+    r = math.sqrt(max(float((f0 ** 2).sum(axis=1).max()), float(sq.max()) if sq.size else 0.0))
+    return r or 1.0
 
 
 def mesh_frame(points, motion, selected_vertices, *, centre, step, clim, static_id) -> bytes:

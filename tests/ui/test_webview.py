@@ -94,6 +94,37 @@ def test_face_panel_3d_sends_the_pose_quantised(face):
     panel.close()
 
 
+def _page_rotation(yaw: float, pitch: float) -> np.ndarray:
+    """webview.js's ``rotation()``: R = Rx(pitch) Ry(yaw), rows the screen's right, up and toward-the-viewer."""
+    cy, sy, cp, sp = math.cos(yaw), math.sin(yaw), math.cos(pitch), math.sin(pitch)
+    return np.array([[cy, 0, sy], [sp * sy, cp, -sp * cy], [-cp * sy, sp, cp * cy]])
+
+
+def test_face_view_camera_holds_the_whole_face_turned_any_way(face):
+    """Issue 26, item 6: the camera fits the face's bounding sphere, so no turn cuts the forehead (or chin) off."""
+    from repro.ui.webview import FIT_MARGIN, MeshWebView, bounding_radius, unpack
+
+    view = MeshWebView(face, (0.0, 1.0), "YlOrRd", (360, 420))
+    head, _ = unpack(view.static.value)
+    W, Hv = 360, 420 - head["bar_height"]
+    s = head["fit"] * min(W, Hv)  # pixels per model unit at zoom 1, as the page computes it
+    # the sphere: about the centre the page turns the face around, holding the rest face and every shape at 1
+    D = face.D.reshape(face.n_vertices, 3, face.n_shapes)
+    poses = np.stack([face.f0] + [face.f0 + D[:, :, k] for k in range(face.n_shapes)]) - view.centre
+    r = bounding_radius(face, view.centre)
+    assert np.linalg.norm(poses, axis=2).max() == pytest.approx(r, rel=1e-12)
+    assert s * r * 2 * FIT_MARGIN == pytest.approx(min(W, Hv))
+    for yaw in np.linspace(-math.pi, math.pi, 13):
+        for pitch in np.linspace(-1.5, 1.5, 7):  # the page's pitch limits
+            P = poses @ _page_rotation(yaw, pitch).T
+            x, y = W / 2 + s * P[..., 0], Hv / 2 - s * P[..., 1]
+            assert x.min() >= 0 and x.max() <= W and y.min() >= 0 and y.max() <= Hv, (yaw, pitch)
+    # and the front view still uses the view: the face at rest spans most of its height
+    front = s * np.ptp(face.f0[:, 1])
+    assert front > 0.6 * Hv, front
+    view.close()
+
+
 def test_face_panel_3d_nan_pose_does_not_break_the_message(face):
     from repro.ui.webview import mesh_frame, unpack
 
