@@ -17,6 +17,7 @@ from repro.blendshapes.faces.arkit import ARKIT_SLIDERS
 from repro.blendshapes.faces.gltf import read_gltf
 from repro.blendshapes.faces.gltf_write import write_gltf
 from repro.blendshapes.faces.vrm import vrm_expressions
+from repro.blendshapes.scenarios import PAPER_SLIDERS, default_sliders
 from repro.errors import ModelError
 
 NAMES = ("browDown_L", "browDown_R", "mouthSmile_L", "mouthSmile_R", "jawOpen")  # the fixture face's targets
@@ -34,13 +35,16 @@ def _with_extension(glb: bytes, edit) -> bytes:
     return b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body
 
 
-def _vrm(expected, tmp_path, extension: str, value, name="avatar.vrm"):
-    """The fixture face as a ``.vrm``: no repro extras, the VRM extension ``extension`` = ``value``."""
+def _vrm(expected, tmp_path, extension: str, value, name="avatar.vrm", target_names=None):
+    """The fixture face as a ``.vrm``: no repro extras, the VRM extension ``extension`` = ``value``
+    (and the targets renamed ``target_names``)."""
     glb = tmp_path / "face.glb"
     write_gltf(expected, glb)
 
     def edit(doc):
         del doc["meshes"][0]["extras"]["repro"]
+        if target_names is not None:
+            doc["meshes"][0]["extras"]["targetNames"] = list(target_names)
         doc["extensions"] = {extension: value}
         doc["extensionsUsed"] = [extension]
 
@@ -151,6 +155,36 @@ def test_a_file_with_both_versions_reads_the_1_0_expressions():
     assert vrm_expressions({"KHR_x": {}}, {0: list(NAMES)}, [0], NAMES).version is None
 
 
+# ------------------------------------------------ the sliders a VRM face offers (issue 25: not Blink alone)
+OWN = ("lidL", "lidR", "grin", "pout", "drop")  # the fixture's targets under names that mean nothing in ARKit
+ONLY_BLINKS = {
+    "VRM": {"blendShapeMaster": {"blendShapeGroups": [
+        {"name": "Blink_L", "presetName": "blink_l", "binds": [{"mesh": 0, "index": 0, "weight": 100}]},
+        {"name": "Blink_R", "presetName": "blink_r", "binds": [{"mesh": 0, "index": 1, "weight": 100}]},
+        {"name": "Neutral", "presetName": "neutral", "binds": []}]}},
+    "VRMC_vrm": {"specVersion": "1.0", "expressions": {"preset": {
+        "blinkLeft": {"morphTargetBinds": [{"node": 0, "index": 0, "weight": 1.0}]},
+        "blinkRight": {"morphTargetBinds": [{"node": 0, "index": 1, "weight": 1.0}]}, "neutral": {}}}},
+}
+
+
+@pytest.mark.parametrize("extension", ["VRM", "VRMC_vrm"])
+def test_a_vrm_whose_expressions_bind_only_the_blinks_offers_its_other_targets_too(expected, tmp_path, extension):
+    """Only the blink presets bound: the paper's Blink alone would be all a user could move; the
+    face's own expressions and the targets no expression binds follow (VRM 0.x groups and 1.0 presets)."""
+    m = load_model(_vrm(expected, tmp_path, extension, ONLY_BLINKS[extension], target_names=OWN))
+    left, right = ("blink_l", "blink_r") if extension == "VRM" else ("blinkLeft", "blinkRight")
+    assert m.sliders == {"Blink": {"lidL": 1.0, "lidR": 1.0}, left: {"lidL": 1.0}, right: {"lidR": 1.0}}
+    assert default_sliders(m) == ("Blink", left, right, "grin", "pout", "drop")
+
+
+@pytest.mark.parametrize("extension", ["VRM", "VRMC_vrm"])
+def test_a_vrm_face_that_plays_the_paper_offers_the_papers_sliders(expected, tmp_path, extension):
+    m = load_model(_vrm(expected, tmp_path, extension, ONLY_BLINKS[extension]))  # the fixture's ARKit names
+    assert default_sliders(m) == tuple(s for s in PAPER_SLIDERS if s in m.slider_names)
+    assert "Blink" in default_sliders(m) and "SmirkLeft" in default_sliders(m)
+
+
 # ---------------------------------------------------------------- the real VRM 0.x avatar
 def test_godette_vrm_0_avatar_has_its_17_expressions_as_sliders():
     path = data.data_dir() / "faces/formats/realfaces/godette_vrm0_cc_by.vrm"
@@ -167,3 +201,16 @@ def test_godette_vrm_0_avatar_has_its_17_expressions_as_sliders():
     assert set(m.regions) == {"left_eye", "right_eye"}
     assert any("'neutral' has no usable morph-target bind" in n for n in m.notes)
     assert read_gltf(path).sliders == m.sliders
+
+
+def test_godette_offers_its_expressions_and_the_targets_they_leave_out():
+    """Issue 25: the face app opened Godette with the paper's Blink as its only slider."""
+    path = data.data_dir() / "faces/formats/realfaces/godette_vrm0_cc_by.vrm"
+    if not path.exists():
+        pytest.skip("the real faces are not staged")
+    m = load_model(path)
+    offered = default_sliders(m)
+    assert offered == ("Blink", "a", "i", "u", "e", "o", "blink", "joy", "angry", "sorrow", "fun", "lookup", "lookdown",
+                       "lookleft", "lookright", "blink_l", "blink_r", "HideHairBalls", "HdieEarRings")
+    moved = {s for o in offered for s in (m.sliders[o] if o in m.sliders else {o: 1.0})}
+    assert moved == set(m.names)  # every target can be moved from the sliders offered
