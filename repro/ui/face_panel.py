@@ -58,18 +58,14 @@ import numpy as np
 from repro.blendshapes import Attenuator, load_model, metrics, select_vertices
 from repro.blendshapes.model import AXES, BlendshapeModel
 from repro.errors import AttenuationError, ModelError, SelectionError
+# the numbers line and its words, defined beside the panel and part of its interface (callers read the line back)
+from repro.ui.face_readout import NOT_APPLICABLE, NUMBERS_FORMAT, face_readout, format_numbers, parse_numbers
 from repro.ui.face_views import VIEWS, MatplotlibFaceView, face_view
-from repro.ui.panel import PanelCallbacks, parse_numbers_line
+from repro.ui.panel import PanelCallbacks
 
 __all__ = [
-    "BlendshapePanel",
-    "blendshape_panel",
-    "PAPER_SLIDERS",
-    "NUMBERS_FORMAT",
-    "NOT_APPLICABLE",
-    "face_readout",
-    "format_numbers",
-    "parse_numbers",
+    "BlendshapePanel", "blendshape_panel", "PAPER_SLIDERS",
+    "NUMBERS_FORMAT", "NOT_APPLICABLE", "face_readout", "format_numbers", "parse_numbers",
 ]
 
 #: The sliders the paper names (Figs. 2-5), and those its scenarios need.
@@ -78,59 +74,8 @@ PAPER_SLIDERS = (
     "JawOpen", "Blink", "BrowUp", "MouthStretch",
 )
 
-#: The text of the panel's numbers line (plain text; :func:`parse_numbers` reads it back).
-NUMBERS_FORMAT = (
-    "selected motion: {selected_motion:.6g} | unselected fidelity: {unselected_fidelity:.6g} "
-    "| alpha: {alpha:.6g} | attenuation: {attenuation}"
-)
-#: the numbers line's unselected fidelity when the sliders intend no motion of the rest (0/0): no number
-NOT_APPLICABLE = "n/a"
-
-
-def format_numbers(numbers: dict) -> str:
-    """The numbers line (:data:`NUMBERS_FORMAT`), with :data:`NOT_APPLICABLE` for a fidelity that is no number."""
-    if np.isfinite(numbers["unselected_fidelity"]):
-        return NUMBERS_FORMAT.format(**numbers)
-    return NUMBERS_FORMAT.replace("{unselected_fidelity:.6g}", NOT_APPLICABLE).format(**numbers)
-
 #: Exponents (base 10) of the alpha slider's range.
 ALPHA_EXPONENTS = (-3.0, 6.0)
-
-_NUMBER_FIELDS = {
-    "selected motion": "selected_motion",
-    "unselected fidelity": "unselected_fidelity",
-    "alpha": "alpha",
-    "attenuation": "attenuation",
-}
-
-
-def parse_numbers(text: str) -> dict:
-    """The panel's numbers line (:data:`NUMBERS_FORMAT`) as a dict of floats (and ``attenuation``).
-
-    ``parse_numbers("selected motion: 0.0837 | unselected fidelity: 0.547 | alpha: 335 | attenuation: on")``
-    gives ``{"selected_motion": 0.0837, "unselected_fidelity": 0.547, "alpha": 335.0, "attenuation": "on"}``.
-    Raises ``ValueError`` for anything else (e.g. an ``error: ...`` line).
-    """
-    out = parse_numbers_line(text, _NUMBER_FIELDS, {"attenuation", "unselected_fidelity"},
-                             pattern=r"([a-z ]+): (\S+)", panel="the panel")
-    fidelity = out["unselected_fidelity"]
-    try:
-        out["unselected_fidelity"] = float("nan") if fidelity == NOT_APPLICABLE else float(fidelity)
-    except ValueError:
-        raise ValueError(f"not a numbers line of the panel: {text!r}") from None
-    return out
-
-
-def face_readout(numbers: dict, region: str, n_vertices: int, units: str) -> str:
-    """The numbers line in plain words (Lewis et al. Section 5: the selection held, the rest following the
-    sliders), e.g. "brow_middle (2 vertices) held: moved 0.01 cm; the rest follows the sliders 57 %"."""
-    moved = f"moved {numbers['selected_motion']:.2g} {units}"
-    fidelity = numbers["unselected_fidelity"]
-    rest = ("the rest of the face has not been asked to move yet: move a shape slider" if not np.isfinite(fidelity)
-            else f"the rest follows the sliders {100 * fidelity:.0f} %")
-    if numbers["attenuation"] == "on":
-        return f"{region} ({n_vertices} vertices) held: {moved}; {rest}"
-    return f"attenuation off: the sliders move the whole face; {region} ({n_vertices} vertices) {moved}"
 
 
 # ----------------------------------------------------------------------- panel
