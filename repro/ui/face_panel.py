@@ -251,7 +251,10 @@ class BlendshapePanel(PanelCallbacks):
         self.view_image = widgets.Image(format="png", layout=widgets.Layout(
             width=f"{image_size[0]}px", height=f"{image_size[1]}px",
             display="none" if self._view is None or self.view_kind == "3d" else None))
-        self.numbers_html = widgets.HTML()
+        # the raw numbers behind "details" (issue 26, item 7); the words (readout_html) stay in view
+        self.details = widgets.ToggleButton(value=False, description="details", tooltip="show the numbers line")
+        self.details.add_class("repro-face-details")
+        self.numbers_html = widgets.HTML(layout=widgets.Layout(display="none"))
         self.numbers_html.add_class("repro-numbers")
         self.readout_html = widgets.HTML()  # the numbers in words (face_readout)
         self.readout_html.add_class("repro-face-readout")
@@ -269,6 +272,8 @@ class BlendshapePanel(PanelCallbacks):
         self.alpha_slider.observe(self._guarded(self._on_alpha), names="value")
         self.default_alpha.observe(self._guarded(self._on_default), names="value")
         self.attenuation.observe(self._guarded(self._on_attenuation), names="value")
+        self.details.observe(lambda c: setattr(self.numbers_html.layout, "display", None if c["new"] else "none"),
+                             names="value")
 
     def _layout(self, alpha_on_top: bool) -> widgets.VBox:
         """The panel: the shape sliders, the view and the controls (selection, alpha, attenuation, numbers) side
@@ -287,17 +292,18 @@ class BlendshapePanel(PanelCallbacks):
                 self.region, widgets.HBox([*self.axis_boxes.values(), self.select_button]),
                 widgets.HBox([self.alpha_slider, self.alpha_value]), self.default_alpha,
                 widgets.HBox([self.attenuation, self.reset_button]),
-                self.readout_html, self.numbers_html, self.status_html,
+                self.readout_html, self.details, self.numbers_html, self.status_html,
             ], layout=widgets.Layout(width="330px", margin="0 0 0 8px"))
             panel = widgets.VBox([widgets.HBox([left, right, controls], layout=widgets.Layout(flex_flow="row wrap"))])
             panel.add_class("repro-blendshape-panel")
             return panel
+        self.details.value = True  # the Fig. 5 layout: alpha and its numbers on top, shown
         alpha_row = widgets.HBox([self.alpha_slider, self.alpha_value, self.default_alpha])
         rows = [
             widgets.HBox([left, right]),
             widgets.HBox([self.region, *self.axis_boxes.values(), self.select_button]),
             alpha_row,
-            widgets.HBox([self.attenuation, self.reset_button]),
+            widgets.HBox([self.attenuation, self.reset_button, self.details]),
             self.numbers_html,
             self.status_html,
         ]
@@ -669,7 +675,7 @@ class BlendshapePanel(PanelCallbacks):
                 v.close()
         self._view = self._picture_view = None
         for w in [*self.sliders.values(), self.region, *self.axis_boxes.values(), self.select_button,
-                  self.alpha_slider, self.default_alpha, self.attenuation, self.reset_button,
+                  self.alpha_slider, self.default_alpha, self.attenuation, self.reset_button, self.details,
                   self.alpha_value, self.view_image, self.readout_html, self.numbers_html, self.status_html, self.widget]:
             w.close()
 

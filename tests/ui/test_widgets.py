@@ -306,6 +306,46 @@ def test_panel_contents(face):
     p.close()
 
 
+def _shown(panel, w) -> bool:
+    """``w`` is in the displayed panel and neither it nor a box around it is hidden (display: none)."""
+    def path(box):
+        if box is w:
+            return [box]
+        for c in getattr(box, "children", ()):
+            if (p := path(c)) is not None:
+                return [box, *p]
+        return None
+
+    found = path(panel.widget)
+    return found is not None and all(x.layout.display != "none" for x in found)
+
+
+def test_the_raw_numbers_are_behind_details_and_the_words_stay(face):
+    """Issue 26, item 7: the numbers line behind a "details" toggle; the readout in words always in view."""
+    p = BlendshapePanel(face, view="none", region="under_left_eye", attenuation=True)
+    p.set_sliders(Wince=0.7)
+    assert isinstance(p.details, widgets.ToggleButton) and "repro-face-details" in p.details._dom_classes
+    assert _shown(p, p.details) and _shown(p, p.readout_html) and "held" in p.readout_html.value
+    assert not _shown(p, p.numbers_html)
+    p.details.value = True
+    assert _shown(p, p.numbers_html) and parse_numbers(p.numbers_text)["alpha"] == p.numbers["alpha"]
+    assert html_text(p.numbers_html.value) == p.numbers_text
+    p.details.value = False
+    assert not _shown(p, p.numbers_html) and _shown(p, p.readout_html)
+    p.close()
+    # the Fig. 5 layout (notebook 02): alpha and its numbers on top, shown from the start
+    q = BlendshapePanel(face, view="none", alpha_on_top=True)
+    assert q.details.value and _shown(q, q.numbers_html) and _shown(q, q.details)
+    q.close()
+
+
+def html_text(value: str) -> str:
+    import html
+    import re
+
+    return html.unescape(re.sub(r"<[^>]+>", "", value))
+
+
 def test_matplotlib_view_is_deterministic_and_follows_the_sliders(face):
     a = BlendshapePanel(face, region="under_left_eye", values={"Wince": 0.7})
     b = BlendshapePanel(face, region="under_left_eye", values={"Wince": 0.7})
