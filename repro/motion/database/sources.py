@@ -106,8 +106,9 @@ BANDAI_TAKES: dict[str, str] = {
 #: only holds strikes (:data:`SEMANTICS`; a :class:`Clip` must have a hit), so these
 #: are not database clips; :func:`non_fighting_poses` loads them.  Subjects 131, 7 and
 #: 9 share the CMU joint tree with subject 135 but neither its bone lengths nor its rest
-#: directions (the retrieval can retarget them to the 135 actor only after
-#: :func:`match_rest_pose`, ``non_fighting_poses(rest_like=db)``); the Bandai walk and bow are on the
+#: directions (the retrieval retargets them to the 135 actor as they are: the plan's rest step,
+#: :class:`~repro.motion.retargeting.morphology.RestStep`; ``non_fighting_poses(rest_like=db)``
+#: puts them on the actors' rest directions beforehand, e.g. to draw them); the Bandai walk and bow are on the
 #: Bandai joint tree (the bow's file has a 10 cm Head End Site and a slightly different
 #: Hips offset, so its skeleton is *not* the one of the other Bandai takes, though its stature
 #: measures the same, 1.46 m: :mod:`repro.motion.body.stature`).  135_03 is labelled "Empi" in the CMU index but is a
@@ -481,11 +482,11 @@ def build_real_database(include: Sequence[str] = REAL_SOURCES, *, cmu_takes=None
     every actor -- to the actors of the character's joint tree as on one tree, across
     joint trees (:func:`repro.motion.retargeting.dispatch.retarget_to_tree`) to the other family's
     -- so a CMU character can be served a Bandai clip and the reverse (Eq. 1 is then
-    applied between the two rigs' statures, which are not measured alike: the Bandai
-    skeleton has no head top and no ankle height, see the ``cross_skeleton`` figure).
-    With ``MotionRetriever(db, across_trees=False)`` a CMU character (subject 135 and
-    its :func:`~repro.motion.scale_skeleton` derivatives; subjects 131, 7 and 9 only
-    after :func:`match_rest_pose`) retrieves only CMU clips and a Bandai character only
+    applied between the two rigs' statures, measured the same way on both: floor to the top
+    of the head, the parts a rig lacks estimated, :mod:`repro.motion.body.stature`).
+    With ``MotionRetriever(db, across_trees=False)`` a CMU character (subject 135, its
+    :func:`~repro.motion.scale_skeleton` derivatives and subjects 131, 7 and 9, whose other
+    rest directions the retargeting plan's rest step takes) retrieves only CMU clips and a Bandai character only
     Bandai clips (clusters without such poses are skipped: the result then says
     ``fallback="neighbour_clusters"``).
 
@@ -634,11 +635,11 @@ def non_fighting_poses(takes: Sequence[str] | None = None, *, fps: float | None 
         Put every motion that shares the joint tree of one of these skeletons (for a
         database: of one of its :attr:`~MotionDatabase.actors`) on that skeleton's rest
         directions with :func:`match_rest_pose` (bone lengths and joint positions
-        kept).  Needed for the CMU subjects 131, 7 and 9 to be used against the CMU 135
-        actor: the retrieval retargets the current pose to the actor
-        (:meth:`repro.motion.search.retrieval.MotionRetriever.prepare`), and the retargeting
-        refuses rest directions more than 5 degrees apart (they differ by 12-14
-        degrees).  Motions with no matching joint tree are returned unchanged.
+        kept), the same poses (the CMU subjects 131, 7 and 9 against the CMU 135 actor,
+        whose rest directions differ by 12-14 degrees).  Not needed for the retrieval: its
+        retargeting takes another rest pose of the same tree itself
+        (:class:`~repro.motion.retargeting.morphology.RestStep`).  Motions with no matching
+        joint tree are returned unchanged.
 
     Returns
     -------
@@ -647,8 +648,8 @@ def non_fighting_poses(takes: Sequence[str] | None = None, *, fps: float | None 
         (``unit_m = 1``), ``source`` the relative path.  Any frame of it is a
         ``current_pose`` for the retrieval with the motion's own skeleton
         (``Skeleton.from_motion``) as the character: as they are, the Bandai walk and bow
-        (against the Bandai actor) and CMU 135_03 (against the CMU 135 actor); the other
-        CMU subjects after ``rest_like=db``.
+        (against the Bandai actor), CMU 135_03 and the other CMU subjects (against the
+        CMU 135 actor).
 
     Raises
     ------
