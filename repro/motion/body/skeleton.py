@@ -344,34 +344,17 @@ class Skeleton:
 
     @cached_property
     def ankle_height(self) -> float:
-        """Height of the ankle above the lowest point of the foot, when the rest pose tells it.
+        """Height of the ankle above the sole, file units: the stature's first part
+        (:attr:`stature`, ``sole_to_ankle``), so :attr:`hip_height` and :attr:`height` stand on
+        the same sole.
 
-        For each side, the lowest of the toe joint and the toe's End Site(s), measured
-        along the rest shin direction (knee -> ankle), when the rest foot makes an angle
-        of at least 45 degrees with the shin (a standing rest pose: CMU, Mixamo); when it
-        does not (the Bandai Namco rest pose is a straight line along +X, the foot
-        continuing the shin) the height cannot be told from the skeleton and counts 0.
-        Mean over sides, clipped at 0.
+        The lowest of the ankle's descendant joints and End Sites along the rest shin (a foot
+        without a toe joint, its End Site under the ankle, counts: DAZ ``rFoot``); estimated
+        from the leg when the rest foot continues the shin (Bandai Namco's rest pose along +X),
+        as :func:`repro.motion.body.stature.measure_stature` does (it counted 0 there, and
+        Bandai's hip height fell 6.4 cm short of its sole).
         """
-        p = self._rest_positions
-        hs = []
-        for side in ("left", "right"):
-            ank = self.index(f"{side}_ankle")
-            shin = p[ank] - p[self.index(f"{side}_knee")]
-            shin = shin / np.linalg.norm(shin)
-            pts = []
-            if f"{side}_toe" in self.roles:
-                t = self.index(f"{side}_toe")
-                pts.append(p[t])
-                pts += [p[t] + o for q, o in zip(self.end_site_parents, self.end_site_offsets) if q == t]
-            h = 0.0
-            for q in pts:
-                v = q - p[ank]
-                n = np.linalg.norm(v)
-                if n > 0 and v @ shin / n < np.cos(np.radians(45.0)):
-                    h = max(h, float(v @ shin))
-            hs.append(max(h, 0.0))
-        return float(np.mean(hs))
+        return self.stature.sole_to_ankle
 
     @cached_property
     def hip_height(self) -> float:

@@ -196,9 +196,12 @@ def test_bandai_sizes():
     # mocap/bandai/PROVENANCE.md: leg (UpperLeg->Foot) 0.80 m, arm (UpperArm->Hand) 0.47 m
     assert sk.to_metres(sk.leg_length) == pytest.approx(0.80, abs=0.01)
     assert sk.to_metres(sk.arm_length) == pytest.approx(0.47, abs=0.01)
-    # the rest pose is a straight line along +X: the ankle height is not measurable (hip_height
-    # counts 0) and the head End Site has zero length, so the stature estimates both (issue 25)
-    assert sk.ankle_height == 0.0
+    # the rest pose is a straight line along +X: the ankle height is not measurable and the head End
+    # Site has zero length, so the stature estimates both (issue 25); the hip height stands on the
+    # stature's sole (it counted 0 there: 0.823 m, 6.4 cm short of it)
+    assert sk.ankle_height == sk.stature.sole_to_ankle > 0
+    assert sk.hip_height == pytest.approx(sk.stature.sole_to_ankle + sk.leg_length + sk.hip_drop, rel=1e-12)
+    assert sk.to_metres(sk.hip_height) == pytest.approx(0.886, abs=1e-3)
     assert sk.stature.foot == "estimated" and sk.stature.top == "estimated"
     assert "head top estimated" in sk.stature_method and sk.head_top > 0
     # the Head joint stands 1.34-1.41 m above the lowest joint; the stature is 1.46 m
