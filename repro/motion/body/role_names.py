@@ -60,7 +60,8 @@ _SKIP_PARTS = (
     "skirt", "hair", "cape", "breast", "skull", "headtop", "headend", "ik", "pole", "target", "bow",
     "oculi", "orbicularis", "levator", "risorius", "temporalis", "special",  # MakeHuman's face muscles
 )  # fmt: skip
-_SKIP_WHOLE = re.compile(r"^(ring|middle|mid|little|lip|lid|ear|nose|nostril|oris\d*|hand[a-z]+\d*|fingers?\d*)$")
+# (Rigify's fingers: ``f_ring.01.L``, ``f_middle.01.L``, ``f_index.01.L`` -> ``fring01``, ...)
+_SKIP_WHOLE = re.compile(r"^(f?(ring|middle|mid|little)\d*|lip|lid|ear|nose|nostril|oris\d*|hand[a-z]+\d*|fingers?\d*)$")
 _SKIP_END = re.compile(r"(end|nub|site|tip)\d*$")
 
 

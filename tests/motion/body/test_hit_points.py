@@ -79,7 +79,8 @@ def test_a_bare_joint_is_its_own_hit_point_and_bad_input_is_refused():
 
 
 FINGERED = ["formats/pybvh/bvh_test3.bvh", "formats/realrigs/threejs_pirouette_daz.bvh",
-            "formats/realrigs/shadermotion_unity_humanoid.bvh"]
+            "formats/realrigs/shadermotion_unity_humanoid.bvh",
+            "formats/realrigs/freedance_blender_rigify_names.bvh"]  # Rigify f_ring_01_R: was the fist (issue 25)
 
 
 @pytest.mark.parametrize("name", FINGERED)
@@ -95,6 +96,7 @@ def test_real_hands_with_fingers_have_knuckles_a_palm_from_the_wrist(name):
         warnings.simplefilter("ignore")
         sk = skeleton_of(read_bvh(path))
     for side in ("left", "right"):
+        assert sk.roles[f"{side}_fist"] == sk.roles[f"{side}_wrist"]  # the hand, not one of its fingers
         hand = sk.index(f"{side}_fist")
         off, src = hit_offset(sk, hand)
         forearm = np.linalg.norm(sk.offsets[sk.index(f"{side}_wrist")])
