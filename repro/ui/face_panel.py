@@ -11,7 +11,7 @@ that interface:
   ``JawOpen``, ``Blink``, ``BrowUp``, ``MouthStretch`` by default);
 - a selection: a ``Dropdown`` of the model's preset regions and x/y/z
   ``Checkbox`` es (``select_vertices(region, axes)``), and a "select now"
-  button;
+  button; with ``view="3d"``, vertices picked on the face (:mod:`repro.ui.face_picking`);
 - alpha on a log slider (``FloatLogSlider``, 1e-3..1e6) with a "default"
   checkbox that keeps it at Section 5's default for the current selection
   (``#unselected / #selected`` coordinates);
@@ -19,7 +19,8 @@ that interface:
 - a live view (matplotlib by default, or one persistent off-screen pyvista
   plotter) coloured by per-vertex motion since the selection, the selected
   vertices in cyan;
-- a line of numbers in stable, parseable text (:data:`NUMBERS_FORMAT`), e.g.
+- the numbers in words (:func:`face_readout`), and behind "details" a line of them in stable,
+  parseable text (:data:`NUMBERS_FORMAT`), e.g.
   ``selected motion: 0.0837041 | unselected fidelity: 0.546925 | alpha: 335 | attenuation: on``.
 
 The select-now workflow
@@ -60,6 +61,7 @@ from repro.blendshapes.model import AXES, BlendshapeModel
 from repro.errors import AttenuationError, ModelError, SelectionError
 # the numbers line and its words, defined beside the panel and part of its interface (callers read the line back)
 from repro.ui.face_readout import NOT_APPLICABLE, NUMBERS_FORMAT, face_readout, format_numbers, parse_numbers
+from repro.ui.face_picking import PICKED, VertexPicks
 from repro.ui.face_views import VIEWS, MatplotlibFaceView, face_view
 from repro.ui.panel import PanelCallbacks
 
@@ -124,8 +126,11 @@ class BlendshapePanel(PanelCallbacks):
     widget : ipywidgets.VBox
         The panel; displaying the :class:`BlendshapePanel` displays it.
     sliders : dict of str to FloatSlider
-    region, axis_boxes, select_button, alpha_slider, default_alpha, attenuation, view_image, numbers_html, status_html
+    region, axis_boxes, select_button, alpha_slider, default_alpha, attenuation, view_image, readout_html, details,
+    numbers_html, status_html
         The individual widgets.
+    picks : repro.ui.face_picking.VertexPicks
+        The vertices picked (the region ``"picked on the face"``).
     attenuator : Attenuator
         The one cached solver of the panel.
     last_update_seconds : dict
@@ -168,6 +173,9 @@ class BlendshapePanel(PanelCallbacks):
         axes = self._axes_arg(axes)
         self._init_state(defer_view)
         self._view, self.view_kind = face_view(view, model, clim, cmap, image_size)
+        self.picks = VertexPicks(model.n_vertices)  # the vertices the user picked (repro.ui.face_picking)
+        if self.view_kind == "3d":  # picked on the view in the browser: their region is offered from the start
+            self._regions[PICKED] = self.picks.vertices
         self._picture_args = (clim, cmap, image_size)
         self._picture_view = None  # a matplotlib view for image_png() when the live view is drawn in the browser
         self._make_widgets(first, axes, alpha is None, continuous_update, image_size)
@@ -274,6 +282,8 @@ class BlendshapePanel(PanelCallbacks):
         self.attenuation.observe(self._guarded(self._on_attenuation), names="value")
         self.details.observe(lambda c: setattr(self.numbers_html.layout, "display", None if c["new"] else "none"),
                              names="value")
+        if self.view_kind == "3d":
+            self._view.picks.observe(self._guarded(self._on_pick), names="value")
 
     def _layout(self, alpha_on_top: bool) -> widgets.VBox:
         """The panel: the shape sliders, the view and the controls (selection, alpha, attenuation, numbers) side
@@ -391,6 +401,17 @@ class BlendshapePanel(PanelCallbacks):
             self._apply_default_alpha()
         self._request_update()
 
+    def _on_pick(self, change) -> None:
+        """A pick message of the page (click, brush stroke or clear), applied once."""
+        pick = self.picks.take(change["new"])
+        if pick is None:
+            return
+        self._view.picks_seq = pick.seq  # the next frame tells the page this pick is drawn
+        if pick.action == "clear":
+            self.clear_picks()
+        else:
+            self.pick_vertices(pick.vertices)
+
     def _on_attenuation(self, change) -> None:
         if self._internal:
             return
@@ -406,6 +427,9 @@ class BlendshapePanel(PanelCallbacks):
         self._sel_error = None
         if not axes:
             self._sel_error = "no axis selected: tick at least one of x, y, z"
+            return
+        if self.region.value == PICKED and not self.picks.vertices.size:
+            self._sel_error = "no vertex picked: click the face in pick mode (or Shift-click), or choose a region"
             return
         try:
             verts = np.asarray(self._regions[self.region.value], dtype=np.int64)
@@ -529,6 +553,8 @@ class BlendshapePanel(PanelCallbacks):
 
     def _status(self) -> str:
         if self.error:
+            if self.region.value == PICKED and not self.picks.vertices.size:  # cleared: a state, not an error
+                return html.escape(self.error)
             return f'<span style="color:#b00020">error: {html.escape(self.error)}</span>'
         nv, nc = len(self._sel_vertices), len(self._sel)
         base = "neutral" if not np.any(self._w_base) else ", ".join(
@@ -625,6 +651,36 @@ class BlendshapePanel(PanelCallbacks):
             self.region.options = list(self._regions)
             if select:
                 self.set_selection(region=str(name))
+
+    def pick_vertices(self, vertices) -> None:
+        """Add vertices to the picked selection and select it (one update), as a click or brush on the 3D view does.
+
+        The picked selection is the region :data:`~repro.ui.face_picking.PICKED`; picking while another
+        region is selected starts it from that region's vertices (the cyan ones), so a pick adds to what is shown.
+        """
+        with self._batch():
+            start = None
+            if self.region.value != PICKED:
+                start = self._sel_vertices if self._sel_vertices is not None else ()
+            self.picks.add(vertices, start)
+            self._select_picked()
+
+    def clear_picks(self) -> None:
+        """Empty the picked selection and select it: nothing is selected until vertices are picked (one update)."""
+        with self._batch():
+            self.picks.clear()
+            self._select_picked()
+
+    @property
+    def picked_vertices(self) -> np.ndarray:
+        """The picked vertex ids (sorted)."""
+        return self.picks.vertices.copy()
+
+    def _select_picked(self) -> None:
+        self._regions[PICKED] = self.picks.vertices
+        if PICKED not in self.region.options:
+            self.region.options = list(self._regions)
+        self.set_selection(region=PICKED)
 
     def set_alpha(self, alpha) -> bool:
         """Use ``alpha`` (unticks "default"); False, with an error shown in the panel, if it is not > 0."""

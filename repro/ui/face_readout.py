@@ -59,9 +59,10 @@ def face_readout(numbers: dict, region: str, n_vertices: int, units: str) -> str
     """The numbers line in plain words (Lewis et al. Section 5: the selection held, the rest following the
     sliders), e.g. "brow_middle (2 vertices) held: moved 0.01 cm; the rest follows the sliders 57 %"."""
     moved = f"moved {numbers['selected_motion']:.2g} {units}"
+    region = f"{region} ({n_vertices} {'vertex' if n_vertices == 1 else 'vertices'})"
     fidelity = numbers["unselected_fidelity"]
     rest = ("the rest of the face has not been asked to move yet: move a shape slider" if not np.isfinite(fidelity)
             else f"the rest follows the sliders {100 * fidelity:.0f} %")
     if numbers["attenuation"] == "on":
-        return f"{region} ({n_vertices} vertices) held: {moved}; {rest}"
-    return f"attenuation off: the sliders move the whole face; {region} ({n_vertices} vertices) {moved}"
+        return f"{region} held: {moved}; {rest}"
+    return f"attenuation off: the sliders move the whole face; {region} {moved}"

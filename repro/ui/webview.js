@@ -3,9 +3,13 @@
 // blob: URLs): "static" (the mesh's triangles and colour map, sent once) and "frame" (per update: quantized
 // vertex positions and motion, or a whole strike).  Frames are read in order and only the newest is drawn.
 // Layout of a message: "RPV1", uint32 LE header length, JSON header, arrays at 4-byte aligned offsets.
+// The face view also sends the user's vertex picks to the kernel (repro.ui.face_picking): a click adds the nearest
+// visible vertex, a drag brushes (in pick mode, or with Shift), "c" or Delete clears; each message is written into
+// the view's hidden text widget, whose "change" event ipywidgets sends on.
 (function () {
   "use strict";
-  const VERSION = 3;
+  const VERSION = 4;
+  const BRUSH = 9, CLICK = 14, SEND_MS = 90;  // brush radius, click reach (px), brush messages at most this often
   if (window.reproWebview && window.reproWebview.version >= VERSION) return;
   const TYPES = { f4: Float32Array, i2: Int16Array, u1: Uint8Array, u4: Uint32Array };
 
@@ -31,6 +35,7 @@
       this.yaw = 0; this.pitch = 0; this.zoom = 1;
       this.playing = true; this.f = 0; this.t0 = 0;
       this.pending = false;
+      this.picking = false; this.proj = null; this.outbox = new Set(); this.marks = []; this.seqPick = 0;
       for (const which of ["static", "frame"]) {
         const img = box.querySelector("img.repro-webview-" + which);
         new MutationObserver(() => this.load(img, which)).observe(img, { attributes: true, attributeFilter: ["src"] });
@@ -53,6 +58,7 @@
         if (!old || old.camera_id !== d.camera_id) this.setCamera(d);
       }
       if (which === "static" && d.kind === "mesh" && !old) this.setCamera(d);
+      if (which === "frame" && d.kind === "mesh") this.marks = this.marks.filter((m) => m.seq > (d.picks || 0));
       this.draw("data");
     }
 
@@ -60,28 +66,113 @@
 
     interact() {
       const c = this.canvas;
-      let drag = null;
-      c.addEventListener("pointerdown", (e) => { drag = [e.clientX, e.clientY, this.yaw, this.pitch]; c.setPointerCapture(e.pointerId); });
+      let drag = null, stroke = null;
+      c.addEventListener("pointerdown", (e) => {
+        c.setPointerCapture(e.pointerId); c.focus({ preventScroll: true });
+        if (this.picking !== e.shiftKey && this.proj) stroke = { x: e.clientX, y: e.clientY, brushing: false };
+        else drag = [e.clientX, e.clientY, this.yaw, this.pitch];
+      });
       c.addEventListener("pointermove", (e) => {
+        if (stroke) {  // a drag in pick mode brushes, from where it began
+          if (!stroke.brushing && Math.hypot(e.clientX - stroke.x, e.clientY - stroke.y) > 3) {
+            stroke.brushing = true; this.brush(stroke.x, stroke.y);
+          }
+          if (stroke.brushing) this.brush(e.clientX, e.clientY);
+          return;
+        }
         if (!drag) return;
         this.yaw = drag[2] + (e.clientX - drag[0]) * 0.01;
         this.pitch = Math.max(-1.5, Math.min(1.5, drag[3] + (e.clientY - drag[1]) * 0.01));
         this.moved = true;
         this.schedule();
       });
-      const end = () => { drag = null; };
+      const end = (e) => {
+        if (stroke && !stroke.brushing && e.type === "pointerup") this.pickNearest(e.clientX, e.clientY);
+        if (stroke) this.send();
+        drag = null; stroke = null;
+      };
       c.addEventListener("pointerup", end); c.addEventListener("pointercancel", end);
+      c.addEventListener("keydown", (e) => {
+        if (!this.proj || !["c", "C", "Delete", "Backspace"].includes(e.key)) return;
+        e.preventDefault(); e.stopPropagation(); this.clearPicks();
+      });
       c.addEventListener("wheel", (e) => { e.preventDefault(); this.zoomBy(e.deltaY < 0 ? 1.15 : 1 / 1.15); }, { passive: false });
       c.addEventListener("dblclick", () => this.front());
       const on = (act, f) => { const b = this.root.querySelector(`[data-act="${act}"]`); if (b) b.addEventListener("click", f); };
       on("front", () => this.front());
       on("zoom-in", () => this.zoomBy(1.25));
       on("zoom-out", () => this.zoomBy(1 / 1.25));
+      on("pick", (e) => {
+        this.picking = !this.picking;
+        e.target.setAttribute("aria-pressed", String(this.picking));
+        e.target.style.fontWeight = this.picking ? "bold" : "";
+        c.style.cursor = this.picking ? "crosshair" : "grab";
+      });
+      on("clear", () => this.clearPicks());
       on("play", (e) => {
         this.playing = !this.playing;
         e.target.textContent = this.playing ? "pause" : "play";
         if (this.playing) { this.t0 = performance.now() - this.f / this.fps(); this.schedule(); }
       });
+    }
+
+    // ---------------------------------------------------------------- picking
+    // the vertex ids drawn under a page point: nearest (click) or all within the brush, on the side facing the viewer
+    canvasXY(cx, cy) {
+      const r = this.canvas.getBoundingClientRect();
+      return [(cx - r.left) * this.canvas.width / r.width, (cy - r.top) * this.canvas.height / r.height];
+    }
+    visible(i) {
+      const P = this.proj, x = P.X[i], y = P.Y[i];
+      if (!(x >= 0 && y >= 0 && x < P.W && y < P.Hv)) return false;
+      return P.Z[i] >= P.zbuf[(y | 0) * P.W + (x | 0)] - P.tolz;
+    }
+    within(cx, cy, r) {
+      const P = this.proj, [x, y] = this.canvasXY(cx, cy), out = [];
+      for (let i = 0; i < P.X.length; i++) {
+        const d = (P.X[i] - x) ** 2 + (P.Y[i] - y) ** 2;
+        if (d <= r * r && this.visible(i)) out.push([d, i]);
+      }
+      return out;
+    }
+    pickNearest(cx, cy) {
+      const hits = this.within(cx, cy, CLICK);
+      if (!hits.length) return;
+      hits.sort((a, b) => a[0] - b[0]);
+      this.addPicks([hits[0][1]]);
+    }
+    brush(cx, cy) {
+      this.addPicks(this.within(cx, cy, BRUSH).map((h) => h[1]));
+      if (!this.sendTimer) this.sendTimer = setTimeout(() => { this.sendTimer = null; this.send(); }, SEND_MS);
+    }
+    addPicks(ids) {
+      const fresh = ids.filter((i) => !this.outbox.has(i));
+      fresh.forEach((i) => this.outbox.add(i));
+      this.drawMarks(fresh);  // at once, before the kernel's frame draws them as the selection
+    }
+    nextSeq() { this.seqPick = Math.max(this.seqPick + 1, Date.now()); return this.seqPick; }
+    message(text) {
+      const input = this.box.querySelector(".repro-webview-picks input");
+      if (!input) return false;
+      input.value = text;
+      input.dispatchEvent(new Event("change", { bubbles: true }));
+      return true;
+    }
+    send() {
+      if (!this.outbox.size) return;
+      const seq = this.nextSeq(), ids = [...this.outbox];
+      this.outbox.clear();
+      if (this.message(`${seq} add ${ids.join(" ")}`)) this.marks.push({ seq, ids });
+    }
+    clearPicks() {
+      this.outbox.clear(); this.marks = [];
+      this.message(`${this.nextSeq()} clear`);
+    }
+    drawMarks(ids) {
+      const ctx = this.ctx, P = this.proj;
+      if (!P) return;
+      ctx.fillStyle = "cyan"; ctx.strokeStyle = "black"; ctx.lineWidth = 0.85;
+      for (const i of ids) { ctx.beginPath(); ctx.arc(P.X[i], P.Y[i], 3.25, 0, 2 * Math.PI); ctx.fill(); ctx.stroke(); }
     }
 
     front() { [this.yaw, this.pitch] = this.home || [0, 0]; this.zoom = 1; this.moved = true; this.schedule(); }
@@ -194,6 +285,9 @@
         if (Z[i] < zbuf[o] - tolz) continue;
         ctx.beginPath(); ctx.arc(xi, yi, 3.25, 0, 2 * Math.PI); ctx.fill(); ctx.stroke();
       }
+      this.proj = { X, Y, Z, zbuf, W, Hv, tolz };
+      // picks the kernel has not drawn yet (sent, or still being brushed)
+      this.drawMarks([...this.marks.flatMap((m) => m.ids), ...this.outbox].filter((i) => this.visible(i)));
       this.colourBar(S, W, Hv, barH);
     }
 

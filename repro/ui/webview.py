@@ -17,7 +17,9 @@ by an ``onload`` handler of a 1-pixel image in an ``ipywidgets.HTML`` (``innerHT
 does not run ``<script>`` tags, but it does run event handlers; the handler adds the
 script to the page once); it runs the same in JupyterLab and in Voilà.  The canvas notes the ``digest`` of the frame it drew in
 ``data-drawn`` (and ``data-painted`` a frame later, with a ``repro-painted`` event), so a
-test can tell which frame is on screen.
+test can tell which frame is on screen.  The face view also carries the user's vertex picks
+the other way: the script writes them into a hidden ``ipywidgets.Text`` (``picks``) and fires its
+``change`` event, which sends the value to the kernel (:mod:`repro.ui.face_picking`).
 
 Message layout (:func:`pack` / :func:`unpack`): ``b"RPV1"``, uint32 little-endian header
 length, a JSON header (with ``arrays``: name, dtype, byte offset, length), then the
@@ -110,9 +112,11 @@ class WebView:
 
     def __init__(self, width: int, height: int, *, buttons=("front view", "zoom +", "zoom −"), play: bool = False,
                  note: str = "drag: rotate · wheel: zoom · double-click: front view"):
-        acts = {"front view": "front", "zoom +": "zoom-in", "zoom −": "zoom-out"}
-        btn = "".join(f'<button type="button" data-act="{acts[b]}" class="repro-webview-button">{html.escape(b)}</button>'
-                      for b in buttons)
+        acts = {"front view": ("front", ""), "zoom +": ("zoom-in", ""), "zoom −": ("zoom-out", ""),
+                "pick": ("pick", "pick mode: a click adds the vertex under it, a drag brushes (Shift: in either mode)"),
+                "clear": ("clear", "clear the picked vertices (key c)")}
+        btn = "".join(f'<button type="button" data-act="{acts[b][0]}" title="{html.escape(acts[b][1])}" '
+                      f'class="repro-webview-button">{html.escape(b)}</button>' for b in buttons)
         if play:
             btn = '<button type="button" data-act="play" class="repro-webview-button">pause</button>' + btn
         # the script goes into a <script> element (global scope: code in the handler itself would run inside
@@ -121,8 +125,10 @@ class WebView:
                  f"s.textContent = {json.dumps(script())}; document.head.appendChild(s); }} "
                  "window.reproWebview.attach(this);")
         self.html = widgets.HTML(
-            f'<div class="repro-webview" style="display:inline-block">'
-            f'<canvas width="{int(width)}" height="{int(height)}" class="repro-webview-canvas" '
+            # as wide as the canvas (and its border): the buttons and the note wrap below it, not widen the column
+            f'<div class="repro-webview" style="display:inline-block;width:{int(width) + 2}px">'
+            f'<canvas width="{int(width)}" height="{int(height)}" class="repro-webview-canvas" tabindex="0" '
+            f'data-lm-suppress-shortcuts="true" '  # its keys (c: clear picks) are not JupyterLab's shortcuts
             f'style="width:{int(width)}px;height:{int(height)}px;touch-action:none;cursor:grab;'
             f'border:1px solid #ddd"></canvas>'
             f'<div style="font-size:12px;display:flex;gap:6px;align-items:center;flex-wrap:wrap">{btn}'
@@ -138,7 +144,7 @@ class WebView:
         self.digest: str | None = None
 
     def close(self) -> None:
-        for w in (self.html, self.static, self.frame, self.widget):
+        for w in (*self.widget.children, self.widget):  # the canvas, the carriers (and a view's own widgets)
             w.close()
 
 
@@ -161,7 +167,14 @@ class MeshWebView(WebView):
 
         w, h = size
         self.bar_height = 56
-        super().__init__(w, h)
+        super().__init__(w, h, buttons=("front view", "zoom +", "zoom −", "pick", "clear"),
+                         note="drag: rotate · wheel: zoom · double-click: front view · pick (or Shift): a click "
+                              "adds a vertex, a drag brushes · c: clear")
+        # the page's picks to the kernel (repro.ui.face_picking): the canvas writes them into this text field
+        self.picks = widgets.Text(layout=widgets.Layout(display="none"))
+        self.picks.add_class("repro-webview-picks")
+        self.widget.children = (*self.widget.children, self.picks)
+        self.picks_seq = 0  # the last pick message handled, sent with each frame
         self.model = model
         f0 = np.asarray(model.f0, dtype=np.float64)
         lo, hi = f0.min(axis=0), f0.max(axis=0)
@@ -188,7 +201,7 @@ class MeshWebView(WebView):
     def frame_bytes(self, points: np.ndarray, motion: np.ndarray, selected_vertices) -> bytes:
         """The frame message of a pose (what :meth:`render` sends)."""
         return mesh_frame(points, motion, selected_vertices, centre=self.centre, step=self.step, clim=self.clim,
-                          static_id=self.static_id)
+                          static_id=self.static_id, picks=self.picks_seq)
 
     def render(self, points: np.ndarray, motion: np.ndarray, selected_vertices) -> str:
         """Send the pose to the page; the frame's digest (the canvas's ``data-drawn`` once drawn)."""
@@ -208,8 +221,9 @@ def bounding_radius(model, centre) -> float:
     return r or 1.0
 
 
-def mesh_frame(points, motion, selected_vertices, *, centre, step, clim, static_id) -> bytes:
-    """A face frame: int16 positions about ``centre`` in ``step`` units, uint8 motion over ``clim``, selected ids."""
+def mesh_frame(points, motion, selected_vertices, *, centre, step, clim, static_id, picks: int = 0) -> bytes:
+    """A face frame: int16 positions about ``centre`` in ``step`` units, uint8 motion over ``clim``, selected ids
+    (and ``picks``, the last pick message of the page drawn in it; not part of the digest)."""
     q = np.rint((np.asarray(points, dtype=np.float64) - centre) / step)
     q = np.clip(np.nan_to_num(q, nan=0.0), -32767, 32767).astype(np.int16)
     lo, hi = clim
@@ -217,7 +231,7 @@ def mesh_frame(points, motion, selected_vertices, *, centre, step, clim, static_
     m = np.clip(np.rint(m * 255), 0, 255).astype(np.uint8)
     sel = np.asarray(selected_vertices if selected_vertices is not None else [], dtype=np.uint32)
     digest = _digest(q.tobytes(), m.tobytes(), sel.tobytes(), static_id.encode())
-    return pack({"kind": "mesh", "static_id": static_id, "digest": digest},
+    return pack({"kind": "mesh", "static_id": static_id, "digest": digest, "picks": int(picks)},
                 {"pos": q.ravel(), "motion": m, "selected": sel})
 
 

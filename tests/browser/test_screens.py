@@ -1,4 +1,4 @@
-"""What a teacher sees first in both apps (issue 26, items 8, 9 and 11): headless Chromium at 1280 x 720.
+"""What a teacher sees first in both apps (issue 26, items 6-11): headless Chromium at 1280 x 720.
 
 Each app is started once (``repro app face|fighter``, a preheated Voilà kernel), left to
 finish preparing (its processes idle), then opened in a fresh browser profile (a cold
@@ -10,7 +10,10 @@ browser) at the size of a classroom projector.  Asserted:
   ``127.0.0.1:<port>``, or is a ``blob:``/``data:`` URL of the page);
 - the page says what is being prepared while the notebook runs (the line under the spinner);
 - the fighter: no ``nan`` on the page, and a change of its height repaints the 3D view and
-  the filmstrip with the new fighter (the last strike ordered again).
+  the filmstrip with the new fighter (the last strike ordered again);
+- the face: no ``nan``, the readout in words (the numbers behind "details"), and vertex picking
+  on the 3D view: a click adds a vertex, a drag brushes, the ``c`` key or the button clears, and
+  the selection drawn is the one picked.
 
 The first-paint time (navigation to the 3D view painted) is printed, never asserted.
 """
@@ -279,3 +282,94 @@ def test_face_app_speaks_in_words_and_shows_no_nan(opened):
     alpha = re.search(r"alpha: (\S+)", numbers).group(1)
     shown = page.inner_text(".repro-blendshape-panel .repro-alpha-value")
     assert shown.strip() == alpha, (shown, numbers)
+
+
+def _selection_count(page) -> int | None:
+    """The number of vertices of the picked selection the status line gives (None when another region is selected)."""
+    text = page.inner_text(".repro-blendshape-panel .repro-status")
+    m = re.search(r"selection: picked on the face \([xyz]+\), (\d+) vertices", text)
+    return int(m.group(1)) if m else (0 if "no vertex picked" in text else None)
+
+
+def _wait_selection(page, ok, what: str) -> int:
+    deadline = time.monotonic() + STEP_TIMEOUT
+    while not ok(n := _selection_count(page)):
+        if time.monotonic() > deadline:
+            pytest.fail(f"{what}: the status line says {page.inner_text('.repro-blendshape-panel .repro-status')!r}",
+                        pytrace=False)
+        time.sleep(0.05)
+    return n
+
+
+def _drawn_selection(page, n: int | None = None) -> list[int]:
+    """The selected vertex ids of the newest frame, once the 3D view has painted it (and, given ``n``, once it
+    selects ``n`` vertices: the status line is written before the frame is sent)."""
+    import base64
+
+    from repro.ui.webview import unpack
+    from tests.browser.test_app import FETCH_JS
+
+    deadline = time.monotonic() + STEP_TIMEOUT
+    while True:
+        head, arrays = unpack(base64.b64decode(page.evaluate(FETCH_JS, "img.repro-webview-frame")))
+        selected = arrays["selected"].tolist()
+        if page.evaluate(PAINTED_JS) == head["digest"] and (n is None or len(selected) == n):
+            return selected
+        if time.monotonic() > deadline:
+            pytest.fail(f"the 3D view did not paint a frame selecting {n} vertices (the newest selects "
+                        f"{len(selected)})", pytrace=False)
+        time.sleep(0.05)
+
+
+def test_face_app_vertex_picking_changes_the_selection(opened):
+    """Issue 26, item 10: pick vertices on the 3D view (click adds, drag brushes, "c" or the button clears), drawn."""
+    o = opened("face")
+    page = o.page
+    page.evaluate("() => window.scrollTo(0, 0)")
+    assert _selection_count(page) is None, "the app starts on a preset region"
+    shown = _drawn_selection(page)
+    box = page.locator(CANVAS).bounding_box()
+    x, y = box["x"] + box["width"] / 2, box["y"] + 0.45 * box["height"]  # the middle of the face (the nose)
+    # pick mode on; a click on the face adds the vertex under the pointer to the (preset) selection shown
+    page.locator(".repro-webview [data-act=pick]").click()
+    t0 = time.monotonic()
+    page.mouse.click(x, y)
+    n_click = _wait_selection(page, lambda n: n is not None and n > 0, "a click on the face picked nothing")
+    click_s = time.monotonic() - t0
+    assert n_click == len(shown) + 1, (n_click, shown)
+    drawn = _drawn_selection(page, n_click)
+    assert set(shown) < set(drawn), (drawn, shown)
+    readout = page.inner_text(".repro-blendshape-panel .repro-face-readout")
+    assert f"picked on the face ({n_click} vertices)" in readout, readout
+    page.screenshot(path=str(ARTIFACTS / "screen-face-picked-click.png"))
+    # a drag brushes: every vertex it passes over
+    page.mouse.move(x - 40, y + 45)
+    page.mouse.down()
+    for k in range(1, 11):
+        page.mouse.move(x - 40 + 8 * k, y + 45, steps=2)
+    page.mouse.up()
+    n_brush = _wait_selection(page, lambda n: n is not None and n > n_click + 5, "a brush stroke added too little")
+    _drawn_selection(page, n_brush)
+    page.screenshot(path=str(ARTIFACTS / "screen-face-picked-brush.png"))
+    # the key clears (the canvas has the focus since the click)
+    page.keyboard.press("c")
+    _wait_selection(page, lambda n: n == 0, "the c key did not clear the picks")
+    assert _drawn_selection(page, 0) == []
+    assert not re.search(r"\bnan\b", page.inner_text("body"), re.IGNORECASE)
+    # pick mode off: a drag turns the face and picks nothing
+    page.locator(".repro-webview [data-act=pick]").click()
+    page.mouse.move(x, y)
+    page.mouse.down()
+    page.mouse.move(x + 60, y + 5, steps=5)
+    page.mouse.up()
+    time.sleep(0.5)
+    assert _selection_count(page) == 0
+    # Shift-click picks in either mode; the view's button clears
+    page.keyboard.down("Shift")
+    page.mouse.click(x, y)
+    page.keyboard.up("Shift")
+    assert _wait_selection(page, lambda n: n is not None and n > 0, "a Shift-click picked nothing") == 1
+    page.locator(".repro-webview [data-act=clear]").click()
+    _wait_selection(page, lambda n: n == 0, "the clear button did not clear the picks")
+    assert not o.outside(), f"the face app asked other hosts: {o.outside()}"
+    print(f"\nbench app face: click on the face -> the picked selection in the status line {1000 * click_s:.0f} ms")
