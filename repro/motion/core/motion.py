@@ -46,6 +46,7 @@ import numpy as np
 
 from repro.checks import as_real, as_real_array, describe, read_only
 from repro.errors import BVHError, MotionError
+from repro.motion.core.cache import LRUCache
 from repro.motion.core.channels import channel_layout, channel_table
 from repro.motion.core.kinematics import (LEVEL_LOOP_MAX_DEPTH, MAX_COORDINATE, check_joint_names, depth_levels,
                                           forward_kinematics)
@@ -73,6 +74,26 @@ BANDAI_UNIT_M: float = 0.01
 #: Below this sum of all local translation lengths, world positions cannot overflow
 #: (a rotated vector's intermediate terms stay under 5 times its length).
 _SAFE_LENGTH_SUM = 1e300
+
+#: The joint structures (names and channels) already validated, with their channel layout: a
+#: motion rebuilt on the same skeleton (a pose edited, a clip cut, placed or retargeted) is not
+#: checked and parsed again.  Keyed by the validated names and channels (plain strings), so only
+#: an input equal to them, element for element, finds its entry; a few skeletons are in play at
+#: once (the database's actors, the characters on screen): the 64 most recent are kept.
+_STRUCTURES: LRUCache = LRUCache(64)
+
+
+def _structure_key(joint_names, channels) -> tuple | None:
+    """``(names, channels)`` as a hashable key of :data:`_STRUCTURES`; None when they cannot be one
+    (not lists or tuples, unhashable channel entries): then they are validated without the memo."""
+    if type(joint_names) not in (list, tuple) or type(channels) not in (list, tuple):
+        return None
+    key = (tuple(joint_names), tuple(channels))
+    try:
+        hash(key)
+    except TypeError:
+        return None
+    return key
 
 
 def finite_vector3(value, name: str, error=None) -> np.ndarray:
@@ -207,32 +228,17 @@ class Motion:
         self._validate(renormalise=True)
 
     def _validate(self, renormalise: bool) -> None:
-        names = check_joint_names(self.joint_names, error=BVHError)
+        key = _structure_key(self.joint_names, self.channels)
+        known = key is not None and key in _STRUCTURES
+        if known:  # names and channels equal to validated ones: their checks pass, their layout is known
+            names_t, channels_t, (mask, seqs) = _STRUCTURES.get(key, self._structure)
+            names, channels, layout = list(names_t), list(channels_t), (mask.copy(), list(seqs))
+        else:
+            names = self._checked_names()
         J = len(names)
-        if J == 0:
-            raise BVHError("a motion needs at least one joint")
-        if len(set(names)) != J:
-            dup = sorted({n for n in names if names.count(n) > 1})
-            raise BVHError(f"duplicate joint names: {dup}")
-        parents = as_real_array(self.parents, "parents", error=BVHError, integer=True)
-        if parents.shape != (J,) or not np.issubdtype(parents.dtype, np.integer):
-            raise BVHError(f"parents must be a ({J},) int array, got shape {parents.shape} dtype {parents.dtype}")
-        parents = parents.astype(np.intp)
-        if parents[0] != -1 or np.any(parents[1:] < 0) or np.any(parents[1:] >= np.arange(1, J)):
-            raise BVHError("parents must be -1 for joint 0 (the only root) and parents[j] < j for the others")
-        offsets = as_real_array(self.offsets, "offsets", error=BVHError, finite=False)
-        if offsets.shape != (J, 3) or not np.all(np.isfinite(offsets)):
-            raise BVHError(f"offsets must be a finite ({J}, 3) array, got shape {offsets.shape}")
-        try:
-            channels = [tuple(str(c) for c in ch) for ch in self.channels]
-        except TypeError:
-            raise BVHError(f"channels must list each joint's channel names, got {describe(self.channels)}") from None
-        if len(channels) != J:
-            raise BVHError(f"channels must list {J} joints, got {len(channels)}")
-        for name, ch in zip(names, channels):
-            if len(set(ch)) != len(ch):
-                raise BVHError(f"joint {name!r}: repeated channel in {list(ch)}")
-        channel_layout(channels)
+        parents, offsets = self._checked_tree(J)
+        if not known:
+            channels, layout = self._checked_channels(names)
         ft = as_real(self.frame_time, "frame_time (seconds)", error=BVHError, finite=False)
         if not np.isfinite(ft) or ft <= 0 or not np.isfinite(1.0 / ft):
             raise BVHError(f"frame_time must be finite and > 0 with a finite frame rate, got {self.frame_time!r}")
@@ -275,6 +281,7 @@ class Motion:
         set_(self, "parents", read_only(parents))
         set_(self, "offsets", read_only(offsets))
         set_(self, "channels", channels)
+        self.__dict__["_layout"] = layout  # the cached_property's value
         set_(self, "frame_time", ft)
         set_(self, "rotations", read_only(rot))
         set_(self, "positions", read_only(pos))
@@ -284,6 +291,52 @@ class Motion:
         if self.up is not None and self.up not in ("y", "z"):
             raise BVHError(f"up must be 'y', 'z' or None, got {self.up!r}")
         self._check_finite_kinematics()
+
+    def _checked_names(self) -> list[str]:
+        """The joint names as a list of str, unique and at least one (else BVHError)."""
+        names = check_joint_names(self.joint_names, error=BVHError)
+        if not names:
+            raise BVHError("a motion needs at least one joint")
+        if len(set(names)) != len(names):
+            dup = sorted({n for n in names if names.count(n) > 1})
+            raise BVHError(f"duplicate joint names: {dup}")
+        return names
+
+    def _checked_tree(self, J: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(parents, offsets)`` of ``J`` joints checked: a tree rooted at joint 0, finite offsets (else BVHError)."""
+        parents = as_real_array(self.parents, "parents", error=BVHError, integer=True)
+        if parents.shape != (J,) or not np.issubdtype(parents.dtype, np.integer):
+            raise BVHError(f"parents must be a ({J},) int array, got shape {parents.shape} dtype {parents.dtype}")
+        parents = parents.astype(np.intp)
+        if parents[0] != -1 or np.any(parents[1:] < 0) or np.any(parents[1:] >= np.arange(1, J)):
+            raise BVHError("parents must be -1 for joint 0 (the only root) and parents[j] < j for the others")
+        offsets = as_real_array(self.offsets, "offsets", error=BVHError, finite=False)
+        if offsets.shape != (J, 3) or not np.all(np.isfinite(offsets)):
+            raise BVHError(f"offsets must be a finite ({J}, 3) array, got shape {offsets.shape}")
+        return parents, offsets
+
+    def _checked_channels(self, names: list[str]) -> tuple[list[tuple[str, ...]], tuple[np.ndarray, list[str]]]:
+        """The channels as tuples of str, one per joint, none repeated, and their layout (else BVHError);
+        remembered in :data:`_STRUCTURES` with the names."""
+        try:
+            channels = [tuple(str(c) for c in ch) for ch in self.channels]
+        except TypeError:
+            raise BVHError(f"channels must list each joint's channel names, got {describe(self.channels)}") from None
+        if len(channels) != len(names):
+            raise BVHError(f"channels must list {len(names)} joints, got {len(channels)}")
+        for name, ch in zip(names, channels):
+            if len(set(ch)) != len(ch):
+                raise BVHError(f"joint {name!r}: repeated channel in {list(ch)}")
+        mask, seqs = channel_layout(channels)
+        value = (tuple(names), tuple(channels), (read_only(mask), tuple(seqs)))
+        _STRUCTURES.get(value[:2], lambda: value)
+        return channels, (mask, seqs)
+
+    def _structure(self) -> tuple:
+        """The value of :data:`_STRUCTURES` for this motion's names and channels (validated)."""
+        names = self._checked_names()
+        channels, (mask, seqs) = self._checked_channels(names)
+        return tuple(names), tuple(channels), (read_only(mask), tuple(seqs))
 
     def _check_finite_kinematics(self) -> None:
         """Raise BVHError when finite lengths add up to infinite world positions.

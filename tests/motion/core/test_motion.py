@@ -86,3 +86,35 @@ def test_finite_vector3_refuses_coordinates_whose_squares_overflow():
 def test_motion_fields_found_by_the_argument_fuzzer(m, field, value, match):
     with pytest.raises(BVHError, match=match):
         dataclasses.replace(m, **{field: value})
+
+
+def test_a_rebuilt_motion_takes_its_validated_structure_from_the_memo(m):
+    """A motion rebuilt on a skeleton already validated (the memo of names and channels) has the
+    same fields as one validated from scratch, its own copies of them, and bad input is still refused."""
+    from repro.motion.core import motion as motion_module
+
+    again = dataclasses.replace(m, rotations=np.array(m.rotations))
+    assert motion_module._structure_key(again.joint_names, again.channels) in motion_module._STRUCTURES
+    motion_module._STRUCTURES.clear()
+    fresh = dataclasses.replace(m, rotations=np.array(m.rotations))
+    for got in (again, fresh):
+        assert got.joint_names == m.joint_names and got.channels == m.channels
+        assert type(got.joint_names) is list and all(type(n) is str for n in got.joint_names)
+        assert np.array_equal(got.position_mask, m.position_mask) and got.rotation_orders == m.rotation_orders
+        assert got.joint_names is not m.joint_names and got.position_mask is not m.position_mask
+    again.position_mask[0, 0] = not again.position_mask[0, 0]  # its own copy: the next motion is not changed
+    assert np.array_equal(dataclasses.replace(m).position_mask, m.position_mask)
+    # names equal to validated ones as numpy strings find the memo and come back as str
+    named = dataclasses.replace(m, joint_names=[np.str_(n) for n in m.joint_names])
+    assert all(type(n) is str for n in named.joint_names) and named.joint_names == m.joint_names
+    # the memo holds only what was validated: a repeated name or channel is refused after it
+    dup = list(m.joint_names)
+    dup[1] = dup[0]
+    with pytest.raises(BVHError, match="duplicate joint names"):
+        dataclasses.replace(m, joint_names=dup)
+    ch = list(m.channels)
+    ch[1] = ch[1] + ch[1][-1:]
+    with pytest.raises(BVHError, match="repeated channel"):
+        dataclasses.replace(m, channels=ch)
+    with pytest.raises(BVHError, match="parents"):
+        dataclasses.replace(m, parents=np.zeros(m.n_joints, dtype=int))
