@@ -30,6 +30,8 @@ twist bones, props) keep their rest rotation relative to their parent.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
 from repro.checks import as_bool, as_choice, as_real, describe
@@ -251,8 +253,46 @@ def retarget_across(motion: Motion, character, *, roles=None, character_roles=No
     """
     fix_feet = as_bool(fix_feet, "fix_feet", error=MotionError)
     blend_time = as_real(blend_time, "blend_time (seconds)", error=MotionError, lo=0.0)
-    plan = TreePlan(motion, character, roles=roles, character_roles=character_roles)
+    key = _plan_key(motion, character, roles, character_roles)
+
+    def make() -> TreePlan:
+        return TreePlan(motion, character, roles=roles, character_roles=character_roles)
+
+    plan = make() if key is None else _PLANS.get(key, make)
     return plan.apply(motion, fix_feet=fix_feet, blend_time=blend_time)
+
+
+#: :func:`retarget_across`'s plans by the two skeletons and role tables (:func:`_plan_key`): the
+#: fighter puts every retrieved clip on its character with one plan; the 32 most recent are kept
+_PLANS: LRUCache = LRUCache(32)
+
+
+def _plan_key(motion, character, roles, character_roles) -> tuple | None:
+    """Everything of :func:`retarget_across`'s arguments a :class:`TreePlan` reads (its cache key), or
+    None when the plan is made afresh: it would read the frames (an up axis not given, inferred from
+    the poses), warn (a motion without ``unit_m``, its unit inferred) or refuse the arguments."""
+    def motion_key(m: Motion) -> tuple | None:
+        if m.up is None or m.unit_m is None:
+            return None
+        return (tuple(m.joint_names), m.parents.tobytes(), m.offsets.tobytes(), m.end_site_parents.tobytes(),
+                m.end_site_offsets.tobytes(), tuple(m.channels), m.unit_m, m.up)
+
+    def role_key(r) -> tuple | None:
+        return None if r is None else tuple(sorted(r.items()))
+
+    if not isinstance(motion, Motion) or not isinstance(character, (Motion, Skeleton)) or \
+            any(r is not None and not isinstance(r, Mapping) for r in (roles, character_roles)):
+        return None
+    src = motion_key(motion)
+    tgt = _skeleton_key(character) if isinstance(character, Skeleton) else motion_key(character)
+    if src is None or tgt is None:
+        return None
+    try:
+        key = (src, role_key(roles), type(character).__name__, tgt, role_key(character_roles))
+        hash(key)
+    except TypeError:  # unorderable or unhashable role tables: refused by the plan
+        return None
+    return key
 
 
 class TreePlan:

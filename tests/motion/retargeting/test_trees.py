@@ -489,12 +489,14 @@ def test_retarget_across_constants_cached_per_pair(synthetic_db, monkeypatch):
     m = db.motion(2)
     other = scale_skeleton(Skeleton.from_motion(rig), scale=1.2, bone_scales={"mixamorig:LeftForeArm": 1.4})
     monkeypatch.setattr(rt, "_PAIRS", LRUCache(32))
+    monkeypatch.setattr(rt, "_PLANS", LRUCache(32))  # the plans built, not taken from retarget_across's cache
     first = rt.retarget_across(m, rig).global_positions()
     assert len(rt._PAIRS) == 1
     again = rt.retarget_across(m, rig).global_positions()
     o = rt.retarget_across(m, other).global_positions()
     assert len(rt._PAIRS) == 2
     monkeypatch.setattr(rt, "_PAIRS", LRUCache(32))
+    monkeypatch.setattr(rt, "_PLANS", LRUCache(32))
     fresh = rt.retarget_across(m, other).global_positions()
     assert np.array_equal(first, again) and np.array_equal(o, fresh)
     assert not np.allclose(o, first)
@@ -507,3 +509,40 @@ def test_plan_applies_to_its_source_skeleton_only(clip):
                                   retarget_across(clip, rig, fix_feet=True).rotations)
     with pytest.raises(MotionError, match="source skeleton"):
         plan.apply(rig)
+
+
+def test_retarget_across_plans_cached_per_pair_of_skeletons(synthetic_db, monkeypatch):
+    """retarget_across keeps its plan per pair of skeletons and role tables (the fighter puts every
+    retrieved clip on its character with one): another clip of the same actor takes it and gives a
+    fresh plan's numbers bit for bit; a character of other proportions, another role table or a
+    Skeleton for the Motion get their own; a motion whose up axis or unit is not given (the plan would
+    read its frames or warn) is never cached."""
+    import repro.motion.retargeting.trees as rt
+
+    db = synthetic_db
+    a, b = (dataclasses.replace(db.motion(i), up="y") for i in (2, 3))
+    assert a.unit_m is not None
+    rig = dataclasses.replace(build("mixamo")[0].motion(unit_m=1.0), up="y")
+    monkeypatch.setattr(rt, "_PLANS", LRUCache(32))
+    first = rt.retarget_across(a, rig)
+    assert len(rt._PLANS) == 1
+    got = rt.retarget_across(b, rig)
+    assert len(rt._PLANS) == 1
+    fresh = TreePlan(b, rig).apply(b)
+    assert np.array_equal(got.rotations, fresh.rotations) and np.array_equal(got.positions, fresh.positions)
+    assert np.array_equal(rt.retarget_across(a, rig).rotations, first.rotations)
+    sk = Skeleton.from_motion(rig)
+    other = scale_skeleton(sk, scale=1.2, bone_scales={"mixamorig:LeftForeArm": 1.4})
+    roles = dict(Skeleton.from_motion(a).roles)
+    for kw in (dict(character=other), dict(character=sk), dict(character=rig, roles=roles)):
+        n = len(rt._PLANS)
+        rt.retarget_across(a, **{"character": rig, **kw})
+        assert len(rt._PLANS) == n + 1
+    assert np.array_equal(rt.retarget_across(a, other).rotations, TreePlan(a, other).apply(a).rotations)
+    n = len(rt._PLANS)
+    for m, ch in ((dataclasses.replace(a, up=None), rig), (dataclasses.replace(a, unit_m=None), rig),
+                  (a, dataclasses.replace(rig, up=None))):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            rt.retarget_across(m, ch)
+    assert len(rt._PLANS) == n
