@@ -12,7 +12,8 @@ lowers the kicking foot while it is still near the ground.  What is asserted:
 * the fighter on a synthetic Z-up inch character (3ds Max Biped names, unit not stated)
   and on the real rigs of the formats corpus: after the current pose no joint or End Site
   is more than 1 cm below the floor (the joints none at all) and the planted feet slide
-  less than 2 cm, for a kick and a punch.
+  less than 2 cm, for a kick and a punch, which land within 1 cm; the stance itself has no
+  joint or End Site more than 1 cm below the floor (a known failure on five rigs: strict xfail).
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ import numpy as np
 import pytest
 
 from repro import data
-from repro.errors import MotionError, UnitWarning
+from repro.errors import BVHWarning, MotionError, UnitWarning
 from repro.motion import read_bvh
 from repro.motion.adaptation import AdaptOptions, adapt
 from repro.motion.body.feet import foot_contacts, max_foot_slide
@@ -142,12 +143,25 @@ def test_a_z_up_inch_character_keeps_its_feet_above_the_floor(z_up_inch, kind):
     assert max_foot_slide(s.motion, s.contacts, skeleton=f.character) < SLIDE_TOL
 
 
-#: Real rigs of the formats corpus that the fighter takes (two files of ``realrigs`` do not read yet)
+#: Real rigs of the formats corpus that the fighter takes (every humanoid file of ``pybvh`` and ``realrigs``)
 RIGS = ["pybvh/bvh_test1.bvh", "pybvh/bvh_test2.bvh", "pybvh/bvh_test3.bvh", "pybvh/standard_skeleton.bvh",
         "realrigs/accad_Male1_C03_Run.bvh", "realrigs/emretanirgan_jump_no_end_sites.bvh",
         "realrigs/freedance_blender_rigify_names.bvh", "realrigs/makehuman_default_rig_tpose.bvh",
         "realrigs/makehuman_game_rig_zombiewalk.bvh", "realrigs/shadermotion_unity_humanoid.bvh",
-        "realrigs/threejs_pirouette_daz.bvh", "realrigs/mocopi_MCPM_20230410_150228.BVH"]
+        "realrigs/threejs_pirouette_daz.bvh", "realrigs/mocopi_MCPM_20230410_150228.BVH",
+        "realrigs/woosub_coda02_woman.bvh", "realrigs/emretanirgan_matt_happy2.bvh"]
+
+#: Rigs whose stance (retargeted across trees with fix_feet) puts a foot's End Site more than 1 cm below the
+#: floor: retarget_across's foot pass raises the ankle by the depth of the ankle and toe joints only, not of
+#: their End Sites (the toe's tip; a toe-less foot's End Site, 12.7 cm deep on matt_happy2)
+END_SITES_BELOW = {"pybvh/bvh_test1.bvh", "pybvh/bvh_test2.bvh", "pybvh/standard_skeleton.bvh",
+                   "realrigs/accad_Male1_C03_Run.bvh", "realrigs/emretanirgan_matt_happy2.bvh"}
+_END_SITES_XFAIL = pytest.mark.xfail(strict=True, reason="repro.motion.retargeting.trees.TreePlan._fix_feet "
+                                     "counts the ankle and toe joints, not the foot's End Sites (issue 25, item 2)")
+
+
+def _rigs(known_failures: set[str]) -> list:
+    return [pytest.param(n, marks=_END_SITES_XFAIL) if n in known_failures else n for n in RIGS]
 
 #: Rigs whose rest pose faces -Z or +X once Y-up (their clips faced away from their stance, and the
 #: blend turned the body round, until y_up_metres turned them to face +Z as the actors do)
@@ -162,7 +176,10 @@ def _rig_strikes(db, name):
         if not path.is_file():
             pytest.skip(f"{name} not staged")
         try:
-            _CACHE[name] = _strikes(db, read_bvh(path))
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", BVHWarning)  # woosub's two short lines (tests/motion/io)
+                m = read_bvh(path)
+            _CACHE[name] = _strikes(db, m)
         except MotionError as e:  # roles not found on this rig yet: another item of the issue
             _CACHE[name] = str(e)
     if isinstance(_CACHE[name], str):
@@ -176,6 +193,25 @@ def test_real_rigs_keep_every_joint_above_the_floor(synthetic_db, name):
     f, strikes = _rig_strikes(synthetic_db, name)
     for s in strikes.values():
         _check_floor(f, s, _n_blend(s))
+
+
+@pytest.mark.data("cmu-bvh")
+@pytest.mark.parametrize("name", _rigs(END_SITES_BELOW))
+def test_real_rigs_stance_stands_on_the_floor(synthetic_db, name):
+    """The fighter's stance on the character (its current pose before any order): no joint, no End Site
+    more than 1 cm below the floor (issue 25: 'no joint below the floor by more than 1 cm, on every rig')."""
+    f, _ = _rig_strikes(synthetic_db, name)
+    joints, ends = lowest(f.stance)
+    assert min(joints.min(), ends.min()) >= -FLOOR_TOL, (joints.min(), ends.min())
+
+
+@pytest.mark.data("cmu-bvh")
+@pytest.mark.parametrize("name", RIGS)
+def test_real_rigs_strikes_land_within_1_cm(synthetic_db, name):
+    """The kick and the punch reach their targets on every real rig (the issue's bound: 1 cm)."""
+    _, strikes = _rig_strikes(synthetic_db, name)
+    for s in strikes.values():
+        assert s.reached and s.hit_error < 0.01, (s.kind, s.hit_error)
 
 
 @pytest.mark.data("cmu-bvh")
