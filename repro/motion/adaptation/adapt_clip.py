@@ -59,7 +59,7 @@ from repro.motion.core.kinematics import fk_arrays
 from repro.motion.core.quaternion import quat_rotate as qrot
 from repro.motion.core.motion import Motion
 
-__all__ = ["Adaptation", "adapt"]
+__all__ = ["Adaptation", "FrameSolve", "adapt", "adapt_frames"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -160,6 +160,11 @@ class Adaptation:
         """Hit-point error at the contact frame (same as :attr:`residual`)."""
         return self.residual
 
+    @property
+    def contact_hit(self) -> np.ndarray:
+        """(3,) the adapted hit point at the contact frame ``tc``."""
+        return self.hit_positions[self.tc]
+
     def summary(self) -> dict:
         """Summary numbers (motion units, seconds) for reports."""
         w = slice(self.t_start + 1, self.stop)
@@ -176,6 +181,54 @@ class Adaptation:
             "d_tc": float(np.linalg.norm(self.offsets[self.tc])),
             **{f"time_{k}": v for k, v in self.timings.items()},
         }
+
+
+@dataclass(frozen=True, eq=False)
+class FrameSolve:
+    """Result of :func:`adapt_frames`: a streamed solve's frames, without the whole clip's result.
+
+    What a runtime needs before it releases a frame (Section 3.4.2: every frame is solved on
+    its own): the poses of the solved frames -- bit for bit those of :func:`adapt` with the same
+    ``frames``, hence those of the whole-clip solve -- and what decides the reach level at the
+    contact; no Motion is made and forward kinematics runs on the solved frames only.
+
+    Attributes
+    ----------
+    frames : (n,) int
+        The frames solved, increasing.
+    rotations, positions : (n, J, 4), (n, J, 3)
+        Their local rotations and position-channel values in the adapted motion.
+    hit_positions : (n, 3)
+        The adapted hit point on those frames.
+    target : (3,) array
+    tc, t_start : int
+        As :class:`Adaptation`'s.
+    offsets : (F, 3)
+        ``d(t)`` over the whole clip.
+    contact_hit : (3,)
+        The adapted hit point at ``tc`` (the input's when ``tc`` is not among the frames).
+    residual : float
+        Distance of the hit point to the target at ``tc`` (NaN when ``tc`` was not solved).
+    reached : bool
+    foot_error : float
+    feet_independent : bool
+    tol : float
+    """
+
+    frames: np.ndarray
+    rotations: np.ndarray
+    positions: np.ndarray
+    hit_positions: np.ndarray
+    target: np.ndarray
+    tc: int
+    t_start: int
+    offsets: np.ndarray
+    contact_hit: np.ndarray
+    residual: float
+    reached: bool
+    foot_error: float
+    feet_independent: bool
+    tol: float
 
 
 def _bone_lengths(gp: np.ndarray, parents: np.ndarray) -> np.ndarray:
@@ -218,6 +271,48 @@ def adapt(
     if not _solve(e):
         return None
     return _result(e, t_total)
+
+
+def adapt_frames(motion: Motion, effector: str, target, t0: int, tc: int, *, frames, options: AdaptOptions | None = None,
+                 roles=None, contacts=None, root_offsets=None, foot_offsets=None) -> FrameSolve | None:
+    """:func:`adapt` solving the hit on ``frames`` only, returning those frames' poses (a :class:`FrameSolve`).
+
+    The same solve as ``adapt(..., frames=frames)`` (same arguments, checks and errors; the
+    feet too), without the result of the whole clip (the adapted Motion, forward kinematics of
+    every changed frame, bone lengths, foot slides): what a streaming runtime needs before the
+    first frame is released (:func:`repro.motion.runtime.strike.strike`).  None as :func:`adapt`.
+    """
+    if frames is None:
+        raise MotionError("adapt_frames needs the frames to solve (adapt solves the whole clip)")
+    e = _edit_of(motion, effector, target, t0, tc, options, roles, contacts, foot_offsets)
+    _shift_root(e, root_offsets)
+    _offset_goals(e, frames)
+    if not _solve(e):
+        return None
+    return _frames_result(e)
+
+
+def _frames_result(e: _Edit) -> FrameSolve:
+    """:func:`adapt_frames`' result: :func:`_result`'s numbers on the solved frames (frame by frame the same arithmetic)."""
+    f = np.flatnonzero(e.only)
+    orig = np.asarray(e.motion.rotations)[f]
+    rot = e.rot[f]
+    changed = np.any(rot != orig, axis=(1, 2)) | e.shifted[f]
+    unit = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
+    hit = e.p[f].copy()
+    if changed.any():
+        c = f[changed]
+        gq, gp = fk_arrays(e.rig.levels, e.rot[c], e.rig.trans[c])
+        hit[changed] = gp[:, e.ch.hit] + qrot(gq[:, e.ch.hit], e.ch.hit_offset)
+    at = np.flatnonzero(f == e.tc)
+    contact = hit[at[0]] if at.size else e.p[e.tc]
+    # the row norm of _result's error (not the vector norm's dot product: the same rounding)
+    residual = float(np.linalg.norm((contact - e.goals[e.tc])[None], axis=-1)[0]) if at.size else float("nan")
+    return FrameSolve(
+        frames=f, rotations=np.where(changed[:, None, None], unit, orig), positions=np.array(e.motion.positions[f]),
+        hit_positions=hit, target=e.X, tc=e.tc, t_start=e.t_start, offsets=e.d, contact_hit=contact,
+        residual=residual, reached=bool(residual <= e.tol), foot_error=e.foot_err, feet_independent=e.independent,
+        tol=e.tol)
 
 
 @dataclass(eq=False)
@@ -501,7 +596,9 @@ def _check_offsets(offsets, F: int, shape: tuple, name: str) -> np.ndarray:
 def _adapted_motion(motion: Motion, rot: np.ndarray, changed: np.ndarray) -> Motion:
     # re-normalise the changed frames only: the constructor would move unchanged frames
     # by one ulp; they keep the input's exact values (frames <= t0 are bit-identical)
-    unit = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
-    return motion.with_unit_rotations(np.where(changed[:, None, None], unit, motion.rotations))
+    out = np.array(motion.rotations)
+    r = rot[changed]
+    out[changed] = r / np.linalg.norm(r, axis=-1, keepdims=True)
+    return motion.with_unit_rotations(out)
 
 

@@ -68,6 +68,7 @@ import numpy as np
 from repro.checks import as_bool, as_choice, as_int, as_real, as_real_array, describe
 from repro.errors import MotionError, RetrievalError
 from repro.motion.adaptation import EFFECTOR_STEMS, Adaptation, AdaptOptions, adapt
+from repro.motion.adaptation.adapt_clip import FrameSolve, adapt_frames
 from repro.motion.database.annotation import SEMANTICS
 from repro.motion.adaptation.cost import adaptation_cost
 from repro.motion.adaptation.offset import offset_curve
@@ -316,10 +317,10 @@ def _check_inside_body(X: np.ndarray, c: np.ndarray, ch: Skeleton) -> None:
             "a strike needs a target in front of the character")
 
 
-def _root_shift(ad: Adaptation, frac: float, limit: float, kind: str, release) -> np.ndarray:
+def _root_shift(ad: Adaptation | FrameSolve, frac: float, limit: float, kind: str, release) -> np.ndarray:
     """Root offsets (F, 3) following ``d(t)``'s timing by the miss left at the contact (capped)."""
     tc = ad.tc
-    miss = ad.target - ad.hit_positions[tc]
+    miss = ad.target - ad.contact_hit
     n = float(np.linalg.norm(miss))
     if n > limit:
         miss = miss * (limit / n)
@@ -503,10 +504,15 @@ class _Edit:
     base: AdaptOptions
     contacts: np.ndarray
 
-    def run(self, max_iter: int, *, root_offsets=None, frames=None, **changes) -> Adaptation:
+    def run(self, max_iter: int, *, root_offsets=None, frames=None, **changes) -> Adaptation | FrameSolve | None:
+        """The whole clip solved (an :class:`Adaptation`), or with ``frames`` those frames only (a
+        :class:`FrameSolve`: their poses and the contact, what is needed before the first frame)."""
         options = dataclasses.replace(self.base, max_iter=max_iter, **changes)
+        if frames is not None:
+            return adapt_frames(self.blended, self.effector, self.X, 0, self.tc, frames=frames, options=options,
+                                contacts=self.contacts, root_offsets=root_offsets)
         return adapt(self.blended, self.effector, self.X, 0, self.tc, options=options, contacts=self.contacts,
-                     root_offsets=root_offsets, frames=frames)
+                     root_offsets=root_offsets)
 
 
 def _solve(edit: _Edit, options: StrikeOptions, ch: Skeleton, marks: dict) -> tuple[Adaptation, str, tuple]:
@@ -551,7 +557,7 @@ def _early_frame(edit: _Edit, f1: int):
     shift is 0 at every level, so frame ``t0 + 1`` (feet only) is final before the level is decided."""
     a1 = edit.run(0, frames=[f1])
     if f1 <= a1.t_start:
-        return a1.motion.rotations[f1], a1.motion.positions[f1], time.perf_counter()
+        return a1.rotations[0], a1.positions[0], time.perf_counter()
     return None
 
 

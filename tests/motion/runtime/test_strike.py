@@ -288,6 +288,39 @@ def test_a_streamed_frame_is_the_frame_of_the_whole_clip_solve(setup):
         assert part.residual == s.hit_error
 
 
+def test_adapt_frames_gives_the_streamed_solve_s_frames_bit_for_bit(setup):
+    # what the strike solves before the first frame (adapt_frames: no Motion, forward kinematics on
+    # the solved frames only) is adapt(frames=...)'s on those frames: poses, contact, residual, feet
+    from repro.motion.adaptation.adapt_clip import adapt as adapt_fn
+    from repro.motion.adaptation.adapt_clip import adapt_frames
+
+    for c, sem in (([0.3, 1.5, 1.0], "punch"), ([0.0, 1.0, 1.1], "kick"), ([0.0, 1.9, 1.5], "kick")):
+        s = run(setup, c, sem)
+        options = AdaptOptions(hit_point=str(setup[0].hit_wheres[s.retrieval.clip]), feet="plant", floor=0.0,
+                               max_iter=20 if s.level == "root" else 50)
+        for frames, off in (([1, s.tc], s.adaptation.root_offsets), ([1], None), ([s.tc, 2], None)):
+            kw = dict(options=options, contacts=s.contacts, root_offsets=off)
+            full = adapt_fn(s.original, s.effector, s.target, 0, s.tc, frames=frames, **kw)
+            got = adapt_frames(s.original, s.effector, s.target, 0, s.tc, frames=frames, **kw)
+            f = np.sort(frames)
+            assert np.array_equal(got.frames, f)
+            np.testing.assert_array_equal(got.rotations, full.motion.rotations[f])
+            np.testing.assert_array_equal(got.positions, full.motion.positions[f])
+            np.testing.assert_array_equal(got.hit_positions, full.hit_positions[f])
+            np.testing.assert_array_equal(got.offsets, full.offsets)
+            assert (got.tc, got.t_start, got.foot_error, got.feet_independent, got.tol) == \
+                (full.tc, full.t_start, full.foot_error, full.feet_independent, full.tol)
+            if s.tc in frames:
+                assert got.residual == full.residual and got.reached == full.reached
+                np.testing.assert_array_equal(got.contact_hit, full.contact_hit)
+            else:
+                assert np.isnan(got.residual) and not got.reached
+    with pytest.raises(MotionError, match="frames"):
+        adapt_frames(s.original, s.effector, s.target, 0, s.tc, frames=None)
+    with pytest.raises(MotionError, match="out of range"):
+        adapt_frames(s.original, s.effector, s.target, 0, s.tc, frames=[s.original.n_frames])
+
+
 def test_a_planted_kick_plays_its_first_frame_before_the_level_is_decided(setup):
     # a kick solved whole (it may need the root level): up to the kicking foot's lift-off no level
     # changes frame t0 + 1, so it is final (the feet alone) before the level is decided; the strike is
