@@ -156,6 +156,7 @@
       if (!input) return false;
       input.value = text;
       input.dispatchEvent(new Event("change", { bubbles: true }));
+      this.canvas.dataset.pickSent = text.split(" ")[0];  // a frame whose "picks" is this one has drawn them all
       return true;
     }
     send() {

@@ -301,9 +301,9 @@ def _wait_selection(page, ok, what: str) -> int:
     return n
 
 
-def _drawn_selection(page, n: int | None = None) -> list[int]:
-    """The selected vertex ids of the newest frame, once the 3D view has painted it (and, given ``n``, once it
-    selects ``n`` vertices: the status line is written before the frame is sent)."""
+def _drawn_selection(page) -> list[int]:
+    """The selected vertex ids of the frame the 3D view has painted, once it answers the page's last pick message
+    (the frame's ``picks``, the canvas's ``data-pick-sent``) and is the newest frame."""
     import base64
 
     from repro.ui.webview import unpack
@@ -311,13 +311,13 @@ def _drawn_selection(page, n: int | None = None) -> list[int]:
 
     deadline = time.monotonic() + STEP_TIMEOUT
     while True:
+        sent = page.evaluate(f"() => document.querySelector('{CANVAS}').dataset.pickSent || '0'")
         head, arrays = unpack(base64.b64decode(page.evaluate(FETCH_JS, "img.repro-webview-frame")))
-        selected = arrays["selected"].tolist()
-        if page.evaluate(PAINTED_JS) == head["digest"] and (n is None or len(selected) == n):
-            return selected
+        if page.evaluate(PAINTED_JS) == head["digest"] and head["picks"] == int(sent):
+            return arrays["selected"].tolist()
         if time.monotonic() > deadline:
-            pytest.fail(f"the 3D view did not paint a frame selecting {n} vertices (the newest selects "
-                        f"{len(selected)})", pytrace=False)
+            pytest.fail(f"the 3D view did not paint the answer to pick message {sent} (newest frame: {head})",
+                        pytrace=False)
         time.sleep(0.05)
 
 
@@ -334,11 +334,11 @@ def test_face_app_vertex_picking_changes_the_selection(opened):
     page.locator(".repro-webview [data-act=pick]").click()
     t0 = time.monotonic()
     page.mouse.click(x, y)
-    n_click = _wait_selection(page, lambda n: n is not None and n > 0, "a click on the face picked nothing")
+    _wait_selection(page, lambda n: n is not None and n > 0, "a click on the face picked nothing")
     click_s = time.monotonic() - t0
-    assert n_click == len(shown) + 1, (n_click, shown)
-    drawn = _drawn_selection(page, n_click)
-    assert set(shown) < set(drawn), (drawn, shown)
+    drawn = _drawn_selection(page)
+    n_click = _selection_count(page)
+    assert n_click == len(shown) + 1 == len(drawn) and set(shown) < set(drawn), (n_click, drawn, shown)
     readout = page.inner_text(".repro-blendshape-panel .repro-face-readout")
     assert f"picked on the face ({n_click} vertices)" in readout, readout
     page.screenshot(path=str(ARTIFACTS / "screen-face-picked-click.png"))
@@ -348,13 +348,14 @@ def test_face_app_vertex_picking_changes_the_selection(opened):
     for k in range(1, 11):
         page.mouse.move(x - 40 + 8 * k, y + 45, steps=2)
     page.mouse.up()
-    n_brush = _wait_selection(page, lambda n: n is not None and n > n_click + 5, "a brush stroke added too little")
-    _drawn_selection(page, n_brush)
+    drawn = _drawn_selection(page)  # the whole stroke drawn (its last message answered)
+    n_brush = _selection_count(page)
+    assert n_brush == len(drawn) > n_click + 5, (n_brush, len(drawn), n_click)
     page.screenshot(path=str(ARTIFACTS / "screen-face-picked-brush.png"))
     # the key clears (the canvas has the focus since the click)
     page.keyboard.press("c")
     _wait_selection(page, lambda n: n == 0, "the c key did not clear the picks")
-    assert _drawn_selection(page, 0) == []
+    assert _drawn_selection(page) == []
     assert not re.search(r"\bnan\b", page.inner_text("body"), re.IGNORECASE)
     # pick mode off: a drag turns the face and picks nothing
     page.locator(".repro-webview [data-act=pick]").click()
