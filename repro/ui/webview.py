@@ -168,8 +168,8 @@ class MeshWebView(WebView):
         w, h = size
         self.bar_height = 56
         super().__init__(w, h, buttons=("front view", "zoom +", "zoom −", "pick", "clear"),
-                         note="drag: rotate · wheel: zoom · double-click: front view · pick (or Shift): a click "
-                              "adds a vertex, a drag brushes · c: clear")
+                         note="drag: rotate · wheel: zoom · double-click: front · pick or Shift: click adds, "
+                              "drag brushes · c: clear")
         # the page's picks to the kernel (repro.ui.face_picking): the canvas writes them into this text field
         self.picks = widgets.Text(layout=widgets.Layout(display="none"))
         self.picks.add_class("repro-webview-picks")
