@@ -7,7 +7,7 @@ and the test that checks them waits for their result.  The checks themselves are
 tests' own; only where the work runs changes.
 
     python -m tests.beside notebook NOTEBOOK OUT.ipynb   run a notebook with DATA = "embedded"
-    python -m tests.beside figures OUT.json              every quick figure, as CSV text
+    python -m tests.beside figures OUT.json              every quick figure, as CSV text (and shared: _figures)
 """
 
 from __future__ import annotations
@@ -40,11 +40,22 @@ def csv_tables(result, timing: bool) -> dict:
 
 
 def _figures(out: Path) -> None:
-    from repro.experiments import registry
+    """Every quick figure computed again, as CSV text into ``out``; shared with the run's notebook kernels.
+
+    The results and their pictures go into the run's shared folder too (:mod:`repro.experiments.quick`,
+    set up by tests/conftest.py), where notebook 00's kernel under nbval reads them instead of computing
+    every figure a third time.  The session's own results (``quick_figures``) are never read from there:
+    the determinism test compares two runs that share nothing.
+    """
+    from repro.experiments import quick, registry
+    from repro.experiments.registry import call_experiment
     from repro.io import write_text
 
-    reg = registry()
-    tables = {name: csv_tables(exp.func(quick=True), exp.timing) for name, exp in reg.items()}
+    tables = {}
+    for name, exp in registry().items():
+        result = call_experiment(exp, quick=True)
+        tables[name] = csv_tables(result, exp.timing)
+        quick.share(name, result)
     write_text(out, json.dumps(tables))
 
 

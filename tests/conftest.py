@@ -46,7 +46,19 @@ settings.register_profile("repro", deadline=None, derandomize=True, max_examples
 settings.load_profile("repro")
 
 
+#: one folder per test session where its processes share the quick figures (repro.experiments.quick): the
+#: run beside the tests computes them, notebook 00's kernel reads them (its caches stay cold: only this
+#: run's results, verified, never a leftover of another run's)
+_QUICK_SHARED = None
+
+
 def pytest_configure(config):
+    global _QUICK_SHARED
+    from repro.experiments.quick import SHARED
+
+    if not os.environ.get(SHARED):
+        _QUICK_SHARED = tempfile.mkdtemp(prefix="repro-quick-")
+        os.environ[SHARED] = _QUICK_SHARED
     if COLD_BUSY:
         config.pluginmanager.register(ColdBusyNotebooks(), "repro-cold-busy-notebooks")
     config.addinivalue_line("markers", "render: needs VTK off-screen rendering")
@@ -201,6 +213,9 @@ def pytest_collection_finish(session):
 def pytest_unconfigure(config):
     if _BESIDE is not None:
         _BESIDE.stop()
+    if _QUICK_SHARED is not None:
+        shutil.rmtree(_QUICK_SHARED, ignore_errors=True)
+        os.environ.pop("REPRO_QUICK_RESULTS", None)
 
 
 @pytest.fixture(scope="session")
