@@ -564,13 +564,29 @@ class TreePlan:
         root_t = root_t - drop[:, None] * e_up
         G = self._solve(gq_s, gp_s, root_t, goal)
         P = self._world(G, root_t)
-        # no ankle / toe below the floor: raise the ankle goal by the depth
-        feet = [[tgt.index(f"{s}_ankle")] + ([tgt.index(f"{s}_toe")] if f"{s}_toe" in tgt.roles else [])
-                for s in ("left", "right")]
-        depth = np.stack([np.maximum(0.0, -P[:, pts, kt].min(axis=1)) for pts in feet], axis=1)
+        # no point of the character's own foot below the floor (the ankle, the joints below it and
+        # their End Sites: a toe's tip, a toe-less foot's End Site): raise the ankle goal by the depth
+        depth = np.stack([np.maximum(0.0, -self._foot_low(G, P, a, kt)) for a in ank], axis=1)
         if np.any(depth > 0):
             G = self._solve(gq_s, gp_s, root_t, P[:, ank] + (depth * (1 + 1e-9))[..., None] * e_up)
         return root_t, G
+
+    def _foot_low(self, G: np.ndarray, P: np.ndarray, ank: int, kt: int) -> np.ndarray:
+        """(F,) height (axis ``kt``) of the lowest point of the foot below joint ``ank``: the joint, its
+        descendants and their End Sites, for world rotations ``G`` and positions ``P``."""
+        tgt = self.target
+        below = np.zeros(self.n_joints, dtype=bool)
+        below[ank] = True
+        for j in range(ank + 1, self.n_joints):  # parents come before their children
+            below[j] = below[self.parents[j]]
+        low = P[:, below, kt].min(axis=1)
+        esp = np.asarray(tgt.end_site_parents, dtype=np.intp)
+        ends = np.flatnonzero(below[esp]) if esp.size else esp
+        if ends.size:
+            par = esp[ends]
+            tips = P[:, par] + qrot(G[:, par], np.asarray(tgt.end_site_offsets, dtype=float)[ends][None])
+            low = np.minimum(low, tips[..., kt].min(axis=1))
+        return low
 
     def _world(self, G: np.ndarray, root_t: np.ndarray) -> np.ndarray:
         """(F, J, 3) world positions of the character's joints for world rotations ``G``."""

@@ -151,18 +151,6 @@ RIGS = ["pybvh/bvh_test1.bvh", "pybvh/bvh_test2.bvh", "pybvh/bvh_test3.bvh", "py
         "realrigs/threejs_pirouette_daz.bvh", "realrigs/mocopi_MCPM_20230410_150228.BVH",
         "realrigs/woosub_coda02_woman.bvh", "realrigs/emretanirgan_matt_happy2.bvh"]
 
-#: Rigs whose stance (retargeted across trees with fix_feet) puts a foot's End Site more than 1 cm below the
-#: floor: retarget_across's foot pass raises the ankle by the depth of the ankle and toe joints only, not of
-#: their End Sites (the toe's tip; a toe-less foot's End Site, 12.7 cm deep on matt_happy2)
-END_SITES_BELOW = {"pybvh/bvh_test1.bvh", "pybvh/bvh_test2.bvh", "pybvh/standard_skeleton.bvh",
-                   "realrigs/accad_Male1_C03_Run.bvh", "realrigs/emretanirgan_matt_happy2.bvh"}
-_END_SITES_XFAIL = pytest.mark.xfail(strict=True, reason="repro.motion.retargeting.trees.TreePlan._fix_feet "
-                                     "counts the ankle and toe joints, not the foot's End Sites (issue 25, item 2)")
-
-
-def _rigs(known_failures: set[str]) -> list:
-    return [pytest.param(n, marks=_END_SITES_XFAIL) if n in known_failures else n for n in RIGS]
-
 #: Rigs whose rest pose faces -Z or +X once Y-up (their clips faced away from their stance, and the
 #: blend turned the body round, until y_up_metres turned them to face +Z as the actors do)
 TURNED = {"pybvh/bvh_test1.bvh", "pybvh/standard_skeleton.bvh", "realrigs/emretanirgan_jump_no_end_sites.bvh"}
@@ -196,7 +184,7 @@ def test_real_rigs_keep_every_joint_above_the_floor(synthetic_db, name):
 
 
 @pytest.mark.data("cmu-bvh")
-@pytest.mark.parametrize("name", _rigs(END_SITES_BELOW))
+@pytest.mark.parametrize("name", RIGS)
 def test_real_rigs_stance_stands_on_the_floor(synthetic_db, name):
     """The fighter's stance on the character (its current pose before any order): no joint, no End Site
     more than 1 cm below the floor (issue 25: 'no joint below the floor by more than 1 cm, on every rig')."""
