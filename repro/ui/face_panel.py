@@ -58,6 +58,7 @@ import numpy as np
 
 from repro.blendshapes import Attenuator, load_model, metrics, select_vertices
 from repro.blendshapes.model import AXES, BlendshapeModel
+from repro.blendshapes.scenarios import PAPER_SLIDERS, default_sliders
 from repro.errors import AttenuationError, ModelError, SelectionError
 # the numbers line and its words, defined beside the panel and part of its interface (callers read the line back)
 from repro.ui.face_readout import NOT_APPLICABLE, NUMBERS_FORMAT, face_readout, format_numbers, parse_numbers
@@ -69,12 +70,6 @@ __all__ = [
     "BlendshapePanel", "blendshape_panel", "PAPER_SLIDERS",
     "NUMBERS_FORMAT", "NOT_APPLICABLE", "face_readout", "format_numbers", "parse_numbers",
 ]
-
-#: The sliders the paper names (Figs. 2-5), and those its scenarios need.
-PAPER_SLIDERS = (
-    "Furrow", "SmirkLeft", "SmirkRight", "Wince", "SneerLeft", "SneerRight",
-    "JawOpen", "Blink", "BrowUp", "MouthStretch",
-)
 
 #: Exponents (base 10) of the alpha slider's range.
 ALPHA_EXPONENTS = (-3.0, 6.0)
@@ -328,8 +323,7 @@ class BlendshapePanel(PanelCallbacks):
     @staticmethod
     def _slider_names(model: BlendshapeModel, sliders) -> tuple[str, ...]:
         if sliders is None:
-            names = tuple(s for s in PAPER_SLIDERS if s in model.slider_names)
-            return names or model.names
+            return default_sliders(model) or model.names
         if isinstance(sliders, str):
             if sliders != "all":
                 raise ModelError(f"sliders must be a list of names, None or 'all', got {sliders!r}")

@@ -557,3 +557,20 @@ def test_the_readout_says_the_numbers_in_words():
     assert face_readout(off, "mouth", 40, "model units") == (
         "attenuation off: the sliders move the whole face; mouth (40 vertices) moved 0.41 model units")
     assert "nan" not in face_readout(still, "r", 1, "cm")
+
+
+def test_the_panel_opens_a_vrm_face_on_its_own_expressions():
+    """Issue 25: the panel opened the Godette VRM with the paper's Blink alone; it offers what
+    repro.blendshapes.scenarios.default_sliders offers (its expressions and the targets they leave out)."""
+    from repro import data
+    from repro.blendshapes import load_model
+    from repro.blendshapes.scenarios import default_sliders
+    from repro.ui.face_panel import BlendshapePanel
+
+    path = data.data_dir() / "faces/formats/realfaces/godette_vrm0_cc_by.vrm"
+    if not path.exists():
+        pytest.skip("the real faces are not staged")
+    model = load_model(path)
+    panel = BlendshapePanel(model, view="none")
+    assert panel.slider_names == default_sliders(model) and len(panel.slider_names) > 1
+    assert BlendshapePanel("procedural", view="none").slider_names == default_sliders(load_model("procedural"))
