@@ -39,8 +39,8 @@ def csv_tables(result, timing: bool) -> dict:
     return out
 
 
-def _figures(out: Path) -> None:
-    """Every quick figure computed again, as CSV text into ``out``; shared with the run's notebook kernels.
+def fresh_figures() -> dict:
+    """Every quick figure computed again, as :func:`csv_tables`; shared with the run's notebook kernels.
 
     The results and their pictures go into the run's shared folder too (:mod:`repro.experiments.quick`,
     set up by tests/conftest.py), where notebook 00's kernel under nbval reads them instead of computing
@@ -49,14 +49,36 @@ def _figures(out: Path) -> None:
     """
     from repro.experiments import quick, registry
     from repro.experiments.registry import call_experiment
-    from repro.io import write_text
 
     tables = {}
     for name, exp in registry().items():
         result = call_experiment(exp, quick=True)
         tables[name] = csv_tables(result, exp.timing)
         quick.share(name, result)
-    write_text(out, json.dumps(tables))
+    return tables
+
+
+def _figures(out: Path) -> None:
+    """:func:`fresh_figures`, as JSON into ``out`` (run in a process of its own beside the tests)."""
+    from repro.io import write_text
+
+    write_text(out, json.dumps(fresh_figures()))
+
+
+def fresh_figures_in_a_process() -> dict:
+    """:func:`fresh_figures` in a new process (nothing in memory shared with this one), waited for."""
+    import functools
+
+    from repro.processes import die_with_parent
+
+    with tempfile.TemporaryDirectory(prefix="repro-figures-") as tmp:
+        out = Path(tmp) / "figures.json"
+        run = subprocess.run([sys.executable, "-m", "tests.beside", "figures", str(out)], cwd=REPO,
+                             stdin=subprocess.DEVNULL, capture_output=True, text=True,
+                             preexec_fn=functools.partial(die_with_parent, os.getpid()))  # ends with this test process
+        if run.returncode != 0:
+            raise RuntimeError(f"the second run of the quick figures failed:\n{run.stdout[-10000:]}{run.stderr[-10000:]}")
+        return json.loads(out.read_text())
 
 
 def _notebook(path: Path, out: Path) -> int:

@@ -86,6 +86,9 @@ def pytest_collection_modifyitems(config, items):
             if needs.get("needs_render") or "pyvista" in item.path.read_text():
                 item.add_marker(pytest.mark.render)
 
+    if XDIST_WORKER:
+        _order_for_workers(items)
+
     require_data = os.environ.get("REPRO_REQUIRE_DATA") == "1"
     for item in items:
         for mark in item.iter_markers("data"):
@@ -107,6 +110,28 @@ def pytest_collection_modifyitems(config, items):
             for item in items:
                 if item.get_closest_marker("render"):
                     item.add_marker(pytest.mark.skip(reason=reason))
+
+
+# ------------------------------------------------------------------ two test processes (pytest-xdist)
+#: set by pytest-xdist in its worker processes (scripts/test.sh runs ``-n auto --dist loadfile``: a worker takes a
+#: file whole, so a module's fixtures are built once and a notebook's cells run in order in one kernel)
+XDIST_WORKER = os.environ.get("PYTEST_XDIST_WORKER")
+#: the files, or folders, whose tests take longest (measured with --durations): handed out first, so
+#: that the two workers end together instead of one waiting on the other's last long file
+FIRST = ("tests/test_cli.py", "tests/claims/", "tests/test_notebooks_embedded.py", "tests/experiments/test_legibility.py",
+         "tests/fuzz/", "tests/browser/", "tests/bench/", "notebooks/")
+#: handed out last: notebook 00 reads the quick figures the determinism test shares (tests/test_cli.py)
+LAST = ("notebooks/00_overview.ipynb",)
+
+
+def _order_for_workers(items) -> None:
+    """The longest files first, notebook 00 last (``--dist loadfile`` hands files out in this order; a stable
+    sort: the tests of a file, a notebook's cells, keep their order)."""
+    def rank(item):
+        where = item.path.relative_to(REPO).as_posix() if item.path.is_relative_to(REPO) else ""
+        return 2 if where.startswith(LAST) else 0 if where.startswith(FIRST) else 1
+
+    items[:] = sorted(items, key=rank)
 
 
 # ------------------------------------------------------------------ notebooks cold and busy
@@ -142,52 +167,63 @@ def cold_environment(root: Path) -> dict[str, str]:
 
 
 class ColdBusyNotebooks:
-    """Registered as a plugin (global: conftest hooks would only see items under tests/, not notebooks/)."""
+    """Registered as a plugin (global: conftest hooks would only see items under tests/, not notebooks/).
+
+    From a notebook's first cell to its last: its kernel's caches in a fresh folder, and CPU-bound
+    processes running (one per core, or per core this process has under pytest-xdist, whose other
+    workers keep the rest busy).  Other tests, before or after, run with neither.
+    """
 
     def __init__(self):
         self.notebook = self.root = self.saved = None
         self.burners: list[subprocess.Popen] = []
         self.notebooks = 0
 
-    def _leave_cold(self) -> None:
+    def _leave(self) -> None:
+        """The current notebook is done (its kernel is shut down by the next test's set-up)."""
+        stop_burners(self.burners)
+        self.burners = []
         if self.root is not None:
             shutil.rmtree(self.root, ignore_errors=True)
             self.root = None
+        for var, value in (self.saved or {}).items():
+            if value is None:
+                os.environ.pop(var, None)
+            else:
+                os.environ[var] = value
+        self.saved = self.notebook = None
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_runtest_setup(self, item):
         """Before a notebook's kernel starts (nbval starts it when the notebook is set up)."""
-        if item.path.suffix != ".ipynb" or item.path == self.notebook:
+        if item.path == self.notebook:
             return
-        if self.saved is None:
-            self.saved = {v: os.environ.get(v) for v in COLD_VARS}
-            self.burners = start_burners()
-        self._leave_cold()  # the previous notebook's kernel is shut down by now
+        if self.notebook is not None:
+            self._leave()
+        if item.path.suffix != ".ipynb":
+            return
+        self.saved = {v: os.environ.get(v) for v in COLD_VARS}
+        workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT") or 1)
+        self.burners = start_burners(max(1, (os.cpu_count() or 1) // workers))
         self.notebook = item.path
         self.root = Path(tempfile.mkdtemp(prefix="repro-cold-"))
         self.notebooks += 1
         os.environ.update(cold_environment(self.root))
 
     def pytest_sessionfinish(self, session, exitstatus):
-        stop_burners(self.burners)
-        self.burners = []
-        self._leave_cold()
-        for var, value in (self.saved or {}).items():
-            if value is None:
-                os.environ.pop(var, None)
-            else:
-                os.environ[var] = value
+        self._leave()
 
     def pytest_terminal_summary(self, terminalreporter):
         if self.notebooks:
             terminalreporter.write_line(
                 f"REPRO_NBVAL_COLD_BUSY: {self.notebooks} notebook(s) ran with cold caches "
-                f"({', '.join(COLD_VARS)} fresh per notebook) and {os.cpu_count()} CPU-bound processes running")
+                f"({', '.join(COLD_VARS)} fresh per notebook) and every core kept busy meanwhile")
 
 
 # ------------------------------------------------------------------ work beside the tests
 #: REPRO_TEST_BESIDE=0 runs everything in the test that checks it (slower: nothing runs on the second core)
-BESIDE_ON = os.environ.get("REPRO_TEST_BESIDE", "1") != "0"
+#: (under pytest-xdist the two workers are the two cores, and each test does its own work)
+BESIDE_ON = os.environ.get("REPRO_TEST_BESIDE", "1") != "0" and not XDIST_WORKER
 _BESIDE = None
 
 

@@ -90,16 +90,17 @@ def test_two_runs_give_identical_csvs_except_timing_columns(quick_figures, besid
 
     The first run is the session's (``quick_figures``, computed earlier in this process by the
     tests that read it), the second a fresh one: in a process of its own, started beside the
-    tests when they were collected (tests/beside.py; in this test when it was not)."""
+    tests when they were collected (tests/beside.py), or by this test when it was not (under pytest-xdist:
+    the other worker is the second core); either way shared with notebook 00's kernel."""
     from repro.experiments import registry
-    from tests.beside import csv_tables
+    from tests.beside import csv_tables, fresh_figures_in_a_process
 
     names = list(registry())
     assert sum(not registry()[n].timing for n in names) >= 5
     if beside.has("figures"):
         second = beside.figures()
     else:
-        second = {n: csv_tables(registry()[n].func(quick=True), registry()[n].timing) for n in names}
+        second = fresh_figures_in_a_process()
     assert sorted(second) == sorted(names)
     for name in names:
         first = csv_tables(quick_figures(name), registry()[name].timing)

@@ -156,10 +156,9 @@ def lab(tmp_path_factory):
     (settings / "notification.jupyterlab-settings").write_text(
         json.dumps({"fetchNews": "false", "checkForUpdates": False}))
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
-    log = ARTIFACTS / "jupyterlab.log"
-
     token = secrets.token_hex(16)
     port = _free_port()
+    log = ARTIFACTS / f"jupyterlab-{port}.log"  # one per server: two test processes may each run one
     env = dict(os.environ)  # REPRO_DATA_DIR, REPRO_OFFLINE, ... reach the kernels
     env.update({
         "JUPYTERLAB_SETTINGS_DIR": str(home / "settings"),

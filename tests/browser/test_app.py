@@ -71,7 +71,7 @@ class App:
         self.port = _free_port()
         self.url = f"http://127.0.0.1:{self.port}/"
         ARTIFACTS.mkdir(parents=True, exist_ok=True)
-        self.log = ARTIFACTS / f"app-{which}.log"
+        self.log = ARTIFACTS / f"app-{which}-{self.port}.log"  # one per app: two test processes may each start one
         with open(self.log, "wb") as out:
             self.proc = subprocess.Popen(
                 [sys.executable, "-m", "repro", "app", which, "--port", str(self.port), "--no-browser"],

@@ -57,7 +57,7 @@ BAD_TARGETS = [[0.0, 1e300, 0.0], [1e7, 0.0, 0.0], [np.nan, 1.0, 0.0], [0.0, np.
 
 
 @pytest.mark.parametrize("method", ["search", "search_exhaustive", "search_kdtree"])
-@pytest.mark.parametrize("target", BAD_TARGETS, ids=repr)
+@pytest.mark.parametrize("target", BAD_TARGETS, ids=lambda t: "object()" if type(t) is object else repr(t))  # ids stable across processes
 def test_bad_targets(r, query, method, target):
     with pytest.raises(RetrievalError):
         getattr(r, method)(target, *query, "punch")
