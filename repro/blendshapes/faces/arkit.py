@@ -21,7 +21,7 @@ import numpy as np
 from repro.checks import as_real_array, describe
 from repro.errors import ModelError
 
-__all__ = ["arkit_rig", "canonical_names", "neutral_targets", "ARKIT_SLIDERS", "ARKIT_NAMES", "NEUTRAL_NAMES"]
+__all__ = ["arkit_rig", "canonical_names", "neutral_targets", "ARKIT_SLIDERS", "ARKIT_NAMES", "FACS_LIDS", "NEUTRAL_NAMES"]
 
 #: The paper's sliders (Lewis et al. 2005, Figs. 3-5) over ARKit-style names, as for ICT
 #: (:data:`repro.blendshapes.faces.ict.ICT_SLIDERS`); for each slider the first alternative whose
@@ -42,6 +42,14 @@ ARKIT_SLIDERS: dict[str, tuple[dict[str, float], ...]] = {
         {"browInnerUp": 1.0, "browOuterUp_L": 1.0, "browOuterUp_R": 1.0},
     ),
 }
+
+
+#: FACS-style names of the lids, for the ARKit shapes they stand for on a face that has no ARKit name for them:
+#: the upper lid closing (AU 43/45) is ``eyeBlink``, the lower lid raised (AU 7, the lid tightener) is
+#: ``eyeSquint`` (the convention of FACS-named rigs such as Snap's Bitmoji faces: ``eyeUpperClose_L``,
+#: ``eyeLowerClose_L``, beside in-betweens ``eyeUpperClose_50_L`` that stay shapes of their own).
+FACS_LIDS = {"eyeBlink_L": "eyeUpperClose_L", "eyeBlink_R": "eyeUpperClose_R",
+             "eyeSquint_L": "eyeLowerClose_L", "eyeSquint_R": "eyeLowerClose_R"}
 
 
 #: Apple ARKit's 52 blendshape names (``ARFaceAnchor.BlendShapeLocation``), as Apple spells them.
@@ -123,7 +131,8 @@ def arkit_rig(f0, D, names: Sequence[str], aliases: Mapping[str, Mapping[str, fl
     (``browDown_L``, ``browDownLeft``, ``face_shapes.ai_browDown_L``: :func:`canonical_names`),
     those whose shapes are all present.  ``aliases`` stand for ARKit shapes the face has under
     no name, as combinations of its shapes (a VRM face's ``blink_l`` expression for ``eyeBlink_L``,
-    :func:`~repro.blendshapes.faces.vrm.vrm_expressions`); a shape of the face itself comes first.
+    :func:`~repro.blendshapes.faces.vrm.vrm_expressions`); a shape of the face itself comes first,
+    then an alias, then a FACS-named lid (:data:`FACS_LIDS`: ``eyeUpperClose_L`` for ``eyeBlink_L``).
     Regions, found from where the named shapes move (not from vertex ids), with
     ``|d_k(v)|`` the motion of vertex ``v`` under shape ``k`` at weight 1 and the
     subject's left-right axis running from the motion centroid of the ``_R``
@@ -147,6 +156,9 @@ def arkit_rig(f0, D, names: Sequence[str], aliases: Mapping[str, Mapping[str, fl
     index = {s: k for k, s in enumerate(names)}
     for s, combo in (aliases or {}).items():
         by_canon.setdefault(s, {index[t]: float(c) for t, c in combo.items()})
+    for s, facs in FACS_LIDS.items():  # a FACS-named lid stands for the ARKit shape the face lacks
+        if s not in by_canon and facs in by_canon:
+            by_canon[s] = by_canon[facs]
 
     def motion(*shapes):
         """``|sum of the shapes' deltas|`` per vertex, or None when the face lacks one of them."""
