@@ -133,12 +133,14 @@ class App:
 def page(request):
     if (why := browser_unavailable_reason()) is not None:
         pytest.skip(why)
+    import shutil
     import tempfile
 
     from playwright.sync_api import sync_playwright
 
     pw = sync_playwright().start()
-    ctx = pw.chromium.launch_persistent_context(tempfile.mkdtemp(prefix="repro-app-chromium-"),
+    profile = tempfile.mkdtemp(prefix="repro-app-chromium-")  # removed at the end
+    ctx = pw.chromium.launch_persistent_context(profile,
                                                 executable_path=str(CHROMIUM), headless=True, args=CHROMIUM_ARGS,
                                                 viewport={"width": 1400, "height": 1000})
     ctx.set_default_timeout(STEP_TIMEOUT * 1000)
@@ -152,6 +154,7 @@ def page(request):
             pass
         ctx.close()
         pw.stop()
+        shutil.rmtree(profile, ignore_errors=True)
 
 
 @pytest.fixture

@@ -21,6 +21,7 @@ The first-paint time (navigation to the 3D view painted) is printed, never asser
 from __future__ import annotations
 
 import re
+import shutil
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -121,13 +122,16 @@ def opened():
     pw = sync_playwright().start()
     cache: dict[str, Opened] = {}
     contexts = []
+    profiles: list[str] = []  # the browser profiles, removed at the end
 
     def open_app(which: str) -> Opened:
         if which in cache:
             return cache[which]
         a = App(which)
         prepared = _wait_idle(a)
-        ctx = pw.chromium.launch_persistent_context(tempfile.mkdtemp(prefix="repro-screen-chromium-"),
+        profile = tempfile.mkdtemp(prefix="repro-screen-chromium-")
+        profiles.append(profile)
+        ctx = pw.chromium.launch_persistent_context(profile,
                                                     executable_path=str(CHROMIUM), headless=True,
                                                     args=CHROMIUM_ARGS, viewport=SCREEN)
         contexts.append((ctx, a))
@@ -155,6 +159,8 @@ def opened():
             finally:
                 a.stop()
         pw.stop()
+        for profile in profiles:
+            shutil.rmtree(profile, ignore_errors=True)
 
 
 def _body_length(page) -> tuple[float, dict]:

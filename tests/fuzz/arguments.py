@@ -386,7 +386,7 @@ class _Child(harness.Worker):
 
         env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1",
                    PYTHONPATH=os.pathsep.join([str(REPO)] + [p for p in [os.environ.get("PYTHONPATH")] if p]),
-                   MPLBACKEND="Agg", REPRO_OFFLINE="1", PYTHONHASHSEED="0", REPRO_MEMORY_BUDGET=str(BUDGET))
+                   MPLBACKEND="Agg", REPRO_OFFLINE="1", PYTHONHASHSEED="0", REPRO_MEMORY_BUDGET=str(BUDGET), TMPDIR=self._child_tmp())
         self.log = Path(self.log_dir) / f"args-{self.restarts}.log"
         self._log_fh = open(self.log, "wb")
         self.proc = subprocess.Popen([sys.executable, "-m", "tests.fuzz.arguments", "--child", self.module],

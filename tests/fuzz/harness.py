@@ -117,10 +117,16 @@ class Worker:
         self._buf = b""
         self.restarts = 0
 
+    def _child_tmp(self) -> str:
+        """The child's temporary folder (its TMPDIR), under the log folder: a killed child leaves nothing elsewhere."""
+        d = Path(self.log_dir) / "tmp"
+        d.mkdir(exist_ok=True)
+        return str(d)
+
     def start(self) -> dict:
         env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1",
                    PYTHONPATH=os.pathsep.join([str(REPO)] + [p for p in [os.environ.get("PYTHONPATH")] if p]),
-                   MPLBACKEND="Agg", REPRO_OFFLINE="1", PYTHONHASHSEED="0")
+                   MPLBACKEND="Agg", REPRO_OFFLINE="1", PYTHONHASHSEED="0", TMPDIR=self._child_tmp())
         self.log = Path(self.log_dir) / f"worker-{self.restarts}.log"
         self._log_fh = open(self.log, "wb")
         self.proc = subprocess.Popen([sys.executable, str(WORKER), json.dumps(self.ctx)],
