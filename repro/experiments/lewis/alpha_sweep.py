@@ -80,7 +80,7 @@ def draw(sweep: pd.DataFrame):
             ax.grid(alpha=0.3)
         col[0].set_ylabel("selected motion / unattenuated")
         col[0].set_title(f"{model} (dots: Section 5's default alpha)", fontsize=9)
-        col[0].legend(fontsize=7)
+        col[0].legend(fontsize=8)
         col[1].set_ylabel("unselected fidelity (1 = as the sliders intend)")
         col[2].set_xlabel("selected motion / unattenuated")
         col[2].set_ylabel("unselected relative error")

@@ -39,7 +39,7 @@ def draw(table, scaling):
         ax.set_yscale("log")
         ax.set_ylabel("median time per call (µs)")
         ax.set_title(what)
-        ax.legend(fontsize=7, loc="lower right")
+        ax.legend(fontsize=8, loc="lower right")
     for ax, (sweep, xcol, xlabel) in zip(all_axes[1], [("vertices", "n_vertices", "vertices (procedural faces)"),
                                                         ("shapes", "n_shapes", "shapes (columns of the largest model)")]):
         s = scaling[scaling.sweep == sweep]
@@ -52,7 +52,7 @@ def draw(table, scaling):
         ax.set_xlabel(xlabel)
         ax.set_ylabel("median time (µs)")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=8)
     fig.suptitle(f"Attenuation speed — {table['machine'].iloc[0]}", fontsize=8)
     return fig
 

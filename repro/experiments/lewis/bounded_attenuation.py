@@ -131,7 +131,7 @@ def draw(sweep: pd.DataFrame):
                 col[2].plot(g.alpha, g[f"{k}_unselected_fidelity"], ls, color=c)
         col[0].set_ylabel("Eq. 3: largest excursion outside [0, 1]")
         col[0].set_title(f"{model}", fontsize=9)
-        col[0].legend(fontsize=7)
+        col[0].legend(fontsize=8)
         col[1].set_ylabel("selected motion / unattenuated")
         col[1].set_title("solid: Eq. 3   dashed: Eq. 3 clamped   dotted: bounded", fontsize=8)
         col[2].set_ylabel("unselected fidelity")

@@ -95,12 +95,12 @@ def draw(table: pd.DataFrame):
             for i, method in enumerate(METHODS):
                 v = t[t.method == method].set_index("scenario").loc[keys, col].to_numpy(dtype=float)
                 ax.bar(x + (i - 1.5) * width, np.maximum(v, 1e-12) if log else v, width, label=method)
-            ax.set_xticks(x, [k.replace("_", "\n", 1) for k in keys], fontsize=7)
+            ax.set_xticks(x, [k.replace("_", "\n", 1) for k in keys], fontsize=8)
             if log:
                 ax.set_yscale("log")
             ax.set_title(f"{model}: {label}", fontsize=9)
             ax.grid(alpha=0.3, axis="y")
-        row[0].legend(fontsize=7)
+        row[0].legend(fontsize=8)
     return fig
 
 

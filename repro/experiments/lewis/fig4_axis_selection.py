@@ -50,12 +50,12 @@ def draw(pairs, table):
         for r in sub.itertuples():
             ax.bar([x, x + 1, x + 2], [r.dx, r.dy, r.dz], color=["tab:blue", "tab:orange", "tab:green"],
                    alpha=1.0 if r.method == "attenuated" else 0.45)
-            labels.append(f"v{r.vertex}\n{r.method}")
+            labels.append(f"v{r.vertex}\n{'att.' if r.method == 'attenuated' else 'none'}")
             x += 4
-        ax.set_xticks([4 * i + 1 for i in range(len(labels))], labels, fontsize=6)
+        ax.set_xticks([4 * i + 1 for i in range(len(labels))], labels, fontsize=8)
         ax.axhline(0, color="k", lw=0.5)
         ax.set_ylabel(f"displacement ({model.units})")
-        ax.set_title("dx (blue), dy (orange), dz (green)", fontsize=8)
+        ax.set_title("dx (blue), dy (orange), dz (green);\nfaint: none, solid: attenuated (att.)", fontsize=8)
     fig.suptitle("Per-axis selection: only y of the mouth corners is attenuated", fontsize=9)
     return fig
 
