@@ -29,6 +29,8 @@ def rejected_alternatives(quick: bool = False) -> Result:
 def draw(pairs, table):
     import matplotlib.pyplot as plt
     import numpy as np
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
 
     from repro.blendshapes.alternatives import edit_zeroed
     from repro.blendshapes.metrics import laplacian_magnitude
@@ -45,8 +47,11 @@ def draw(pairs, table):
         keys = list(dict.fromkeys(t.scenario))
         for ax, (col, label) in zip(row, metrics):
             for j, method in enumerate(methods):
-                vals = [t[(t.scenario == k) & (t.method == method)][col].iloc[0] for k in keys]
-                ax.bar(np.arange(len(keys)) + 0.2 * (j - 1.5), vals, 0.2, label=method)
+                cells = [t[(t.scenario == k) & (t.method == method)].iloc[0] for k in keys]
+                xs = np.arange(len(keys)) + 0.2 * (j - 1.5)
+                bars = ax.bar(xs, [c[col] for c in cells], 0.2, label=method)
+                _mark_missing_bars(ax, xs, cells, col, bars.patches[0].get_facecolor())
+            _mark_tiny_groups(ax, t, keys, col)
             ax.set_xticks(range(len(keys)), [k.replace("_", "\n") for k in keys], fontsize=8)
             ax.tick_params(axis="y", labelsize=8)
             ax.set_title(f"{model.name}: {label}", fontsize=10)
@@ -54,6 +59,12 @@ def draw(pairs, table):
     handles, labels = axes[0, 0].get_legend_handles_labels()
     sub[0].legend(handles, [m.replace("_", " ") for m in labels], loc="outside upper center", ncols=len(methods),
                   fontsize=11, frameon=False)
+    na = table[~table.applicable]
+    if len(na):
+        sessions = ", ".join(dict.fromkeys(na.scenario))
+        sub[0].supxlabel(f"n/a: orthogonal locking locks the shapes of the base pose; {sessions} start from the "
+                         f"neutral face, so there is nothing to lock.\n0: exactly zero (zeroed rows hold the "
+                         f"selection by construction)", fontsize=9)
     # where zeroing tears: Laplacian magnitude of the motion, procedural face, Fig. 5 session
     model, att = pairs[0]
     sc = S.scenario("wince_sneer_under_eye")
@@ -70,8 +81,31 @@ def draw(pairs, table):
         ax.imshow(img)
         ax.axis("off")
         ax.set_title(f"{model.name} {sc.figure}, {title}: max |L d| = {l.max():.3g}", fontsize=10)
+    bar = sub[1].colorbar(ScalarMappable(Normalize(0, hi), "viridis"), ax=bottom, shrink=0.8, aspect=15)
+    bar.set_label(f"|L (d - d_base)| ({model.units})", fontsize=9)
+    bar.ax.tick_params(labelsize=8)
     sub[1].suptitle("Laplacian magnitude of the displacement (bright = surface torn)", fontsize=10)
     return fig
+
+
+def _mark_tiny_groups(ax, t, keys, col) -> None:
+    """Write the largest value over a session's bars where all of them are too small to see (under 1 %
+    of the axis): e.g. the ICT face's furrow session, whose moves barely reach the selection."""
+    top = ax.get_ylim()[1]
+    for i, k in enumerate(keys):
+        hi = t[t.scenario == k][col].max()
+        if 0 < hi < 0.01 * top:
+            ax.text(i, 0.06 * top, f"all \u2264 {hi:.2g}", ha="center", va="bottom", fontsize=8)
+
+
+def _mark_missing_bars(ax, xs, cells, col, colour) -> None:
+    """Say on the axes why a bar is not there: "n/a" where the method does not apply to the session
+    (its row is NaN), "0" where the value is exactly zero."""
+    for x, cell in zip(xs, cells):
+        if not cell["applicable"]:
+            ax.text(x, 0, " n/a", rotation=90, ha="center", va="bottom", fontsize=8, color=colour)
+        elif cell[col] == 0:
+            ax.text(x, 0, "0", ha="center", va="bottom", fontsize=8, color=colour)
 
 
 def summary(result) -> str:
