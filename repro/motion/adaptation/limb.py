@@ -5,6 +5,12 @@ wrist / ankle; the elbow / knee keeps its swivel (its bend direction is parallel
 transported from the input's proximal->distal axis to the new one); the proximal and
 middle joints turn by the smallest rotations that place the middle and distal joints,
 so the twist of the upper arm / thigh is kept.
+
+Joints between the proximal and middle joints, or the middle and distal ones (twist
+segments inside the limb chain, MakeHuman ``upperarm02.L`` between ``upperarm01.L`` and
+``lowerarm01.L``), are carried along: they keep their local rotations, so the segment
+from the proximal to the middle joint is rigid and its length is the distance of the two
+joints in the pose, not the middle joint's offset.
 """
 
 from __future__ import annotations
@@ -119,29 +125,36 @@ def solve_limb(
     q2 = min_rotation(W1 - Es, Wr - Es)
     # local corrections: a world rotation D applied below joint j is, in j's parent
     # frame with world rotation R, the quaternion (R^T d_v, d_w)
+    # (the middle joint's parent is the proximal joint, or the last twist segment after it,
+    # which turned with it by q1; the distal joint's parent likewise turned by q2 q1)
     d1 = np.concatenate([matvec_t(rw[:, kp - 1], q1[:, :3]), q1[:, 3:]], axis=-1)
-    r_prox_new = quat_to_matrix(q1) @ rw[:, kp]
+    r_prox_new = quat_to_matrix(q1) @ rw[:, km - 1]
     d2 = np.concatenate([matvec_t(r_prox_new, q2[:, :3]), q2[:, 3:]], axis=-1)
     q21 = quat_multiply(q2, q1)
     pr, md, ds = ch.prox, ch.mid, ch.dist
     if distal_world is None:
-        d3 = np.concatenate([matvec_t(rw[:, km], -q21[:, :3]), q21[:, 3:]], axis=-1)
+        d3 = np.concatenate([matvec_t(rw[:, kd - 1], -q21[:, :3]), q21[:, 3:]], axis=-1)
         new = quat_multiply(np.stack([d1, d2, d3], axis=1), rot[:, [pr, md, ds]])
         rot[:, [pr, md, ds]] = new
     else:
         new = quat_multiply(np.stack([d1, d2], axis=1), rot[:, [pr, md]])
         rot[:, [pr, md]] = new
-        r_mid_new = quat_to_matrix(q21) @ rw[:, km]
+        r_mid_new = quat_to_matrix(q21) @ rw[:, kd - 1]
         rot[:, ds] = matrix_to_quat(np.swapaxes(r_mid_new, -1, -2) @ quat_to_matrix(distal_world))
     hit = Wr + hit_rel
     return hit, np.abs(dn - dc)
 
 
 def limb_dmax(ch: Chain, ref: np.ndarray, trans: np.ndarray, max_extension: float) -> np.ndarray:
-    """Per frame ``min(L, max(max_extension * L, |distal - proximal|))`` in the pose ``ref``."""
+    """Per frame ``min(L, max(max_extension * L, |distal - proximal|))`` in the pose ``ref``
+    (``L`` the proximal->middle plus middle->distal distances: the bone offsets, or the
+    segments' lengths with twist joints inside them)."""
     P = ch.path[: ch.k_dist + 1]
     _, pw = chain_fk(quat_to_matrix(ref[:, P]), trans[:, P])
-    L = vector_norm(trans[:, ch.mid]) + vector_norm(trans[:, ch.dist])
+    if ch.k_mid - ch.k_prox == 1 and ch.k_dist - ch.k_mid == 1:
+        L = vector_norm(trans[:, ch.mid]) + vector_norm(trans[:, ch.dist])
+    else:
+        L = vector_norm(pw[:, ch.k_mid] - pw[:, ch.k_prox]) + vector_norm(pw[:, ch.k_dist] - pw[:, ch.k_mid])
     d = vector_norm(pw[:, ch.k_dist] - pw[:, ch.k_prox])
     return np.minimum(L, np.maximum(max_extension * L, d))
 
@@ -275,10 +288,10 @@ def _limb_scalar(ch: Chain, rot: np.ndarray, trans: np.ndarray, goal, max_extens
     inv = lambda q: (-q[0], -q[1], -q[2], q[3])  # noqa: E731
     qpar = qw[kp - 1]
     d1 = _s_qmul(_s_qmul(inv(qpar), q1), qpar)
-    gp_new = _s_qmul(q1, qw[kp])
+    gp_new = _s_qmul(q1, qw[km - 1])  # the middle joint's parent (the proximal joint, or a twist segment)
     d2 = _s_qmul(_s_qmul(inv(gp_new), q2), gp_new)
     q21 = _s_qmul(q2, q1)
-    gm = qw[km]
+    gm = qw[kd - 1]  # the distal joint's parent
     d3 = _s_qmul(_s_qmul(inv(gm), inv(q21)), gm)
     rot[ch.prox] = _s_qmul(d1, ql[kp])
     rot[ch.mid] = _s_qmul(d2, ql[km])

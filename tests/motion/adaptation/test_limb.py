@@ -125,3 +125,83 @@ def test_reach_limb_bad_inputs():
         reach_limb(m, [0, 1], "right_fist", [0, 1, 0], rotations=np.zeros((3, len(MIXAMO), 4)))
     with pytest.raises(MotionError, match="Motion"):
         reach_limb("not a motion", 0, "right_fist", [0, 1, 0])
+
+
+# ------------------------------------------------------------------ twist joints inside the chain
+def _with_twist_joints(m, bones, twist_deg):
+    """``m`` with a joint halfway along each bone ending at a joint of ``bones`` (a twist segment,
+    MakeHuman ``upperarm02.L``), turned ``twist_deg`` about the bone per frame: the same body
+    (the joint below it keeps its offset and its world rotation)."""
+    from repro.motion.core.quaternion import axis_angle_quat, quat_multiply
+
+    names, par, off = list(m.joint_names), list(m.parents), list(np.asarray(m.offsets, float))
+    rot = list(np.swapaxes(np.asarray(m.rotations), 0, 1))
+    for bone in bones:
+        j = names.index(bone)
+        axis = off[j] / np.linalg.norm(off[j])
+        t = np.array([axis_angle_quat(axis, a) for a in np.radians(twist_deg)])  # (F, 4), about the bone
+        names.insert(j, bone + "Twist")
+        par = [p + (p >= j) for p in par]
+        par.insert(j, par[j])
+        par[j + 1] = j
+        off.insert(j, 0.5 * off[j])
+        off[j + 1] = 0.5 * off[j + 1]
+        rot[j] = quat_multiply(t * np.array([-1, -1, -1, 1.0]), rot[j])  # the joint below: same world rotation
+        rot.insert(j, t)
+    J = len(names)
+    esp = [names.index(m.joint_names[p]) for p in m.end_site_parents]
+    rot_ch = ("Zrotation", "Xrotation", "Yrotation")
+    from repro.motion import Motion
+
+    return Motion(joint_names=names, parents=np.array(par), offsets=np.array(off),
+                  channels=[m.channels[0]] + [rot_ch] * (J - 1), frame_time=m.frame_time,
+                  rotations=np.swapaxes(np.array(rot), 0, 1), positions=np.broadcast_to(np.array(off), (m.n_frames, J, 3)).copy(),
+                  end_site_parents=np.array(esp), end_site_offsets=m.end_site_offsets, unit_m=1.0)  # fmt: skip
+
+
+@pytest.mark.parametrize("twist_deg", [0.0, 35.0])
+def test_twist_joints_inside_the_limb_are_carried_along(twist_deg):
+    """Twist segments between the shoulder and elbow and between the elbow and wrist (MakeHuman's
+    ``upperarm02``, ``lowerarm02``; issue 25): the limb step turns the shoulder, elbow and wrist only,
+    the twist joints keep their local rotations, and the arm ends where it ends without them."""
+    import dataclasses
+
+    from repro.motion.adaptation.limb import _limb_scalar, limb_dmax, solve_limb
+    from repro.motion.adaptation.rig import rig_of
+
+    m = fixture_motion(n_frames=6, seed=5)
+    twisted = _with_twist_joints(m, ["RightForeArm", "RightHand"], twist_deg * np.arange(1, 7) / 6)
+    gp = m.global_positions()
+    np.testing.assert_allclose(twisted.global_positions()[:, [twisted.joint_names.index(n) for n in m.joint_names]],
+                               gp, atol=1e-12)  # the same body
+    ch0 = rig_of(m).chain("right_wrist", "joint")
+    idx = {n: i for i, n in enumerate(twisted.joint_names)}
+    path = [idx[m.joint_names[j]] for j in ch0.path]
+    for k, b in ((ch0.k_dist, "RightHand"), (ch0.k_mid, "RightForeArm")):  # the twist joint above each
+        path.insert(k, idx[b + "Twist"])
+    ch = dataclasses.replace(ch0, path=np.array(path), hit=idx["RightHand"], prox=idx["RightArm"], mid=idx["RightForeArm"],
+                             dist=idx["RightHand"], k_prox=path.index(idx["RightArm"]),
+                             k_mid=path.index(idx["RightForeArm"]), k_dist=path.index(idx["RightHand"]))  # fmt: skip
+    goal = gp[:, IDX["RightHand"]] + np.array([0.05, -0.08, 0.03])
+    rot0, rot = np.array(m.rotations), np.array(twisted.rotations)
+    trans0, trans = m.local_translations(), twisted.local_translations()
+    hit0, _ = solve_limb(ch0, rot0, trans0, goal)
+    hit, res = solve_limb(ch, rot, trans, goal)
+    assert res.max() < 1e-12
+    np.testing.assert_allclose(hit, goal, atol=1e-12)
+    np.testing.assert_allclose(hit, hit0, atol=1e-12)
+    after = dataclasses.replace(twisted, rotations=rot)
+    before = dataclasses.replace(m, rotations=rot0).global_transforms()
+    gq, gp2 = after.global_transforms()
+    keep = [idx[n] for n in m.joint_names]
+    np.testing.assert_allclose(gp2[:, keep], before[1], atol=1e-12)  # the arm ends where it ends without them
+    assert quat_angle(gq[:, keep], before[0]).max() < 1e-9  # and every joint turns as it does there
+    changed = np.any(np.abs(rot - np.asarray(twisted.rotations)) > 1e-12, axis=(0, 2))
+    assert set(np.flatnonzero(changed)) <= {idx["RightArm"], idx["RightForeArm"], idx["RightHand"]}
+    np.testing.assert_allclose(limb_dmax(ch, np.asarray(twisted.rotations), trans, 1.0),
+                               limb_dmax(ch0, np.asarray(m.rotations), trans0, 1.0), atol=1e-12)
+    for f in (0, 3):  # the one-frame path agrees
+        one = np.array(twisted.rotations[f])
+        h1, r1 = _limb_scalar(ch, one, trans[f], goal[f].tolist())
+        np.testing.assert_allclose(h1, goal[f], atol=1e-12)
+        assert quat_angle(one, rot[f]).max() < 1e-9
