@@ -49,7 +49,8 @@ def _parser() -> argparse.ArgumentParser:
         sp.add_argument("--quick", action="store_true", help="reduced sweeps (as CI runs them)")
         sp.add_argument("--force", action="store_true", help="rerun even when inputs and outputs are unchanged")
         sp.add_argument("--face", action="append", default=[], metavar="FILE",
-                        help="a .gltf/.glb face (ARKit shape names) added to every Lewis figure; repeatable")
+                        help="a .gltf/.glb/.vrm face (ARKit shape names or VRM expressions) added to every Lewis "
+                             "figure; repeatable")
         sp.add_argument("--jobs", "-j", type=_jobs, default=1, metavar="N",
                         help="compute the figures without timings in N processes (0: one per CPU); the timing "
                              "figures then run alone (default: 1, all in this process)")
@@ -249,7 +250,7 @@ def _usage_problem(args) -> str | None:
     if out is not None and not out.strip():
         return f"--out must name a folder, got {out!r} (the figures would land in the current folder)"
     if any(not f.strip() for f in getattr(args, "face", None) or ()):
-        return "--face must name a .gltf or .glb file, got ''"
+        return "--face must name a .gltf, .glb or .vrm file, got ''"
     from repro.errors import RetrievalError
 
     if args.command == "bench" and (args.queries is not None or args.factors is not None or args.database is not None):

@@ -51,12 +51,11 @@ def limits_table(limits: pd.DataFrame) -> pd.DataFrame:
 @experiment("alpha_sweep", "Section 5: selected motion and unselected fidelity for alpha 1e-3..1e6; limits; trade-off", paper="lewis2005")
 def alpha_sweep(quick: bool = False) -> Result:
     alphas = np.logspace(-3, 6, 19 if quick else 73)
-    pairs = common.attenuators()
-    sweep = pd.DataFrame([r for m, att in pairs for key in S.SCENARIOS
-                          for r in S.alpha_sweep(m, key, alphas, attenuator=att)])
-    ends = pd.DataFrame([r for m, att in pairs for key in S.SCENARIOS
-                         for r in S.alpha_sweep(m, key, LIMIT_ALPHAS, attenuator=att)])
-    return Result(table=sweep, draw=lambda: draw(sweep), extra_tables={"limits": limits_table(ends)})
+    runs, skipped = common.applicable_sessions(common.attenuators(), S.SCENARIOS)
+    sweep = pd.DataFrame([r for (m, att), key in runs for r in S.alpha_sweep(m, key, alphas, attenuator=att)])
+    ends = pd.DataFrame([r for (m, att), key in runs for r in S.alpha_sweep(m, key, LIMIT_ALPHAS, attenuator=att)])
+    return Result(table=sweep, draw=lambda: draw(sweep),
+                  extra_tables={"limits": limits_table(ends), **common.skipped_tables(skipped)})
 
 
 def draw(sweep: pd.DataFrame):

@@ -106,9 +106,10 @@ def ict_case(model, att) -> pd.DataFrame:
             paper="lewis2005")
 def bounded_attenuation(quick: bool = False) -> Result:
     alphas = np.logspace(-3, 6, 10 if quick else 37)
-    pairs = common.attenuators()
-    sweep = pd.DataFrame([r for m, att in pairs for key in S.SCENARIOS for r in session_rows(m, att, key, alphas)])
-    extra = {"summary": summary_table(sweep)}
+    runs, skipped = common.applicable_sessions(common.attenuators(), S.SCENARIOS)
+    pairs = list({id(p): p for p, _ in runs}.values())  # the faces with a session to run
+    sweep = pd.DataFrame([r for (m, att), key in runs for r in session_rows(m, att, key, alphas)])
+    extra = {"summary": summary_table(sweep), **common.skipped_tables(skipped)}
     ict = [(m, att) for m, att in pairs if m.name == "ict"]
     if ict:
         extra["ict_case"] = ict_case(*ict[0])

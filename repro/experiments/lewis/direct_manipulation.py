@@ -73,9 +73,10 @@ def edit_rows(model, dm: DirectManipulator, key: str) -> list[dict]:
 @experiment("direct_manipulation", "Lewis and Anjyo 2010: dragging vertices (with and without the 2005 pin) vs the slider edit",
             paper="lewis2005")
 def direct_manipulation(quick: bool = False) -> Result:
-    pairs = [(m, DirectManipulator(att)) for m, att in common.attenuators()]
-    table = pd.DataFrame([r for m, dm in pairs for key in S.SCENARIOS for r in edit_rows(m, dm, key)])
-    return Result(table=table, draw=lambda: draw(table))
+    runs, skipped = common.applicable_sessions([(m, DirectManipulator(att)) for m, att in common.attenuators()],
+                                               S.SCENARIOS)
+    table = pd.DataFrame([r for (m, dm), key in runs for r in edit_rows(m, dm, key)])
+    return Result(table=table, draw=lambda: draw(table), extra_tables=common.skipped_tables(skipped))
 
 
 def draw(table: pd.DataFrame):

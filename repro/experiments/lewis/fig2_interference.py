@@ -26,7 +26,7 @@ SCENARIOS = ("furrow_then_mouth", "eyelid_then_brow")
 
 @experiment("fig2_interference", "Figs. 1-2: further slider moves drag a region an earlier move positioned", paper="lewis2005")
 def fig2_interference(quick: bool = False) -> Result:
-    models = common.models()
+    models, skipped = common.applicable(common.models(), SCENARIOS)
     rows = []
     for model in models:
         for key in SCENARIOS:
@@ -35,7 +35,7 @@ def fig2_interference(quick: bool = False) -> Result:
             rows.append(r)
     table = pd.DataFrame(rows)
     whole_face = pd.DataFrame([whole_face_round_trip(model) for model in models])
-    return Result(table=table, draw=lambda: draw(models), extra_tables={"whole_face": whole_face})
+    return Result(table=table, draw=lambda: draw(models), extra_tables={"whole_face": whole_face, **common.skipped_tables(skipped)})
 
 
 def whole_face_round_trip(model, *, n_poses: int = 5, seed: int = 0) -> dict:

@@ -19,9 +19,9 @@ SCENARIOS = ("furrow_then_mouth", "eyelid_then_brow")
 
 @experiment("fig3_attenuation", "Fig. 3: the same moves with the drifting vertices selected, with and without attenuation", paper="lewis2005")
 def fig3_attenuation(quick: bool = False) -> Result:
-    pairs = common.attenuators()
+    pairs, skipped = common.applicable(common.attenuators(), SCENARIOS)
     table = pd.DataFrame([S.evaluate(m, key, attenuator=att) for m, att in pairs for key in SCENARIOS])
-    return Result(table=table, draw=lambda: draw(pairs))
+    return Result(table=table, draw=lambda: draw(pairs), extra_tables=common.skipped_tables(skipped))
 
 
 def draw(pairs):

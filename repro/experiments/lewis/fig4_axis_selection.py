@@ -19,9 +19,9 @@ KEY = "smirk_corners_y"
 
 @experiment("fig4_axis_selection", "Fig. 4: y of the mouth corners selected; SmirkLeft/Right 0.7 move them in x only", paper="lewis2005")
 def fig4_axis_selection(quick: bool = False) -> Result:
-    pairs = common.attenuators()
+    pairs, skipped = common.applicable(common.attenuators(), [KEY])
     table = pd.DataFrame([r for m, att in pairs for r in S.axis_table(m, KEY, attenuator=att)])
-    return Result(table=table, draw=lambda: draw(pairs, table))
+    return Result(table=table, draw=lambda: draw(pairs, table), extra_tables=common.skipped_tables(skipped))
 
 
 def draw(pairs, table):
