@@ -450,7 +450,7 @@ def _solve(e: _Edit) -> bool:
         return False
     if e.edit.size:
         _solve_hit(e.rig, e.ch, e.motion, e.rot, e.edit, e.goals, e.spec, e.o.max_iter, e.tol, e.o.max_extension,
-                   e.solver, e.iters, e.timings)
+                   e.solver, e.iters, e.timings, e.o.compiled)
     if e.o.feet is not None and not feet_first:
         _solve_feet_timed(e)
     return True
@@ -538,7 +538,8 @@ def _release_frames(release: float | None, frame_time: float) -> int | None:
     return int(round(min(release / frame_time, 2.0**62)))
 
 
-def _solve_hit(rig, ch, motion, rot, edit, goals, spec, max_iter, tol, ext, solver, iters, timings) -> None:
+def _solve_hit(rig, ch, motion, rot, edit, goals, spec, max_iter, tol, ext, solver, iters, timings,
+               compiled: bool = True) -> None:
     """The limb step on the edited frames, then CCD and the limb again where it cannot reach (in place)."""
     gq = rig.globals[0]
     t1 = time.perf_counter()
@@ -555,7 +556,7 @@ def _solve_hit(rig, ch, motion, rot, edit, goals, spec, max_iter, tol, ext, solv
         rb = r[bad]
         tb = trans[bad]
         it, _ = ccd_sweeps(
-            rig, ch, rb, tb, goals[fb], np.asarray(motion.rotations[fb]), spec, max_iter, tol, True, dmax[bad]
+            rig, ch, rb, tb, goals[fb], np.asarray(motion.rotations[fb]), spec, max_iter, tol, True, dmax[bad], compiled
         )
         dw = gq[fb, ch.dist]  # the hand / foot keeps its original world orientation
         _, res_b = solve_limb(ch, rb, tb, goals[fb], distal_world=dw, dmax=dmax[bad])

@@ -227,17 +227,20 @@ def _distal_world(ch: Chain, rot: np.ndarray, trans: np.ndarray) -> np.ndarray:
 
 
 def ccd_sweeps(
-    rig: Rig, ch: Chain, rot, trans, goal, ref, spec, max_iter: int, tol: float, finish: bool = True, dmax=None
+    rig: Rig, ch: Chain, rot, trans, goal, ref, spec, max_iter: int, tol: float, finish: bool = True, dmax=None,
+    compiled: bool = True,
 ):
     """Vectorised CCD; ``rot`` (n, J, 4) modified in place.  Returns (iterations, hit).
 
     ``dmax`` (n,): largest proximal->distal distance the limb step may use (default the
     limb length); with ``finish`` the objective is the distance of the goal beyond it.
+    ``compiled``: the sweeps by :func:`repro.motion.adaptation.ccd_kernel.ccd_frames` (numba),
+    else by numpy over all frames at once (the same poses to rounding).
     """
     kp, km, kd = ch.k_prox, ch.k_mid, ch.k_dist
-    n = goal.shape[0]
     l1 = vector_norm(trans[:, ch.path[km]])
     l2 = vector_norm(trans[:, ch.path[kd]])
+    Wg_fixed = None
     if finish:
         # the sweeps turn only joints above the limb and read only its root (shoulder / hip):
         # forward kinematics stops there; the hand / foot keeps its start world orientation
@@ -247,21 +250,53 @@ def ccd_sweeps(
         P = ch.path[: kp + 1]
     else:
         P = ch.path
-    ql = rot[:, P].copy()
-    q0 = ref[:, P]
-    ml = quat_to_matrix(ql)
-    tl = trans[:, P]
-    rw, pw = chain_fk(ml, tl)
     L = l1 + l2
     reach_max = L if dmax is None else np.minimum(dmax, L)
-    tiny = 1e-9 * L
+    # with the analytic finish, the limb's own joints are left to the limb step: only
+    # the joints above the limb change how far the goal is out of the limb's reach
+    sweep = [s for s in spec if not (finish and s[0] >= kp)]
+    args = (rot[:, P], ref[:, P], trans[:, P], goal, Wg_fixed, l1, l2, reach_max, 1e-9 * L, sweep, max_iter, tol)
+    ql, iters, hit = (_compiled_sweeps if compiled else _numpy_sweeps)(ch, finish, *args)
+    rot[:, P] = ql
+    if finish:  # the hit point of the turned trunk, the limb as it was
+        rw, pw = chain_fk(quat_to_matrix(rot[:, ch.path]), trans[:, ch.path])
+        hit = _hit(ch, rw, pw)
+    return iters, hit
+
+
+def _compiled_sweeps(ch, finish, ql, q0, tl, goal, Wg_fixed, l1, l2, reach_max, tiny, sweep, max_iter, tol):
+    """:func:`ccd_sweeps`' loop by the compiled kernel: ``(ql, iterations, hit or None)``."""
+    from repro.motion.adaptation.ccd_kernel import BALL, HINGE, ccd_frames  # numba: imported on first use
+
+    n = goal.shape[0]
+    c = np.ascontiguousarray
+    joints = np.array([k for k, _, _ in sweep], dtype=np.intp)
+    kinds = np.array([HINGE if kind == "hinge" else BALL for _, kind, _ in sweep], dtype=np.intp)
+    lo = np.array([lim[0] if kind == "hinge" else lim for _, kind, lim in sweep], dtype=float)
+    hi = np.array([lim[1] if kind == "hinge" else lim for _, kind, lim in sweep], dtype=float)
+    ql = c(ql, dtype=float)
+    wg = np.zeros((n, 3)) if Wg_fixed is None else c(Wg_fixed, dtype=float)
+    iters = np.zeros(n, dtype=np.intp)
+    hit = np.empty((n, 3))
+    ccd_frames(ql, c(q0, dtype=float), c(tl, dtype=float), c(goal, dtype=float), wg, c(l1, dtype=float),
+               c(l2, dtype=float), c(reach_max, dtype=float), c(tiny, dtype=float), joints, kinds, lo, hi,
+               c(ch.hinge_loc, dtype=float), c(ch.hit_offset, dtype=float), int(ch.k_prox), bool(finish),
+               int(max_iter), float(tol), iters, hit)
+    return ql, iters, hit
+
+
+def _numpy_sweeps(ch, finish, ql, q0, tl, goal, Wg_fixed, l1, l2, reach_max, tiny, sweep, max_iter, tol):
+    """:func:`ccd_sweeps`' loop in numpy, all frames at once (a finished frame left untouched):
+    ``(ql, iterations, hit)``."""
+    kp = ch.k_prox
+    n = goal.shape[0]
+    ql = ql.copy()
+    ml = quat_to_matrix(ql)
+    rw, pw = chain_fk(ml, tl)
     active = np.ones(n, dtype=bool)
     iters = np.zeros(n, dtype=np.intp)
     best_err = np.full(n, np.inf)
     best_ql = ql.copy()
-    # with the analytic finish, the limb's own joints are left to the limb step: only
-    # the joints above the limb change how far the goal is out of the limb's reach
-    sweep = [s for s in spec if not (finish and s[0] >= kp)]
     for it in range(max_iter + 1):
         if finish:
             # objective: how far the goal is out of the limb's reach (the analytic limb
@@ -288,12 +323,8 @@ def ccd_sweeps(
             break
         iters += active
         for k, kind, lim in sweep:
-            _turn_joint(ch, k, kind, lim, goal, Wg_fixed if finish else None, (l1, l2, reach_max), q0, ql, ml, tl,
-                        rw, pw, active)
-    rot[:, P] = ql
-    if finish:  # the hit point of the turned trunk, the limb as it was
-        rw, pw = chain_fk(quat_to_matrix(rot[:, ch.path]), trans[:, ch.path])
-    return iters, _hit(ch, rw, pw)
+            _turn_joint(ch, k, kind, lim, goal, Wg_fixed, (l1, l2, reach_max), q0, ql, ml, tl, rw, pw, active)
+    return ql, iters, _hit(ch, rw, pw)
 
 
 def _hit(ch: Chain, rw: np.ndarray, pw: np.ndarray) -> np.ndarray:
@@ -384,6 +415,7 @@ def ccd(
     max_extension: float = 1.0,
     hit_point: str = "joint",
     roles=None,
+    compiled: bool = True,
 ) -> CCDSolution:
     """Cyclic Coordinate Descent over a longer chain (Section 3.4.2, after Welman 1993; module docstring).
 
@@ -392,7 +424,8 @@ def ccd(
     (default :func:`default_chain`); ``limits``: cone limits in degrees by joint, role or
     kind (:data:`DEFAULT_LIMITS_DEG`); ``hinge_range_deg``: the elbow / knee flexion range;
     ``targets`` (3,) or (n, 3) and ``tol`` (default 1e-4 of the limb length) in motion
-    units; ``rotations`` (n, J, 4) the start pose (default the motion's).  Always
+    units; ``rotations`` (n, J, 4) the start pose (default the motion's); ``compiled`` the sweeps
+    by the compiled kernel (False: by numpy, the same poses to rounding).  Always
     terminates (at most ``max_iter`` sweeps).  Returns a :class:`CCDSolution`
     (unreachable: best effort, ``reached=False``).  Raises :class:`repro.errors.MotionError`
     for an unknown effector, frames out of range, NaN targets, a chain joint that is not
@@ -405,6 +438,7 @@ def ccd(
     tol = default_tol(rig, ch) if tol is None else as_real(tol, "tol", error=MotionError, lo=0.0, lo_open=True)
     max_iter = as_int(max_iter, "max_iter", 0, 10**6, error=MotionError)
     finish_with_limb = as_bool(finish_with_limb, "finish_with_limb", error=MotionError)
+    compiled = as_bool(compiled, "compiled", error=MotionError)
     ext = check_extension(max_extension)
     rot = start_rotations(motion, idx, rotations)
     spec = ccd_spec(rig, ch, chain, limits, hinge_range_deg)
@@ -412,7 +446,7 @@ def ccd(
     ref = np.asarray(motion.rotations[idx])
     dmax = limb_dmax(ch, ref, trans, ext)
     dw = _distal_world(ch, rot, trans) if finish_with_limb else None
-    iters, hit = ccd_sweeps(rig, ch, rot, trans, goal, ref, spec, max_iter, tol, finish_with_limb, dmax)
+    iters, hit = ccd_sweeps(rig, ch, rot, trans, goal, ref, spec, max_iter, tol, finish_with_limb, dmax, compiled)
     if finish_with_limb:
         hit, res = solve_limb(ch, rot, trans, goal, distal_world=dw, dmax=dmax)
         far = res > tol

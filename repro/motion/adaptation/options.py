@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from repro.checks import as_choice, as_int, as_names, as_real, as_real_array, as_str
+from repro.checks import as_bool, as_choice, as_int, as_names, as_real, as_real_array, as_str
 from repro.errors import MotionError
 from repro.motion.adaptation.ccd_solver import DEFAULT_HINGE_RANGE_DEG
 from repro.motion.adaptation.offset import EASINGS
@@ -38,7 +38,8 @@ class AdaptOptions:
     Site, else its fingers' knuckles, :func:`repro.motion.body.hit_points.hit_offset`); ``floor`` a
     height every foot (its joints and End Sites) stays above after ``t0``, the kicking foot too
     (None: no floor); ``max_foot_error`` a trial's bound
-    on the support foot's error (None: unbounded).  Raises :class:`repro.errors.MotionError`
+    on the support foot's error (None: unbounded); ``compiled`` CCD's sweeps by the compiled kernel
+    (:mod:`repro.motion.adaptation.ccd_kernel`; False: by numpy, the same poses to rounding).  Raises :class:`repro.errors.MotionError`
     for a bad option.
     """
 
@@ -55,6 +56,7 @@ class AdaptOptions:
     hit_point: str = "joint"
     floor: float | None = 0.0
     max_foot_error: float | None = None
+    compiled: bool = True
 
     def __post_init__(self) -> None:
         def put(name, value):
@@ -84,3 +86,4 @@ class AdaptOptions:
                                  hi=MAX_COORDINATE))
         if self.max_foot_error is not None:
             put("max_foot_error", as_real(self.max_foot_error, "max_foot_error", error=E, lo=0.0))
+        put("compiled", as_bool(self.compiled, "compiled", error=E))

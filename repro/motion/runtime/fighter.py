@@ -73,8 +73,9 @@ Choices the paper leaves open (all documented, all parameters)
 One-time cost (constructor, not an order): building / loading the database
 (:func:`repro.motion.database.sources.default_database`, cached per process: ~3 s for the
 synthetic one, ~1 s for CMU, on a 2-core machine), the :class:`MotionRetriever` (k-means
-of the poses and the per-cluster indices: ~0.2 s), the character and its stance (~10
-ms).  :attr:`KungFuFighter.setup_timings` has the measured values.
+of the poses and the per-cluster indices: ~0.2 s; with it the compiled kernels of the exact
+search and of CCD, loaded from numba's cache, ~1 s, compiled on a fresh install, ~30 s), the
+character and its stance (~10 ms).  :attr:`KungFuFighter.setup_timings` has the measured values.
 
 Errors: unknown order kinds, NaN / non-3-vector targets and targets outside the area
 raise :class:`repro.errors.RetrievalError`; bad characters raise
@@ -389,6 +390,10 @@ class KungFuFighter:
             from repro.motion.search.kernel import compile_search  # numba: imported when used
 
             compile_search()  # ready before the first order (compiling takes seconds on a fresh install)
+        if self.options.adapt.compiled:
+            from repro.motion.adaptation.ccd_kernel import compile_ccd  # numba: imported when used
+
+            compile_ccd()  # CCD's sweeps, the same
         tc = time.perf_counter() - tc
         self._base = db.actors[0]
         self._make_stance()

@@ -77,3 +77,103 @@ def test_ccd_chain_validation():
         ccd(m, 0, "right_wrist", [0, 1, 0.5], hinge_range_deg=(30, 10))
     assert default_chain(m, "left_foot") == ["LeftLeg", "LeftUpLeg", "Hips"]
     assert default_chain(m, "left_foot", include_pelvis=False) == ["LeftLeg", "LeftUpLeg"]
+
+
+# ------------------------------------------------------------------ the compiled sweeps
+def test_compiled_sweeps_equal_the_numpy_sweeps_on_the_fixture():
+    """The kernel (repro.motion.adaptation.ccd_kernel) and the numpy sweeps: the same sweeps and poses to
+    rounding, with the analytic finish and without it (plain CCD, the elbow hinge), reachable or not.
+
+    ``ccd_sweeps``' poses agree to 1e-12 (the 3x3 products round differently: BLAS against loops); ``ccd``
+    then places the hand by the limb step, whose arccos near full extension magnifies 1e-16 into about
+    1e-8 in the arm's angles (sqrt of the machine epsilon) but not in where the hand is: its hit points
+    agree to 1e-12, its rotations to 1e-7."""
+    from repro.motion.adaptation.ccd_solver import ccd_spec, ccd_sweeps
+    from repro.motion.adaptation.limb import limb_dmax
+    from repro.motion.adaptation.rig import rig_of
+
+    m = fixture_motion()
+    gp = m.global_positions()
+    s, w = IDX["RightArm"], IDX["RightHand"]
+    frames = np.arange(m.n_frames)
+    d = (gp[:, w] - gp[:, s]) / np.linalg.norm(gp[:, w] - gp[:, s], axis=1, keepdims=True)
+    cases = [dict(targets=gp[:, s] + 0.7 * d + np.array([0.0, 0.05, 0.0])),  # beyond the arm: the spine turns
+             dict(targets=gp[:, s] + np.array([3.0, 0.0, 0.0])),  # out of reach: best effort, creeping stops it
+             dict(targets=gp[:, w] + np.array([0.05, 0.1, 0.05]), finish_with_limb=False, max_iter=200, tol=1e-3)]
+    rig = rig_of(m)
+    ch = rig.chain("right_wrist")
+    spec = ccd_spec(rig, ch, None, None, (0.0, 160.0))
+    ref = np.asarray(m.rotations)
+    for kw in cases:
+        a = ccd(m, frames, "right_wrist", **kw)
+        b = ccd(m, frames, "right_wrist", compiled=False, **kw)
+        assert a.iterations.max() > 0
+        np.testing.assert_array_equal(a.iterations, b.iterations)
+        np.testing.assert_allclose(a.hit_positions, b.hit_positions, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(a.rotations, b.rotations, rtol=0, atol=1e-7)
+        finish = kw.get("finish_with_limb", True)
+        goal = np.broadcast_to(kw["targets"], (m.n_frames, 3)).copy()
+        dmax = limb_dmax(ch, ref, rig.trans, 1.0)
+        out = []
+        for compiled in (True, False):
+            rot = ref.copy()
+            it, hit = ccd_sweeps(rig, ch, rot, rig.trans, goal, ref, spec, kw.get("max_iter", 50),
+                                 kw.get("tol", 1e-4), finish, dmax, compiled)
+            out.append((it, hit, rot))
+        np.testing.assert_array_equal(out[0][0], out[1][0])
+        np.testing.assert_allclose(out[0][1], out[1][1], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(out[0][2], out[1][2], rtol=0, atol=1e-12)
+    with pytest.raises(MotionError, match="compiled"):
+        ccd(m, frames, "right_wrist", cases[0]["targets"], compiled="yes")
+
+
+#: Real rigs where CCD runs the most (a long spine: mocopi; a Unity humanoid; a CMU-style conversion with
+#: fingers: bvh_test3)
+CCD_RIGS = ["realrigs/mocopi_MCPM_20230410_150228.BVH", "realrigs/shadermotion_unity_humanoid.bvh",
+            "pybvh/bvh_test3.bvh"]
+
+
+@pytest.mark.data("cmu-bvh")  # the formats corpus is staged with the mocap data
+@pytest.mark.parametrize("name", CCD_RIGS)
+def test_compiled_sweeps_give_the_same_strikes_on_real_rigs(synthetic_db, name):
+    """The fighter's kicks and punches with the compiled sweeps (the default) and with the numpy ones: the
+    same strikes.  CCD's poses agree to 1e-13 (the 3x3 products round differently: BLAS against loops);
+    the limb step after CCD turns them into the arm's or leg's angles through an arccos near full extension,
+    which magnifies 1e-16 into about 1e-8 (sqrt of the machine epsilon), so the strikes' rotations are
+    compared to 1e-7, their levels and reach exactly.  A frame whose CCD ends on the limb's reach exactly may
+    run one more sweep (undone) on one side: the sweep counts agree within one."""
+    from repro.motion import read_bvh
+    from repro.motion.runtime.fighter import KungFuFighter
+    import dataclasses
+    import warnings
+
+    from repro import data
+
+    path = data.data_dir() / "mocap/formats" / name
+    if not path.is_file():
+        pytest.skip(f"{name} not staged")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        f = KungFuFighter(synthetic_db, character=read_bvh(path), seed=0)
+    size = f.character.size
+    f.follow((0.0, 0.85 * size, 0.0), 0.0, snap=True)
+    new = f.options
+    old = dataclasses.replace(new, adapt=dataclasses.replace(new.adapt, compiled=False))
+    rng = np.random.default_rng(3)
+    n_ccd = 0
+    for i in range(8):
+        kind = ("kick", "punch")[i % 2]
+        X = np.array([rng.uniform(-0.15, 0.15), (0.55 if kind == "kick" else 0.85) * size + rng.uniform(-0.1, 0.1) * size,
+                      rng.uniform(-0.15, 0.15)])
+        f.options = new
+        a = f.order(kind, X, commit=False)
+        f.options = old
+        b = f.order(kind, X, commit=False)
+        assert (a.clip_name, a.level, a.reached, a.tc) == (b.clip_name, b.level, b.reached, b.tc)
+        np.testing.assert_allclose(a.motion.rotations, b.motion.rotations, rtol=0, atol=1e-7)
+        np.testing.assert_allclose(a.motion.positions, b.motion.positions, rtol=0, atol=1e-9)
+        assert abs(a.hit_error - b.hit_error) < 1e-9
+        assert np.abs(a.adaptation.ccd_iterations - b.adaptation.ccd_iterations).max() <= 1
+        assert np.array_equal(a.adaptation.solver, b.adaptation.solver)
+        n_ccd += int(np.sum(a.adaptation.solver == "ccd"))
+    assert n_ccd > 0  # CCD ran
