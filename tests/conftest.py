@@ -124,6 +124,48 @@ FIRST = ("tests/test_cli.py", "tests/claims/", "tests/test_notebooks_embedded.py
 LAST = ("notebooks/00_overview.ipynb",)
 
 
+#: the files whose tests read the session's quick figures (the ``quick_figures`` fixture): one worker takes them
+#: all, so that the figures are computed once in the session (a test keeps this list in step with the fixture)
+QUICK_FIGURE_FILES = ("tests/test_cli.py", "tests/claims/test_claims.py", "tests/claims/test_overview.py",
+                      "tests/experiments/test_legibility.py", "tests/experiments/test_adaptation_figures.py",
+                      "tests/experiments/test_feet_of_played_strikes.py", "tests/experiments/test_lewis_figures.py",
+                      "tests/experiments/test_retrieval_figures.py", "tests/experiments/test_summaries.py",
+                      "tests/test_progress_quiet.py")
+#: the tests that each run a notebook on the embedded data (a long run each: one work unit each)
+EMBEDDED_RUN = "tests/test_notebooks_embedded.py::test_notebook_runs_on_the_embedded_data_without_a_data_folder["
+
+
+def work_unit(nodeid: str) -> str:
+    """What one worker takes whole: a file (its module fixtures built once, a notebook's cells in order in one
+    kernel); every file of :data:`QUICK_FIGURE_FILES` together; each notebook's run on the embedded data alone."""
+    if nodeid.startswith(EMBEDDED_RUN):
+        return nodeid
+    path = nodeid.split("::", 1)[0]
+    return "quick figures" if path in QUICK_FIGURE_FILES else path
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """Under ``-n``: the work units of :func:`work_unit`, handed out in the order the workers collected the tests
+    (:func:`_order_for_workers`: the longest first), whatever ``--dist`` asked (every load mode would split a
+    notebook's cells between kernels); ``--dist each`` and ``worksteal`` are refused for the same reason."""
+    from xdist.scheduler import LoadScopeScheduling
+
+    if config.getvalue("dist") not in ("load", "loadscope", "loadfile", "loadgroup"):
+        raise pytest.UsageError(f"--dist {config.getvalue('dist')}: this suite runs with --dist loadfile "
+                                "(a notebook's cells must run in order in one kernel)")
+
+    class WorkUnits(LoadScopeScheduling):
+        def __init__(self, config, log=None):
+            super().__init__(config, log)
+            config.option.loadscopereorder = False  # keep the order the tests were collected in
+
+        def _split_scope(self, nodeid: str) -> str:
+            return work_unit(nodeid)
+
+    return WorkUnits(config, log)
+
+
 def _order_for_workers(items) -> None:
     """The longest files first, notebook 00 last (``--dist loadfile`` hands files out in this order; a stable
     sort: the tests of a file, a notebook's cells, keep their order)."""
