@@ -11,6 +11,7 @@ numbers (CSV) of every figure never depend on rendering.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
 import re
@@ -140,23 +141,71 @@ def face_images(
 
 def panel_figure(images, titles, *, clim, cmap: str = "YlOrRd", label: str = "", suptitle: str = "", ncols=None):
     """A matplotlib figure of rendered panels with one shared colour bar."""
+    n = len(images)
+    return panel_grid(images, titles, ["scale"] * n, {"scale": ColourScale(clim, cmap, label)},
+                      ncols=ncols or n, suptitle=suptitle)
+
+
+@dataclasses.dataclass(frozen=True)
+class ColourScale:
+    """The colours of a set of panels (:func:`panel_grid`): range, colour map, the bar's label and side."""
+
+    clim: tuple
+    cmap: str = "YlOrRd"
+    label: str = ""
+    location: str = "right"
+
+
+def panel_grid(images, titles, scales, colour_scales, *, ncols: int, suptitle: str = "",
+               panel_size=(2.6, 2.9), fontsize: float = 8.0):
+    """Rendered panels in a grid of ``ncols`` columns, each set of panels with a colour bar of its own.
+
+    Parameters
+    ----------
+    images : sequence of (H, W, 3) images or None
+        Row by row; None leaves the slot empty, its title then written inside it as a note.
+    titles : sequence of str
+        One per slot (drawn at ``fontsize`` points).
+    scales : sequence of hashable
+        One per slot: the key in ``colour_scales`` of the panel's colours.
+    colour_scales : mapping of key to :class:`ColourScale`
+        One colour bar each, beside the panels that use it (keep them a rectangle of the grid:
+        a row, a column, a block).
+    """
     import matplotlib.pyplot as plt
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
 
+    from repro.errors import ArgumentError
+
     n = len(images)
-    ncols = ncols or n
+    if not (len(titles) == len(scales) == n):
+        raise ArgumentError(f"{n} images, {len(titles)} titles and {len(scales)} scales: one of each per slot")
+    missing = {k for k, img in zip(scales, images) if img is not None} - set(colour_scales)
+    if missing:
+        raise ArgumentError(f"panels use colour scales {sorted(map(str, missing))} that colour_scales does not define")
     nrows = -(-n // ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(2.6 * ncols + 0.8, 2.9 * nrows + 0.4),
+    fig, axes = plt.subplots(nrows, ncols, figsize=(panel_size[0] * ncols + 0.9, panel_size[1] * nrows + 0.4),
                              squeeze=False, layout="constrained")
+    fig.get_layout_engine().set(w_pad=0.06, h_pad=0.06)  # a margin the colour bars' labels stay inside
     for ax in axes.ravel():
         ax.axis("off")
-    for ax, img, title in zip(axes.ravel(), images, titles):
+    users: dict = {}
+    for ax, img, title, key in zip(axes.ravel(), images, titles, scales):
+        if img is None:
+            ax.text(0.5, 0.5, title, ha="center", va="center", fontsize=fontsize, transform=ax.transAxes)
+            continue
         ax.imshow(img)
-        ax.set_title(title, fontsize=8)
-    fig.colorbar(ScalarMappable(Normalize(*clim), cmap), ax=axes, shrink=0.7, label=label)
+        ax.set_title(title, fontsize=fontsize)
+        users.setdefault(key, []).append(ax)
+    for key, axs in users.items():
+        sc = colour_scales[key]
+        bar = fig.colorbar(ScalarMappable(Normalize(*sc.clim), sc.cmap), ax=axs, shrink=0.8,
+                           location=sc.location, aspect=15 if len(axs) <= ncols else 20)
+        bar.set_label(sc.label, fontsize=fontsize + 1)
+        bar.ax.tick_params(labelsize=fontsize)
     if suptitle:
-        fig.suptitle(suptitle, fontsize=9)
+        fig.suptitle(suptitle, fontsize=fontsize + 1)
     return fig
 
 

@@ -88,3 +88,56 @@ def test_worst_shape_ties_go_to_the_first():
     assert _worst(names, np.array([x, x * (1 + 2e-9), 0.0])) == "browOuterUp_L"
     assert _worst(names, np.array([x * (1 + 2e-9), x, 0.0])) == "browOuterUp_L"
     assert _worst(names, np.array([x, x * (1 + 1e-4), 0.0])) == "browOuterUp_R"
+
+
+def test_panel_grid_gives_each_scale_its_own_colour_bar():
+    """repro.ui.render.panel_grid: one colour bar per scale, an empty slot's title written in it, bad
+    arguments refused (issue 26, item 5: Fig. 5's difference row and Fig. 3's difference column)."""
+    import matplotlib.pyplot as plt
+
+    from repro.errors import ArgumentError
+    from repro.ui.render import ColourScale, panel_grid
+
+    img = np.zeros((4, 4, 3), dtype=np.uint8)
+    scales = {"a": ColourScale((0.0, 1.0), label="motion"), "b": ColourScale((0.0, 0.2), cmap="Blues", label="removed")}
+    fig = panel_grid([img, img, None, img], ["p", "q", "a note", "r"], ["a", "a", None, "b"], scales, ncols=2)
+    try:
+        bars = [ax for ax in fig.axes if ax.get_label() == "<colorbar>"]
+        assert sorted(b.get_ylabel() for b in bars) == ["motion", "removed"]
+        assert [b.get_ylim() for b in bars if b.get_ylabel() == "removed"] == [(0.0, 0.2)]
+        assert "a note" in [t.get_text() for ax in fig.axes for t in ax.texts]
+    finally:
+        plt.close(fig)
+    with pytest.raises(ArgumentError, match="one of each per slot"):
+        panel_grid([img, img], ["p"], ["a", "a"], scales, ncols=2)
+    with pytest.raises(ArgumentError, match="does not define"):
+        panel_grid([img], ["p"], ["c"], scales, ncols=1)
+
+
+@pytest.mark.render
+def test_fig5_shows_what_alpha_removes_in_increasing_alpha(quick_figures):
+    """Fig. 5 (issue 26, item 5): per face a row of faces (b, then alpha increasing) and under it the motion
+    each alpha removes, on one scale with a colour bar of its own; the colour-bar labels fit their bars."""
+    import re
+
+    import matplotlib.pyplot as plt
+
+    fig = quick_figures("fig5_alpha").draw()
+    try:
+        titles = [ax.get_title() for ax in fig.axes if ax.get_title()]
+        faces = list(dict.fromkeys(t.split()[0] for t in titles if "selected motion" in t))
+        assert faces and "procedural" in faces
+        for face in faces:
+            alphas = [float(m) for t in titles if t.startswith(face) and "alpha" in t
+                      for m in re.findall(r"alpha (\S+)\n", t)]
+            assert len(alphas) == 3 and alphas == sorted(alphas), (face, alphas)
+        removed = [t for t in titles if "removed" in t]
+        assert len(removed) == 3 * len(faces)
+        labels = [ax.get_ylabel() for ax in fig.axes if ax.get_label() == "<colorbar>"]
+        assert labels.count("motion removed") == len(faces) and len(labels) == 2 * len(faces)
+        assert all(len(line) <= 30 for lab in labels for line in lab.splitlines())
+        lims = {ax.get_ylim() for ax in fig.axes
+                if ax.get_label() == "<colorbar>" and ax.get_ylabel() == "motion removed"}
+        assert len(lims) == 1  # one scale for every face's removed row
+    finally:
+        plt.close(fig)

@@ -13,7 +13,7 @@ from repro import data
 from repro.blendshapes import Attenuator, load_model
 from repro.blendshapes.metrics import per_vertex_motion
 
-MOTION_LABEL = "vertex motion (model units; cm on the ICT face)"
+MOTION_LABEL = "vertex motion\n(model units; cm on ICT)"
 
 
 #: The user's glTF faces added to every figure (see :func:`use_faces`): (path, sha256, model).

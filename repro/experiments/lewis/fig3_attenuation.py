@@ -25,9 +25,13 @@ def fig3_attenuation(quick: bool = False) -> Result:
 
 
 def draw(pairs):
-    from repro.ui.render import face_images, panel_figure
+    """Per face and session: a) the selection, b) attenuated, c) not, coloured by the motion since the
+    selection; d) the motion attenuation removed, ``|d_att - d_none|`` per vertex, on a scale of its own
+    per row (the sessions remove 1e-4 to 0.6): the selection held, and how far around it the rest is
+    held with it."""
+    from repro.ui.render import ColourScale, face_images, panel_grid
 
-    images, titles = [], []
+    images, titles, removed = [], [], []
     for model, att in pairs:
         for key in SCENARIOS:
             sc = S.scenario(key)
@@ -37,14 +41,27 @@ def draw(pairs):
             d_att = att.displacement(att.edit(w_base, w_target, sel))
             d_none = att.displacement(w_target)
             m_att, m_none = common.motion(d_att, d_base), common.motion(d_none, d_base)
-            images += face_images(model, [d_base, d_att, d_none], [0 * m_att, m_att, m_none],
-                                  selected=sc.vertices(model), clim=(0.0, 0.5))
             v = sc.vertices(model)
+            images += face_images(model, [d_base, d_att, d_none], [0 * m_att, m_att, m_none],
+                                  selected=v, clim=(0.0, 0.5))
             titles += [f"{model.name} {sc.figure}a: selection ({len(v)} vertices)",
                        f"b) attenuated (alpha {att.default_alpha(sel):.4g})\nselected motion {m_att[v].mean():.3g}",
                        f"c) no attenuation\nselected motion {m_none[v].mean():.3g}"]
-    return panel_figure(images, titles, clim=(0.0, 0.5), label="motion since the selection", ncols=3,
-                        suptitle="Selected motion attenuation (colour: motion since the selection was made)")
+            gone = common.motion(d_att, d_none)
+            removed.append((model, d_base, gone))
+            images.append(None)  # drawn below, on its own scale
+            titles.append(f"d) removed: selected {gone[v].mean():.3g}\n(|b - c| per vertex)")
+    slots = [i for i, img in enumerate(images) if img is None]
+    colour_scales = {"motion": ColourScale((0.0, 0.5), label="motion since the selection", location="bottom")}
+    scales = ["motion"] * len(images)
+    for k, (i, (model, d_base, gone)) in enumerate(zip(slots, removed)):
+        hi = float(gone.max()) or 1.0  # each row on its own scale: the sessions remove 1e-4 to 0.6
+        images[i] = face_images(model, [d_base], [gone], clim=(0.0, hi), cmap="Blues")[0]
+        scales[i] = k
+        colour_scales[k] = ColourScale((0.0, hi), cmap="Blues", label="removed")
+    return panel_grid(images, titles, scales, colour_scales, ncols=4,
+                      suptitle="Selected motion attenuation (colour: motion since the selection was made; "
+                               "blue: what attenuation removed)")
 
 
 def summary(result) -> str:

@@ -31,21 +31,26 @@ def fig5_alpha(quick: bool = False) -> Result:
             r = S.evaluate(model, KEY, a, attenuator=att)
             r["alpha_setting"] = "default" if a is None else f"{a:g}"
             rows.append(r)
-    return Result(table=pd.DataFrame(rows), draw=lambda: draw(pairs), extra_tables=common.skipped_tables(skipped))
+    table = pd.DataFrame(rows)
+    return Result(table=table, draw=lambda: draw(pairs, table), extra_tables=common.skipped_tables(skipped))
 
 
-def draw(pairs):
-    from repro.ui.render import face_images, panel_figure
+def draw(pairs, table):
+    """Per face, two rows: the faces posed (b, then alpha increasing), coloured by their motion; under
+    each attenuated face the motion attenuation removed, ``|d_att - d_none|`` per vertex, on one scale
+    for every face: the selection held, and how much of the rest goes with it."""
+    from repro.ui.render import ColourScale, face_images, panel_grid
 
     sc = S.scenario(KEY)
-    images, titles = [], []
+    images, titles, scales, removed = [], [], [], []
     for model, att in pairs:
         sel = sc.selection(model)
         w_base, w_target = sc.weights(model)
         settings = sorted(((att.default_alpha(sel) if a is None else a, label, a)
                            for label, a in [("c) default", None), ("d)", 25.0), ("e)", 3000.0)]),
                           key=lambda s: s[0])  # panels in increasing alpha, after the unattenuated face
-        poses = [("b) no attenuation", att.displacement(w_target))]
+        d_none = att.displacement(w_target)
+        poses = [("b) no attenuation", d_none)]
         for a_val, label, a in settings:
             poses.append((f"{label} alpha {a_val:.4g}", att.displacement(att.edit(w_base, w_target, sel, a))))
         v = sc.vertices(model)
@@ -53,8 +58,29 @@ def draw(pairs):
         ms = [common.motion(d) for d in ds]
         images += face_images(model, ds, ms, selected=v, clim=(0.0, 1.0))
         titles += [f"{model.name} {t}\nselected motion {m[v].mean():.3g}" for (t, _), m in zip(poses, ms)]
-    return panel_figure(images, titles, clim=(0.0, 1.0), label=common.MOTION_LABEL, ncols=4,
-                        suptitle="Fig. 5: alpha trades selected stillness against unselected freedom (cyan: selected)")
+        scales += [("motion", model.name)] * len(poses)
+        t = table[table.model == model.name].set_index("alpha_setting")
+        removed.append((model, v, [common.motion(d, d_none) for d in ds[1:]],
+                        [(label, t.loc["default" if a is None else f"{a:g}"]) for _, label, a in settings]))
+    hi = max((float(r.max()) for *_, rs, _ in removed for r in rs), default=0.0) or 1.0
+    for model, v, rs, rows in removed:
+        images.append(None)
+        titles.append(f"{model.name}, in blue:\nthe motion attenuation\nremoves from b),\n|pose - b)| per vertex")
+        scales.append(None)
+        # no cyan markers here: the selection is the darkest blue
+        images += face_images(model, [common.zeros(model)] * len(rs), rs, clim=(0.0, hi), cmap="Blues")
+        titles += [f"{label}: removed {1 - r.reduction:.0%} of the\nselection's motion, "
+                   f"{1 - r.attenuated_unselected_fidelity:.0%} of the rest's" for (label, r) in rows]
+        scales += [("removed", model.name)] * len(rs)
+    # rows: each face's posed row, then its removed row (the faces first, for reading across)
+    n = len(ALPHAS) + 1  # slots per row
+    order = [i for k in range(len(pairs)) for i in [*range(n * k, n * k + n),
+                                                    *range(n * (len(pairs) + k), n * (len(pairs) + k) + n)]]
+    motion = ColourScale((0.0, 1.0), label=common.MOTION_LABEL)
+    gone = ColourScale((0.0, hi), cmap="Blues", label="motion removed")
+    return panel_grid([images[i] for i in order], [titles[i] for i in order], [scales[i] for i in order],
+                      {k: (motion if k[0] == "motion" else gone) for k in scales if k is not None}, ncols=n,
+                      suptitle="Fig. 5: alpha trades selected stillness against unselected freedom (cyan: selected)")
 
 
 def summary(result) -> str:
