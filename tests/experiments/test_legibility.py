@@ -23,9 +23,7 @@ SAVE_DPI = 120
 #: Figures with text under 8 pt today (measured: 5.5-7 pt), each to be fixed by its module's owner;
 #: strict, so a fixed figure must leave this list.
 KNOWN_SMALL_TEXT = {
-    "alpha_sweep", "attenuation_speed", "bounded_attenuation", "clusters", "database_vs_adaptation",
-    "direct_manipulation", "fig4_axis_selection", "latency_breakdown", "retargeting_morphologies",
-    "retrieval_latency",
+    "clusters", "database_vs_adaptation", "latency_breakdown", "retargeting_morphologies", "retrieval_latency",
 }
 #: Slack for rounding of the renderer's extents, in pixels.
 EDGE_SLACK = 0.5
