@@ -85,7 +85,7 @@ class Rig:
     def __init__(self, motion: Motion, roles=None):
         # a weak reference: the rig is the value of a WeakKeyDictionary keyed by the motion
         self._motion = weakref.ref(motion)
-        self.sk = Skeleton.from_motion(motion, roles=roles)
+        self.sk = _skeleton_of(motion, roles)
         self.trans = motion.local_translations()
         self.trans.flags.writeable = False
         self.chains: dict[tuple[str, str], Chain] = {}
@@ -259,6 +259,29 @@ class Rig:
         h = h / np.linalg.norm(h)
         bend = -np.cross(h, u0)
         return h, bend / np.linalg.norm(bend)
+
+
+#: Most skeletons :func:`_skeleton_of` keeps (one per character and database actor in use).
+MAX_CACHED_SKELETONS: int = 64
+#: what :meth:`Skeleton.from_motion` reads of a motion -> its skeleton (every clip of one character shares it)
+_SKELETONS: dict = {}
+
+
+def _skeleton_of(motion: Motion, roles) -> Skeleton:
+    """``Skeleton.from_motion(motion, roles=roles)``, made once per skeleton: a character's clips (every
+    order's) share their joints, offsets, End Sites and unit, and the roles found on them.  A motion
+    without a unit (its inference warns on each call) or with a role table is not cached."""
+    if roles is not None or motion.unit_m is None:
+        return Skeleton.from_motion(motion, roles=roles)
+    key = (tuple(motion.joint_names), motion.parents.tobytes(), motion.offsets.tobytes(), tuple(motion.channels),
+           motion.end_site_parents.tobytes(), motion.end_site_offsets.tobytes(), motion.unit_m)
+    sk = _SKELETONS.get(key)
+    if sk is None:
+        sk = Skeleton.from_motion(motion)
+        if len(_SKELETONS) >= MAX_CACHED_SKELETONS:  # the oldest goes
+            _SKELETONS.pop(next(iter(_SKELETONS)))
+        _SKELETONS[key] = sk
+    return sk
 
 
 #: one :class:`Rig` per live motion (:func:`rig_of` without ``roles``), bounded by the motions' lifetime:

@@ -11,8 +11,9 @@ character's current motion it
    ``d = d_qr + d_cr``: :meth:`~repro.motion.search.retrieval.MotionRetriever.search`);
 3. **loads and converts** the clip: cut from the selected start frame, retargeted to the
    character (:func:`~repro.motion.retargeting.morphology.retarget`, Section 3.4.1); the foot
-   contacts are detected *once*, here, on the retrieved clip (on its actor), and carried
-   through every later stage;
+   contacts are detected *once*, here, on the retrieved clip (on its actor; kept per database,
+   clip and start frame for the next order that retrieves them), and carried through every
+   later stage;
 4. **places** it (rotation about the vertical and translation fitting the start pose onto
    the current pose, scaled from the actor to the character) and **blends and
    synchronises** it with the current motion over ``blend_s`` seconds (Fig. 6 lists
@@ -60,6 +61,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+import weakref
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -111,6 +113,10 @@ ROOT_MAX_ITER: int = 20
 BODY_RADIUS: float = 0.08
 #: Most equal-count bins :func:`reach_by_distance` makes (a table of reach, not a histogram of millions).
 MAX_BINS: int = 10_000
+#: Most (clip, start frame) foot contacts kept per database (:func:`_contacts_of`; about 100 bytes each).
+MAX_CACHED_CONTACTS: int = 4096
+#: database -> {(clip, start frame): contacts of the clip cut there}, as long as the database lives
+_CONTACTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 #: Measured stages of an order, in :attr:`Strike.timings` (seconds).
 STAGES: tuple[str, ...] = ("prepare", "search", "load_convert", "adapt", "first_frame")
 
@@ -431,7 +437,7 @@ def strike(source, character, current_motion: Motion, target, semantics: str, *,
     # 3. load + convert; the contacts, once, on the retrieved clip
     effector = clip_effector(db, res.clip, ch)
     m = cut(db.motion(res.clip), res.start_frame, int(db.n_frames[res.clip]))
-    contacts = foot_contacts(m)
+    contacts = _contacts_of(db, res.clip, res.start_frame, m)
     marks["retarget"] = time.perf_counter()
     mc = retarget_to(m, ch, fix_feet=options.fix_feet)
     marks["adapt"] = time.perf_counter()
@@ -452,6 +458,20 @@ def strike(source, character, current_motion: Motion, target, semantics: str, *,
         closest_error=float(np.linalg.norm(p0 - X, axis=1).min()),
         cost=adaptation_cost(blended, ad.motion, ch, frames=slice(1, None)),
     )
+
+
+def _contacts_of(db: MotionDatabase, clip: int, start: int, m: Motion) -> np.ndarray:
+    """:func:`~repro.motion.body.feet.foot_contacts` of ``m``, clip ``clip`` of ``db`` cut from ``start``
+    (a copy): detected once per database, clip and start frame (a database does not change)."""
+    per = _CONTACTS.get(db)
+    if per is None:
+        per = _CONTACTS[db] = {}
+    c = per.get((clip, start))
+    if c is None:
+        if len(per) >= MAX_CACHED_CONTACTS:  # the oldest goes
+            per.pop(next(iter(per)))
+        c = per[(clip, start)] = foot_contacts(m)
+    return c.copy()
 
 
 def _checked_arguments(options, frame, semantics, seed, current_motion, query):

@@ -352,3 +352,17 @@ def test_solvers_refuse_far_targets_and_huge_frame_ranges():
         reach_limb(m, [1, 2], "right_wrist", np.full(3, 1e300))
     with pytest.raises(MotionError, match="frames"):
         ccd(m, range(10**12), "right_wrist", [0.0, 1.0, 0.5])
+
+
+def test_rigs_of_one_skeleton_share_its_skeleton():
+    """A character's clips (every order's) share one Skeleton (its roles found once); another skeleton, a
+    role table or a motion without a unit gets its own."""
+    from repro.motion.adaptation.rig import Rig
+
+    m = dataclasses.replace(fixture_motion(), unit_m=1.0)
+    other = dataclasses.replace(m, rotations=np.asarray(m.rotations)[::-1])  # another clip, the same skeleton
+    assert Rig(m).sk is Rig(other).sk
+    longer = dataclasses.replace(m, offsets=np.asarray(m.offsets) * 1.1)
+    assert Rig(longer).sk is not Rig(m).sk and Rig(longer).sk.size > Rig(m).sk.size
+    roles = dict(Rig(m).sk.roles)
+    assert Rig(m, roles).sk is not Rig(m).sk and Rig(m, roles).sk.roles == roles

@@ -485,3 +485,21 @@ def test_the_helpers_check_their_arguments(setup):
         reach_by_distance(["a", "b"], [True, False], ["limb", "root"])
     with pytest.raises(MotionError, match="reached"):
         reach_by_distance([1.0, 2.0], ["yes", "no"], ["limb", "root"])
+
+
+def test_an_order_s_contacts_are_the_retrieved_clip_s_kept_per_clip_and_start(setup):
+    """Stage 3's foot contacts: those of the retrieved clip cut at the selected frame, detected once per
+    database, clip and start frame; every strike gets its own copy."""
+    from repro.motion.core.ops import cut
+    from repro.motion.runtime import strike as strike_module
+
+    db = setup[0]
+    a = run(setup, [0.0, 1.2, 1.0], "punch")
+    b = run(setup, [0.0, 1.2, 1.0], "punch")
+    r = a.retrieval
+    fresh = foot_contacts(cut(db.motion(r.clip), r.start_frame, int(db.n_frames[r.clip])))
+    assert (r.clip, r.start_frame) in strike_module._CONTACTS[db]
+    np.testing.assert_array_equal(a.contacts, fresh)
+    np.testing.assert_array_equal(b.contacts, fresh)
+    assert a.contacts is not b.contacts and not np.shares_memory(a.contacts, b.contacts)
+    np.testing.assert_array_equal(a.motion.rotations, b.motion.rotations)
