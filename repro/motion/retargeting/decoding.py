@@ -11,7 +11,10 @@ of the proximal and middle joints by the smallest corrections that bring the mid
 distal joints onto the analytic two-bone solution (so the twist of the upper arm / thigh
 is kept), and sets the distal joint's local rotation so its orientation in the limb's
 parent frame is the source's.  On the source skeleton every correction is the identity:
-the round trip reproduces the motion to rounding error.
+the round trip reproduces the motion to rounding error.  Twist joints inside a limb's bones
+(MakeHuman ``upperarm02.L``: joints of no role between the proximal, middle and distal ones)
+keep their local rotations and turn with the joint above them; the bones are measured
+between the limb's joints (:func:`~repro.motion.retargeting.representation.limb_segments`).
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ from repro.motion.retargeting.representation import (
     MorphologyIndependentMotion,
     limb_frames,
     limb_indices,
+    limb_segments,
     position_mask,
 )
 
@@ -143,8 +147,12 @@ class Decoder:
         # the same tree: an encoder's levels are the target's
         self.levels = source.levels if isinstance(source, Encoder) else depth_levels(tgt.parents)
         self.prox, self.mid, self.dist, self.par = limb_indices(tgt)
-        self.l1, self.l2 = bl[self.mid], bl[self.dist]
+        self.l1, self.l2 = limb_segments(tgt, self.prox, self.mid, self.dist)
         self.L = self.l1 + self.l2
+        # the frames the middle and distal joints' rotations are local to: the proximal and middle
+        # joints', or those of the twist joints between (carried along with their bone)
+        self.par_mid, self.par_dist = tgt.parents[self.mid], tgt.parents[self.dist]
+        self.twisted = bool(np.any(self.par_mid != self.prox) or np.any(self.par_dist != self.mid))
         self.pair_pm = np.stack([self.prox, self.mid], axis=1)  # (4, 2): proximal, middle
         self.pair_mw = np.stack([self.mid, self.dist], axis=1)  # (4, 2): middle, distal
         self.limb_joints = np.concatenate([self.prox, self.mid, self.dist])
@@ -196,7 +204,12 @@ class Decoder:
         GeGw = quat_multiply(np.stack([q2, Rp], axis=2), np.stack([G1[:, :, 1], end_rot], axis=2))
         Ge, Gw = GeGw[:, :, 0], GeGw[:, :, 1]
         rot = np.array(rotations, dtype=float)
-        rot[:, self.limb_joints] = quat_multiply(qinv(np.concatenate([Rp, Gs, Ge], axis=1)),
+        Pm, Pd = Gs, Ge  # the middle and distal joints' parents' new world rotations
+        if self.twisted:  # a twist joint turns with the joint above it
+            Pm = np.where((self.par_mid == self.prox)[None, :, None], Gs, quat_multiply(q1, gq[:, self.par_mid]))
+            Pd = np.where((self.par_dist == self.mid)[None, :, None], Ge,
+                          quat_multiply(q2, quat_multiply(q1, gq[:, self.par_dist])))
+        rot[:, self.limb_joints] = quat_multiply(qinv(np.concatenate([Rp, Pm, Pd], axis=1)),
                                                  np.concatenate([Gs, Ge, Gw], axis=1))
         return rot, (E1, W1, q2)
 

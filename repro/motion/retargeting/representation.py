@@ -98,7 +98,7 @@ from repro.motion.core.quaternion import cross, quat_multiply, vector_norm
 from repro.motion.core.quaternion import quat_conjugate as qinv
 from repro.motion.core.quaternion import quat_rotate as qrot
 
-__all__ = ["LIMB_NAMES", "Encoder", "MorphologyIndependentMotion", "encode", "limb_frames"]
+__all__ = ["LIMB_NAMES", "Encoder", "MorphologyIndependentMotion", "encode", "limb_frames", "limb_segments"]
 
 LIMB_NAMES: tuple[str, ...] = tuple(LIMBS)  # left_arm, right_arm, left_leg, right_leg
 
@@ -211,6 +211,22 @@ def limb_indices(sk: Skeleton) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.n
     return prox, mid, dist, par
 
 
+def limb_segments(sk: Skeleton, prox, mid, dist) -> tuple[np.ndarray, np.ndarray]:
+    """Upper and lower bone lengths of limbs: proximal -> middle and middle -> distal.
+
+    A middle (distal) joint whose parent is the proximal (middle) one: its bone length; with
+    twist joints between them (MakeHuman ``upperarm02.L``): the distance between the two
+    joints in the rest pose (the twist joints lie on the bone)."""
+    prox, mid, dist = (np.atleast_1d(np.asarray(x, dtype=np.intp)) for x in (prox, mid, dist))
+    bl, P = sk.bone_lengths, sk.rest_positions()
+
+    def seg(a, b):
+        direct = sk.parents[b] == a
+        return np.where(direct, bl[b], np.linalg.norm(P[b] - P[a], axis=-1))
+
+    return seg(prox, mid), seg(mid, dist)
+
+
 def root_path(sk: Skeleton) -> np.ndarray:
     """The joints from the root down to the pelvis (the root trajectory's)."""
     return np.array([0] + sk.path(sk.joint_names[0], "pelvis"), dtype=np.intp)
@@ -286,8 +302,9 @@ class Encoder:
         self.levels = depth_levels(sk.parents)
         self.prox, self.mid, self.dist, self.par = limb_indices(sk)
         bl = sk.bone_lengths
-        self.l1 = bl[self.mid]
-        self.L = bl[self.mid] + bl[self.dist]
+        l1, l2 = limb_segments(sk, self.prox, self.mid, self.dist)
+        self.l1 = l1
+        self.L = l1 + l2
         self.swivel_axes, self.swivel_refs = _swivel_frames(sk)
         H = sk.hip_height
         if not np.isfinite(H) or H <= 0:

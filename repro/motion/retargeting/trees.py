@@ -53,6 +53,7 @@ from repro.motion.body.feet import foot_contacts, foot_goals
 from repro.motion.body.roles import check_roles
 from repro.motion.body.skeleton import Skeleton, check_role_table, skeleton_of
 from repro.motion.body.units import infer_up
+from repro.motion.retargeting.representation import limb_segments
 
 __all__ = ["TreePlan", "body_frame", "rest_axes", "retarget_across"]
 
@@ -367,11 +368,12 @@ class TreePlan:
         """The limbs' joints (source and character), lengths, rest middle offsets and bone-frame rotations."""
         self.l_prox = np.array(act, dtype=np.intp)
         self.l_src = np.array([[si[r] for r in roles3] for roles3 in rp], dtype=np.intp).reshape(-1, 3)
-        bl_s, bl_t = src.bone_lengths, tgt.bone_lengths
-        self.Ls = np.array([bl_s[si[m]] + bl_s[si[d]] for _, m, d in rp])
-        self.l1 = np.array([bl_t[ti[m]] for _, m, _d in rp])
-        self.l2 = np.array([bl_t[ti[d]] for _, _m, d in rp])
-        self.bl_src_mid = np.array([bl_s[si[m]] for _, m, _d in rp])
+        # the upper and lower bones, proximal -> middle -> distal (twist joints may sit inside them)
+        ls1, ls2 = limb_segments(src, *self.l_src.T)
+        self.Ls = ls1 + ls2
+        lt = np.array([[ti[r] for r in roles3] for roles3 in rp], dtype=np.intp).reshape(-1, 3)
+        self.l1, self.l2 = limb_segments(tgt, *lt.T)
+        self.bl_src_mid = ls1
         self.cur_p = np.array([Pt[ti[m]] - Pt[ti[p]] for p, m, _d in rp]).reshape(-1, 3)
         self.D_pm = np.array([delta(p, m) for p, m, _d in rp]).reshape(-1, 4)
         # fix_feet's ankle goals: the limbs (rows) ending at the left / right ankle (columns of the goals)
@@ -549,7 +551,7 @@ class TreePlan:
         e_up = _AXIS[self.up]
         ank = [tgt.index("left_ankle"), tgt.index("right_ankle")]
         hips = [tgt.index("left_hip"), tgt.index("right_hip")]
-        L = np.array([tgt.limb_lengths[f"{s}_leg"] for s in ("left", "right")])
+        L = np.sum(limb_segments(tgt, hips, [tgt.index("left_knee"), tgt.index("right_knee")], ank), axis=0)
         contacts = foot_contacts(motion, skeleton=self.source, global_positions=gp_s,
                                  up_axis=2 if self.up_source == "z" else 1)
         P = self._world(G, root_t)
