@@ -10,6 +10,8 @@ What is asserted, on the data the experiments return (quick mode, as CI runs the
 * the cluster table's sizes sum to the number of poses of each database, and the box table
   holds one row per clip with non-negative extents;
 * both experiments are registered (paper "pronost2008"), and ``run`` writes their PNG and CSVs.
+* the latency figure draws every curve inside its panel, one panel per database present (an absent one is
+  said in the title line, never an empty panel), and no legend over a panel (issue 26, item 5).
 
 Both are computed once for the session (``quick_figures``, tests/conftest.py; about 25 s with
 the CMU data); the ``run`` test writes those same results through the registry.
@@ -120,3 +122,41 @@ def test_run_writes_png_and_csvs(tmp_path, monkeypatch, quick_figures):
     t = pd.read_csv(tmp_path / "retrieval_latency.csv")
     assert list(t.columns[:7]) == ["database", "factor", "n_clips", "n_poses", "method", "p50_ms", "p99_ms"]
     assert (tmp_path / "clusters.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def _latency_axes(fig):
+    return [a for a in fig.axes if a.get_title().endswith("latency vs size")]
+
+
+@pytest.mark.parametrize("only_synthetic", [False, True])
+def test_latency_figure_shows_every_curve_and_no_empty_panel(latency, only_synthetic):
+    # issue 26, item 5: every curve inside its panel (the p99 ran off the top), one panel per database
+    # drawn (an absent one is said in the title line, not shown as an empty panel), keys off the curves
+    import matplotlib.pyplot as plt
+
+    from repro.experiments.pronost.retrieval_latency import draw
+
+    t, ks = latency.table, latency.extra_tables["k_sweep"]
+    if only_synthetic:
+        t, ks = t[t.database == "synthetic"], ks[ks.database == "synthetic"]
+    fig = draw(t, ks)
+    try:
+        fig.canvas.draw()
+        panels = _latency_axes(fig)
+        assert sorted(a.get_title().split()[0] for a in panels) == sorted(set(t.database))
+        assert all(a.axison for a in fig.axes), "an empty panel"
+        for a in panels:
+            lo, hi = a.get_ylim()
+            for line in a.get_lines():
+                y = np.asarray(line.get_ydata(), dtype=float)
+                assert ((y >= lo) & (y <= hi)).all(), (a.get_title(), line.get_label(), y, (lo, hi))
+        title = fig.legends[0].get_title().get_text()
+        assert ("'cmu-bvh' not present" in title) == ("cmu" not in set(t.database))
+        r = fig.canvas.get_renderer()
+        for a in fig.axes:  # a legend, where there is one, lies outside its panel
+            if a.get_legend() is not None:
+                assert not a.get_legend().get_window_extent(r).overlaps(a.get_window_extent(r)), a.get_title()
+        for leg in fig.legends:
+            assert not any(leg.get_window_extent(r).overlaps(a.get_window_extent(r)) for a in fig.axes)
+    finally:
+        plt.close(fig)

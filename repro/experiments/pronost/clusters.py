@@ -44,6 +44,10 @@ BONES: tuple[tuple[str, str], ...] = (
 )  # fmt: skip
 
 _AXES = ("x", "y", "z")
+#: Font size of the figure's small print (points at the saved size; at least 8, issue 26 item 5).
+SMALL_FONT = 8
+#: The centroid grid: columns, and each cell's width and height (units of the actor's size).
+GRID_COLUMNS, CELL_W, CELL_H = 8, 2.0, 1.6
 
 
 def cluster_table(name: str, db, clusters) -> pd.DataFrame:
@@ -145,8 +149,7 @@ def _stick(ax, pts, roles, ox, oy, horiz, mirror=1.0):
 
 def _centroids_panel(ax, name, db, cl, table):
     P = len(db.pose_roles)
-    ncol = 8
-    cw, rh = 2.0, 1.35
+    ncol, cw, rh = GRID_COLUMNS, CELL_W, CELL_H
     sub = table[table.database == name].set_index("cluster")
     for c in range(cl.k):
         pts = cl.centroids[c][-P:]  # the current frame of the window
@@ -156,15 +159,15 @@ def _centroids_panel(ax, name, db, cl, table):
         _stick(ax, pts, db.pose_roles, ox, oy, horiz=2)  # side view: z (forward) to the right
         _stick(ax, pts, db.pose_roles, ox + 1.1, oy, horiz=0)  # front view: x (actor's left) to the right
         s = sub.loc[c]
-        ax.text(ox + 0.55, oy + 1.12, f"#{c}: {s['size']} poses\n{s.dominant_kind} {s.dominant_kind_share:.0%}",
-                ha="center", va="bottom", fontsize=5.5)
+        ax.text(ox + 0.55, oy + 1.1, f"#{c}: {s['size']} poses\n{s.dominant_kind} {s.dominant_kind_share:.0%}",
+                ha="center", va="bottom", fontsize=SMALL_FONT)
     rows = -(-cl.k // ncol)
     ax.set_xlim(-0.6, ncol * cw - 0.3)
-    ax.set_ylim(-(rows - 1) * rh - 0.1, 1.45)
+    ax.set_ylim(-(rows - 1) * rh - 0.1, rh)
     ax.set_aspect("equal")
     ax.axis("off")
     ax.set_title(f"{name}: the k = {cl.k} centroid poses (side view, forward to the right | front view; "
-                 "blue = left limbs, red = right; units of the actor's size)", fontsize=8)
+                 "blue = left limbs, red = right; units of the actor's size)", fontsize=9)
 
 
 def _sizes_panel(ax, name, db, cl):
@@ -177,8 +180,9 @@ def _sizes_panel(ax, name, db, cl):
         bottom += h
     ax.set_xlabel("cluster")
     ax.set_ylabel("poses")
-    ax.set_title(f"{name}: cluster sizes ({db.n_poses:,} poses in {cl.k} clusters), by kind of clip", fontsize=8)
-    ax.legend(fontsize=6)
+    ax.set_title(f"{name}: cluster sizes ({db.n_poses:,} poses in {cl.k} clusters),\nby kind of clip", fontsize=9)
+    ax.legend(fontsize=SMALL_FONT, ncol=3, loc="upper center", bbox_to_anchor=(0.5, 0), borderaxespad=4.5,
+              frameon=False)  # under the x label (4.5 font sizes), not over the bars
     ax.set_xticks(np.arange(cl.k)[:: max(1, cl.k // 12)])
 
 
@@ -202,13 +206,18 @@ def _fig4_panel(ax, name, db, examples):
         c = example_target(db, i)
         ax.scatter([c[0]], [c[2]], [c[1]], color="limegreen", s=40, edgecolor="k", depthshade=False)
         ax.plot([], [], "-", color=f"C{n}", label=str(db.names[i]))
-    ax.legend(fontsize=6, loc="upper left")
-    ax.set_xlabel("x (left, m)", fontsize=7)
-    ax.set_ylabel("z (forward, m)", fontsize=7)
-    ax.set_zlabel("y (up, m)", fontsize=7)
-    ax.tick_params(labelsize=6)
+    from matplotlib.ticker import MaxNLocator
+
+    ax.legend(fontsize=SMALL_FONT, loc="upper left")
+    for axis, label, pad in ((ax.xaxis, "x (left, m)", 8), (ax.yaxis, "z (forward, m)", 8),
+                             (ax.zaxis, "y (up, m)", 6)):
+        axis.set_major_locator(MaxNLocator(4))  # few ticks: legible at 8 pt
+        axis.set_label_text(label, fontsize=SMALL_FONT)
+        axis.labelpad = pad
+    ax.tick_params(labelsize=SMALL_FONT, pad=1)
     ax.view_init(elev=18, azim=-60)
-    ax.set_title(f"{name}: Fig. 4 analog: hit trajectories (red), boxes, a target c_r (green)", fontsize=8)
+    ax.set_box_aspect(None, zoom=0.85)  # room inside the panel for the axis labels
+    ax.set_title(f"{name}: Fig. 4 analog: hit trajectories (red),\nboxes, a target c_r (green)", fontsize=9)
 
 
 def _all_boxes_panel(ax, name, db, examples, boxes):
@@ -229,28 +238,30 @@ def _all_boxes_panel(ax, name, db, examples, boxes):
     b = boxes[boxes.database == name]
     for s, c in colors.items():
         ax.plot([], [], "s", color=c, alpha=0.4, label=f"{s} boxes")
-    ax.legend(fontsize=6, loc="upper left")
     ax.autoscale_view()
     ax.set_aspect("equal")
     ax.set_xlabel("z (forward, m)")
     ax.set_ylabel("y (up, m)")
     ax.grid(alpha=0.3)
     frac = (b.boxes_containing_hit / b.same_semantics_clips).median()
-    ax.set_title(f"{name}: all {db.n_clips} boxes, side view (examples outlined)", fontsize=8)
-    ax.text(0.99, 0.01, f"a target at a clip's hit point passes the box\ntest of a median {frac:.0%} "
-            "of the clips of its "
-            f"semantics;\nthe hit point is on its own box's face\nfor {b.hit_on_box_face.mean():.0%} of the clips",
-            transform=ax.transAxes, ha="right", va="bottom", fontsize=6.5, bbox=dict(fc="white", ec="0.7", alpha=0.9))
+    ax.set_title(f"{name}: all {db.n_clips} boxes, side view\n(examples outlined)", fontsize=9)
+    # the key and the numbers under the axes, not over the boxes
+    ax.legend(fontsize=SMALL_FONT, ncol=2, loc="upper center", bbox_to_anchor=(0.5, 0), borderaxespad=4.5,
+              frameon=False,
+              title=f"a target at a clip's hit point passes the box test of a median {frac:.0%}\nof the clips of its "
+                    "semantics; the hit point is on its own box's face\n"
+                    f"for {b.hit_on_box_face.mean():.0%} of the clips",
+              title_fontsize=SMALL_FONT, alignment="center")
 
 
 def draw(made, table: pd.DataFrame, boxes: pd.DataFrame):
     import matplotlib.pyplot as plt
 
-    heights = [(-(-cl.k // 8)) * 1.35 + 0.6 for _, _, cl in made]  # centroid grid height (~inches)
-    fig = plt.figure(figsize=(16, sum(h + 5.0 for h in heights)), layout="constrained")
-    subs = np.atleast_1d(fig.subfigures(len(made), 1, height_ratios=[h + 5.0 for h in heights]))
+    heights = [(-(-cl.k // GRID_COLUMNS)) * CELL_H + 0.6 for _, _, cl in made]  # centroid grid height (~inches)
+    fig = plt.figure(figsize=(16, sum(h + 6.0 for h in heights)), layout="constrained")
+    subs = np.atleast_1d(fig.subfigures(len(made), 1, height_ratios=[h + 6.0 for h in heights]))
     for sf, (name, db, cl), h in zip(subs, made, heights):
-        ax = sf.subplot_mosaic([["cent", "cent", "cent"], ["sizes", "box3d", "boxes"]], height_ratios=[h, 5.0],
+        ax = sf.subplot_mosaic([["cent", "cent", "cent"], ["sizes", "box3d", "boxes"]], height_ratios=[h, 6.0],
                                per_subplot_kw={"box3d": {"projection": "3d"}})
         ex = example_clips(db)
         _centroids_panel(ax["cent"], name, db, cl, table)

@@ -240,7 +240,11 @@ def draw(table: pd.DataFrame, g: pd.DataFrame):
     full, small = max(sizes), (SMALL if SMALL in sizes else min(sizes))
     vmax = float(np.ceil(g.before_m.quantile(0.95) * 10) / 10)
     fig = plt.figure(figsize=(21, 8.5))
-    gs = fig.add_gridspec(2, 7, width_ratios=[1, 1, 1, 1, 0.07, 0.3, 1.5], wspace=0.3, hspace=0.38)
+    gs = fig.add_gridspec(2, 7, width_ratios=[1, 1, 1, 1, 0.07, 0.3, 1.5], wspace=0.3, hspace=0.38, left=0.05,
+                          right=0.85)  # the right margin holds the curves' key
+    labels = {"before": "before adaptation (hit frame)", "closest": "closest approach of the trajectory",
+              "after": "after adaptation"}
+    colors = {"before": "tab:red", "closest": "tab:orange", "after": "tab:green"}
     for row, sem in enumerate(("punch", "kick")):
         for col, (n, what) in enumerate(((full, "before"), (full, "after"), (small, "before"), (small, "after"))):
             ax = fig.add_subplot(gs[row, col])
@@ -261,14 +265,11 @@ def draw(table: pd.DataFrame, g: pd.DataFrame):
         ax = fig.add_subplot(gs[row, 6])
         for name in names:
             t = table[(table.semantics == sem) & (table.database == name)]
-            for what, color in (("before", "tab:red"), ("closest", "tab:orange"), ("after", "tab:green")):
+            for what, color in colors.items():
                 s = t.groupby("db_size")[f"{what}_mean_m"]
                 mean, lo, hi = s.mean(), s.min(), s.max()
-                label = {"before": "before adaptation (hit frame)", "closest": "closest approach of the trajectory",
-                         "after": "after adaptation"}[what]
                 ax.errorbar(mean.index, mean.values, yerr=[mean.values - lo.values, hi.values - mean.values], marker="o",
-                            color=color, ls=styles[name], capsize=3,
-                            label=label if len(names) == 1 else f"{name}: {label}")
+                            color=color, ls=styles[name], capsize=3)
         ax.set_xscale("log", base=2)
         ax.set_ylim(bottom=0)
         ax.set_xticks(all_sizes, [str(s) for s in all_sizes])
@@ -276,7 +277,14 @@ def draw(table: pd.DataFrame, g: pd.DataFrame):
         ax.set_ylabel("mean hit error over the grid (m)")
         ax.set_title(f"{sem}: error vs database size (bars: range over seeds)", fontsize=9)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
+        if row == 0:  # one key for both curve panels, beside them (never over the curves)
+            from matplotlib.lines import Line2D
+
+            handles = [Line2D([], [], color=c, marker="o", label=labels[w]) for w, c in colors.items()]
+            if len(names) > 1:
+                handles += [Line2D([], [], color="k", ls=styles[n], label=f"{n} database") for n in names]
+            ax.legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.03, 1), frameon=False,
+                      title="both curve panels", title_fontsize=8)
     more = "" if len(names) == 1 else f"; heat maps: the {main} database, curves: " + ", ".join(
         f"{n} ({'solid' if styles[n] == '-' else 'dashed' if styles[n] == '--' else 'dotted'})" for n in names)
     fig.suptitle(f"Database size versus adaptation: a {HEIGHT:g} m fighter, targets at depth {DEPTH:g} H "

@@ -172,13 +172,13 @@ def draw(table: pd.DataFrame):
         ax.errorbar(t.ours_p90_ms, yy, xerr=[t.ours_p90_ms - t.ours_p50_ms, np.zeros(len(t))], fmt="none",
                     ecolor="k", elinewidth=0.8, capsize=2)
         for yi, v, v90 in zip(yy, t.ours_p50_ms, t.ours_p90_ms):
-            ax.text(max(v, v90) * 1.12, yi, f"{v:.3g} ms", va="center", fontsize=7)
+            ax.text(max(v, v90) * 1.12, yi, f"{v:.3g} ms", va="center", fontsize=8)
     t = table[table.database == dbs[0]].set_index("stage").loc[stages]
     yy = y + 0.4 - h * (len(dbs) + 0.5)
     ok = t.paper_ms.notna().to_numpy()
     ax.barh(yy[ok], t.paper_ms[ok], height=h, color="tab:orange", label=f"paper ({PAPER_MACHINE})")
     for yi, v in zip(yy[ok], t.paper_ms[ok]):
-        ax.text(v * 1.08, yi, f"{v:.3g} ms", va="center", fontsize=7)
+        ax.text(v * 1.08, yi, f"{v:.3g} ms", va="center", fontsize=8)
     budget = REACTION_BUDGET_S * 1e3
     ax.axvline(budget, color="tab:red", linestyle="--", linewidth=1.0)
     ax.text(budget * 1.05, y[0] + 0.42, "1/30 s budget", color="tab:red", fontsize=8, va="top")

@@ -292,7 +292,7 @@ def draw(table: pd.DataFrame, eq1: pd.DataFrame):
     colors = {"naive": "tab:red", "naive_scaled_root": "tab:orange", "mi": "tab:olive", "mi_feet": "tab:blue",
               "mi_feet_adapt": "tab:green"}
     dbs = list(dict.fromkeys(table.database))
-    fig, axes = plt.subplots(1, 4, figsize=(19, 4.6))
+    fig, axes = plt.subplots(1, 4, figsize=(19, 5.4), layout="constrained")
     styles = dict(zip(dbs, ("-", "--")))
     for col, (metric, label) in enumerate((("hit_error_mean_m", "hit error at contact (m)"),
                                           ("foot_slide_mean_m", "foot slide while planted (m)"))):
@@ -310,7 +310,8 @@ def draw(table: pd.DataFrame, eq1: pd.DataFrame):
 
     handles = [Line2D([], [], color=colors[m], marker="o", label=METHODS[m]) for m in METHODS]
     handles += [Line2D([], [], color="k", ls=styles[d], label=f"{d} database") for d in dbs]
-    axes[0].legend(handles=handles, fontsize=7, loc="upper center")
+    # the key of the two curve panels under the row, not over the curves
+    fig.legend(handles=handles, fontsize=8, loc="outside lower center", ncol=len(handles), frameon=False)
     ax = axes[2]
     t = table[table.database == dbs[0]]
     props = list(dict.fromkeys(t.proportions))
@@ -318,7 +319,7 @@ def draw(table: pd.DataFrame, eq1: pd.DataFrame):
     for k, m in enumerate(METHODS):
         s = t[t.method == m].groupby("proportions", sort=False).hit_error_mean_m.mean().reindex(props)
         ax.bar(np.arange(len(props)) + (k - 2) * w, s.values, w, color=colors[m], label=METHODS[m])
-    ax.set_xticks(np.arange(len(props)), props, rotation=25, ha="right", fontsize=7)
+    ax.set_xticks(np.arange(len(props)), props, rotation=20, ha="right", fontsize=8)
     ax.set_ylabel("hit error at contact (m), mean over heights")
     ax.set_title(f"hit error by proportion set [{dbs[0]}]")
     ax.grid(alpha=0.3, axis="y")
@@ -331,14 +332,13 @@ def draw(table: pd.DataFrame, eq1: pd.DataFrame):
         lv = e[e.eq1 == flag].groupby("height_m").level_shift.mean().reindex(hs)
         for x, (v, l) in enumerate(zip(s.values, lv.values)):
             if np.isfinite(l):
-                ax.text(x + (k - 0.5) * 0.4, v, f"{l:+.2f}", ha="center", va="bottom", fontsize=7, color=colr)
+                ax.text(x + (k - 0.5) * 0.4, v, f"{l:+.2f}", ha="center", va="bottom", fontsize=8, color=colr)
     ax.set_xticks(np.arange(len(hs)), [f"{h:g} m" for h in hs])
     ax.set_ylabel("reach error of the chosen clip (m), mean")
     ax.set_title(f"Eq. 1 in the retrieval [{dbs[0]}]\n(labels: mean level shift, chosen - target)")
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=8)
     ax.grid(alpha=0.3, axis="y")
     fig.suptitle("Retargeting across morphologies (Pronost et al., Sections 3.3-3.4)")
-    fig.tight_layout()
     return fig
 
 

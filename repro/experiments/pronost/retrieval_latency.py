@@ -137,46 +137,77 @@ def retrieval_latency(quick: bool = False, progress: bool = False) -> Result:
     return Result(table=table, draw=lambda: draw(table, ks), extra_tables={"k_sweep": ks})
 
 
+#: The base databases a full run draws (the CMU one only when its takes are staged).
+BASE_DATABASES = {"synthetic": None, "cmu": "dataset 'cmu-bvh' not present (repro data fetch cmu-bvh)"}
+#: Font sizes of the figure (points at the saved size; at least 8, issue 26 item 5).
+FONT, SMALL_FONT = 10, 8.5
+
+
 def _latency_panel(ax, g: pd.DataFrame, name: str) -> None:
     for method, sub in g.groupby("method", sort=False):
         sub = sub.sort_values("n_poses")
-        color, label = METHOD_STYLE.get(method, (None, method))
-        ax.plot(sub.n_poses, sub.p50_ms, "o-", color=color, label=f"{label}: p50")
-        ax.plot(sub.n_poses, sub.p99_ms, "s--", color=color, alpha=0.6, ms=4, label=f"{label}: p99")
+        color, _ = METHOD_STYLE.get(method, (None, method))
+        ax.plot(sub.n_poses, sub.p50_ms, "o-", color=color)
+        ax.plot(sub.n_poses, sub.p99_ms, "s--", color=color, alpha=0.6, ms=4)
     prep = g.groupby("n_poses").prepare_p50_ms.first()
-    ax.plot(prep.index, prep.values, ":", color="0.45", label="query preparation q -> q_r (shared), p50")
-    ax.axhline(PAPER_SEARCH_S * 1e3, color="k", lw=1.2)
-    ax.annotate("paper: 0.28 s (Pentium 4, ~75 motions)", (0.01, PAPER_SEARCH_S * 1e3),
-                xycoords=("axes fraction", "data"),
-                va="bottom", fontsize=7)
-    ax.axhline(REACTION_BUDGET_S * 1e3, color="k", ls="--", lw=1.0)
-    ax.annotate("reaction budget 1/30 s", (0.01, REACTION_BUDGET_S * 1e3), xycoords=("axes fraction", "data"),
-                va="bottom", fontsize=7)
+    ax.plot(prep.index, prep.values, ":", color="0.45")
+    for y, ls, lw, text in ((PAPER_SEARCH_S * 1e3, "-", 1.2, "paper: 0.28 s (Pentium 4, ~75 motions)"),
+                            (REACTION_BUDGET_S * 1e3, "--", 1.0, "reaction budget 1/30 s")):
+        ax.axhline(y, color="k", ls=ls, lw=lw)
+        ax.annotate(text, (0.01, y), xycoords=("axes fraction", "data"), va="bottom", fontsize=SMALL_FONT)
     ax.set_xscale("log")
     ax.set_yscale("log")
+    # every curve inside: from a sixth of the lowest p50 (room for the size labels) to 3x the highest p99
     lo = min(g.p50_ms.min(), g.prepare_p50_ms.min()) / 6
-    ax.set_ylim(lo, PAPER_SEARCH_S * 1e3 * 3)
+    hi = max(g.p99_ms.max(), g.prepare_p50_ms.max(), PAPER_SEARCH_S * 1e3) * 3
+    ax.set_ylim(lo, hi)
     for (f, n, c, k), _ in g.groupby(["factor", "n_poses", "n_clips", "k"]):
         ax.annotate(f"{f}x: {c:,} clips\n{n:,} poses, k={k}", (n, lo), xytext=(0, 3), textcoords="offset points",
-                    ha="center", va="bottom", fontsize=6, color="0.3")
+                    ha="center", va="bottom", fontsize=SMALL_FONT, color="0.3")
     xs = np.sort(g.n_poses.unique())
-    ax.set_xlim(xs[0] / 1.6, xs[-1] * 1.6)
+    ax.set_xlim(xs[0] / 2, xs[-1] * 2)
     _no_minor_labels(ax)
     ax.set_xlabel("poses in the database (log)")
     ax.set_ylabel("search latency per query (ms, log)")
-    ax.set_title(f"{name} database: latency vs size", fontsize=9)
+    ax.set_title(f"{name} database: latency vs size", fontsize=FONT)
     s = retrieval_summary(g)[name]
-    ax.text(0.02, 0.62, f"pruned search p50 at 1x: {s['base_p50_ms']:.3f} ms (+ {g.prepare_p50_ms.iloc[0]:.2f} ms "
-            f"preparation)\npruned vs exhaustive at {s['largest_factor']}x: "
-            f"{s['speedup_vs_exhaustive_at_largest']:.1f}x "
-            f"faster (p50)\nlog-log slope of the pruned p50: {s['loglog_slope_pruned']:.2f}"
-            + (f"\nexact vs exhaustive at {s['largest_factor']}x: {s['exact_speedup_vs_exhaustive_at_largest']:.1f}x "
-               f"faster, {s['exact_n_differs']} differences; slope {s['loglog_slope_exact']:.2f}"
-               if "exact_n_differs" in s else ""),
-            transform=ax.transAxes, ha="left", va="top", fontsize=7,
-            bbox=dict(boxstyle="round", fc="white", ec="0.7"))
+    caption = (f"pruned search p50 at 1x: {s['base_p50_ms']:.3f} ms (+ {g.prepare_p50_ms.iloc[0]:.2f} ms preparation); "
+               f"log-log slope of its p50: {s['loglog_slope_pruned']:.2f}\n"
+               f"at {s['largest_factor']}x: pruned {s['speedup_vs_exhaustive_at_largest']:.1f}x faster than "
+               "exhaustive (p50)"
+               + (f"; exact {s['exact_speedup_vs_exhaustive_at_largest']:.1f}x faster, {s['exact_n_differs']} "
+                  f"differences, slope {s['loglog_slope_exact']:.2f}" if "exact_n_differs" in s else ""))
+    # the numbers as a caption under the axes, not over the curves
+    ax.annotate(caption, (0.5, 0), xycoords="axes fraction", xytext=(0, -42), textcoords="offset points",
+                ha="center", va="top", fontsize=SMALL_FONT)
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=6, loc="center right")
+
+
+def _latency_key(methods) -> list:
+    """Legend handles of the latency panels: colour = method, line = percentile."""
+    from matplotlib.lines import Line2D
+
+    handles = [Line2D([], [], color=METHOD_STYLE[m][0], lw=2, label=METHOD_STYLE[m][1]) for m in methods
+               if m in METHOD_STYLE]
+    return handles + [Line2D([], [], color="k", marker="o", ls="-", label="p50 (median)"),
+                      Line2D([], [], color="k", marker="s", ms=4, ls="--", alpha=0.6, label="p99"),
+                      Line2D([], [], color="0.45", ls=":", label="query preparation q -> q_r (shared), p50")]
+
+
+def _style_key(entries, names, lines) -> list:
+    """Legend handles: ``entries`` (label, colour, marker) and, when several databases, one line style each."""
+    from matplotlib.lines import Line2D
+
+    out = [Line2D([], [], color=c, marker=m, ls="-", label=lab) for lab, c, m in entries]
+    if len(names) > 1:
+        out += [Line2D([], [], color="k", ls=lines.get(n, "-"), label=f"{n} database") for n in names]
+    return out
+
+
+def _below(ax, handles, ncol: int) -> None:
+    """The panel's legend under its axes (never over the curves)."""
+    ax.legend(handles=handles, fontsize=SMALL_FONT, ncol=ncol, loc="upper center", bbox_to_anchor=(0.5, -0.16),
+              frameon=False)
 
 
 def _no_minor_labels(ax) -> None:
@@ -187,67 +218,74 @@ def _no_minor_labels(ax) -> None:
 
 
 def draw(table: pd.DataFrame, ks: pd.DataFrame):
-    """Top row: latency vs size per base database.  Bottom row: quality vs size, quality and latency vs k."""
+    """Top row: latency vs size, one panel per base database present.  Bottom row: quality vs size, quality and
+    latency vs k.  A base database that is absent is said in the caption line (no empty panel)."""
     import matplotlib.pyplot as plt
 
     names = list(dict.fromkeys(table.database))
-    top = [f"lat:{n}" for n in names] + (["lat:none"] if len(names) == 1 else [])
-    mosaic = [[top[0], top[0], top[1], top[1]], ["q_differs", "q_excess", "k_quality", "k_latency"]]
-    fig, ax = plt.subplot_mosaic(mosaic, figsize=(16, 9.5), layout="constrained", height_ratios=[1.25, 1])
+    span = 4 // len(names) if len(names) in (1, 2, 4) else 2
+    top = [f"lat:{n}" for n in names for _ in range(span)][:4]
+    mosaic = [top, ["q_differs", "q_excess", "k_quality", "k_latency"]]
+    fig, ax = plt.subplot_mosaic(mosaic, figsize=(16, 12), layout="constrained", height_ratios=[1.25, 1])
     for n in names:
         _latency_panel(ax[f"lat:{n}"], table[table.database == n], n)
-    if "lat:none" in ax:
-        a = ax["lat:none"]
-        a.axis("off")
-        a.text(0.5, 0.5, "CMU database: dataset 'cmu-bvh' not present\n(repro data fetch cmu-bvh)", ha="center",
-               va="center", fontsize=9, transform=a.transAxes)
     lines = {"synthetic": "-", "cmu": "--"}
+    quality = [m for m in dict.fromkeys(table.method) if m != "exhaustive"]
     for n in names:
         g = table[(table.database == n) & (table.method != "exhaustive")]
         for method, sub in g.groupby("method", sort=False):
             sub = sub.sort_values("n_poses")
-            color, label = METHOD_STYLE[method]
-            ax["q_differs"].plot(sub.n_poses, 100 * sub.differs_from_exhaustive, "o" + lines.get(n, "-"), color=color,
-                                 label=f"{n}: {method}")
-            ax["q_excess"].plot(sub.n_poses, 100 * sub.mean_excess_when_differs, "o" + lines.get(n, "-"), color=color,
-                                label=f"{n}: {method}")
+            color, _ = METHOD_STYLE[method]
+            ax["q_differs"].plot(sub.n_poses, 100 * sub.differs_from_exhaustive, "o" + lines.get(n, "-"), color=color)
+            ax["q_excess"].plot(sub.n_poses, 100 * sub.mean_excess_when_differs, "o" + lines.get(n, "-"), color=color)
+    q_key = _style_key([(m, METHOD_STYLE[m][0], "o") for m in quality], names, lines)
     for key, ylabel, title in [("q_differs", "queries whose choice differs (%)",
-                                "choice differs from the exhaustive optimum"),
-                               ("q_excess", "mean excess of d when it differs (%)", "penalty: (d - d_opt) / d_opt")]:
+                                "choice differs from\nthe exhaustive optimum"),
+                               ("q_excess", "mean excess of d when it differs (%)", "penalty when it differs:\n"
+                                "(d - d_opt) / d_opt")]:
         a = ax[key]
         a.set_xscale("log")
         _no_minor_labels(a)
         a.set_xlabel("poses in the database (log)")
         a.set_ylabel(ylabel)
-        a.set_title(f"vs size: {title}", fontsize=9)
+        a.set_title(f"vs size: {title}", fontsize=FONT)
         a.set_ylim(bottom=0)
         a.grid(alpha=0.3)
-        a.legend(fontsize=6)
+        _below(a, q_key, 2)
     for n in ks.database.unique():
         g = ks[ks.database == n].sort_values("k")
         ls = lines.get(n, "-")
-        ax["k_quality"].plot(g.k, 100 * g.differs_from_exhaustive, "o" + ls, color="C0", label=f"{n}: differs (%)")
-        ax["k_quality"].plot(g.k, 100 * g.mean_excess_when_differs, "^" + ls, color="C1",
-                             label=f"{n}: excess of d when it differs (%)")
-        ax["k_quality"].plot(g.k, 100 * g.fallback_no_box, "x" + ls, color="0.5", label=f"{n}: no box contains c_r (%)")
-        ax["k_latency"].plot(g.k, g.p50_ms, "o" + ls, color="C0", label=f"{n}: pruned p50")
-        ax["k_latency"].plot(g.k, g.exhaustive_p50_ms, "s" + ls, color="C3", ms=4, label=f"{n}: exhaustive p50")
+        ax["k_quality"].plot(g.k, 100 * g.differs_from_exhaustive, "o" + ls, color="C0")
+        ax["k_quality"].plot(g.k, 100 * g.mean_excess_when_differs, "^" + ls, color="C1")
+        ax["k_quality"].plot(g.k, 100 * g.fallback_no_box, "x" + ls, color="0.5")
+        ax["k_latency"].plot(g.k, g.p50_ms, "o" + ls, color="C0")
+        ax["k_latency"].plot(g.k, g.exhaustive_p50_ms, "s" + ls, color="C3", ms=4)
         d = g[g.is_default_k]
         ax["k_quality"].plot(d.k, 100 * d.differs_from_exhaustive, "o", ms=11, mfc="none", color="k")
         ax["k_latency"].plot(d.k, d.p50_ms, "o", ms=11, mfc="none", color="k")
+    knames = list(ks.database.unique())
+    keys = {"k_quality": _style_key([("choice differs (%)", "C0", "o"), ("excess of d when it differs (%)", "C1", "^"),
+                                     ("no box contains c_r (%)", "0.5", "x")], knames, lines),
+            "k_latency": _style_key([("pruned p50", "C0", "o"), ("exhaustive p50", "C3", "s")], knames, lines)}
     for key, ylabel in [("k_quality", "% (of queries; excess: % of d_opt)"), ("k_latency", "search latency p50 (ms)")]:
         a = ax[key]
         a.set_xscale("log", base=2)
         a.set_xlabel("clusters k (log2; circled: default k)")
         a.set_ylabel(ylabel)
-        a.set_title(f"base database{'s' if ks.database.nunique() > 1 else ''}: vs k", fontsize=9)
+        a.set_title(f"base database{'s' if ks.database.nunique() > 1 else ''}: vs k\n"
+                    + ("quality of the pruned choice" if key == "k_quality" else "search latency"), fontsize=FONT)
         a.grid(alpha=0.3)
-        a.legend(fontsize=6)
-    ax["k_quality"].set_ylim(0, 100 * max(ks.differs_from_exhaustive.max(), ks.mean_excess_when_differs.max()) * 1.5)
-    ax["k_quality"].legend(fontsize=6, ncol=2, loc="upper center")
+        _below(a, keys[key], 1 if key == "k_quality" else 2)
+    ax["k_quality"].set_ylim(0, 100 * max(ks.differs_from_exhaustive.max(), ks.mean_excess_when_differs.max(),
+                                          ks.fallback_no_box.max()) * 1.1)
     ax["k_latency"].set_ylim(bottom=0)
-    fig.suptitle(f"Retrieval latency and quality (Pronost et al. Sections 3.3, 4) — {table['machine'].iloc[0]}",
-                 fontsize=9)
+    absent = [f"{n} database: {why}" for n, why in BASE_DATABASES.items() if why and n not in names]
+    title = (f"Retrieval latency and quality (Pronost et al. Sections 3.3, 4) — {table['machine'].iloc[0]}"
+             + "".join(f"\n{a}" for a in absent))
+    # the title heads the key of the latency panels (a suptitle and an outside legend would overlap)
+    fig.legend(handles=_latency_key(list(dict.fromkeys(table.method))), fontsize=SMALL_FONT, ncol=4,
+               loc="outside upper center", frameon=False, title=title, title_fontsize=FONT + 1,
+               alignment="center")
     return fig
 
 
