@@ -154,15 +154,18 @@ def test_every_bench_entry_checks_its_arguments_first(entry, kw):
 @pytest.mark.data("cmu-bvh")  # the formats corpus is staged with the mocap data
 def test_bench_order_rows_and_same_strikes():
     """``repro bench order``: a row per real rig, the streamed first frame and the whole-clip baseline
-    give the same strikes; bad arguments refused first."""
+    give the same strikes, and the compiled CCD and the numpy one the same to rounding; bad arguments
+    refused first."""
     from repro.bench import order
     from repro.errors import ReproError
 
     t = order.bench_order(quick=True)
     ok = t[t.refused == ""]
-    assert len(ok) >= 1 and ok.same_strikes.all()
+    assert len(ok) >= 1 and ok.same_strikes.all() and ok.same_strikes_ccd.all()
     assert (ok.first_frame_p50_ms > 0).all() and (ok.first_frame_p99_ms >= ok.first_frame_p50_ms).all()
-    assert "first frame p50" in order.format_order(t)
+    assert (ok.numpy_ccd_p99_ms >= ok.numpy_ccd_p50_ms).all()
+    text = order.format_order(t)
+    assert "first frame p50" in text and "vs numpy CCD" in text and f"of {len(ok)} rigs under 33.3 ms" in text
     for kw in (dict(n_orders=0), dict(n_orders=10**9), dict(seed="x"), dict(quick=1)):
         with pytest.raises(ReproError, match=next(iter(kw))):
             order.bench_order(**kw)
