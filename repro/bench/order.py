@@ -21,6 +21,7 @@ import warnings
 import numpy as np
 
 from repro.bench import machine
+from repro.errors import ReproError
 
 __all__ = ["GOAL_FIRST_FRAME_P99_MS", "MAX_ORDERS", "RIG_FILES", "bench_order", "format_order"]
 
@@ -59,11 +60,10 @@ def bench_order(*, quick: bool = False, n_orders: int = 40, seed: int = 0, progr
     ``p99_speedup``, ``same_strikes`` (the two give the same frames), ``numpy_ccd_p50_ms``,
     ``numpy_ccd_p99_ms`` (streamed, CCD's sweeps in numpy), ``ccd_p50_speedup``, ``ccd_p99_speedup``,
     ``same_strikes_ccd`` (the same clips, levels and reach, rotations within 1e-7), ``refused`` (why
-    the fighter does not take the rig; the timings NaN), ``machine``.
+    the fighter does not take the rig, or the first order it refuses there; the timings NaN), ``machine``.
     """
     import pandas as pd
 
-    from repro.errors import ReproError
     from repro.motion.database.sources import default_database
     from repro.motion.runtime.fighter import KungFuFighter
 
@@ -85,40 +85,52 @@ def bench_order(*, quick: bool = False, n_orders: int = 40, seed: int = 0, progr
         except ReproError as e:
             rows.append(dict(row, refused=str(e).split(";")[0][:120]))
             continue
-        size = f.character.size
-        f.follow((0.0, 0.85 * size, 0.0), 0.0, snap=True)
-        new = f.options
-        configs = {"new": new, "old": dataclasses.replace(new, stream=False),
-                   "numpy": dataclasses.replace(new, adapt=dataclasses.replace(new.adapt, compiled=False))}
-        rng = np.random.default_rng(seed)
-        t = {k: [] for k in configs}
-        same, same_ccd = True, True
-        for i in range(n):
-            kind = ("kick", "punch")[i % 2]
-            h = (0.55 if kind == "kick" else 0.85) * size + rng.uniform(-0.1, 0.1) * size
-            X = np.array([rng.uniform(-0.15, 0.15), h, rng.uniform(-0.15, 0.15)])
-            got = {}
-            labels = list(configs)
-            for label in labels[i % 3:] + labels[:i % 3]:  # each configuration first in turn
-                f.options = configs[label]
-                got[label] = f.order(kind, X, commit=False)
-                t[label].append(got[label].timings["first_frame"])
-            f.options = new
-            same &= bool(np.array_equal(got["new"].motion.rotations, got["old"].motion.rotations))
-            same_ccd &= _same_to_rounding(got["new"], got["numpy"])
-        ms = {k: (_ms(v, 50), _ms(v, 99)) for k, v in t.items()}
-        rows.append(dict(row, first_frame_p50_ms=ms["new"][0], first_frame_p99_ms=ms["new"][1],
-                         baseline_p50_ms=ms["old"][0], baseline_p99_ms=ms["old"][1],
-                         p50_speedup=ms["old"][0] / ms["new"][0], p99_speedup=ms["old"][1] / ms["new"][1],
-                         same_strikes=same, numpy_ccd_p50_ms=ms["numpy"][0], numpy_ccd_p99_ms=ms["numpy"][1],
-                         ccd_p50_speedup=ms["numpy"][0] / ms["new"][0], ccd_p99_speedup=ms["numpy"][1] / ms["new"][1],
-                         same_strikes_ccd=same_ccd))
+        rows.append(dict(row, **_time_orders(f, n, seed)))
+        if rows[-1]["refused"]:
+            continue
         if progress:
             print(f"{name}: p50 {rows[-1]['first_frame_p50_ms']:.1f} ms p99 {rows[-1]['first_frame_p99_ms']:.1f} ms",
                   flush=True)
     table = pd.DataFrame(rows)
     table["machine"] = machine()
     return table
+
+
+def _time_orders(f, n: int, seed: int) -> dict:
+    """:func:`bench_order`'s columns of one fighter: ``n`` orders in each configuration, interleaved (each
+    first in turn); ``{"refused": why}`` when the fighter refuses an order on this rig."""
+    size = f.character.size
+    f.follow((0.0, 0.85 * size, 0.0), 0.0, snap=True)
+    new = f.options
+    configs = {"new": new, "old": dataclasses.replace(new, stream=False),
+               "numpy": dataclasses.replace(new, adapt=dataclasses.replace(new.adapt, compiled=False))}
+    rng = np.random.default_rng(seed)
+    t = {k: [] for k in configs}
+    same, same_ccd = True, True
+    for i in range(n):
+        kind = ("kick", "punch")[i % 2]
+        h = (0.55 if kind == "kick" else 0.85) * size + rng.uniform(-0.1, 0.1) * size
+        X = np.array([rng.uniform(-0.15, 0.15), h, rng.uniform(-0.15, 0.15)])
+        got = {}
+        labels = list(configs)
+        try:
+            for label in labels[i % 3:] + labels[:i % 3]:
+                f.options = configs[label]
+                got[label] = f.order(kind, X, commit=False)
+                t[label].append(got[label].timings["first_frame"])
+        except ReproError as e:
+            return {"refused": f"order {i} ({kind}): " + str(e).split(";")[0][:100]}
+        finally:
+            f.options = new
+        same &= bool(np.array_equal(got["new"].motion.rotations, got["old"].motion.rotations))
+        same_ccd &= _same_to_rounding(got["new"], got["numpy"])
+    ms = {k: (_ms(v, 50), _ms(v, 99)) for k, v in t.items()}
+    return dict(refused="", first_frame_p50_ms=ms["new"][0], first_frame_p99_ms=ms["new"][1],
+                baseline_p50_ms=ms["old"][0], baseline_p99_ms=ms["old"][1],
+                p50_speedup=ms["old"][0] / ms["new"][0], p99_speedup=ms["old"][1] / ms["new"][1],
+                same_strikes=same, numpy_ccd_p50_ms=ms["numpy"][0], numpy_ccd_p99_ms=ms["numpy"][1],
+                ccd_p50_speedup=ms["numpy"][0] / ms["new"][0], ccd_p99_speedup=ms["numpy"][1] / ms["new"][1],
+                same_strikes_ccd=same_ccd)
 
 
 def _same_to_rounding(a, b) -> bool:
