@@ -20,11 +20,6 @@ from repro.errors import RenderUnavailableError
 MIN_POINTS = 8.0
 #: repro.io.save_figure's default dpi (checked in test_saved_dpi_is_the_one_drawn).
 SAVE_DPI = 120
-#: Figures with text under 8 pt today (measured: 5.5-7 pt), each to be fixed by its module's owner;
-#: strict, so a fixed figure must leave this list.
-KNOWN_SMALL_TEXT = {
-    "clusters", "database_vs_adaptation", "latency_breakdown", "retargeting_morphologies", "retrieval_latency",
-}
 #: Slack for rounding of the renderer's extents, in pixels.
 EDGE_SLACK = 0.5
 
@@ -90,9 +85,7 @@ def test_every_figure_was_drawn(drawn):
         assert texts, f"{name}: no text drawn"
 
 
-@pytest.mark.parametrize("name", [
-    pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="text under 8 pt (issue 26, item 5)"))
-    if n in KNOWN_SMALL_TEXT else n for n in sorted(experiments.registry())])
+@pytest.mark.parametrize("name", sorted(experiments.registry()))
 def test_text_at_least_8_pt(drawn, name):
     if name not in drawn:
         pytest.skip(f"{name} not drawn here (no drawing, or no OpenGL)")
