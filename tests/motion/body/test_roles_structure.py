@@ -22,10 +22,7 @@ from tests.motion.body.role_tables import MIXAMO_EXPECTED, MIXAMO_NAMES, MIXAMO_
 def test_roles_of_every_convention(convention):
     rig, _ = build(convention)
     m = rig.motion(unit_m=1.0)
-    want = expected_roles(convention)
-    if convention == "blender":  # named, the zero-length upper_arm_helper.L does not take the shoulder (issue 25)
-        want["left_shoulder"] = "upper_arm.L"
-    assert find_roles(m.joint_names, m.parents, offsets=m.offsets) == want
+    assert find_roles(m.joint_names, m.parents, offsets=m.offsets) == expected_roles(convention)
     Skeleton.from_motion(m)  # and the skeleton accepts it (no zero-length limb bone)
 
 

@@ -70,9 +70,7 @@ def test_roles_from_structure_with_meaningless_names(pose, up, how):
     rig, exp = restructured(pose, up)
     m0 = rig.motion(unit_m=1.0)
     named = find_roles(m0.joint_names, m0.parents, offsets=m0.offsets, end_site_parents=m0.end_site_parents)
-    # the names agree with the structure; named, the zero-length helper at the shoulder does not take
-    # its role, unnamed it cannot be told from the joint it sits on: the deepest of the two is taken
-    assert named == {**exp, "left_shoulder": "LeftArm"}
+    assert named == exp  # the names agree with the structure
     m, table = renamed(m0, how, seed=zlib.crc32(f"{pose}{up}".encode()) % 1000)  # str hash() is salted per process
     roles = find_roles(m.joint_names, m.parents, offsets=m.offsets, end_site_parents=m.end_site_parents)
     assert roles == {k: table[v] for k, v in exp.items()}
@@ -89,7 +87,7 @@ def test_every_convention_renamed_to_meaningless_names(convention):
     m0 = build(convention)[0].motion(unit_m=1.0)
     m, table = renamed(m0, "random", seed=len(convention))
     roles = find_roles(m.joint_names, m.parents, offsets=m.offsets, end_site_parents=m.end_site_parents)
-    assert roles == {k: table[v] for k, v in expected_roles(convention).items()}  # the helper, unnamed
+    assert roles == {k: table[v] for k, v in expected_roles(convention).items()}
 
 
 def test_random_names_do_not_read_as_sides():
