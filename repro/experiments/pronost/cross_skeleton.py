@@ -118,9 +118,7 @@ def _hit_error(gs, gt, ss, ts, C, hit_frame: int, hit_role: str) -> float:
     side, stem = hit_role.split("_", 1)
     kind = "arm" if stem in ("fist", "wrist", "hand") else "leg"
     a, b = LIMBS[kind]
-    mid = "elbow" if kind == "arm" else "knee"
-    Ls = ss.bone_length(f"{side}_{mid}") + ss.bone_length(f"{side}_{b}")
-    Lt = ts.bone_length(f"{side}_{mid}") + ts.bone_length(f"{side}_{b}")
+    Ls, Lt = ss.limb_lengths[f"{side}_{kind}"], ts.limb_lengths[f"{side}_{kind}"]  # twist joints inside included
     f = int(hit_frame)
     n = (gs[f, ss.index(f"{side}_{b}")] - gs[f, ss.index(f"{side}_{a}")]) @ C.T / Ls
     goal = gt[f, ts.index(f"{side}_{a}")] + n * Lt

@@ -238,8 +238,13 @@ def ccd_sweeps(
     else by numpy over all frames at once (the same poses to rounding).
     """
     kp, km, kd = ch.k_prox, ch.k_mid, ch.k_dist
-    l1 = vector_norm(trans[:, ch.path[km]])
-    l2 = vector_norm(trans[:, ch.path[kd]])
+    if km == kp + 1 and kd == km + 1:
+        l1 = vector_norm(trans[:, ch.path[km]])
+        l2 = vector_norm(trans[:, ch.path[kd]])
+    else:  # twist joints inside the bones: the distances between the limb's joints
+        _, pw0 = chain_fk(quat_to_matrix(rot[:, ch.path[: kd + 1]]), trans[:, ch.path[: kd + 1]])
+        l1 = vector_norm(pw0[:, km] - pw0[:, kp])
+        l2 = vector_norm(pw0[:, kd] - pw0[:, km])
     Wg_fixed = None
     if finish:
         # the sweeps turn only joints above the limb and read only its root (shoulder / hip):

@@ -206,9 +206,12 @@ class Rig:
         if dist not in pl:
             raise MotionError(f"effector {effector!r} ({sk.joint_names[hit]}) is not the {names[2]} or below it")
         k_dist = pl.index(dist)
-        k_mid, k_prox = k_dist - 1, k_dist - 2
-        if k_prox < 1 or pl[k_mid] != mid or pl[k_prox] != prox:
-            raise MotionError(f"{side} {kind}: {names} are not a parent-child chain below the root")
+        # the middle and proximal joints above the distal one; twist joints between them are carried
+        # along by the limb step (repro.motion.adaptation.limb)
+        k_mid = pl.index(mid) if mid in pl[:k_dist] else -1
+        k_prox = pl.index(prox) if prox in pl[:max(k_mid, 0)] else -1
+        if k_prox < 1:
+            raise MotionError(f"{side} {kind}: {names} are not a chain down the tree below the root")
         for j in (prox, mid, dist):
             if not self.full_rotation[j]:
                 raise MotionError(
@@ -220,7 +223,7 @@ class Rig:
             off = hit_offset(sk, hit)[0]
         else:
             raise MotionError(f"hit_point must be 'joint' or 'end_site', got {hit_point!r}")
-        hinge, bend = self._hinge(prox, mid, dist)
+        hinge, bend = self._hinge(prox, mid, dist) if k_dist - k_prox == 2 else self._hinge_of_segments(prox, mid, dist)
         return Chain(
             effector=effector,
             limb=f"{side}_{kind}",
@@ -243,6 +246,18 @@ class Rig:
         """Clip-wide bending axis of the middle joint and bend side, in the proximal frame."""
         u = self.trans[:, mid]  # upper bone, proximal frame
         lower = qrot(self.motion.rotations[:, mid], self.trans[:, dist])  # lower bone, proximal frame
+        return self._hinge_of(u, lower)
+
+    def _hinge_of_segments(self, prox: int, mid: int, dist: int) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_hinge` of a limb with twist joints inside its bones: the proximal->middle and
+        middle->distal segments from the world transforms, in the proximal frame."""
+        gq, gp = self.globals
+        inv = gq[:, prox] * np.array([-1.0, -1.0, -1.0, 1.0])
+        return self._hinge_of(qrot(inv, gp[:, mid] - gp[:, prox]), qrot(inv, gp[:, dist] - gp[:, mid]))
+
+    @staticmethod
+    def _hinge_of(u: np.ndarray, lower: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bending axis and bend side, in the proximal frame, of upper and lower bones ``u``, ``lower`` (F, 3)."""
         c = cross(u, lower)
         nu = np.linalg.norm(u, axis=-1) * np.linalg.norm(lower, axis=-1)
         s = np.linalg.norm(c, axis=-1) / np.maximum(nu, 1e-300)

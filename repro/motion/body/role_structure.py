@@ -15,15 +15,18 @@ first when it has the rest offsets):
   they are not taken for the two arms); a root branching only into the trunk and a joint
   carrying the two legs (MakeHuman's game rig: ``Root`` the spine base, ``Hips`` beside the
   spine) is the hub as well;
-* runs of co-located joints (zero-length helpers) are collapsed to their deepest joint;
+* runs of co-located joints (zero-length helpers) are collapsed to their first joint
+  (Rigify ``upper_arm_helper.L`` does not take ``upper_arm.L``'s shoulder role, named or not);
+  twist joints inside a bone, which the bone runs straight through, are not counted
+  (Rigify-style ``upper_arm_twist.L``, named so, and MakeHuman's numbered segments
+  ``upperarm02.L`` after ``upperarm01.L``: :func:`_without_twist_joints`), so the limb's
+  roles land on the anatomical joints with the twist joints between them;
   in each limb chain the two longest consecutive bones are the upper arm and forearm
   (thigh and shin), so a joint before them is the clavicle and one after them the hand
-  (toe); the second, twist segment of the middle bone (MakeHuman ``lowerarm02.L`` after
-  ``lowerarm01.L``: ``01`` the bone, ``02`` its twist) may end the chain, so the elbow
-  (knee) is the real joint, between the two bones' twist segments (a two-bone IK chain
-  must be parent and child); an arm's shoulder lies off the trunk's midline (CMU's
+  (toe); an arm's shoulder lies off the trunk's midline (CMU's
   clavicle joints lie on it); a wrist that branches into fingers has no ``hand`` joint (CMU's, branching into
-  the hand and a one-joint thumb, has);
+  the hand and a one-joint thumb, has), an ankle that branches into toes has the middle
+  one as its ``toe`` (:func:`_toe`);
 * the names confirm: a limb name contradicting every reading of the chain makes the names
   decide, and the side comes from the names (``Left``/``L_``/``_l``/``l``/``.L``), else
   from the rest pose (the toes point forward, left = up x forward);
@@ -40,13 +43,14 @@ neck, clavicles) from the tree.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
 
 from repro.errors import MotionError
 from repro.motion.body.role_names import (is_clavicle_name, is_head_name, is_helper_name, is_neck_name, name_side,
-                                         stem_votes)
+                                         side_and_base, stem_votes)
 from repro.motion.core.kinematics import children_of, rest_positions
 
 __all__ = ["AmbiguousLimbs", "roles_from_structure", "trunk_from_tree"]
@@ -230,14 +234,51 @@ def _structure(names: list[str], par: np.ndarray, off: np.ndarray) -> _Body:
 
 # ---------------------------------------------------------------- the limbs along the chains
 def _points(chain: list[int], P: np.ndarray, tol: float) -> list[int]:
-    """Collapse runs of co-located joints to their deepest one."""
+    """Collapse runs of co-located joints to their first one: the joints below it at zero length
+    are helpers (Rigify ``upper_arm_helper.L`` under ``upper_arm.L``), carried along between the
+    limb's joints like twist joints."""
     out: list[int] = []
     for j in chain:
-        if out and np.linalg.norm(P[j] - P[out[-1]]) <= tol:
-            out[-1] = j
-        else:
+        if not out or np.linalg.norm(P[j] - P[out[-1]]) > tol:
             out.append(j)
     return out
+
+
+#: Largest angle (degrees) between the two segments meeting at a twist joint inside a limb bone:
+#: the bone runs straight through it (MakeHuman's thigh bends 5 degrees at ``upperleg02``).
+TWIST_COLLINEAR_DEG = 15.0
+
+
+def _bone_segment(name: str, before: str) -> bool:
+    """True when ``name`` reads as a later numbered segment of the bone ``before`` starts
+    (MakeHuman ``upperarm02.L`` after ``upperarm01.L``: one bone in two twist segments)."""
+    def parts(n):
+        out = set()
+        for _side, base in side_and_base(n):
+            m = re.fullmatch(r"([a-z]+?)(\d+)", base)
+            if m:
+                out.add((m.group(1), int(m.group(2))))
+        return out
+    return any(s == s0 and k > k0 for s, k in parts(name) for s0, k0 in parts(before))
+
+
+def _without_twist_joints(pts: list[int], names: list[str], P: np.ndarray) -> list[int]:
+    """The chain's points without the twist joints inside its bones: a point the bone runs
+    straight through (within :data:`TWIST_COLLINEAR_DEG`) that is named a twist / roll /
+    helper bone (Rigify-style ``upper_arm_twist.L``) or a later numbered segment of the bone
+    before it (MakeHuman ``upperarm02.L``, ``lowerleg02.L``).  The limb's joints are then the
+    anatomical ones (shoulder, elbow, wrist; hip, knee, ankle) with the twist joints between
+    them, carried along by the limb IK (:mod:`repro.motion.adaptation.limb`)."""
+    out = list(pts[:1])
+    for i in range(1, len(pts) - 1):
+        q, nxt = pts[i], pts[i + 1]
+        a, b = P[q] - P[out[-1]], P[nxt] - P[q]
+        na, nb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
+        straight = na > 0 and nb > 0 and float(a @ b) >= na * nb * np.cos(np.radians(TWIST_COLLINEAR_DEG))
+        if straight and (is_helper_name(names[q]) or _bone_segment(names[q], names[out[-1]])):
+            continue
+        out.append(q)
+    return out + pts[-1:] if len(pts) > 1 else out
 
 
 def _path_down(a: int, d: int, par: np.ndarray) -> list[int]:
@@ -281,12 +322,12 @@ def _limbs(names: list[str], par: np.ndarray, body: _Body) -> tuple[dict, dict]:
     P, tol, up, hub = body.P, body.tol, body.up, body.hub
     legs = {}
     for t in body.legs:
-        pts = _points(_path_down(hub, t, par), P, tol)
+        pts = _without_twist_joints(_points(_path_down(hub, t, par), P, tol), names, P)
         legs[t] = _limb_from_chain(pts, names, P, "leg")
     arms = {}
     chest = _lca(body.arms[0], body.arms[1], par)
     for t in body.arms:
-        pts = _points(_path_down(chest, t, par), P, tol)
+        pts = _without_twist_joints(_points(_path_down(chest, t, par), P, tol), names, P)
         v = P[pts] - P[hub]
         lat = np.linalg.norm(v - np.outer(v @ up, up), axis=1)
         arms[t] = _limb_from_chain(pts, names, P, "arm", prox_ok=lat >= 0.1 * lat[-1])
@@ -344,14 +385,27 @@ def _group_sides(names: list[str], group: dict, what: str, P: np.ndarray, up: np
 
 
 # ---------------------------------------------------------------- the role table
-def _leg_roles(names: list[str], legs: dict, sides: dict[int, str], roles: dict[str, str]) -> None:
+def _toe(lg: dict, par: np.ndarray, cand: np.ndarray, P: np.ndarray) -> int:
+    """The toe joint after the ankle: the first joint on the way to the leg's lowest tip; of an
+    ankle branching into several toes (MakeHuman ``metatarsal1.L`` .. ``metatarsal5.L``) the
+    middle one, whose direction from the ankle is nearest the toes' mean direction (the foot's)."""
+    kids = np.flatnonzero((par == lg["dist"]) & cand)
+    if len(kids) < 2:
+        return lg["after"][0]
+    d = P[kids] - P[lg["dist"]]
+    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
+    return int(kids[int(np.argmax(d @ d.mean(axis=0)))])
+
+
+def _leg_roles(names: list[str], par: np.ndarray, cand: np.ndarray, P: np.ndarray, legs: dict,
+               sides: dict[int, str], roles: dict[str, str]) -> None:
     for t, lg in legs.items():
         if lg is None:
             continue
         s = sides[t]
         roles[f"{s}_hip"], roles[f"{s}_knee"], roles[f"{s}_ankle"] = (names[lg[k]] for k in ("prox", "mid", "dist"))
         if lg["after"]:
-            roles[f"{s}_toe"] = names[lg["after"][0]]
+            roles[f"{s}_toe"] = names[_toe(lg, par, cand, P)]
 
 
 def _arm_roles(names: list[str], par: np.ndarray, cand: np.ndarray, arms: dict, sides: dict[int, str],
@@ -411,7 +465,7 @@ def roles_from_structure(names: list[str], par: np.ndarray, off: np.ndarray, end
     _group_sides(names, legs, "legs", body.P, body.up, fwd, sides)
     _group_sides(names, arms, "arms", body.P, body.up, fwd, sides)
     roles: dict[str, str] = {}
-    _leg_roles(names, legs, sides, roles)
+    _leg_roles(names, par, body.has_cand, body.P, legs, sides, roles)
     _arm_roles(names, par, body.has_cand, arms, sides, roles)
     roles["head"] = _head_role(names, par, body.hub, body.head, end_sites)
     return roles

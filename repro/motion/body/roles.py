@@ -131,8 +131,8 @@ def find_roles(
 
     With ``parents`` and ``offsets`` the legs, arms and head come from the structure first
     (:mod:`repro.motion.body.role_structure`: the pelvis hub, the lowest and most lateral
-    tips, the two longest bones of each limb chain; helper bones, fingers, face joints and
-    props set aside), the names only confirming them and telling the sides; names are not
+    tips, the two longest bones of each limb chain, twist joints inside the bones not
+    counted; helper bones, fingers, face joints and props set aside), the names only confirming them and telling the sides; names are not
     needed (``j0 .. jN`` will do).  Joints the structure leaves open (or all of them, when
     the rest pose cannot be read, e.g. every bone along one line as Bandai Namco's) are
     found by name (:mod:`repro.motion.body.role_names`: side from a prefix or suffix such
@@ -140,8 +140,9 @@ def find_roles(
     namespace ignored; role from the rest, e.g. ``humerus``/``upperarm``/``arm`` =
     shoulder).  With ``parents`` the trunk comes from the tree (pelvis = lowest common
     ancestor of the two hips, chest = that of the two shoulders, spine and neck the first
-    joints after them) and each limb must be a parent-child chain (shoulder -> elbow ->
-    wrist, hip -> knee -> ankle), which the analytic two-bone IK of
+    joints after them) and each limb must be a chain down the tree (shoulder -> elbow ->
+    wrist, hip -> knee -> ankle; twist joints inside the bones, MakeHuman ``upperarm02.L``,
+    may sit between them), which the analytic two-bone IK of
     :mod:`repro.motion.retargeting.morphology` needs; without, the trunk is found by name
     too (``hips``/``pelvis``/``root``, ``thorax``/``chest``/highest ``spineN`` ...).
 
@@ -180,7 +181,7 @@ def find_roles(
         not mirror images, proportions far from a human's, a rest pose standing on four
         limbs; the message says which test failed, with its numbers), a required role is
         missing (the message names the missing roles and lists the joints), an override
-        names an unknown joint or role, or a limb is not a parent-child chain.
+        names an unknown joint or role, or a limb is not a chain down the tree.
     """
     names, par, offsets, end_site_parents = _checked_arguments(joint_names, parents, overrides, required,
                                                                offsets, end_site_parents)
@@ -313,15 +314,27 @@ def _hit_points(roles: dict[str, str]) -> None:
                 roles[f"{side}_foot"] = src
 
 
+def _below(j: int, top: int, par: np.ndarray) -> bool:
+    """True when joint ``j`` is a descendant of ``top`` (not ``top`` itself)."""
+    while j >= 0:
+        j = int(par[j])
+        if j == top:
+            return True
+    return False
+
+
 def _check_limb_chains(index: dict[str, int], par: np.ndarray, roles: dict[str, str]) -> None:
+    """Each limb a chain down the tree: the middle joint below the proximal one, the distal one
+    below the middle one (twist joints between them, MakeHuman ``upperarm02.L``, are carried
+    along by the two-bone IK)."""
     for limb, (a, b, c) in LIMBS.items():
         if a in roles and b in roles and c in roles:
             ia, ib, ic = index[roles[a]], index[roles[b]], index[roles[c]]
-            if par[ib] != ia or par[ic] != ib:
+            if not _below(ib, ia, par) or not _below(ic, ib, par):
                 raise MotionError(
-                    f"{limb}: {roles[a]!r} -> {roles[b]!r} -> {roles[c]!r} is not a parent-child "
-                    "chain; two-bone IK needs the middle joint to be the child of the proximal "
-                    "one and the parent of the distal one"
+                    f"{limb}: {roles[a]!r} -> {roles[b]!r} -> {roles[c]!r} is not a chain down the tree; "
+                    "two-bone IK needs the middle joint below the proximal one and the distal one below "
+                    "the middle one"
                 )
 
 

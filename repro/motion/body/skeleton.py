@@ -242,6 +242,15 @@ class Skeleton:
         """Length of the bone ending at a joint (``|offset|``), file units."""
         return float(self.bone_lengths[self.index(name_or_role)])
 
+    def _segment(self, top: str, role: str) -> float:
+        """Rest distance from ``top`` down to ``role``: the bone ending at ``role`` when ``top`` is
+        its parent, else across the twist joints between them (MakeHuman ``upperarm02.L``)."""
+        j, t = self.index(role), self.index(top)
+        if self.parents[j] == t:
+            return self.bone_length(role)
+        P = self._rest_positions
+        return float(np.linalg.norm(P[j] - P[t]))
+
     def rest_positions(self) -> np.ndarray:
         """(J, 3) joint positions of the rest pose (all rotations identity), file units."""
         return self._rest_positions.copy()
@@ -279,10 +288,10 @@ class Skeleton:
         """
         out = {}
         for side in ("left", "right"):
-            ua = self.bone_length(f"{side}_elbow")
-            fa = self.bone_length(f"{side}_wrist")
-            th = self.bone_length(f"{side}_knee")
-            sh = self.bone_length(f"{side}_ankle")
+            ua = self._segment(f"{side}_shoulder", f"{side}_elbow")
+            fa = self._segment(f"{side}_elbow", f"{side}_wrist")
+            th = self._segment(f"{side}_hip", f"{side}_knee")
+            sh = self._segment(f"{side}_knee", f"{side}_ankle")
             ft = self.bone_length(f"{side}_toe") if f"{side}_toe" in self.roles else 0.0
             out.update(
                 {
@@ -557,11 +566,9 @@ def scale_skeleton(
     leg_scale = _positive("leg_scale", leg_scale)
     trunk_scale = _positive("trunk_scale", trunk_scale)
     f = np.ones(sk.n_joints)
-    for side in ("left", "right"):
-        f[sk.index(f"{side}_elbow")] *= arm_scale
-        f[sk.index(f"{side}_wrist")] *= arm_scale
-        f[sk.index(f"{side}_knee")] *= leg_scale
-        f[sk.index(f"{side}_ankle")] *= leg_scale
+    for side in ("left", "right"):  # the limb's bones, twist joints inside them included
+        f[sk.path(f"{side}_shoulder", f"{side}_wrist")] *= arm_scale
+        f[sk.path(f"{side}_hip", f"{side}_ankle")] *= leg_scale
     trunk = sk.path("pelvis", "head")
     f[trunk] *= trunk_scale
     if bone_scales is not None and not isinstance(bone_scales, Mapping):

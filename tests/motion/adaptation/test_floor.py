@@ -9,7 +9,8 @@ lowers the kicking foot while it is still near the ground.  What is asserted:
   reached at the contact, the support foot does not slide;
 * a current pose already through the floor (frame ``t0`` never changes) is lifted out over
   ``foot_blend``, not popped up in one frame;
-* the fighter on a synthetic Z-up inch character (3ds Max Biped names, unit not stated)
+* the fighter on a synthetic Z-up inch character (3ds Max Biped names, unit not stated),
+  on a character with twist joints inside its limb chains (Rigify-style, N-pose)
   and on the real rigs of the formats corpus: after the current pose no joint or End Site
   is more than 1 cm below the floor (the joints none at all) and the planted feet slide
   less than 2 cm, for a kick and a punch, which land within 1 cm; the stance itself has no
@@ -141,6 +142,29 @@ def test_a_z_up_inch_character_keeps_its_feet_above_the_floor(z_up_inch, kind):
     joints, ends = lowest(s.motion)
     assert min(joints.min(), ends.min()) >= -1e-9  # this stance stands on the floor: none below it at all
     assert max_foot_slide(s.motion, s.contacts, skeleton=f.character) < SLIDE_TOL
+
+
+@pytest.fixture(scope="module")
+def twist_character(synthetic_db):
+    """A Z-up character with twist joints halfway along each limb bone and a zero-length helper at
+    the shoulder (Rigify-style names, N-pose), its unit not stated."""
+    m, built = build_character("rigify_n")
+    return _strikes(synthetic_db, dataclasses.replace(m, unit_m=None)), built
+
+
+@pytest.mark.parametrize("kind", ["kick", "punch"])
+def test_a_character_with_twist_joints_in_its_limbs_strikes_and_keeps_its_feet(twist_character, kind):
+    """Twist joints inside the limb chains (issue 25): the roles are the anatomical joints, the limb IK
+    carries the twist joints along; the strike lands within 1 cm, nothing goes through the floor,
+    the planted feet slide less than 2 cm."""
+    (f, strikes), built = twist_character
+    assert {k: f.character.roles[k] for k in built} == built
+    s = strikes[kind]
+    assert s.reached and s.hit_error < 0.01, s.hit_error
+    _check_floor(f, s, _n_blend(s))
+    assert max_foot_slide(s.motion, s.contacts, skeleton=f.character) < SLIDE_TOL
+    twists = [j for j, n in enumerate(s.motion.joint_names) if "twist" in n]
+    np.testing.assert_array_equal(s.motion.rotations[:, twists], s.original.rotations[:, twists])  # carried along
 
 
 #: Real rigs of the formats corpus that the fighter takes (every humanoid file of ``pybvh`` and ``realrigs``)

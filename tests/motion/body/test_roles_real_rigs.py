@@ -1,5 +1,5 @@
 """Roles on the conventions of real rigs (issue 25, "Real files to build on"): MakeHuman's default
-rig (``.L``/``.R``, numbered twist segments ``01``/``02``, a root above ``pelvis.L``/``.R`` and
+rig (``.L``/``.R``, numbered twist segments ``01``/``02`` inside the bones: the roles on the ``01``s, a root above ``pelvis.L``/``.R`` and
 ``spine05``), its game rig (``Root`` the spine base, ``Hips`` a separate child carrying the legs,
 ``UpArm_L``/``LoArm_L``, ``__`` helpers) and a CMU-style rig without a head joint."""
 
@@ -67,20 +67,34 @@ def makehuman_default(deg: float = 48.0):
 
 MAKEHUMAN_DEFAULT_ROLES = {
     "pelvis": "root", "spine": "spine05", "chest": "spine01", "neck": "neck01", "head": "head",
-    "left_hip": "upperleg02.L", "left_knee": "lowerleg01.L", "left_ankle": "lowerleg02.L", "left_foot": "foot.L",
-    "left_shoulder": "upperarm02.L", "left_elbow": "lowerarm01.L", "left_wrist": "lowerarm02.L",
-    "left_hand": "wrist.L", "left_fist": "wrist.L", "left_clavicle": "clavicle.L",
+    "left_hip": "upperleg01.L", "left_knee": "lowerleg01.L", "left_ankle": "foot.L", "left_toe": "metatarsal1.L",
+    "left_shoulder": "upperarm01.L", "left_elbow": "lowerarm01.L", "left_wrist": "wrist.L",
+    "left_fist": "wrist.L", "left_clavicle": "clavicle.L",
 }  # fmt: skip
 
 
-def test_makehuman_default_rig_twist_segments_bracket_the_elbow_and_knee():
+def test_makehuman_default_rig_roles_land_on_the_anatomical_joints():
     names, par, off = makehuman_default()
     r = find_roles(names, par, offsets=off)
-    # the limbs are parent-child chains (two-bone IK): the second, twist segment of the upper arm
-    # (thigh) and that of the forearm (shin) bracket the elbow (knee), which is the real joint
+    # the twist segments (upperarm02, lowerarm02, upperleg02, lowerleg02) lie inside the bones,
+    # between the anatomical joints: shoulder upperarm01 -> elbow lowerarm01 -> wrist wrist.L
     assert {k: r[k] for k in MAKEHUMAN_DEFAULT_ROLES} == MAKEHUMAN_DEFAULT_ROLES
     assert r["right_elbow"] == "lowerarm01.R" and r["right_knee"] == "lowerleg01.R"
+    assert "left_hand" not in r  # the wrist branches into fingers
+    assert not {"upperarm02.L", "lowerarm02.L", "upperleg02.L", "lowerleg02.L"} & set(r.values())
     Skeleton(names, par, off)  # and a Skeleton takes it
+
+
+@pytest.mark.parametrize("bent", [0.0, 40.0])
+def test_a_bent_numbered_segment_is_a_joint(bent):
+    """A numbered segment is a twist joint only where the bone runs straight through it: bent
+    there, it is a joint of the chain (here it makes the wrist the end of a third bone)."""
+    from repro.motion.body.role_structure import TWIST_COLLINEAR_DEG, _without_twist_joints
+
+    names = ["a", "upperarm01.L", "upperarm02.L", "lowerarm01.L"]
+    P = np.array([[0, 0, 0], [1.0, 0, 0], [2.0, 0, 0], [2.0 + np.cos(np.radians(bent)), np.sin(np.radians(bent)), 0]])
+    kept = _without_twist_joints([0, 1, 2, 3], names, P)
+    assert kept == ([0, 1, 3] if bent <= TWIST_COLLINEAR_DEG else [0, 1, 2, 3])
 
 
 def makehuman_game():
@@ -147,7 +161,10 @@ def _realrig(name):
 
 @pytest.mark.parametrize("name, want", [
     ("makehuman_default_rig_tpose.bvh", {"pelvis": "root", "chest": "spine01", "head": "head",
-                                         "left_elbow": "lowerarm01.L", "right_knee": "lowerleg01.R",
+                                         "left_shoulder": "upperarm01.L", "left_elbow": "lowerarm01.L",
+                                         "left_wrist": "wrist.L", "right_hip": "upperleg01.R",
+                                         "right_knee": "lowerleg01.R", "right_ankle": "foot.R",
+                                         "right_toe": "metatarsal3.R",  # the middle of the five toes
                                          "right_clavicle": "clavicle.R", "right_fist": "wrist.R"}),
     ("makehuman_game_rig_zombiewalk.bvh", {"pelvis": "Root", "chest": "Spine3", "head": "Head",
                                            "left_elbow": "LoArm_L", "right_knee": "LoLeg_R"}),

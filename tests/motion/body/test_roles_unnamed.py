@@ -36,7 +36,7 @@ def restructured(pose: str, up: str, height: float = 1.75) -> tuple[RigConventio
     r = RigConvention.synthetic(height)
     r.split("Spine1", ["SpineA", "SpineB"])  # extra spine joints: the chest stays the top one
     r.insert_above("Hips", "RootHelper", 1.0)  # a root carrying the rest height, pelvis at zero length below
-    r.insert_above("LeftForeArm", "LeftArmHelper", 0.0)  # zero-length helper: the shoulder is the deepest
+    r.insert_above("LeftForeArm", "LeftArmHelper", 0.0)  # zero-length helper below the shoulder: not the shoulder
     for s, x in (("Left", 1), ("Right", -1)):
         r.add_leaf(f"{s}Arm", f"{s}ArmTwist", (x * 0.1, 0, 0))
         r.add_leaf(f"{s}ForeArm", f"{s}ForeArmTwist", (x * 0.12, 0, 0))
@@ -49,9 +49,7 @@ def restructured(pose: str, up: str, height: float = 1.75) -> tuple[RigConventio
         a_pose(r, "LeftArm", "RightArm", 40.0)
     if up == "z":
         r.transform(Z_UP)
-    exp = dict(SYNTHETIC_ROLES)
-    exp["left_shoulder"] = "LeftArmHelper"
-    return r, exp
+    return r, dict(SYNTHETIC_ROLES)
 
 
 def renamed(m, how: str, seed: int = 0):

@@ -3,8 +3,8 @@
 What is asserted: each character of ``CHARACTERS`` is what its fields say (stature, unit, up
 axis, proportions 10-25 % off the actor's, rest pose, spine joints, fingers and no hand End
 Site, toes or none, twist bones, zero-length helpers), is deterministic, and the role finder
-puts the roles on the joints it was built with (the characters with twist joints inside the
-limb chains are a known failure: strict xfail); the joint-list edits keep the body.
+puts the roles on the joints it was built with (twist joints inside the limb chains and a
+zero-length helper at the shoulder included); the joint-list edits keep the body.
 """
 
 from __future__ import annotations
@@ -102,20 +102,16 @@ def test_characters_are_deterministic():
         assert np.array_equal(a.offsets, b.offsets) and np.array_equal(a.end_site_offsets, b.end_site_offsets)
 
 
-@pytest.mark.parametrize("name", [n for n in NAMES if n not in CHAIN_TWIST])
+@pytest.mark.parametrize("name", NAMES)
 def test_roles_found_where_built(name):
+    """Every character, those with twist joints inside the limb chains (and a zero-length helper at
+    the shoulder) included: the twist joints lie between the anatomical joints."""
     m, built = build_character(name)
     roles = Skeleton.from_motion(m).roles
     assert {k: roles.get(k) for k in built} == built
-
-
-@pytest.mark.xfail(strict=True, reason="twist joints inside the limb chains are taken for the shoulder, wrist, hip "
-                   "and ankle (repro.motion.body.role_structure: the two longest consecutive bones); issue 25")
-@pytest.mark.parametrize("name", sorted(CHAIN_TWIST))
-def test_roles_found_where_built_with_twist_joints_in_the_chains(name):
-    m, built = build_character(name)
-    roles = Skeleton.from_motion(m).roles
-    assert {k: roles.get(k) for k in built} == built
+    for side in ("left", "right") if name in CHAIN_TWIST else ():
+        between = _chain(m, built[f"{side}_shoulder"], built[f"{side}_elbow"])
+        assert between and all("twist" in n or "helper" in n for n in between)
 
 
 def test_refuses_an_unknown_character():

@@ -24,13 +24,6 @@ from repro.motion.database.synthetic.conventions import RigConvention
 from repro.motion.retargeting.morphology import retarget
 from repro.motion.retargeting.trees import retarget_across
 
-#: Until Skeleton.limb_lengths (repro/motion/body/skeleton.py, not this module's) measures a limb
-#: between its joints, a limb with a twist joint inside counts half a bone (the offset of the joint
-#: ending it), and the hip height, the root's scale, follows; with the role finder's twist reading
-#: too, these tests pass (the patch for skeleton.py is with the session's lead).
-pytestmark = pytest.mark.xfail(strict=True, reason="Skeleton.limb_lengths counts the bone ending at the elbow / knee "
-                               "only (half a bone with a twist joint inside): repro/motion/body/skeleton.py; issue 25")
-
 #: the bones that get a twist joint halfway: (joint the bone ends at, its parent)
 BONES = [(f"{s}{b}", f"{s}{a}") for s in ("Left", "Right")
          for a, b in (("Arm", "ForeArm"), ("ForeArm", "Hand"), ("UpLeg", "Leg"), ("Leg", "Foot"))]

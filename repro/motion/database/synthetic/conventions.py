@@ -320,8 +320,6 @@ def expected_roles(convention: str) -> dict[str, str]:
         exp.update(left_hand="L_Hand", right_hand="R_Hand", left_fist="L_Hand", right_fist="R_Hand")
     if convention == "secondlife":
         exp["spine"] = "mSpine1"  # first joint after the pelvis (zero-length, like CMU's lowerback)
-    if convention == "blender":
-        exp["left_shoulder"] = "upper_arm_helper.L"  # the deepest of the co-located shoulder joints
     return exp
 
 
