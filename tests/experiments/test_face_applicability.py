@@ -14,17 +14,8 @@ from repro.cli import main
 from repro.errors import ModelError
 from repro.experiments.lewis import common
 from repro.experiments.registry import call_experiment, get
+from tests.experiments.test_user_faces import ARKIT  # the embedded face's sliders as an exporter names them
 
-#: The embedded face's sliders and the ARKit targets an exporter names them (as in test_user_faces).
-ARKIT = {
-    "BrowInnerUp": "browInnerUp", "BrowUpLeft": "browOuterUp_L", "BrowUpRight": "browOuterUp_R",
-    "BrowDownLeft": "browDown_L", "BrowDownRight": "browDown_R", "BlinkLeft": "eyeBlink_L", "BlinkRight": "eyeBlink_R",
-    "EyeWideLeft": "eyeWide_L", "EyeWideRight": "eyeWide_R", "EyeSquintLeft": "eyeSquint_L", "EyeSquintRight": "eyeSquint_R",
-    "SneerLeft": "noseSneer_L", "SneerRight": "noseSneer_R", "CheekPuff": "cheekPuff", "JawOpen": "jawOpen",
-    "MouthPucker": "mouthPucker", "MouthFunnel": "mouthFunnel", "MouthStretchLeft": "mouthStretch_L",
-    "MouthStretchRight": "mouthStretch_R", "SmirkLeft": "mouthSmile_L", "SmirkRight": "mouthSmile_R",
-    "MouthFrownLeft": "mouthFrown_L", "MouthFrownRight": "mouthFrown_R",
-}
 LEWIS = ["fig2_interference", "fig3_attenuation", "fig4_axis_selection", "fig5_alpha", "alpha_sweep",
          "rejected_alternatives", "bounded_attenuation", "direct_manipulation"]
 
