@@ -159,9 +159,20 @@ def test_the_lock_pins_every_dependency_with_hashes():
 def test_setup_installs_from_the_lock_unless_asked_for_the_newest():
     setup = (REPO / "scripts" / "setup.sh").read_text()
     assert f"LOCK={LOCK.relative_to(REPO)}" in setup
+    # the lock hash-checked by uv (itself pinned and hash-checked), or by pip where uv cannot be installed
+    assert "install -q --require-hashes -r requirements/uv.txt" in setup
+    assert 'uv pip install --quiet --native-tls --python .venv/bin/python --require-hashes -r "$LOCK"' in setup
     assert 'install -q --require-hashes -r "$LOCK"' in setup
     assert "--no-deps --no-build-isolation -e ." in setup
     assert "REPRO_UNPINNED" in setup and "-e '.[dev]'" in setup
+
+
+def test_the_installer_uv_is_pinned_with_hashes():
+    """requirements/uv.txt: uv at one version, with a sha256 for (at least) both Linux wheels the lock is for."""
+    text = (REPO / "requirements" / "uv.txt").read_text().replace("\\\n", " ")
+    pins = [line.strip() for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
+    assert len(pins) == 1 and re.match(r"uv==\d+\.\d+\.\d+ ", pins[0]), pins
+    assert len(re.findall(r"--hash=sha256:[0-9a-f]{64}", pins[0])) >= 2
 
 
 def test_the_editable_install_is_a_plain_pth_file():
