@@ -161,7 +161,8 @@ def test_setup_installs_from_the_lock_unless_asked_for_the_newest():
     assert f"LOCK={LOCK.relative_to(REPO)}" in setup
     # the lock hash-checked by uv (itself pinned and hash-checked), or by pip where uv cannot be installed
     assert "install -q --require-hashes -r requirements/uv.txt" in setup
-    assert 'uv pip install --quiet --native-tls --python .venv/bin/python --require-hashes -r "$LOCK"' in setup
+    assert re.search(r'uv pip install --quiet --native-tls --compile-bytecode --python .venv/bin/python \\\s+'
+                     r'--require-hashes -r "\$LOCK"', setup)
     assert 'install -q --require-hashes -r "$LOCK"' in setup
     assert "--no-deps --no-build-isolation -e ." in setup
     assert "REPRO_UNPINNED" in setup and "-e '.[dev]'" in setup
