@@ -66,12 +66,14 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
     # uv installs the lock hash-checked as pip does, about four times faster (requirements/uv.txt: itself
     # pinned and hash-checked); --native-tls: the machine's certificates, as pip's; --compile-bytecode as
     # pip does (under PYTHONDONTWRITEBYTECODE, set on this machine kind, every process would otherwise compile
-    # every module it imports: the suite took 6 min 50 s instead of 5 min 19 s).  pip where uv cannot be had.
-    if pip_quiet install -q --require-hashes -r requirements/uv.txt && [ -x .venv/bin/uv ]; then
-      .venv/bin/uv pip install --quiet --native-tls --compile-bytecode --python .venv/bin/python \
-        --require-hashes -r "$LOCK"
+    # every module it imports: the suite took 6 min 50 s instead of 5 min 19 s).  pip where uv cannot be had
+    # or cannot install (uv reads neither pip.conf nor PIP_INDEX_URL: a machine with its own package index).
+    if pip_quiet install -q --require-hashes -r requirements/uv.txt && [ -x .venv/bin/uv ] \
+       && .venv/bin/uv pip install --quiet --native-tls --compile-bytecode --python .venv/bin/python \
+            --require-hashes -r "$LOCK"; then
+      :
     else
-      echo "setup: uv could not be installed (above); installing the lock with pip instead (slower)"
+      echo "setup: uv could not install the lock (above); installing it with pip instead (slower)"
       pip_quiet install -q --require-hashes -r "$LOCK"
     fi
     pip_quiet install -q --no-deps --no-build-isolation -e .

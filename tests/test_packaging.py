@@ -162,7 +162,7 @@ def test_setup_installs_from_the_lock_unless_asked_for_the_newest():
     # the lock hash-checked by uv (itself pinned and hash-checked), or by pip where uv cannot be installed
     assert "install -q --require-hashes -r requirements/uv.txt" in setup
     assert re.search(r'uv pip install --quiet --native-tls --compile-bytecode --python .venv/bin/python \\\s+'
-                     r'--require-hashes -r "\$LOCK"', setup)
+                     r'--require-hashes -r "\$LOCK"; then', setup)
     assert 'install -q --require-hashes -r "$LOCK"' in setup
     assert "--no-deps --no-build-isolation -e ." in setup
     assert "REPRO_UNPINNED" in setup and "-e '.[dev]'" in setup
