@@ -101,7 +101,8 @@ def draw(table: pd.DataFrame):
                 ax.set_yscale("log")
             ax.set_title(f"{model}: {label}", fontsize=9)
             ax.grid(alpha=0.3, axis="y")
-        row[0].legend(fontsize=8)
+    handles, labels = axes[0, 0].get_legend_handles_labels()  # one legend above the panels: none covers a bar
+    fig.legend(handles, labels, loc="outside upper center", ncols=len(METHODS), fontsize=8)
     return fig
 
 
