@@ -338,3 +338,32 @@ def test_reads_gzip_and_binary_streams(tmp_path):
     (tmp_path / "broken.bvh.gz").write_bytes(gzip.compress(SMALL.encode())[:-20])
     with pytest.raises(BVHError, match="gzip"):
         read_bvh(tmp_path / "broken.bvh.gz")
+
+
+def _six_channel_child(values: str) -> Motion:
+    """A root and one child with six channels, one frame: ``values`` are the child's Xposition Yposition
+    Zposition after the root's six zeros and before its own three rotation zeros."""
+    text = SMALL.replace("JOINT Spine\n  {\n    OFFSET 0.1 5.2 -0.3\n    CHANNELS 3 Zrotation Yrotation Xrotation",
+                         "JOINT Spine\n  {\n    OFFSET 0.1 5.2 -0.3\n    CHANNELS 6 Xposition Yposition Zposition "
+                         "Zrotation Yrotation Xrotation")
+    head, _, _ = text.partition("Frames: 3")
+    return _read(head + f"Frames: 1\nFrame Time: 0.0083333\n0 0 0 0 0 0 {values} 0 0 0 0 0 0\n")
+
+
+def test_position_channels_below_the_root_equal_to_the_offset_replace_it():
+    """MotionBuilder / Bandai Namco / mocopi: a joint's position channels are its whole local translation."""
+    m = _six_channel_child("0.1 5.2 -0.3")
+    np.testing.assert_allclose(m.positions[0, 1], [0.1, 5.2, -0.3])
+    m = _six_channel_child("0.2 6.0 -0.3")  # a stretched spine: the channel, not offset + channel
+    np.testing.assert_allclose(m.positions[0, 1], [0.2, 6.0, -0.3])
+
+
+def test_position_channels_below_the_root_near_zero_are_displacements_from_the_offset(tmp_path):
+    """MakeHuman's exporter writes, below the root, the displacement from OFFSET: zeros at rest.  Read as a
+    replacement, the spine would have no length."""
+    m = _six_channel_child("0.000001 0 -0.000002")
+    np.testing.assert_allclose(m.positions[0, 1], [0.100001, 5.2, -0.300002])
+    np.testing.assert_allclose(m.global_positions()[0, 1] - m.global_positions()[0, 0], [0.100001, 5.2, -0.300002])
+    # written back, the positions are whole translations, read the same way again
+    back = read_bvh(write_bvh(m, tmp_path / "again.bvh"))
+    np.testing.assert_allclose(back.positions, m.positions, atol=1e-9)

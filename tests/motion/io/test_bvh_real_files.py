@@ -98,3 +98,16 @@ def test_cmu_rest_pose_height_matches_provenance(take, units, metres):
     assert still.end_site_positions()[0, names.index("head"), 1] == (
         still.end_site_positions()[0].max(axis=0)[1]
     )  # the head top is the highest point
+
+
+@pytest.mark.data("cmu-bvh")  # the formats corpus is staged with the mocap data
+def test_makehuman_position_channels_are_displacements():
+    """MakeHuman's default rig writes six channels on 143 joints below the root, all about zero (its
+    exporter's pose matrices are relative to the rest pose): its frame is its rest pose, not a point."""
+    m = read_bvh(data.data_dir() / "mocap/formats/realrigs/makehuman_default_rig_tpose.bvh")
+    below = [j for j in range(m.n_joints) if m.parents[j] >= 0 and m.position_mask[j].any()]
+    assert len(below) == 143
+    np.testing.assert_allclose(m.positions[0, below], m.offsets[below], atol=5e-4)  # displacements of 1e-6..1.2e-4
+    g = m.global_positions()[0]
+    ankle, head = m.joint_index("foot.L"), m.joint_index("head")
+    assert 6.0 < g[head, 2] - g[ankle, 2] < 16.6  # Z-up decimetres: the head well above the ankle
