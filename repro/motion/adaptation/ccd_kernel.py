@@ -153,11 +153,19 @@ def _ball_step(e, g, rw, k, q, q_orig, lim, out):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _hinge_step(e, g, rw, ml, tl, k, h_loc, lo, hi, q, out):  # pragma: no cover - compiled
-    """Turn the hinge at path position ``k`` about its axis to point ``e`` at ``g``, flexion kept in ``[lo, hi]``."""
+def _hinge_step(e, g, rw, ml, tl, k, kp, h_prox, lo, hi, q, out):  # pragma: no cover - compiled
+    """Turn the hinge at path position ``k`` about its axis to point ``e`` at ``g``, flexion kept in ``[lo, hi]``.
+
+    ``h_prox``: the axis in the frame of the limb's proximal joint (path position ``kp``); with twist joints
+    between them, in the hinge's parent's frame (position ``k - 1``) it turns with their twist."""
     h = np.empty(3)
     for r in range(3):
-        h[r] = rw[k - 1, r, 0] * h_loc[0] + rw[k - 1, r, 1] * h_loc[1] + rw[k - 1, r, 2] * h_loc[2]
+        h[r] = rw[kp, r, 0] * h_prox[0] + rw[kp, r, 1] * h_prox[1] + rw[kp, r, 2] * h_prox[2]
+    h_loc = h_prox
+    if kp != k - 1:
+        h_loc = np.empty(3)
+        for r in range(3):
+            h_loc[r] = rw[k - 1, 0, r] * h[0] + rw[k - 1, 1, r] * h[1] + rw[k - 1, 2, r] * h[2]
     de = e[0] * h[0] + e[1] * h[1] + e[2] * h[2]
     dg = g[0] * h[0] + g[1] * h[1] + g[2] * h[2]
     ep = e - de * h
@@ -205,7 +213,7 @@ def _turn_joint(f, k, kind, lo, hi, goal, wg, l1, l2, reach_max, kp, finish, h_l
         g = goal[f] - pj
     qn = np.empty(4)
     if kind == HINGE:
-        _hinge_step(e, g, rw, ml, tl, k, h_loc, lo, hi, ql[f, k], qn)
+        _hinge_step(e, g, rw, ml, tl, k, kp, h_loc, lo, hi, ql[f, k], qn)
     else:
         _ball_step(e, g, rw, k, ql[f, k], q0[f, k], lo, qn)
     n = math.sqrt(qn[0] * qn[0] + qn[1] * qn[1] + qn[2] * qn[2] + qn[3] * qn[3])

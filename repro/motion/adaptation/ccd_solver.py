@@ -358,7 +358,8 @@ def _turn_joint(ch, k, kind, lim, goal, Wg_fixed, reach, q0, ql, ml, tl, rw, pw,
         e = _hit(ch, rw, pw) - pj
         g = goal - pj
     if kind == "hinge":
-        qn = _hinge_step(e, g, rw[:, k - 1], ml[:, k], tl[:, k], tl[:, k + 1], ch.hinge_loc, lim, active, ql[:, k])
+        qn = _hinge_step(e, g, rw[:, k - 1], ml[:, k], tl[:, k], tl[:, k + 1], ch.hinge_loc, lim, active, ql[:, k],
+                         None if kp == k - 1 else rw[:, kp])
     else:
         qn = _ball_step(e, g, None if k == 0 else rw[:, k - 1], ql[:, k], q0[:, k], lim, active)
     # only the active frames change (not even by the normalisation's ulp): a frame's
@@ -369,16 +370,28 @@ def _turn_joint(ch, k, kind, lim, goal, Wg_fixed, reach, q0, ql, ml, tl, rw, pw,
     chain_fk_from(ml, tl, rw, pw, k)
 
 
-def _hinge_step(e, g, r_parent, m_joint, up, low, h_loc, lim, active, q):
-    """Turn a hinge about its axis to point ``e`` at ``g``, flexion kept within ``lim``."""
-    h = matvec(r_parent, h_loc)
+def _hinge_step(e, g, r_parent, m_joint, up, low, h_loc, lim, active, q, r_prox=None):
+    """Turn a hinge about its axis to point ``e`` at ``g``, flexion kept within ``lim``.
+
+    ``h_loc``: the axis in the proximal joint's frame, the hinge's parent unless ``r_prox`` (its world rotation)
+    is given: twist joints between them, and the axis in the parent's frame turns with their twist."""
+    if r_prox is None:
+        h = matvec(r_parent, h_loc)
+    else:
+        h = matvec(r_prox, h_loc)
+        h_loc = matvec_t(r_parent, h)  # (n, 3): per frame
     ep = e - dot(e, h)[:, None] * h
     gp = g - dot(g, h)[:, None] * h
     theta = np.arctan2(dot(h, cross(ep, gp)), dot(ep, gp))
     lw = matvec(m_joint, low)
-    up = up - (up @ h_loc)[:, None] * h_loc
-    lw = lw - (lw @ h_loc)[:, None] * h_loc
-    phi = np.arctan2(cross(up, lw) @ h_loc, dot(up, lw))
+    if r_prox is None:
+        up = up - (up @ h_loc)[:, None] * h_loc
+        lw = lw - (lw @ h_loc)[:, None] * h_loc
+        phi = np.arctan2(cross(up, lw) @ h_loc, dot(up, lw))
+    else:
+        up = up - dot(up, h_loc)[:, None] * h_loc
+        lw = lw - dot(lw, h_loc)[:, None] * h_loc
+        phi = np.arctan2(dot(cross(up, lw), h_loc), dot(up, lw))
     lo = np.minimum(lim[0], phi)
     hi = np.maximum(lim[1], phi)
     th = np.where(active, np.clip(phi + theta, lo, hi) - phi, 0.0)

@@ -177,3 +177,24 @@ def test_compiled_sweeps_give_the_same_strikes_on_real_rigs(synthetic_db, name):
         assert np.array_equal(a.adaptation.solver, b.adaptation.solver)
         n_ccd += int(np.sum(a.adaptation.solver == "ccd"))
     assert n_ccd > 0  # CCD ran
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_plain_ccd_turns_the_elbow_about_the_same_axis_with_twist_joints(compiled):
+    """Twist segments inside the upper arm and forearm (MakeHuman's ``upperarm02``, ``lowerarm02``), each turned
+    about its bone by up to 35 degrees: the same body, so plain CCD (no limb finish) gives the same arm.  The
+    elbow's hinge axis is fixed in the upper arm's (proximal) frame, not in the twist segment's above the elbow."""
+    from tests.motion.adaptation.test_limb import _with_twist_joints
+
+    m = fixture_motion(n_frames=6, seed=5)
+    twisted = _with_twist_joints(m, ["RightForeArm", "RightHand"], 35.0 * np.arange(1, 7) / 6)
+    frames = np.arange(m.n_frames)
+    goal = m.global_positions()[:, IDX["RightHand"]] + np.array([0.05, -0.08, 0.03])
+    kw = dict(finish_with_limb=False, max_iter=200, tol=1e-3, compiled=compiled)
+    a = ccd(m, frames, "right_wrist", goal, **kw)
+    b = ccd(twisted, frames, "right_wrist", goal, **kw)
+    assert a.residual.max() < 0.01 and b.residual.max() < 0.01
+    keep = [twisted.joint_names.index(n) for n in m.joint_names]
+    ga = with_rotations(m, frames, a.rotations).global_positions()
+    gb = with_rotations(twisted, frames, b.rotations).global_positions()[:, keep]
+    np.testing.assert_allclose(gb, ga, atol=1e-9)
