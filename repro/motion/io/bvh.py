@@ -466,7 +466,8 @@ def _displacements(offsets: np.ndarray, parents, values: np.ndarray, pos_j, pos_
         return out
     v = np.median(values[:, np.asarray(pos_col)[below]], axis=0)
     o = offsets[np.asarray(pos_j)[below], np.asarray(pos_axis)[below]]
-    to_zero, to_offset = float(np.abs(v).sum()), float(np.abs(v - o).sum())
+    with np.errstate(over="ignore"):  # lengths near the float limit: an infinite sum still compares
+        to_zero, to_offset = float(np.abs(v).sum()), float(np.abs(v - o).sum())
     if to_zero < DISPLACEMENT_RATIO * to_offset:
         out[below] = True
     return out
