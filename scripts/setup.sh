@@ -84,7 +84,7 @@ fi
 # repro's own modules compiled (only what changed since the last time): each of the suite's many processes
 # (notebook kernels, workers, the CLI) then reads them instead of compiling them again where
 # PYTHONDONTWRITEBYTECODE keeps Python from writing them itself (about 0.25 s a process here)
-.venv/bin/python -m compileall -q -j 0 repro >/dev/null
+.venv/bin/python -m compileall -q -j 0 repro
 
 # the project's IPython kernel configuration (no first-use messages in notebook outputs)
 mkdir -p .venv/etc/ipython
