@@ -34,7 +34,7 @@ in the tests):
   computed by :func:`repro.motion.core.quaternion.euler_to_quat`, equal to scipy's to 1e-12 and
   about 20 times faster here);
 * position channels *replace* the matching components of the joint's OFFSET (for the
-  CMU root the offset is zero; the Bandai Namco, MotionBuilder and mocopi files give every joint
+  CMU root the offset is zero; the Bandai Namco, mocopi and Blender files give every joint
   position channels equal to its offset), except in files written the other way: MakeHuman's
   exporter writes, below the root, the displacement from the OFFSET (zeros in the rest pose).
   A file whose position channels below the root stay near zero while their OFFSETs do not
@@ -452,8 +452,9 @@ def read_bvh(src, *, unit_m: float | None = None, strict: bool = False) -> Motio
 
 #: Position channels below the root are displacements from the joints' OFFSETs (not replacements) when the
 #: sum over them of ``|median over frames of the channel|`` is below this fraction of the sum of
-#: ``|median - OFFSET|``.  Measured on the data here: 1.2e-5 for MakeHuman's default rig, at least 4.8 (Bandai
-#: Namco) for files that replace; the two conventions are far apart.
+#: ``|median - OFFSET|``.  Measured on the data here: 1.2e-5 for MakeHuman's default rig; for the files that
+#: replace, 12.7 (a Bandai Namco punch, whose translations move about their OFFSETs) to infinite (mocopi, whose
+#: channels equal them): the two conventions are far apart.
 DISPLACEMENT_RATIO = 0.05
 
 

@@ -351,7 +351,7 @@ def _six_channel_child(values: str) -> Motion:
 
 
 def test_position_channels_below_the_root_equal_to_the_offset_replace_it():
-    """MotionBuilder / Bandai Namco / mocopi: a joint's position channels are its whole local translation."""
+    """Bandai Namco / mocopi / Blender: a joint's position channels are its whole local translation."""
     m = _six_channel_child("0.1 5.2 -0.3")
     np.testing.assert_allclose(m.positions[0, 1], [0.1, 5.2, -0.3])
     m = _six_channel_child("0.2 6.0 -0.3")  # a stretched spine: the channel, not offset + channel
