@@ -2,7 +2,9 @@
 
 import re
 import tomllib
+from pathlib import Path
 
+import pytest
 import yaml
 
 from tests.conftest import REPO
@@ -183,3 +185,19 @@ def test_the_editable_install_is_a_plain_pth_file():
     item 3: a newcomer sees only setup.sh's own lines)."""
     setuptools_cfg = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
     assert setuptools_cfg["package-dir"] == {"": "."}
+
+
+def test_the_environment_setup_installed_is_the_lock():
+    """Where scripts/setup.sh installed the lock (its stamp says unpinned=0) and this is its .venv: every locked
+    package at its locked version (a tool a developer adds later is not the set-up's: not checked)."""
+    import importlib.metadata
+    import sys
+
+    stamp = REPO / ".venv" / ".repro-installed"
+    if Path(sys.prefix).resolve() != (REPO / ".venv").resolve() or not stamp.is_file():
+        pytest.skip("not the .venv scripts/setup.sh made")
+    if not stamp.read_text().strip().endswith("unpinned=0"):
+        pytest.skip("set up with REPRO_UNPINNED=1 (the newest versions, not the lock)")
+    installed = {d.metadata["Name"].lower().replace("_", "-"): d.version for d in importlib.metadata.distributions()}
+    wrong = {n: (v, installed.get(n)) for n, (v, _) in _locked().items() if installed.get(n) != v}
+    assert not wrong, f"locked version vs installed: {wrong}"
