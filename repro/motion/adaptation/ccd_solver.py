@@ -35,7 +35,7 @@ import numpy as np
 
 from repro.checks import as_bool, as_int, as_real, as_real_array, describe
 from repro.errors import MotionError
-from repro.motion.adaptation.limb import limb_dmax, solve_limb
+from repro.motion.adaptation.limb import limb_dmax, limb_lengths, solve_limb
 from repro.motion.adaptation.rig import (
     Chain,
     Rig,
@@ -237,15 +237,8 @@ def ccd_sweeps(
     ``compiled``: the sweeps by :func:`repro.motion.adaptation.ccd_kernel.ccd_frames` (numba),
     else by numpy over all frames at once (the same poses to rounding).
     """
-    kp, km, kd = ch.k_prox, ch.k_mid, ch.k_dist
-    if km == kp + 1 and kd == km + 1:
-        l1 = vector_norm(trans[:, ch.path[km]])
-        l2 = vector_norm(trans[:, ch.path[kd]])
-    else:  # twist joints inside the bones: the distances between the limb's joints
-        _, pw0 = chain_fk(quat_to_matrix(rot[:, ch.path[: kd + 1]]), trans[:, ch.path[: kd + 1]])
-        l1 = vector_norm(pw0[:, km] - pw0[:, kp])
-        l2 = vector_norm(pw0[:, kd] - pw0[:, km])
-    Wg_fixed = None
+    kp, kd = ch.k_prox, ch.k_dist
+    Wg_fixed = pw = None
     if finish:
         # the sweeps turn only joints above the limb and read only its root (shoulder / hip):
         # forward kinematics stops there; the hand / foot keeps its start world orientation
@@ -255,6 +248,8 @@ def ccd_sweeps(
         P = ch.path[: kp + 1]
     else:
         P = ch.path
+    # across twist joints inside the bones too (then from the positions the finish computed, if it did)
+    l1, l2 = limb_lengths(ch, rot, trans, None if pw is None else pw[:, : kd + 1])
     L = l1 + l2
     reach_max = L if dmax is None else np.minimum(dmax, L)
     # with the analytic finish, the limb's own joints are left to the limb step: only

@@ -145,16 +145,25 @@ def solve_limb(
     return hit, np.abs(dn - dc)
 
 
+def limb_lengths(ch: Chain, rot: np.ndarray, trans: np.ndarray, pw: np.ndarray | None = None):
+    """Per frame ``(l1, l2)``: the proximal->middle and middle->distal lengths of the pose ``rot``.  The
+    bones' offsets; with twist joints inside the bones, the distances between the limb's joints (``pw``
+    the world positions along ``ch.path`` up to the distal joint, computed when not given)."""
+    if ch.k_mid - ch.k_prox == 1 and ch.k_dist - ch.k_mid == 1:
+        return vector_norm(trans[:, ch.mid]), vector_norm(trans[:, ch.dist])
+    if pw is None:
+        P = ch.path[: ch.k_dist + 1]
+        _, pw = chain_fk(quat_to_matrix(rot[:, P]), trans[:, P])
+    return vector_norm(pw[:, ch.k_mid] - pw[:, ch.k_prox]), vector_norm(pw[:, ch.k_dist] - pw[:, ch.k_mid])
+
+
 def limb_dmax(ch: Chain, ref: np.ndarray, trans: np.ndarray, max_extension: float) -> np.ndarray:
     """Per frame ``min(L, max(max_extension * L, |distal - proximal|))`` in the pose ``ref``
-    (``L`` the proximal->middle plus middle->distal distances: the bone offsets, or the
-    segments' lengths with twist joints inside them)."""
+    (``L`` the limb's two lengths, :func:`limb_lengths`)."""
     P = ch.path[: ch.k_dist + 1]
     _, pw = chain_fk(quat_to_matrix(ref[:, P]), trans[:, P])
-    if ch.k_mid - ch.k_prox == 1 and ch.k_dist - ch.k_mid == 1:
-        L = vector_norm(trans[:, ch.mid]) + vector_norm(trans[:, ch.dist])
-    else:
-        L = vector_norm(pw[:, ch.k_mid] - pw[:, ch.k_prox]) + vector_norm(pw[:, ch.k_dist] - pw[:, ch.k_mid])
+    l1, l2 = limb_lengths(ch, ref, trans, pw)
+    L = l1 + l2
     d = vector_norm(pw[:, ch.k_dist] - pw[:, ch.k_prox])
     return np.minimum(L, np.maximum(max_extension * L, d))
 

@@ -242,14 +242,18 @@ class Skeleton:
         """Length of the bone ending at a joint (``|offset|``), file units."""
         return float(self.bone_lengths[self.index(name_or_role)])
 
-    def _segment(self, top: str, role: str) -> float:
-        """Rest distance from ``top`` down to ``role``: the bone ending at ``role`` when ``top`` is
-        its parent, else across the twist joints between them (MakeHuman ``upperarm02.L``)."""
-        j, t = self.index(role), self.index(top)
-        if self.parents[j] == t:
-            return self.bone_length(role)
+    def segment_lengths(self, top, bottom) -> np.ndarray:
+        """Rest distances from joints ``top`` down to joints ``bottom`` (indices, broadcast): the bone
+        ending at ``bottom`` when ``top`` is its parent, else across the twist joints between them
+        (MakeHuman ``upperarm02.L``), which lie on the bone."""
+        top, bottom = np.asarray(top, dtype=np.intp), np.asarray(bottom, dtype=np.intp)
         P = self._rest_positions
-        return float(np.linalg.norm(P[j] - P[t]))
+        return np.where(self.parents[bottom] == top, self.bone_lengths[bottom],
+                        np.linalg.norm(P[bottom] - P[top], axis=-1))
+
+    def _segment(self, top: str, role: str) -> float:
+        """:meth:`segment_lengths` from joint or role ``top`` down to ``role``."""
+        return float(self.segment_lengths(self.index(top), self.index(role)))
 
     def rest_positions(self) -> np.ndarray:
         """(J, 3) joint positions of the rest pose (all rotations identity), file units."""

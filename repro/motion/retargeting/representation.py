@@ -212,19 +212,11 @@ def limb_indices(sk: Skeleton) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.n
 
 
 def limb_segments(sk: Skeleton, prox, mid, dist) -> tuple[np.ndarray, np.ndarray]:
-    """Upper and lower bone lengths of limbs: proximal -> middle and middle -> distal.
-
-    A middle (distal) joint whose parent is the proximal (middle) one: its bone length; with
-    twist joints between them (MakeHuman ``upperarm02.L``): the distance between the two
-    joints in the rest pose (the twist joints lie on the bone)."""
+    """Upper and lower bone lengths of limbs: proximal -> middle and middle -> distal
+    (:meth:`~repro.motion.body.skeleton.Skeleton.segment_lengths`: across twist joints, MakeHuman
+    ``upperarm02.L``, the rest distance between the limb's joints)."""
     prox, mid, dist = (np.atleast_1d(np.asarray(x, dtype=np.intp)) for x in (prox, mid, dist))
-    bl, P = sk.bone_lengths, sk.rest_positions()
-
-    def seg(a, b):
-        direct = sk.parents[b] == a
-        return np.where(direct, bl[b], np.linalg.norm(P[b] - P[a], axis=-1))
-
-    return seg(prox, mid), seg(mid, dist)
+    return sk.segment_lengths(prox, mid), sk.segment_lengths(mid, dist)
 
 
 def root_path(sk: Skeleton) -> np.ndarray:

@@ -551,7 +551,7 @@ class TreePlan:
         e_up = _AXIS[self.up]
         ank = [tgt.index("left_ankle"), tgt.index("right_ankle")]
         hips = [tgt.index("left_hip"), tgt.index("right_hip")]
-        L = np.sum(limb_segments(tgt, hips, [tgt.index("left_knee"), tgt.index("right_knee")], ank), axis=0)
+        L = np.array([tgt.limb_lengths[f"{s}_leg"] for s in ("left", "right")])  # across twist joints too
         contacts = foot_contacts(motion, skeleton=self.source, global_positions=gp_s,
                                  up_axis=2 if self.up_source == "z" else 1)
         P = self._world(G, root_t)
